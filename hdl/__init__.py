@@ -1,0 +1,1 @@
+"""Gateware: SPI controller, MPU9250 driver, platform and top level."""

@@ -1,0 +1,79 @@
+"""Platform for an Intel MAX10 10M08SCU169C8G board.
+
+The default pinout follows the Arrow/Trenz MAX1000 (same 169-ball UBGA package): 12 MHz clock on
+H6, eight user LEDs, the FTDI UART, and the MPU9250 on the 8-pin PMOD header. Every pin is an
+entry of ``DEFAULT_PINOUT`` and can be overridden (``MAX10Platform(pinout={"imu_sclk": "J1"})``
+or ``build --pin imu_sclk=J1``). Check the table against your board's schematic before you
+program a device: a wrong clock or UART pin is harmless, a pin driven against another driver
+is not.
+
+========================  =====  ====================================================
+name                      pin    what
+========================  =====  ====================================================
+clk12                     H6     12 MHz oscillator (system clock)
+led0 .. led7              A8 A9 A11 A10 B10 C9 C10 D8  (status LEDs, active high)
+uart_tx                   B4     FPGA -> host (FTDI BDBUS1 on the MAX1000)
+uart_rx                   A4     host -> FPGA (FTDI BDBUS0), unused for now
+imu_cs_n                  M3     PMOD pin 1: MPU9250 NCS
+imu_copi                  L3     PMOD pin 2: MPU9250 SDI/SDA
+imu_cipo                  M2     PMOD pin 3: MPU9250 SDO/AD0
+imu_sclk                  M1     PMOD pin 4: MPU9250 SCLK/SCL
+imu_int                   N3     PMOD pin 5: MPU9250 INT
+========================  =====  ====================================================
+"""
+
+from amaranth.build import Attrs, Clock, Pins, PinsN, Resource, Subsignal
+from amaranth.vendor import AlteraPlatform
+
+
+__all__ = ["DEFAULT_PINOUT", "MAX10Platform"]
+
+
+DEFAULT_PINOUT = {
+    "clk12": "H6",
+    **{f"led{i}": pin for i, pin in enumerate("A8 A9 A11 A10 B10 C9 C10 D8".split())},
+    "uart_tx": "B4",
+    "uart_rx": "A4",
+    "imu_cs_n": "M3",
+    "imu_copi": "L3",
+    "imu_cipo": "M2",
+    "imu_sclk": "M1",
+    "imu_int": "N3",
+}
+
+
+class MAX10Platform(AlteraPlatform):
+    device = "10M08SC"
+    package = "U169"
+    speed = "C8"
+    suffix = "G"
+    default_clk = "clk12"
+    clk_freq = 12e6
+    resources = []      # filled per instance from the pinout
+    connectors = []
+
+    def __init__(self, *, pinout=None, toolchain="Quartus"):
+        pinout = {**DEFAULT_PINOUT, **(pinout or {})}
+        unknown = set(pinout) - set(DEFAULT_PINOUT)
+        if unknown:
+            raise ValueError(f"unknown pin names {sorted(unknown)}; known: {sorted(DEFAULT_PINOUT)}")
+        self.pinout = pinout
+        io = Attrs(io_standard="3.3-V LVTTL")
+        self.resources = [
+            Resource("clk12", 0, Pins(pinout["clk12"], dir="i"), Clock(self.clk_freq), io),
+            *[Resource("led", i, Pins(pinout[f"led{i}"], dir="o"), io) for i in range(8)],
+            Resource("uart", 0,
+                     Subsignal("tx", Pins(pinout["uart_tx"], dir="o")),
+                     Subsignal("rx", Pins(pinout["uart_rx"], dir="i")), io),
+            Resource("imu_spi", 0,
+                     Subsignal("cs", PinsN(pinout["imu_cs_n"], dir="o")),
+                     Subsignal("clk", Pins(pinout["imu_sclk"], dir="o")),
+                     Subsignal("copi", Pins(pinout["imu_copi"], dir="o")),
+                     Subsignal("cipo", Pins(pinout["imu_cipo"], dir="i")),
+                     Subsignal("int", Pins(pinout["imu_int"], dir="i")), io),
+        ]
+        super().__init__(toolchain=toolchain)
+
+    @property
+    def device_name(self):
+        return f"{self.device}{self.package}{self.speed}{self.suffix}"

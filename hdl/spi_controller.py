@@ -1,0 +1,192 @@
+"""SPI controller for the MPU9250: mode 3, MSB first, two clock rates chosen per byte.
+
+Interface
+    ``i_stream`` (in):  bytes to send. Payload ``data`` (8), ``fast`` (1: use the fast clock),
+                        ``last`` (1: raise chip select after this byte). ``fast`` is taken from
+                        the first byte of a transaction and holds for the whole transaction.
+    ``o_stream`` (out): one received byte for every byte sent (full duplex), in order.
+    ``pins``:           ``sclk``, ``copi``, ``cs_n`` outputs (registered), ``cipo`` input
+                        (raw: it goes through an ``FFSynchronizer`` here).
+
+Timing (``SPITiming``, all in system clock cycles)
+    Each SCLK level lasts ``half`` cycles (``slow_half`` or ``fast_half``). Chip select falls
+    ``half`` cycles before the first falling SCLK edge (setup) and rises at least ``cs_hold``
+    cycles after the last rising edge; it then stays high for ``cs_gap`` cycles.
+    Mode 3: SCLK idles high, COPI changes on the falling edge, CIPO is captured
+    ``capture_delay`` cycles after the rising edge leaves its register: 2 cycles of synchroniser
+    plus ``cipo_delay`` for the round trip through the pins and the device's output delay.
+
+Throughput: 8 bits take ``16 * half`` cycles, plus ``capture_delay`` cycles between bytes
+(the controller waits for a byte's last bit before shifting the next one, which keeps the
+receive path a plain shift register) and one cycle per byte hand-off.
+"""
+
+import math
+from dataclasses import dataclass
+
+from amaranth import *
+from amaranth.lib import data, stream, wiring
+from amaranth.lib.cdc import FFSynchronizer
+from amaranth.lib.wiring import In, Out
+
+
+__all__ = ["SPITiming", "SPIPinsSignature", "SPIByte", "SPIController"]
+
+
+SYNC_STAGES = 2
+
+
+@dataclass(frozen=True)
+class SPITiming:
+    slow_half: int       # cycles per SCLK level, slow rate
+    fast_half: int       # cycles per SCLK level, fast rate
+    cs_hold: int         # cycles from the last rising SCLK edge to CS rising, at least
+    cs_gap: int          # cycles CS stays high between transactions
+    cipo_delay: int = 1  # extra cycles of CIPO round trip beyond the synchroniser
+
+    def __post_init__(self):
+        for name in ("slow_half", "fast_half", "cs_hold", "cs_gap"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"SPITiming.{name} must be at least 1 cycle")
+        if self.cipo_delay < 0:
+            raise ValueError("SPITiming.cipo_delay cannot be negative")
+
+    @property
+    def capture_delay(self):
+        return SYNC_STAGES + self.cipo_delay
+
+    @classmethod
+    def for_clock(cls, clk_freq, *, slow_hz=1e6, fast_hz=20e6, cs_hold_s=500e-9,
+                  min_half=2, cipo_delay=1):
+        """Derive cycle counts that never exceed the given SCLK rates.
+
+        ``min_half`` keeps at least two cycles per SCLK level so that, on hardware, CIPO is
+        sampled well inside its valid window (the MPU9250 changes SDO up to 100 ns after
+        the falling edge).
+        """
+        def half(hz):
+            return max(min_half, math.ceil(clk_freq / (2 * hz)))
+        hold = max(1, math.ceil(cs_hold_s * clk_freq))
+        return cls(slow_half=half(slow_hz), fast_half=half(fast_hz),
+                   cs_hold=hold, cs_gap=max(hold, half(slow_hz)), cipo_delay=cipo_delay)
+
+    def sclk_hz(self, clk_freq, fast):
+        return clk_freq / (2 * (self.fast_half if fast else self.slow_half))
+
+
+class SPIPinsSignature(wiring.Signature):
+    def __init__(self):
+        super().__init__({
+            "sclk": Out(1, init=1),
+            "copi": Out(1),
+            "cs_n": Out(1, init=1),
+            "cipo": In(1),
+        })
+
+
+SPIByte = data.StructLayout({"data": 8, "fast": 1, "last": 1})
+
+
+class SPIController(wiring.Component):
+    def __init__(self, timing):
+        self.timing = timing
+        super().__init__({
+            "i_stream": In(stream.Signature(SPIByte)),
+            "o_stream": Out(stream.Signature(8)),
+            "pins": Out(SPIPinsSignature()),
+            "busy": Out(1),
+        })
+
+    def elaborate(self, platform):
+        m = Module()
+        t = self.timing
+
+        cipo = Signal()
+        m.submodules.cipo_sync = FFSynchronizer(self.pins.cipo, cipo, stages=SYNC_STAGES)
+
+        timer = Signal(range(max(t.slow_half, t.fast_half, t.cs_hold, t.cs_gap) + 1))
+        fast = Signal()         # rate of the current transaction
+        last = Signal()         # current byte ends the transaction
+        tx = Signal(8)
+        bit = Signal(range(8))
+        half = Signal.like(timer)
+        m.d.comb += half.eq(Mux(fast, t.fast_half, t.slow_half))
+
+        # The capture strobe follows each rising edge through a delay line as long as the
+        # round trip, so the received bit is the one the device drove for that edge.
+        strobe = Signal(t.capture_delay)
+        rise = Signal()
+        m.d.sync += strobe.eq(Cat(rise, strobe[:-1]))
+        rx = Signal(8)
+        rx_count = Signal(range(9))
+        with m.If(strobe[-1]):
+            m.d.sync += [rx.eq(Cat(cipo, rx[:-1])), rx_count.eq(rx_count + 1)]
+
+        with m.If(self.o_stream.valid & self.o_stream.ready):
+            m.d.sync += self.o_stream.valid.eq(0)
+
+        def start_bit(value):
+            m.d.sync += [self.pins.sclk.eq(0), self.pins.copi.eq(value[7]), timer.eq(half - 1)]
+
+        m.d.comb += self.busy.eq(~self.pins.cs_n)
+
+        with m.FSM():
+            with m.State("IDLE"):
+                m.d.comb += self.i_stream.ready.eq(1)
+                with m.If(self.i_stream.valid):
+                    p = self.i_stream.payload
+                    m.d.sync += [
+                        tx.eq(p.data), fast.eq(p.fast), last.eq(p.last), bit.eq(0),
+                        self.pins.cs_n.eq(0),
+                        timer.eq(Mux(p.fast, t.fast_half, t.slow_half) - 1),
+                    ]
+                    m.next = "SETUP"
+            with m.State("SETUP"):
+                m.d.sync += timer.eq(timer - 1)
+                with m.If(timer == 0):
+                    start_bit(tx)
+                    m.next = "LOW"
+            with m.State("LOW"):
+                m.d.sync += timer.eq(timer - 1)
+                with m.If(timer == 0):
+                    m.d.sync += [self.pins.sclk.eq(1), timer.eq(half - 1)]
+                    m.d.comb += rise.eq(1)
+                    m.next = "HIGH"
+            with m.State("HIGH"):
+                m.d.sync += timer.eq(timer - 1)
+                with m.If(timer == 0):
+                    with m.If(bit == 7):
+                        m.next = "DRAIN"
+                    with m.Else():
+                        m.d.sync += [bit.eq(bit + 1), tx.eq(tx << 1)]
+                        start_bit(tx << 1)
+                        m.next = "LOW"
+            with m.State("DRAIN"):
+                # Wait for the last bit through the capture delay line and for the previous
+                # byte to be taken, then hand this one over.
+                with m.If((rx_count == 8) & ~self.o_stream.valid):
+                    m.d.sync += [self.o_stream.payload.eq(rx), self.o_stream.valid.eq(1),
+                                 rx_count.eq(0)]
+                    with m.If(last):
+                        m.d.sync += timer.eq(t.cs_hold - 1)
+                        m.next = "HOLD"
+                    with m.Else():
+                        m.next = "NEXT"
+            with m.State("NEXT"):
+                m.d.comb += self.i_stream.ready.eq(1)
+                with m.If(self.i_stream.valid):
+                    m.d.sync += [tx.eq(self.i_stream.payload.data), bit.eq(0),
+                                 last.eq(self.i_stream.payload.last)]
+                    start_bit(self.i_stream.payload.data)
+                    m.next = "LOW"
+            with m.State("HOLD"):
+                m.d.sync += timer.eq(timer - 1)
+                with m.If(timer == 0):
+                    m.d.sync += [self.pins.cs_n.eq(1), timer.eq(t.cs_gap - 1)]
+                    m.next = "GAP"
+            with m.State("GAP"):
+                m.d.sync += timer.eq(timer - 1)
+                with m.If(timer == 0):
+                    m.next = "IDLE"
+
+        return m

@@ -1,0 +1,133 @@
+"""Command line: ``python -m mpu9250_ahrs <verb>`` (or ``mpu9250-ahrs <verb>``)."""
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+
+VERBS_HELP = """verbs:
+  build      write the Quartus project for the 10M08SCU169 (top.v, top.qsf, top.sdc, build
+             scripts) without running Quartus; --verilog-only writes the core as plain Verilog
+  simulate   cycle-accurate co-simulation: the gateware brings an MPU9250 model up over SPI
+             and reads samples; prints them, the bring-up time and the simulator's speed
+"""
+
+
+def _int(text):
+    return int(text, 0)
+
+
+def _config(args):
+    from .hdl.mpu9250_driver import MPU9250Config
+    return MPU9250Config(gyro_fs_dps=args.gyro_fs, accel_fs_g=args.accel_fs,
+                         dlpf_cfg=args.dlpf, smplrt_div=args.smplrt_div,
+                         int_latched=not args.int_pulse)
+
+
+def _add_sensor_options(p):
+    p.add_argument("--gyro-fs", type=int, default=2000, metavar="DPS",
+                   help="gyro full scale: 250, 500, 1000 or 2000 °/s (default 2000)")
+    p.add_argument("--accel-fs", type=int, default=16, metavar="G",
+                   help="accelerometer full scale: 2, 4, 8 or 16 g (default 16)")
+    p.add_argument("--dlpf", type=int, default=1, help="CONFIG.DLPF_CFG 0..7 (default 1)")
+    p.add_argument("--smplrt-div", type=int, default=0,
+                   help="SMPLRT_DIV: rate = 1 kHz / (1 + div) (default 0)")
+    p.add_argument("--int-pulse", action="store_true",
+                   help="50 µs INT pulses instead of a latched INT")
+
+
+def cmd_build(args):
+    from amaranth.back import verilog
+    from .hdl.platform import MAX10Platform
+    from .hdl.top import AHRSCore, BoardTop
+
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    pinout = dict(p.split("=", 1) for p in args.pin)
+    platform = MAX10Platform(pinout=pinout)
+    if args.verilog_only:
+        core = AHRSCore(clk_freq=args.clk_freq or platform.default_clk_frequency,
+                        config=_config(args))
+        path = out / "mpu9250_ahrs_core.v"
+        path.write_text(verilog.convert(core, name="mpu9250_ahrs_core"))
+        print(f"wrote {path}")
+        return 0
+    plan = platform.build(BoardTop(config=_config(args)), name="top", do_build=False)
+    plan.extract(str(out))
+    print(f"wrote the Quartus project for {platform.device_name} to {out}/ "
+          f"(top.qsf, top.sdc, top.v, build_top.sh); see build/README.md")
+    return 0
+
+
+def cmd_simulate(args):
+    from .sim.cosim import SimSetup, run_frontend
+
+    setup = SimSetup(clk_freq=args.clk_freq or 12e6, config=_config(args),
+                     delay_scale=args.delay_scale, odr_scale=args.odr_scale)
+    model = setup.model(who_am_i=args.who_am_i)
+    result = run_frontend(setup, n_samples=args.samples, model=model, vcd=args.vcd)
+    for s in result.samples:
+        print(json.dumps({"counter": s["counter"], "accel": s["accel"], "temp": s["temp"],
+                          "gyro": s["gyro"], "mag": s["mag"], "flags": s["flags"]}))
+    summary = {
+        "samples": len(result.samples),
+        "cycles": result.cycles,
+        "bring_up_cycles": result.bring_up_cycles,
+        "bring_up_us": result.bring_up_cycles and result.bring_up_cycles / setup.clk_freq * 1e6,
+        "wall_s": round(result.wall_s, 3),
+        "cycles_per_s": round(result.cycles_per_s),
+        "status": result.status,
+        "violations": [str(v) for v in model.violations],
+        "time_scale": {"delays": setup.delay_scale, "sample_period": setup.odr_scale},
+    }
+    print(json.dumps(summary), file=sys.stderr if args.quiet_summary else sys.stdout)
+    if args.vcd:
+        print(f"wrote {args.vcd} and {str(args.vcd).rsplit('.', 1)[0]}.gtkw")
+    return 1 if model.violations else 0
+
+
+def build_parser():
+    parser = argparse.ArgumentParser(
+        prog="mpu9250-ahrs", description="MPU9250 attitude reference in FPGA gateware.",
+        epilog=VERBS_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = parser.add_subparsers(dest="verb", metavar="VERB", required=True)
+
+    p = sub.add_parser("build", help="write the Quartus project (or plain Verilog)",
+                       description="Write the Quartus Prime project for a 10M08SCU169C8G "
+                                   "without running Quartus. See build/README.md for the flow.")
+    p.add_argument("--out", default="out/quartus", help="output folder (default out/quartus)")
+    p.add_argument("--verilog-only", action="store_true",
+                   help="write only the core (no pin buffers) as mpu9250_ahrs_core.v")
+    p.add_argument("--pin", action="append", default=[], metavar="NAME=PIN",
+                   help="override a pin of the default pinout, e.g. imu_sclk=J1 (repeatable)")
+    p.add_argument("--clk-freq", type=float, default=None,
+                   help="system clock in Hz for --verilog-only (default: the board's 12 MHz)")
+    _add_sensor_options(p)
+    p.set_defaults(func=cmd_build)
+
+    p = sub.add_parser("simulate", help="co-simulate the gateware with the MPU9250 model",
+                       description="Bring-up plus N samples in Amaranth's simulator, with real "
+                                   "time scaled down (delays and sample period) to save cycles.")
+    p.add_argument("--samples", type=int, default=20, help="samples to read (default 20)")
+    p.add_argument("--vcd", default=None, help="write a VCD (and a GTKWave .gtkw beside it)")
+    p.add_argument("--who-am-i", type=_int, default=0x71,
+                   help="WHO_AM_I of the modelled part (default 0x71; 0x73 is an MPU9255)")
+    p.add_argument("--clk-freq", type=float, default=None, help="system clock, Hz (12e6)")
+    p.add_argument("--delay-scale", type=float, default=1e-3,
+                   help="scale of start-up and reset delays (default 1e-3)")
+    p.add_argument("--odr-scale", type=float, default=0.2,
+                   help="scale of the sample period (default 0.2)")
+    p.add_argument("--quiet-summary", action="store_true", help="summary to stderr")
+    _add_sensor_options(p)
+    p.set_defaults(func=cmd_simulate)
+    return parser
+
+
+def main(argv=None):
+    args = build_parser().parse_args(argv)
+    try:
+        return args.func(args)
+    except ValueError as e:
+        print(f"mpu9250-ahrs {args.verb}: error: {e}", file=sys.stderr)
+        return 2

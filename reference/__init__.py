@@ -1,0 +1,1 @@
+"""NumPy reference filters (float and bit-exact fixed point). Not yet written: see issue 4."""

@@ -1,0 +1,1 @@
+"""Behavioural models of the sensors, motion sources and the co-simulation harness."""

@@ -1,0 +1,318 @@
+"""Behavioural model of the MPU9250 as an SPI peripheral.
+
+The model is plain Python driven by pin events with time stamps in seconds, so it can be unit
+tested on its own and attached to Amaranth's simulator by ``sim.cosim`` (which feeds it the pin
+levels the gateware drives, one system clock at a time).
+
+What it does, as the part does (``shared/mpu9250-notes.md``):
+- SPI mode 3, MSB first: SDI latched on rising SCLK, SDO changed on falling SCLK. First byte:
+  bit 7 = read, bits 6..0 = address; bursts auto-increment (wrapping 0x7F -> 0x00).
+- A register file with the documented reset values (WHO_AM_I configurable: 0x71 MPU9250,
+  0x73 MPU9255); H_RESET, SLEEP, self-clearing USER_CTRL bits.
+- Registers cannot be reached for ``startup_s`` after power-up and ``reset_s`` after H_RESET.
+- New samples at the output data rate that CONFIG, GYRO_CONFIG.FCHOICE_B and SMPLRT_DIV select,
+  while awake. Sensor registers change atomically: a sample that becomes ready during a
+  transaction is committed when chip select rises, so a burst never mixes two samples.
+- INT_STATUS.RAW_RDY and the INT pin: latched (LATCH_INT_EN) or a ``int_pulse_s`` pulse,
+  active low with ACTL; cleared by reading INT_STATUS, or by any read with INT_ANYRD_2CLEAR.
+
+What it checks, recording a ``Violation`` (or raising ``ProtocolError`` if asked):
+SCLK above 1 MHz (or a level under 400 ns) on anything but a read of the sensor and interrupt
+registers, SCLK above 20 MHz at all, CS setup < 8 ns, CS hold < 500 ns, chip select raised in
+the middle of a byte, SCLK low when CS falls (not mode 3), access while the part is starting up,
+writes to read-only registers.
+
+Not modelled (yet): the FIFO, the auxiliary I2C master (issue 3), self-test, sensor warm-up.
+"""
+
+import math
+from dataclasses import dataclass, replace
+from typing import Optional
+
+from ..hdl import mpu9250_regs as R
+from .sources import SensorSample, constant_source
+
+
+__all__ = ["MPU9250Timing", "Violation", "ProtocolError", "MPU9250Model"]
+
+_EPS = 1e-12        # time comparisons: stamps come from integer cycle counts / clock frequency
+
+
+@dataclass(frozen=True)
+class MPU9250Timing:
+    """Real-world times of the part. Defaults are the datasheet's worst case."""
+    startup_s: float = 0.100    # power-up to register access: 11 ms typical, 100 ms max
+    reset_s: float = 0.100      # H_RESET to register access (drivers wait ~100 ms)
+    int_pulse_s: float = 50e-6  # INT pulse width with LATCH_INT_EN = 0
+    odr_scale: float = 1.0      # sample period multiplier: < 1 speeds simulations up
+
+    def scaled(self, delays=1.0, odr=1.0):
+        """Start-up and reset delays times ``delays``; sample period and pulse times ``odr``."""
+        return replace(self, startup_s=self.startup_s * delays, reset_s=self.reset_s * delays,
+                       int_pulse_s=self.int_pulse_s * odr, odr_scale=self.odr_scale * odr)
+
+
+@dataclass(frozen=True)
+class Violation:
+    time: float
+    kind: str
+    register: Optional[int]
+    detail: str
+
+    def __str__(self):
+        reg = "" if self.register is None else f" at register 0x{self.register:02X}"
+        return f"t = {self.time * 1e6:.3f} us: {self.kind}{reg}: {self.detail}"
+
+
+class ProtocolError(AssertionError):
+    pass
+
+
+class MPU9250Model:
+    SLOW_MAX_HZ = 1e6
+    FAST_MAX_HZ = 20e6
+    SLOW_MIN_LEVEL_S = 400e-9
+    FAST_MIN_LEVEL_S = 25e-9
+    CS_SETUP_S = 8e-9
+    CS_HOLD_S = 500e-9
+
+    def __init__(self, *, who_am_i=R.WHO_AM_I_MPU9250, timing=MPU9250Timing(), source=None,
+                 sleep_after_reset=False, raise_on_violation=False):
+        self.who_am_i = who_am_i
+        self.timing = timing
+        self.source = source or constant_source(SensorSample())
+        # The reset value of SLEEP comes from factory OTP; drivers must not rely on it.
+        self.sleep_after_reset = sleep_after_reset
+        self.raise_on_violation = raise_on_violation
+
+        self.violations = []
+        self.writes = []            # (t, address, value): every write the part accepted
+        self.samples = []           # SensorSample committed to the registers, in order
+        self.sample_times = []
+        self.sample_reads = []      # index into ``samples`` of each read of ACCEL_XOUT_H
+        self.produced = 0           # samples converted (some may be superseded before commit)
+        self.superseded = 0         # samples replaced by a newer one during one transaction
+        self.resets = 0
+
+        self.now = 0.0
+        self.regs = bytearray(128)
+        self._reset_registers()
+        self._busy_until = timing.startup_s
+        self._next_sample = None
+        self._pulse_end = None
+        self._pending = None
+        self._next_event = self._busy_until
+
+        self.sclk = 1
+        self.miso = 0
+        self.selected = False
+
+    # -- time -------------------------------------------------------------------------------------
+    @property
+    def busy(self):
+        return self._busy_until is not None
+
+    @property
+    def sample_period(self):
+        rate = R.output_data_rate(self.regs[R.CONFIG], self.regs[R.GYRO_CONFIG],
+                                  self.regs[R.SMPLRT_DIV])
+        return self.timing.odr_scale / rate
+
+    @property
+    def sampling(self):
+        return not self.busy and not (self.regs[R.PWR_MGMT_1] & R.PWR_MGMT_1_SLEEP)
+
+    @property
+    def next_event(self):
+        """Time of the next thing the model does on its own (None: nothing scheduled)."""
+        return self._next_event
+
+    def advance(self, t):
+        """Let time run up to ``t``: end start-up, convert samples, end INT pulses."""
+        while self._next_event is not None and self._next_event <= t + _EPS:
+            ev = self._next_event
+            if self._busy_until is not None and self._busy_until <= ev + _EPS:
+                self._busy_until = None
+                self._reschedule(ev)
+            elif self._pulse_end is not None and self._pulse_end <= ev + _EPS:
+                self._pulse_end = None
+            else:
+                self._next_sample = ev + self.sample_period
+                self._convert(ev)
+            self._update_next_event()
+        self.now = t
+
+    def _update_next_event(self):
+        events = [e for e in (self._busy_until, self._pulse_end, self._next_sample)
+                  if e is not None]
+        self._next_event = min(events) if events else None
+
+    def _reschedule(self, t):
+        # Sampling starts one period after the part wakes or its rate changes.
+        self._next_sample = t + self.sample_period if self.sampling else None
+        self._update_next_event()
+
+    def _convert(self, t):
+        sample = self.source(self.produced, t)
+        self.produced += 1
+        if self.selected:
+            if self._pending is not None:
+                self.superseded += 1
+            self._pending = (t, sample)
+        else:
+            self._commit(t, sample)
+
+    def _commit(self, t, sample):
+        self.regs[R.ACCEL_XOUT_H:R.ACCEL_XOUT_H + R.SENSOR_BYTES] = sample.to_bytes()
+        self.samples.append(sample)
+        self.sample_times.append(t)
+        self.regs[R.INT_STATUS] |= R.INT_STATUS_RAW_RDY
+        if self.regs[R.INT_ENABLE] & R.INT_ENABLE_RAW_RDY and \
+                not self.regs[R.INT_PIN_CFG] & R.INT_PIN_CFG_LATCH_INT_EN:
+            self._pulse_end = t + self.timing.int_pulse_s
+            self._update_next_event()
+
+    # -- INT pin ----------------------------------------------------------------------------------
+    @property
+    def int_active(self):
+        if self.regs[R.INT_PIN_CFG] & R.INT_PIN_CFG_LATCH_INT_EN:
+            return bool(self.regs[R.INT_STATUS] & self.regs[R.INT_ENABLE] & R.INT_ENABLE_RAW_RDY)
+        return self._pulse_end is not None
+
+    @property
+    def int_level(self):
+        """Logic level of the INT pin (push-pull; ACTL = 1 makes it active low)."""
+        active_low = bool(self.regs[R.INT_PIN_CFG] & R.INT_PIN_CFG_ACTL)
+        return int(self.int_active != active_low)
+
+    # -- registers --------------------------------------------------------------------------------
+    def _reset_registers(self):
+        self.regs[:] = bytes(128)
+        self.regs[R.PWR_MGMT_1] = R.PWR_MGMT_1_CLKSEL_AUTO | \
+            (R.PWR_MGMT_1_SLEEP if self.sleep_after_reset else 0)
+        self.regs[R.WHO_AM_I] = self.who_am_i
+
+    def _violation(self, kind, register, detail):
+        v = Violation(self.now, kind, register, detail)
+        self.violations.append(v)
+        if self.raise_on_violation:
+            raise ProtocolError(str(v))
+
+    def _read(self, addr):
+        value = self._snapshot[addr]
+        if addr == R.ACCEL_XOUT_H:
+            self.sample_reads.append(self._snapshot_sample)
+        if addr == R.INT_STATUS or self.regs[R.INT_PIN_CFG] & R.INT_PIN_CFG_ANYRD_2CLEAR:
+            self.regs[R.INT_STATUS] = 0
+        return value
+
+    def _write(self, addr, value):
+        if addr in R.READ_ONLY:
+            self._violation("write to a read-only register", addr, f"value 0x{value:02X}")
+            return
+        self.writes.append((self.now, addr, value))
+        if addr == R.PWR_MGMT_1 and value & R.PWR_MGMT_1_H_RESET:
+            self.resets += 1
+            self._reset_registers()
+            self._busy_until = self.now + self.timing.reset_s
+            self._next_sample = self._pulse_end = self._pending = None
+            self._update_next_event()
+            return
+        if addr == R.USER_CTRL:
+            value &= ~R.USER_CTRL_SELF_CLEARING
+        self.regs[addr] = value
+        if addr in (R.PWR_MGMT_1, R.CONFIG, R.GYRO_CONFIG, R.SMPLRT_DIV):
+            self._reschedule(self.now)
+
+    # -- SPI pins ---------------------------------------------------------------------------------
+    def cs_edge(self, t, cs_n):
+        """Chip select changed to ``cs_n`` at time ``t``."""
+        self.advance(t)
+        if not cs_n and not self.selected:
+            self.selected = True
+            self._t_cs = t
+            self._bits = 0
+            self._shift_in = 0
+            self._out = 0
+            self._reading = False
+            self._addr = None
+            self._last_rise = self._last_edge = self._first_fall = None
+            self._byte_timing = [math.inf, math.inf, math.inf]  # period, high, low
+            self._ignored = self.busy
+            if self.sclk == 0:
+                self._violation("SPI mode", None, "SCLK was low when CS fell; mode 3 idles high")
+            if self._ignored:
+                self._violation("access during start-up", None,
+                                f"part is busy for another {(self._busy_until - t) * 1e6:.3f} us")
+        elif cs_n and self.selected:
+            self.selected = False
+            if self._bits % 8:
+                self._violation("CS raised mid-byte", self._addr,
+                                f"{self._bits % 8} bits of a byte were sent")
+            if self._last_rise is not None and t - self._last_rise + _EPS < self.CS_HOLD_S:
+                self._violation("CS hold", self._addr,
+                                f"{(t - self._last_rise) * 1e9:.1f} ns < 500 ns")
+            self.miso = 0
+            if self._pending is not None:
+                self._commit(*self._pending)
+                self._pending = None
+
+    def sclk_edge(self, t, level, mosi):
+        """SCLK changed to ``level`` at time ``t``; ``mosi`` is the level of SDI then."""
+        self.advance(t)
+        previous, self.sclk = self.sclk, level
+        if not self.selected or previous == level:
+            return
+        timing = self._byte_timing
+        if self._last_edge is not None:
+            timing[2 if level else 1] = min(timing[2 if level else 1], t - self._last_edge)
+        self._last_edge = t
+        if not level:
+            if self._first_fall is None:
+                self._first_fall = t
+                if t - self._t_cs + _EPS < self.CS_SETUP_S:
+                    self._violation("CS setup", None, f"{(t - self._t_cs) * 1e9:.1f} ns < 8 ns")
+            if self._reading and self._bits % 8 == 0:
+                self._out = 0 if self._ignored else self._read(self._addr)
+                self._addr = (self._addr + 1) & 0x7F
+            self.miso = (self._out >> (7 - self._bits % 8)) & 1 if self._reading else 0
+        else:
+            if self._last_rise is not None:
+                timing[0] = min(timing[0], t - self._last_rise)
+            self._last_rise = t
+            self._shift_in = ((self._shift_in << 1) | (mosi & 1)) & 0xFF
+            self._bits += 1
+            if self._bits % 8 == 0:
+                self._byte_done(self._shift_in)
+
+    def _byte_done(self, byte):
+        first = self._bits == 8
+        if first:
+            self._reading = bool(byte & R.SPI_READ)
+            self._addr = byte & 0x7F
+            if self._reading:
+                self._snapshot = bytes(self.regs)
+                self._snapshot_sample = len(self.samples) - 1
+            register = self._addr
+        else:
+            register = (self._addr - 1) & 0x7F if self._reading else self._addr
+        self._check_rate(register)
+        if not first and not self._reading:
+            if not self._ignored:
+                self._write(self._addr, byte)
+            self._addr = (self._addr + 1) & 0x7F
+
+    def _check_rate(self, register):
+        period, high, low = self._byte_timing
+        self._byte_timing = [math.inf, math.inf, math.inf]
+        fast_ok = self._reading and R.FAST_READ_FIRST <= register <= R.FAST_READ_LAST
+        max_hz, min_level = ((self.FAST_MAX_HZ, self.FAST_MIN_LEVEL_S) if fast_ok else
+                             (self.SLOW_MAX_HZ, self.SLOW_MIN_LEVEL_S))
+        if period + _EPS < 1 / max_hz:
+            what = "sensor read" if fast_ok else "non-sensor register access"
+            self._violation("SCLK too fast", register,
+                            f"{1e-6 / period:.3f} MHz > {max_hz / 1e6:g} MHz for a {what}")
+        if min(high, low) + _EPS < min_level:
+            self._violation("SCLK level too short", register,
+                            f"high {high * 1e9:.1f} ns, low {low * 1e9:.1f} ns, "
+                            f"need {min_level * 1e9:.0f} ns")
