@@ -26,13 +26,18 @@ class UARTTransmitter(wiring.Component):
             "tx": Out(1, init=1),
         })
 
-    @classmethod
-    def for_baud(cls, clk_freq, baud):
+    @staticmethod
+    def divisor_for(clk_freq, baud):
+        """Cycles per bit for ``baud``; an error above 2 % would garble bytes, so it raises."""
         divisor = round(clk_freq / baud)
         error = abs(clk_freq / divisor - baud) / baud
         if error > 0.02:
             raise ValueError(f"{baud} baud from {clk_freq / 1e6:g} MHz is off by {error:.1%}")
-        return cls(divisor=divisor)
+        return divisor
+
+    @classmethod
+    def for_baud(cls, clk_freq, baud):
+        return cls(divisor=cls.divisor_for(clk_freq, baud))
 
     def elaborate(self, platform):
         m = Module()

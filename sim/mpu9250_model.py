@@ -87,11 +87,9 @@ class MPU9250Model:
 
         self.violations = []
         self.writes = []            # (t, address, value): every write the part accepted
-        self.samples = []           # SensorSample committed to the registers, in order
+        self.samples = []           # SensorSample written to the registers, in order
         self.sample_times = []
         self.sample_reads = []      # index into ``samples`` of each read of ACCEL_XOUT_H
-        self.produced = 0           # samples converted (some may be superseded before commit)
-        self.superseded = 0         # samples replaced by a newer one during one transaction
         self.resets = 0
 
         self.now = 0.0
@@ -100,7 +98,6 @@ class MPU9250Model:
         self._busy_until = timing.startup_s
         self._next_sample = None
         self._pulse_end = None
-        self._pending = None
         self._next_event = self._busy_until
 
         self.sclk = 1
@@ -153,16 +150,7 @@ class MPU9250Model:
         self._update_next_event()
 
     def _convert(self, t):
-        sample = self.source(self.produced, t)
-        self.produced += 1
-        if self.selected:
-            if self._pending is not None:
-                self.superseded += 1
-            self._pending = (t, sample)
-        else:
-            self._commit(t, sample)
-
-    def _commit(self, t, sample):
+        sample = self.source(len(self.samples), t)
         self.regs[R.ACCEL_XOUT_H:R.ACCEL_XOUT_H + R.SENSOR_BYTES] = sample.to_bytes()
         self.samples.append(sample)
         self.sample_times.append(t)
@@ -215,7 +203,7 @@ class MPU9250Model:
             self.resets += 1
             self._reset_registers()
             self._busy_until = self.now + self.timing.reset_s
-            self._next_sample = self._pulse_end = self._pending = None
+            self._next_sample = self._pulse_end = None
             self._update_next_event()
             return
         if addr == R.USER_CTRL:
@@ -253,9 +241,6 @@ class MPU9250Model:
                 self._violation("CS hold", self._addr,
                                 f"{(t - self._last_rise) * 1e9:.1f} ns < 500 ns")
             self.miso = 0
-            if self._pending is not None:
-                self._commit(*self._pending)
-                self._pending = None
 
     def sclk_edge(self, t, level, mosi):
         """SCLK changed to ``level`` at time ``t``; ``mosi`` is the level of SDI then."""

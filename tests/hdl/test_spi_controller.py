@@ -1,0 +1,164 @@
+"""SPI controller against a small mode-3 device model, at several divisors and burst lengths."""
+
+import pytest
+from amaranth.sim import Simulator
+
+from mpu9250_ahrs.hdl.spi_controller import SPIController, SPITiming
+
+
+def response_byte(index):
+    return (0x5A + 37 * index) & 0xFF
+
+
+def run(timing, transactions, *, consumer_stall=0, vcd=None):
+    """Send ``transactions`` (list of (bytes, fast)); return what the device and the controller
+    received and the pin events the device saw as (cycle, name, value)."""
+    dut = SPIController(timing)
+    sim = Simulator(dut)
+    sim.add_clock(1e-6)
+    dev = {"rx": [], "events": [], "byte_in": 0, "bits": 0, "sent": 0, "done": False}
+    got = []
+    total = sum(len(b) for b, _ in transactions)
+
+    async def device(ctx):
+        # A mode-3 device with a one-cycle output delay: it samples the pins as flip-flops do,
+        # changes CIPO after a falling edge and latches COPI on a rising edge.
+        cycle = 0
+        prev_cs, prev_sclk = 1, 1
+        out = 0
+        async for _, _, cs_n, sclk, copi in ctx.tick().sample(dut.pins.cs_n, dut.pins.sclk,
+                                                               dut.pins.copi):
+            cycle += 1
+            if cs_n != prev_cs:
+                dev["events"].append((cycle, "cs_n", cs_n))
+                if not cs_n:
+                    dev["bits"] = 0
+            if sclk != prev_sclk:
+                dev["events"].append((cycle, "sclk", sclk))
+                if not cs_n and not sclk:
+                    if dev["bits"] % 8 == 0:
+                        out = response_byte(dev["sent"])
+                        dev["sent"] += 1
+                    ctx.set(dut.pins.cipo, (out >> (7 - dev["bits"] % 8)) & 1)
+                elif not cs_n and sclk:
+                    dev["byte_in"] = ((dev["byte_in"] << 1) | copi) & 0xFF
+                    dev["bits"] += 1
+                    if dev["bits"] % 8 == 0:
+                        dev["rx"].append(dev["byte_in"])
+            if cs_n and sclk == 0:
+                dev["events"].append((cycle, "error", "SCLK low while CS is high"))
+            prev_cs, prev_sclk = cs_n, sclk
+
+    async def producer(ctx):
+        for data, fast in transactions:
+            for i, byte in enumerate(data):
+                ctx.set(dut.i_stream.payload, {"data": byte, "fast": fast,
+                                               "last": i == len(data) - 1})
+                ctx.set(dut.i_stream.valid, 1)
+                await ctx.tick().until(dut.i_stream.ready)
+                ctx.set(dut.i_stream.valid, 0)
+
+    async def consumer(ctx):
+        # Ready for one cycle after every ``consumer_stall`` cycles (always, if 0).
+        ctx.set(dut.o_stream.ready, 1)
+        while len(got) < total:
+            if consumer_stall:
+                ctx.set(dut.o_stream.ready, 0)
+                await ctx.tick().repeat(consumer_stall)
+                ctx.set(dut.o_stream.ready, 1)
+            await ctx.tick()
+        await ctx.tick().until(dut.pins.cs_n)       # let CS rise and the gap pass
+        await ctx.tick().repeat(timing.cs_gap + 4)
+
+    async def collector(ctx):
+        async for _, _, valid, ready, payload in ctx.tick().sample(
+                dut.o_stream.valid, dut.o_stream.ready, dut.o_stream.payload):
+            if valid and ready:
+                got.append(payload)
+
+    sim.add_process(device)
+    sim.add_process(collector)
+    sim.add_testbench(producer)
+    sim.add_testbench(consumer)
+    if vcd:
+        with sim.write_vcd(vcd, vcd.replace(".vcd", ".gtkw"),
+                           traces=[dut.pins.cs_n, dut.pins.sclk, dut.pins.copi, dut.pins.cipo]):
+            sim.run()
+    else:
+        sim.run()
+    return dev, got
+
+
+def levels(events):
+    """Durations in cycles of each SCLK level inside transactions, and CS framing figures."""
+    out = {"low": [], "high": [], "setup": [], "hold": [], "gap": []}
+    last_sclk = last_cs = None
+    prev_cs_rise = None
+    for cycle, name, value in events:
+        if name == "error":
+            raise AssertionError(value)
+        if name == "cs_n" and value == 0:
+            if prev_cs_rise is not None:
+                out["gap"].append(cycle - prev_cs_rise)
+            last_cs, last_sclk = cycle, None
+        elif name == "cs_n" and value == 1:
+            out["hold"].append(cycle - last_sclk[0])
+            prev_cs_rise = cycle
+        elif name == "sclk":
+            if last_sclk is None:
+                out["setup"].append(cycle - last_cs)
+            else:
+                out["high" if value == 0 else "low"].append(cycle - last_sclk[0])
+            last_sclk = (cycle, value)
+    return out
+
+
+TIMINGS = [
+    SPITiming(slow_half=3, fast_half=1, cs_hold=2, cs_gap=3),
+    SPITiming(slow_half=6, fast_half=2, cs_hold=6, cs_gap=6),
+    SPITiming(slow_half=5, fast_half=3, cs_hold=1, cs_gap=1),
+    SPITiming(slow_half=7, fast_half=4, cs_hold=9, cs_gap=2, cipo_delay=1),
+]
+
+
+@pytest.mark.parametrize("timing", TIMINGS, ids=lambda t: f"slow{t.slow_half}_fast{t.fast_half}")
+@pytest.mark.parametrize("length", [1, 2, 16])
+def test_transfers(timing, length, vcd):
+    transactions = [(bytes((0xA5 ^ (i * 29)) & 0xFF for i in range(length)), fast)
+                    for fast in (0, 1)]
+    dev, got = run(timing, transactions, vcd=vcd())
+    sent = [b for data, _ in transactions for b in data]
+    assert dev["rx"] == sent
+    assert got == [response_byte(i) for i in range(len(sent))]
+
+    lv = levels(dev["events"])
+    # SCLK levels: exactly ``half`` inside a byte; a high level between bytes may be longer.
+    halves = {timing.slow_half, timing.fast_half}
+    assert set(lv["low"]) <= halves
+    assert min(lv["high"]) in halves
+    assert lv["setup"] == [timing.slow_half, timing.fast_half]
+    assert min(lv["hold"]) >= timing.cs_hold
+    assert min(lv["gap"]) >= timing.cs_gap
+
+
+@pytest.mark.parametrize("timing", TIMINGS[:2], ids=lambda t: f"slow{t.slow_half}")
+def test_consumer_backpressure(timing):
+    transactions = [(bytes(range(1, 9)), 1)]
+    dev, got = run(timing, transactions, consumer_stall=40)
+    assert dev["rx"] == list(range(1, 9))
+    assert got == [response_byte(i) for i in range(8)]
+
+
+@pytest.mark.parametrize("clk_freq", [12e6, 25e6, 50e6, 100e6])
+def test_timing_for_clock_meets_datasheet(clk_freq):
+    t = SPITiming.for_clock(clk_freq)
+    assert t.sclk_hz(clk_freq, fast=False) <= 1e6 + 1e-6
+    assert t.slow_half / clk_freq >= 400e-9              # SCLK high/low at the slow rate
+    assert t.sclk_hz(clk_freq, fast=True) <= 20e6 + 1e-6
+    assert t.cs_hold / clk_freq >= 500e-9 - 1e-12
+    assert t.fast_half >= 2
+
+
+def test_timing_rejects_zero():
+    with pytest.raises(ValueError, match="fast_half"):
+        SPITiming(slow_half=2, fast_half=0, cs_hold=1, cs_gap=1)

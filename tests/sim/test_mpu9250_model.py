@@ -1,0 +1,297 @@
+"""The MPU9250 model on its own: register semantics, SPI checks, sample timing, INT pin."""
+
+import pytest
+
+from mpu9250_ahrs.hdl import mpu9250_regs as R
+from mpu9250_ahrs.sim.mpu9250_model import MPU9250Model, MPU9250Timing, ProtocolError
+from mpu9250_ahrs.sim.sources import SensorSample, counting_source, table_source
+
+
+class Host:
+    """Drives the model's pins like an SPI mode-3 controller; time in seconds."""
+
+    def __init__(self, model, t=0.0):
+        self.model, self.t = model, t
+
+    def wait(self, seconds):
+        self.t += seconds
+        self.model.advance(self.t)
+
+    def transfer(self, data, *, half=0.5e-6, setup=None, hold=0.5e-6, sclk_idle=1,
+                 bits=None):
+        m = self.model
+        if sclk_idle == 0:
+            m.sclk_edge(self.t, 0, 0)
+        m.cs_edge(self.t, 0)
+        self.t += half if setup is None else setup
+        rx = []
+        nbits = 8 * len(data) if bits is None else bits
+        for i in range(nbits):
+            byte, bit = divmod(i, 8)
+            mosi = (data[byte] >> (7 - bit)) & 1
+            m.sclk_edge(self.t, 0, mosi)
+            self.t += half
+            if bit == 0:
+                rx.append(0)
+            rx[-1] = (rx[-1] << 1) | m.miso
+            m.sclk_edge(self.t, 1, mosi)
+            self.t += half
+        self.t += hold - half
+        m.cs_edge(self.t, 1)
+        self.t += 1e-6
+        return bytes(rx)
+
+    def read(self, addr, n=1, **kw):
+        return self.transfer(bytes([R.SPI_READ | addr]) + bytes(n), **kw)[1:]
+
+    def write(self, addr, *values, **kw):
+        self.transfer(bytes([addr, *values]), **kw)
+
+
+FAST = dict(half=0.05e-6)        # 10 MHz
+
+
+def ready_model(**kw):
+    """A model past its start-up time, with fast simulated time constants."""
+    kw.setdefault("timing", MPU9250Timing(startup_s=1e-3, reset_s=1e-3))
+    m = MPU9250Model(**kw)
+    host = Host(m)
+    host.wait(1.1e-3)
+    return m, host
+
+
+def kinds(model):
+    return [v.kind for v in model.violations]
+
+
+def test_who_am_i_and_reset_values():
+    m, host = ready_model()
+    assert host.read(R.WHO_AM_I) == bytes([0x71])
+    assert host.read(R.PWR_MGMT_1) == bytes([0x01])
+    assert host.read(R.CONFIG) == bytes([0x00])
+    assert m.violations == []
+
+
+def test_who_am_i_configurable():
+    m, host = ready_model(who_am_i=0x73)
+    assert host.read(R.WHO_AM_I) == bytes([0x73])
+
+
+def test_access_during_start_up_is_ignored_and_reported():
+    m = MPU9250Model(timing=MPU9250Timing(startup_s=1e-3))
+    host = Host(m)
+    assert host.read(R.WHO_AM_I) == bytes([0x00])
+    host.write(R.CONFIG, 0x03)
+    assert kinds(m) == ["access during start-up"] * 2
+    host.wait(1e-3)
+    assert host.read(R.CONFIG) == bytes([0x00])      # the write was ignored
+
+
+def test_write_read_back_and_burst_auto_increment():
+    m, host = ready_model()
+    host.write(R.SMPLRT_DIV, 0x04, 0x03, 0x08)      # SMPLRT_DIV, CONFIG, GYRO_CONFIG
+    assert host.read(R.SMPLRT_DIV, 3) == bytes([0x04, 0x03, 0x08])
+    assert [(a, v) for _, a, v in m.writes] == [(0x19, 4), (0x1A, 3), (0x1B, 8)]
+
+
+def test_user_ctrl_self_clearing_bits():
+    m, host = ready_model()
+    host.write(R.USER_CTRL, R.USER_CTRL_I2C_IF_DIS | 0x07)
+    assert host.read(R.USER_CTRL) == bytes([R.USER_CTRL_I2C_IF_DIS])
+
+
+def test_write_to_read_only_register_is_a_violation():
+    m, host = ready_model()
+    host.write(R.WHO_AM_I, 0x00)
+    assert kinds(m) == ["write to a read-only register"]
+    assert m.violations[0].register == R.WHO_AM_I
+    assert host.read(R.WHO_AM_I) == bytes([0x71])
+
+
+def test_raise_on_violation():
+    m, host = ready_model(raise_on_violation=True)
+    with pytest.raises(ProtocolError, match="read-only"):
+        host.write(R.ACCEL_XOUT_H, 0x00)
+
+
+def test_fast_clock_allowed_only_for_sensor_reads():
+    m, host = ready_model()
+    host.read(R.INT_STATUS, 15, **FAST)                 # 10 MHz sensor burst: fine
+    assert m.violations == []
+    host.read(R.WHO_AM_I, **FAST)                       # 10 MHz on WHO_AM_I: too fast
+    assert kinds(m) and set(kinds(m)) <= {"SCLK too fast", "SCLK level too short"}
+    assert all(v.register == R.WHO_AM_I for v in m.violations)
+    m.violations.clear()
+    host.write(R.CONFIG, 1, **FAST)                     # writes are never fast
+    assert "SCLK too fast" in kinds(m)
+
+
+def test_sclk_above_20_mhz_is_a_violation():
+    m, host = ready_model()
+    host.read(R.ACCEL_XOUT_H, 6, half=0.02e-6)          # 25 MHz
+    assert "SCLK too fast" in kinds(m)
+
+
+def test_1_mhz_is_allowed_everywhere():
+    m, host = ready_model()
+    host.write(R.CONFIG, 1, half=0.5e-6)
+    host.read(R.WHO_AM_I, half=0.5e-6)
+    assert m.violations == []
+
+
+@pytest.mark.parametrize("kw,kind", [
+    (dict(hold=0.3e-6), "CS hold"),
+    (dict(setup=5e-9), "CS setup"),
+    (dict(sclk_idle=0), "SPI mode"),
+    (dict(bits=12), "CS raised mid-byte"),
+])
+def test_cs_framing_violations(kw, kind):
+    m, host = ready_model()
+    data = bytes([R.SPI_READ | R.WHO_AM_I, 0])
+    host.transfer(data, **kw)
+    assert kind in kinds(m)
+
+
+def test_h_reset_restores_defaults_and_blocks_access():
+    m, host = ready_model()
+    host.write(R.CONFIG, 0x05)
+    host.write(R.PWR_MGMT_1, R.PWR_MGMT_1_H_RESET)
+    host.read(R.WHO_AM_I)
+    assert kinds(m) == ["access during start-up"]
+    host.wait(1e-3)
+    assert host.read(R.CONFIG) == bytes([0]) and host.read(R.PWR_MGMT_1) == bytes([0x01])
+    assert m.resets == 1
+
+
+@pytest.mark.parametrize("config,gyro_config,div,rate", [
+    (1, 0, 0, 1000), (1, 0, 4, 200), (3, 0, 9, 100), (0, 0, 9, 8000), (7, 0, 0, 8000),
+    (1, 1, 9, 32000), (1, 2, 0, 32000),
+])
+def test_output_data_rate(config, gyro_config, div, rate):
+    m, host = ready_model()
+    host.write(R.SMPLRT_DIV, div, config, gyro_config)
+    n0, t0 = len(m.samples), host.t
+    host.wait(0.05)
+    produced = len(m.samples) - n0
+    assert abs(produced - rate * (host.t - t0)) <= 1
+    assert m.sample_period == pytest.approx(1 / rate)
+
+
+def test_sleep_stops_sampling():
+    m, host = ready_model()
+    host.write(R.PWR_MGMT_1, R.PWR_MGMT_1_SLEEP | 1)
+    n = len(m.samples)
+    host.wait(0.01)
+    assert len(m.samples) == n
+
+
+def test_sleep_after_reset_from_otp():
+    m, host = ready_model(sleep_after_reset=True)
+    assert host.read(R.PWR_MGMT_1) == bytes([0x41])
+    assert m.samples == []
+
+
+def test_sensor_registers_are_big_endian():
+    sample = SensorSample(accel=(0x1234, -2, 3), temp=-300, gyro=(-32768, 32767, 0))
+    m, host = ready_model(source=table_source([sample]))
+    host.wait(1.5e-3)
+    assert host.read(R.ACCEL_XOUT_H, R.SENSOR_BYTES, **FAST) == bytes.fromhex(
+        "1234" "fffe" "0003" "fed4" "8000" "7fff" "0000")
+
+
+def test_burst_is_atomic():
+    m, host = ready_model(source=counting_source())
+    host.wait(2e-3)
+    host.t = m.next_event - 50e-6               # the next sample is due mid-burst
+    before = m.samples[-1]
+    # A 1 MHz burst (~ 120 µs) straddling the sample time must return one sample, whole.
+    data = host.read(R.ACCEL_XOUT_H, R.SENSOR_BYTES, half=0.5e-6)
+    assert data == before.to_bytes()
+    assert m.samples[-1] != before               # the new sample landed after CS rose
+    assert m.sample_reads == [m.samples.index(before)]
+
+
+def test_sample_during_burst_raises_int_for_the_next_read():
+    m, host = ready_model(source=counting_source())
+    enable_int(host, R.INT_PIN_CFG_LATCH_INT_EN)
+    wait_for_sample(m, host)
+    host.t = m.next_event - 50e-6
+    first = host.read(R.INT_STATUS, 1 + R.SENSOR_BYTES, half=0.5e-6)   # clears, then a sample
+    assert first[0] == 1 and m.int_level == 1
+    second = host.read(R.INT_STATUS, 1 + R.SENSOR_BYTES, **FAST)
+    assert second[1:] == m.samples[-1].to_bytes() != first[1:]
+    assert m.int_level == 0
+
+
+def enable_int(host, cfg):
+    host.write(R.INT_PIN_CFG, cfg)
+    host.write(R.INT_ENABLE, R.INT_ENABLE_RAW_RDY)
+
+
+def wait_for_sample(m, host):
+    n = len(m.samples)
+    while len(m.samples) == n:
+        host.wait(m.next_event - host.t + 1e-9)
+
+
+def test_int_latched_until_int_status_read():
+    m, host = ready_model()
+    enable_int(host, R.INT_PIN_CFG_LATCH_INT_EN)
+    host.read(R.INT_STATUS)
+    wait_for_sample(m, host)
+    assert m.int_level == 1
+    host.wait(200e-6)
+    assert m.int_level == 1
+    host.read(R.WHO_AM_I)                    # other reads do not clear it
+    assert m.int_level == 1
+    assert host.read(R.INT_STATUS) == bytes([1])
+    assert m.int_level == 0
+
+
+def test_int_anyrd_2clear():
+    m, host = ready_model()
+    enable_int(host, R.INT_PIN_CFG_LATCH_INT_EN | R.INT_PIN_CFG_ANYRD_2CLEAR)
+    wait_for_sample(m, host)
+    assert m.int_level == 1
+    host.read(R.WHO_AM_I)
+    assert m.int_level == 0
+
+
+def test_int_active_low():
+    m, host = ready_model()
+    enable_int(host, R.INT_PIN_CFG_LATCH_INT_EN | R.INT_PIN_CFG_ACTL)
+    host.read(R.INT_STATUS)
+    assert m.int_level == 1
+    wait_for_sample(m, host)
+    assert m.int_level == 0
+
+
+def test_int_pulse_is_50_us():
+    m, host = ready_model()
+    enable_int(host, 0)
+    wait_for_sample(m, host)
+    t_sample = m.sample_times[-1]
+    host.t = t_sample + 49e-6
+    host.wait(0)
+    assert m.int_level == 1
+    host.wait(2e-6)
+    assert m.int_level == 0
+    assert m.regs[R.INT_STATUS] & 1                   # status stays until read
+
+
+def test_int_disabled_keeps_pin_low():
+    m, host = ready_model()
+    host.write(R.INT_PIN_CFG, R.INT_PIN_CFG_LATCH_INT_EN)
+    wait_for_sample(m, host)
+    assert m.int_level == 0
+
+
+def test_timing_scaled():
+    t = MPU9250Timing().scaled(delays=1e-3, odr=0.5)
+    assert t.startup_s == pytest.approx(100e-6) and t.reset_s == pytest.approx(100e-6)
+    assert t.int_pulse_s == pytest.approx(25e-6) and t.odr_scale == 0.5
+
+
+def test_sample_out_of_range_rejected():
+    with pytest.raises(ValueError, match="signed 16-bit"):
+        SensorSample(accel=(40000, 0, 0))
