@@ -94,3 +94,34 @@ def output_data_rate(config, gyro_config_value, smplrt_div):
     if dlpf in (0, 7):
         return 8_000.0
     return 1_000.0 / (1 + smplrt_div)
+
+
+# -- auxiliary I2C master -------------------------------------------------------------------------
+I2C_SLV_ADDR = (0x25, 0x28, 0x2B, 0x2E)   # SLV0..SLV3: ADDR, then REG, CTRL
+I2C_SLV4_ADDR = 0x31
+I2C_SLV4_REG  = 0x32
+I2C_SLV4_DO   = 0x33
+I2C_SLV4_CTRL = 0x34
+I2C_SLV4_DI   = 0x35
+I2C_SLV_DO    = (0x63, 0x64, 0x65, 0x66)
+I2C_MST_DELAY_CTRL = 0x67
+
+I2C_SLV_RNW = 0x80            # in I2C_SLVx_ADDR
+I2C_SLV_EN = 0x80             # in I2C_SLVx_CTRL
+I2C_SLV_BYTE_SW = 0x40
+I2C_SLV_REG_DIS = 0x20
+I2C_SLV_GRP = 0x10
+I2C_SLV_LENG = 0x0F
+I2C_SLV4_INT_EN = 0x40
+I2C_SLV4_MST_DLY = 0x1F
+
+I2C_MST_CTRL_WAIT_FOR_ES = 0x40
+I2C_MST_CLK_400KHZ = 13
+# I2C_MST_CLK[3:0] -> master clock in kHz (register map, I2C_MST_CTRL)
+I2C_MST_CLK_KHZ = (348, 333, 320, 308, 296, 286, 276, 267, 258, 500, 471, 444, 421, 400, 381, 364)
+
+I2C_MST_STATUS_SLV4_DONE = 0x40
+I2C_MST_STATUS_SLV4_NACK = 0x10
+I2C_MST_STATUS_LOST_ARB = 0x20
+
+MPU9250_I2C_ADDRESS = 0x68    # 0x69 with AD0 high

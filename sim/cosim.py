@@ -20,12 +20,14 @@ from amaranth.sim import Simulator
 from ..hdl.mpu9250_driver import DriverTiming, MPU9250Config
 from ..hdl.sensor_frontend import SensorFrontEnd
 from .mpu9250_model import MPU9250Model, MPU9250Timing
-from .sources import counting_source
+from ..hdl import ak8963_regs as A
+from .ak8963_model import AK8963Model, AK8963Timing
+from .sources import counting_field, counting_source
 from .telemetry import to_python
 
 
 __all__ = ["CosimHarness", "attach_mpu9250", "attach_stuck_miso", "SimSetup", "CosimResult", "run_frontend",
-           "sample_matches"]
+           "sample_matches", "expected_mag"]
 
 
 class CosimHarness(Elaboratable):
@@ -123,8 +125,16 @@ class SimSetup:
         return SensorFrontEnd(clk_freq=self.clk_freq, config=self.config,
                               timing=self.driver_timing(), **kwargs)
 
-    def model(self, **kwargs):
+    def ak8963(self, **kwargs):
+        kwargs.setdefault("source", counting_field())
+        return AK8963Model(timing=AK8963Timing().scaled(odr=self.odr_scale), **kwargs)
+
+    def model(self, *, magnetometer=True, **kwargs):
+        """An MPU9250 model (counting sensor values) with an AK8963 on its auxiliary bus
+        (``model.aux_devices[0x0C]``) unless ``magnetometer`` is False."""
         kwargs.setdefault("source", counting_source())
+        if magnetometer:
+            kwargs.setdefault("aux_devices", {A.I2C_ADDRESS: self.ak8963()})
         return MPU9250Model(timing=self.model_timing(), **kwargs)
 
 
@@ -137,6 +147,7 @@ class CosimResult:
     wall_s: float
     model: Optional[MPU9250Model]
     status_log: List[tuple] = field(default_factory=list)   # (cycle, status dict) on change
+    asa: List[int] = field(default_factory=list)            # the driver's asa port at the end
 
     @property
     def cycles_per_s(self):
@@ -144,10 +155,23 @@ class CosimResult:
 
 
 def sample_matches(design_sample, model_sample):
-    """True if a sample out of the gateware carries exactly the model's register values."""
+    """True if a sample out of the gateware carries exactly the model's accel/temp/gyro."""
     return (tuple(design_sample["accel"]) == model_sample.accel and
             design_sample["temp"] == model_sample.temp and
             tuple(design_sample["gyro"]) == model_sample.gyro)
+
+
+def expected_mag(ak_bytes, mag_ok=True):
+    """Magnetometer fields and flags a sample must carry, from the AK8963 bytes ST1..ST2 the
+    sensor read returned (independent of the gateware's own parsing)."""
+    if not mag_ok:
+        return [0, 0, 0], {"mag_valid": 0, "mag_overflow": 0, "mag_new": 0, "mag_dor": 0}
+    st1, st2 = ak_bytes[0], ak_bytes[7]
+    mag = [int.from_bytes(ak_bytes[1 + 2 * i:3 + 2 * i], "little", signed=True)
+           for i in range(3)]
+    new, hofl = st1 & A.ST1_DRDY, bool(st2 & A.ST2_HOFL)
+    return mag, {"mag_valid": int(bool(new) and not hofl), "mag_overflow": int(hofl),
+                 "mag_new": int(bool(new)), "mag_dor": int(bool(st1 & A.ST1_DOR))}
 
 
 def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cycles=None,
@@ -164,7 +188,10 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
         model = setup.model()
     if max_cycles is None:
         period = setup.sample_period_s * setup.clk_freq
-        bring_up = 3 * (dut.driver.power_up_cycles + dut.driver.reset_cycles) + 20_000
+        # Three bring-up attempts' waits, plus the magnetometer's SLV4 transfers (each waits
+        # for a sample tick of the MPU9250's I2C master).
+        bring_up = 3 * (dut.driver.power_up_cycles + dut.driver.reset_cycles) + \
+            40 * period + 20_000
         max_cycles = int(bring_up + (n_samples + 3) * period * 1.5)
 
     harness = CosimHarness(dut, dut.pins, dut.int_pin)
@@ -175,7 +202,7 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
     else:
         attach_stuck_miso(sim, harness, stuck_miso)
 
-    out = {"samples": [], "status": None, "cycles": 0, "bring_up": None, "log": []}
+    out = {"samples": [], "status": None, "cycles": 0, "bring_up": None, "log": [], "asa": []}
 
     class Done(Exception):
         pass
@@ -221,7 +248,7 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
                     ctx.set(dut.samples.ready, ready(cycle + 1))
                     observe(cycle + 1, taken, payload, status)
         except Done:
-            return
+            out["asa"] = to_python(ctx.get(dut.asa))
     sim.add_testbench(testbench)
 
     start = time.perf_counter()
@@ -235,4 +262,4 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
         sim.run()
     wall = time.perf_counter() - start
     return CosimResult(out["samples"], out["status"], out["cycles"], out["bring_up"], wall,
-                       model, out["log"])
+                       model, out["log"], out["asa"])

@@ -22,7 +22,15 @@ registers, SCLK above 20 MHz at all, CS setup < 8 ns, CS hold < 500 ns, chip sel
 the middle of a byte, SCLK low when CS falls (not mode 3), access while the part is starting up,
 writes to read-only registers.
 
-Not modelled (yet): the FIFO, the auxiliary I2C master (issue 3), self-test, sensor warm-up.
+Auxiliary I2C master (USER_CTRL.I2C_MST_EN): at every sample tick the enabled slots SLV0..SLV3
+run in order, reads filling EXT_SENS_DATA in slot order (BYTE_SW, GRP, REG_DIS, the
+I2C_MST_DELAY_CTRL / I2C_MST_DLY pacing), then SLV4's single-byte transfer, which sets
+I2C_MST_STATUS.SLV4_DONE (and SLV4_NACK) and clears its enable. Results appear after the
+transfers' duration at the I2C_MST_CLK rate; with WAIT_FOR_ES the sample and its data-ready
+interrupt wait for them too. Devices sit in ``aux_devices``; an absent address NACKs.
+
+Not modelled: the FIFO, self-test, sensor warm-up, the primary I2C interface's own pins (that is
+``sim.i2c_bus``, which uses ``read_reg``/``write_reg`` here).
 """
 
 import math
@@ -35,6 +43,19 @@ from .sources import SensorSample, constant_source
 
 __all__ = ["MPU9250Timing", "Violation", "ProtocolError", "MPU9250Model"]
 
+
+def _swap_pairs(data, reg, grp):
+    """BYTE_SW: swap the two bytes of each word read whole. Words start at even register
+    addresses (GRP = 0) or odd ones (GRP = 1)."""
+    out = list(data)
+    k = 0
+    if (reg & 1) != grp:
+        k = 1                                   # the first byte is the second half of a word
+    while k + 1 < len(out):
+        out[k], out[k + 1] = out[k + 1], out[k]
+        k += 2
+    return out
+
 _EPS = 1e-12        # time comparisons: stamps come from integer cycle counts / clock frequency
 
 
@@ -44,7 +65,8 @@ class MPU9250Timing:
     startup_s: float = 0.100    # power-up to register access: 11 ms typical, 100 ms max
     reset_s: float = 0.100      # H_RESET to register access (drivers wait ~100 ms)
     int_pulse_s: float = 50e-6  # INT pulse width with LATCH_INT_EN = 0
-    odr_scale: float = 1.0      # sample period multiplier: < 1 speeds simulations up
+    odr_scale: float = 1.0      # sample period (and aux I2C transfer time) multiplier: < 1
+                                # speeds simulations up
 
     def scaled(self, delays=1.0, odr=1.0):
         """Start-up and reset delays times ``delays``; sample period and pulse times ``odr``."""
@@ -77,19 +99,25 @@ class MPU9250Model:
     CS_HOLD_S = 500e-9
 
     def __init__(self, *, who_am_i=R.WHO_AM_I_MPU9250, timing=MPU9250Timing(), source=None,
-                 sleep_after_reset=False, raise_on_violation=False):
+                 sleep_after_reset=False, raise_on_violation=False, aux_devices=None):
         self.who_am_i = who_am_i
         self.timing = timing
         self.source = source or constant_source(SensorSample())
         # The reset value of SLEEP comes from factory OTP; drivers must not rely on it.
         self.sleep_after_reset = sleep_after_reset
         self.raise_on_violation = raise_on_violation
+        # Devices on the auxiliary I2C bus, by 7-bit address (e.g. {0x0C: AK8963Model()}).
+        # With BYPASS_EN (and the I2C master off) they also appear on the primary I2C bus.
+        self.aux_devices = dict(aux_devices or {})
+        self.aux_log = []           # (t, slot, address, register, "r"/"w", data or None=NACK)
+        self.pointer = 0            # register pointer of the primary I2C interface
 
         self.violations = []
         self.writes = []            # (t, address, value): every write the part accepted
         self.samples = []           # SensorSample written to the registers, in order
         self.sample_times = []
         self.sample_reads = []      # index into ``samples`` of each read of ACCEL_XOUT_H
+        self.ext_reads = []         # EXT_SENS_DATA_00..07 as that same read saw them
         self.resets = 0
 
         self.now = 0.0
@@ -98,6 +126,8 @@ class MPU9250Model:
         self._busy_until = timing.startup_s
         self._next_sample = None
         self._pulse_end = None
+        self._aux_done = None       # (time, apply) of an auxiliary I2C master cycle in flight
+        self._aux_cycles = 0
         self._next_event = self._busy_until
 
         self.sclk = 1
@@ -133,6 +163,10 @@ class MPU9250Model:
                 self._reschedule(ev)
             elif self._pulse_end is not None and self._pulse_end <= ev + _EPS:
                 self._pulse_end = None
+            elif self._aux_done is not None and self._aux_done[0] <= ev + _EPS:
+                _, apply = self._aux_done
+                self._aux_done = None
+                apply(ev)
             else:
                 self._next_sample = ev + self.sample_period
                 self._convert(ev)
@@ -140,7 +174,8 @@ class MPU9250Model:
         self.now = t
 
     def _update_next_event(self):
-        events = [e for e in (self._busy_until, self._pulse_end, self._next_sample)
+        aux = self._aux_done[0] if self._aux_done else None
+        events = [e for e in (self._busy_until, self._pulse_end, self._next_sample, aux)
                   if e is not None]
         self._next_event = min(events) if events else None
 
@@ -151,6 +186,22 @@ class MPU9250Model:
 
     def _convert(self, t):
         sample = self.source(len(self.samples), t)
+        aux = None
+        if self.regs[R.USER_CTRL] & R.USER_CTRL_I2C_MST_EN and self._aux_done is None:
+            aux = self._aux_cycle(t)
+        if aux is None:
+            self._commit(t, sample)
+        elif self.regs[R.I2C_MST_CTRL] & R.I2C_MST_CTRL_WAIT_FOR_ES:
+            # Data ready (and the sensor registers) wait until the external data is in.
+            duration, apply = aux
+            self._aux_done = (t + duration, lambda te: (apply(te), self._commit(te, sample)))
+        else:
+            self._commit(t, sample)
+            duration, apply = aux
+            self._aux_done = (t + duration, apply)
+        self._update_next_event()
+
+    def _commit(self, t, sample):
         self.regs[R.ACCEL_XOUT_H:R.ACCEL_XOUT_H + R.SENSOR_BYTES] = sample.to_bytes()
         self.samples.append(sample)
         self.sample_times.append(t)
@@ -159,6 +210,97 @@ class MPU9250Model:
                 not self.regs[R.INT_PIN_CFG] & R.INT_PIN_CFG_LATCH_INT_EN:
             self._pulse_end = t + self.timing.int_pulse_s
             self._update_next_event()
+
+    # -- auxiliary I2C master ---------------------------------------------------------------------
+    def _aux_transfer(self, t, slot, address, reg, read, n, data=0, reg_dis=False):
+        """One transaction on the auxiliary bus: (bits on the wire, bytes read or None=NACK)."""
+        dev = self.aux_devices.get(address)
+        if dev is None:
+            self.aux_log.append((t, slot, address, reg, "r" if read else "w", None))
+            return 11, None                       # start, address byte NACKed, stop
+        dev.advance(t)
+        if read:
+            if not reg_dis:
+                dev.pointer = reg
+            dev.begin_read()
+            out = []
+            for _ in range(n):
+                out.append(dev.read_reg(dev.pointer))
+                dev.pointer = dev.next_address(dev.pointer)
+            self.aux_log.append((t, slot, address, reg, "r", bytes(out)))
+            return (11 + 9 * n if reg_dis else 30 + 9 * n), out
+        dev.pointer = reg
+        dev.write_reg(reg, data)
+        dev.pointer = dev.next_address(reg)
+        self.aux_log.append((t, slot, address, reg, "w", bytes([data])))
+        return 29, []
+
+    def _aux_cycle(self, t):
+        """Run the enabled slots once (at a sample tick); results show after the transfers."""
+        regs = self.regs
+        delayed_ok = self._aux_cycles % (1 + (regs[R.I2C_SLV4_CTRL] & R.I2C_SLV4_MST_DLY)) == 0
+        self._aux_cycles += 1
+        ext = {}
+        status = 0
+        bits = 0
+        index = 0
+        ran = False
+        for slot, base in enumerate(R.I2C_SLV_ADDR):
+            addr_reg, reg, ctrl = regs[base], regs[base + 1], regs[base + 2]
+            if not ctrl & R.I2C_SLV_EN:
+                continue
+            read, n = bool(addr_reg & R.I2C_SLV_RNW), ctrl & R.I2C_SLV_LENG
+            first = index
+            if read:
+                index += n                      # EXT_SENS_DATA is allocated in slot order
+            if regs[R.I2C_MST_DELAY_CTRL] & (1 << slot) and not delayed_ok:
+                continue
+            ran = True
+            used, data = self._aux_transfer(t, slot, addr_reg & 0x7F, reg, read, n,
+                                            regs[R.I2C_SLV_DO[slot]],
+                                            bool(ctrl & R.I2C_SLV_REG_DIS))
+            bits += used
+            if data is None:
+                status |= 1 << slot
+            elif read:
+                if ctrl & R.I2C_SLV_BYTE_SW:
+                    data = _swap_pairs(data, reg, bool(ctrl & R.I2C_SLV_GRP))
+                for k, byte in enumerate(data):
+                    if first + k < 24:
+                        ext[first + k] = byte
+        slv4 = None
+        if regs[R.I2C_SLV4_CTRL] & R.I2C_SLV_EN:
+            ran = True
+            addr_reg = regs[R.I2C_SLV4_ADDR]
+            read = bool(addr_reg & R.I2C_SLV_RNW)
+            used, data = self._aux_transfer(t, 4, addr_reg & 0x7F, regs[R.I2C_SLV4_REG], read, 1,
+                                            regs[R.I2C_SLV4_DO],
+                                            bool(regs[R.I2C_SLV4_CTRL] & R.I2C_SLV_REG_DIS))
+            bits += used
+            slv4 = (data[0] if read and data else None,
+                    R.I2C_MST_STATUS_SLV4_DONE | (R.I2C_MST_STATUS_SLV4_NACK if data is None else 0))
+            regs[R.I2C_SLV4_CTRL] &= ~R.I2C_SLV_EN & 0xFF     # a single transfer per enable
+        if not ran:
+            return None
+        khz = R.I2C_MST_CLK_KHZ[regs[R.I2C_MST_CTRL] & 0x0F]
+
+        def apply(te):
+            for k, byte in ext.items():
+                self.regs[R.EXT_SENS_DATA_00 + k] = byte
+            self.regs[R.I2C_MST_STATUS] |= status
+            if slv4 is not None:
+                di, flags = slv4
+                if di is not None:
+                    self.regs[R.I2C_SLV4_DI] = di
+                self.regs[R.I2C_MST_STATUS] |= flags
+        # Scaled with the sample period, so a scaled simulation keeps the real proportions.
+        return bits / (khz * 1e3) * self.timing.odr_scale, apply
+
+    @property
+    def bypass_active(self):
+        """The auxiliary bus is joined to the primary I2C pins (I2C wiring only)."""
+        return bool(self.regs[R.INT_PIN_CFG] & R.INT_PIN_CFG_BYPASS_EN) and \
+            not self.regs[R.USER_CTRL] & R.USER_CTRL_I2C_MST_EN
 
     # -- INT pin ----------------------------------------------------------------------------------
     @property
@@ -186,15 +328,27 @@ class MPU9250Model:
         if self.raise_on_violation:
             raise ProtocolError(str(v))
 
-    def _read(self, addr):
+    def begin_read(self):
+        """Start of a read burst: the part's shadow registers hold still until it ends."""
+        self._snapshot = bytes(self.regs)
+        self._snapshot_sample = len(self.samples) - 1
+
+    @staticmethod
+    def next_address(addr):
+        return (addr + 1) & 0x7F
+
+    def read_reg(self, addr):
         value = self._snapshot[addr]
         if addr == R.ACCEL_XOUT_H:
             self.sample_reads.append(self._snapshot_sample)
+            self.ext_reads.append(self._snapshot[R.EXT_SENS_DATA_00:R.EXT_SENS_DATA_00 + 8])
         if addr == R.INT_STATUS or self.regs[R.INT_PIN_CFG] & R.INT_PIN_CFG_ANYRD_2CLEAR:
             self.regs[R.INT_STATUS] = 0
+        if addr == R.I2C_MST_STATUS:
+            self.regs[R.I2C_MST_STATUS] = 0         # clears on read
         return value
 
-    def _write(self, addr, value):
+    def write_reg(self, addr, value):
         if addr in R.READ_ONLY:
             self._violation("write to a read-only register", addr, f"value 0x{value:02X}")
             return
@@ -203,7 +357,7 @@ class MPU9250Model:
             self.resets += 1
             self._reset_registers()
             self._busy_until = self.now + self.timing.reset_s
-            self._next_sample = self._pulse_end = None
+            self._next_sample = self._pulse_end = self._aux_done = None
             self._update_next_event()
             return
         if addr == R.USER_CTRL:
@@ -258,7 +412,7 @@ class MPU9250Model:
                 if t - self._t_cs + _EPS < self.CS_SETUP_S:
                     self._violation("CS setup", None, f"{(t - self._t_cs) * 1e9:.1f} ns < 8 ns")
             if self._reading and self._bits % 8 == 0:
-                self._out = 0 if self._ignored else self._read(self._addr)
+                self._out = 0 if self._ignored else self.read_reg(self._addr)
                 self._addr = (self._addr + 1) & 0x7F
             self.miso = (self._out >> (7 - self._bits % 8)) & 1 if self._reading else 0
         else:
@@ -276,15 +430,14 @@ class MPU9250Model:
             self._reading = bool(byte & R.SPI_READ)
             self._addr = byte & 0x7F
             if self._reading:
-                self._snapshot = bytes(self.regs)
-                self._snapshot_sample = len(self.samples) - 1
+                self.begin_read()
             register = self._addr
         else:
             register = (self._addr - 1) & 0x7F if self._reading else self._addr
         self._check_rate(register)
         if not first and not self._reading:
             if not self._ignored:
-                self._write(self._addr, byte)
+                self.write_reg(self._addr, byte)
             self._addr = (self._addr + 1) & 0x7F
 
     def _check_rate(self, register):

@@ -10,7 +10,7 @@ from typing import Callable, Iterable, Iterator, Sequence, Tuple
 
 
 __all__ = ["SensorSample", "constant_source", "table_source", "generator_source",
-           "counting_source"]
+           "counting_source", "counting_field"]
 
 
 def _s16(v):
@@ -75,4 +75,12 @@ def counting_source(seed=0):
         vals = [((base + k * 4099) & 0xFFFF) for k in range(7)]
         vals = [v - 0x10000 if v & 0x8000 else v for v in vals]
         return SensorSample(accel=tuple(vals[0:3]), temp=vals[3], gyro=tuple(vals[4:7]))
+    return source
+
+
+def counting_field(seed=0):
+    """AK8963 fields (16-bit counts) that change every measurement and stay clear of overflow."""
+    def source(index, t):
+        base = seed + index * 97
+        return tuple(((base + k * 2731) % 16001) - 8000 for k in range(3))
     return source

@@ -1,30 +1,57 @@
-"""Driver + SPI controller (the sensor front end) co-simulated with the MPU9250 model."""
+"""Driver + SPI controller (the sensor front end, SPI wiring) co-simulated with the MPU9250 model
+and the AK8963 behind its auxiliary I2C master."""
 
 import dataclasses
 
 import pytest
 
+from mpu9250_ahrs.hdl import ak8963_regs as A
 from mpu9250_ahrs.hdl import mpu9250_regs as R
 from mpu9250_ahrs.hdl.mpu9250_driver import MPU9250Config
-from mpu9250_ahrs.sim.cosim import SimSetup, run_frontend, sample_matches
+from mpu9250_ahrs.sim.cosim import SimSetup, expected_mag, run_frontend, sample_matches
 
 
-def expected_writes(config):
-    """The bring-up writes, spelled out independently of the driver's program table."""
+NO_MAG_FLAGS = {"mag_valid": 0, "mag_overflow": 0, "mag_new": 0, "mag_dor": 0}
+
+
+def slv4_write(reg, value):
+    return [(0x31, 0x0C), (0x32, reg), (0x33, value), (0x34, 0x80)]
+
+
+def slv4_read(reg):
+    return [(0x31, 0x8C), (0x32, reg), (0x34, 0x80)]
+
+
+def expected_writes(config, *, mag=True):
+    """MPU9250 register writes at bring-up, spelled out independently of the driver's table."""
     int_pin_cfg = (0x20 if config.int_latched else 0) | (0x80 if config.int_active_low else 0)
-    return [
+    writes = [
         (0x6A, 0x10), (0x6B, 0x80), (0x6A, 0x10), (0x6B, 0x01),   # SPI, reset, SPI, clock
         (0x6C, 0x00),                                              # all axes on
         (0x1A, config.dlpf_cfg), (0x19, config.smplrt_div),
         (0x1B, R.GYRO_FS_DPS.index(config.gyro_fs_dps) << 3),
         (0x1C, R.ACCEL_FS_G.index(config.accel_fs_g) << 3),
-        (0x1D, config.accel_dlpf_cfg), (0x37, int_pin_cfg), (0x38, 0x01),
+        (0x1D, config.accel_dlpf_cfg),
     ]
+    if mag:
+        writes += [(0x6A, 0x30), (0x24, 0x4D)]               # I2C master on; WAIT_FOR_ES, 400 kHz
+        writes += slv4_read(0x00)                             # WIA
+        writes += slv4_write(0x0B, 0x01) + slv4_write(0x0A, 0x0F)     # SRST, fuse ROM
+        writes += slv4_read(0x10) + slv4_read(0x11) + slv4_read(0x12)  # ASA
+        writes += slv4_write(0x0A, 0x00) + slv4_write(0x0A, 0x16)     # power-down, 100 Hz 16 bit
+        writes += [(0x25, 0x8C), (0x26, 0x02), (0x27, 0x88)]          # SLV0: 8 bytes from ST1
+    return writes + [(0x37, int_pin_cfg), (0x38, 0x01)]
 
 
-def assert_samples_match_model(result):
+AK_WRITES = [(A.CNTL2, A.CNTL2_SRST), (A.CNTL1, A.MODE_FUSE_ROM), (A.CNTL1, A.MODE_POWER_DOWN),
+             (A.CNTL1, A.CNTL1_BIT_16 | A.MODE_CONT_100HZ)]
+
+
+def assert_samples_match_model(result, *, mag_ok=True):
     model = result.model
     assert model.violations == [], "\n".join(map(str, model.violations))
+    for dev in model.aux_devices.values():
+        assert dev.violations == [], "\n".join(map(str, dev.violations))
     reads = model.sample_reads[:len(result.samples)]
     assert len(reads) == len(result.samples)
     # Every sample the model produced after the first read was read, in order, none twice.
@@ -32,27 +59,36 @@ def assert_samples_match_model(result):
     for i, (got, index) in enumerate(zip(result.samples, reads)):
         assert sample_matches(got, model.samples[index]), \
             f"sample {i}: gateware {got} != model {model.samples[index]}"
+        mag, flags = expected_mag(model.ext_reads[i], mag_ok)
+        assert got["mag"] == mag, f"sample {i}: magnetometer"
+        assert got["flags"] == {"data_ready": 1, "overrun": 0, **flags}, f"sample {i}: flags"
         assert got["counter"] == i
-        assert got["flags"] == {"data_ready": 1, "overrun": 0, "mag_valid": 0, "mag_overflow": 0}
-        assert got["mag"] == [0, 0, 0]
 
 
-def test_bring_up_sequence_and_samples(vcd):
+def test_bring_up_sequence_and_nine_axis_samples(vcd):
     setup = SimSetup()
-    result = run_frontend(setup, n_samples=12, vcd=vcd())
-    writes = [(a, v) for _, a, v in result.model.writes]
-    assert writes == expected_writes(setup.config)
-    # The documented order: SPI mode first, reset, SPI mode again (reset cleared it), clock.
-    assert writes[:4] == [(R.USER_CTRL, R.USER_CTRL_I2C_IF_DIS), (R.PWR_MGMT_1, 0x80),
-                          (R.USER_CTRL, R.USER_CTRL_I2C_IF_DIS), (R.PWR_MGMT_1, 0x01)]
-    assert writes[-1] == (R.INT_ENABLE, R.INT_ENABLE_RAW_RDY)
-    assert result.model.resets == 1
+    result = run_frontend(setup, n_samples=25, vcd=vcd())
+    model = result.model
+    ak = model.aux_devices[A.I2C_ADDRESS]
+    assert [(a, v) for _, a, v in model.writes] == expected_writes(setup.config)
+    assert [(a, v) for _, a, v in ak.writes] == AK_WRITES
+    assert [(reg, rw) for _, slot, _, reg, rw, _ in model.aux_log if slot == 4] == \
+        [(0x00, "r"), (0x0B, "w"), (0x0A, "w"), (0x10, "r"), (0x11, "r"), (0x12, "r"),
+         (0x0A, "w"), (0x0A, "w")]
+    assert model.resets == 1
     assert result.status == {"streaming": 1, "whoami_error": 0, "no_response": 0,
-                             "int_timeout": 0, "retries": 0, "who_am_i": 0x71}
+                             "int_timeout": 0, "retries": 0, "who_am_i": 0x71,
+                             "mag_ok": 1, "mag_absent": 0, "mag_wia_error": 0}
     assert_samples_match_model(result)
-    # Bring-up takes the two scaled waits plus the register traffic, nothing more.
-    power_up, reset, _ = setup.driver_timing().cycles(setup.clk_freq, setup.config)
-    assert result.bring_up_cycles < power_up + reset + 4000
+    # At 1 kHz against the AK8963's 100 Hz, about one sample in ten carries a new field.
+    assert 2 <= sum(s["flags"]["mag_new"] for s in result.samples) <= 3
+
+
+def test_asa_values_exposed():
+    setup = SimSetup()
+    model = setup.model(aux_devices={A.I2C_ADDRESS: setup.ak8963(asa=(0x80, 0xC3, 0x1F))})
+    result = run_frontend(setup, model=model, until=lambda st: st["mag_ok"])
+    assert result.asa == [0x80, 0xC3, 0x1F]
 
 
 @pytest.mark.parametrize("config", [
@@ -66,6 +102,42 @@ def test_configurations(config):
     result = run_frontend(setup, n_samples=5)
     assert [(a, v) for _, a, v in result.model.writes] == expected_writes(config)
     assert_samples_match_model(result)
+
+
+def test_without_magnetometer_config():
+    setup = SimSetup(config=MPU9250Config(magnetometer=False))
+    result = run_frontend(setup, n_samples=4, model=setup.model(magnetometer=False))
+    assert [(a, v) for _, a, v in result.model.writes] == \
+        expected_writes(setup.config, mag=False)
+    assert_samples_match_model(result, mag_ok=False)
+
+
+def test_magnetometer_absent_keeps_accel_gyro_flowing():
+    setup = SimSetup()
+    result = run_frontend(setup, n_samples=6, model=setup.model(magnetometer=False))
+    st = result.status
+    assert st["mag_absent"] == 1 and st["mag_ok"] == 0 and st["streaming"] == 1
+    assert st["retries"] == 0
+    assert_samples_match_model(result, mag_ok=False)
+
+
+def test_wrong_wia_flags_and_skips_magnetometer():
+    setup = SimSetup()
+    model = setup.model(aux_devices={A.I2C_ADDRESS: setup.ak8963(wia=0x49)})
+    result = run_frontend(setup, n_samples=3, model=model)
+    st = result.status
+    assert st["mag_wia_error"] == 1 and st["mag_ok"] == 0 and st["mag_absent"] == 0
+    assert_samples_match_model(result, mag_ok=False)
+
+
+def test_magnetic_overflow_is_flagged():
+    setup = SimSetup()
+    big = lambda i, t: (20000, 10000, 3000)          # 4950 µT: HOFL
+    model = setup.model(aux_devices={A.I2C_ADDRESS: setup.ak8963(source=big)})
+    result = run_frontend(setup, n_samples=22, model=model)
+    assert_samples_match_model(result)
+    new = [s for s in result.samples if s["flags"]["mag_new"]]
+    assert new and all(s["flags"]["mag_overflow"] and not s["flags"]["mag_valid"] for s in new)
 
 
 def test_mpu9255_who_am_i_accepted():
@@ -96,9 +168,9 @@ def test_unplugged_sensor_gives_flags_not_a_hang(level, value):
 
 
 def test_missing_interrupt_times_out_and_restarts():
-    setup = SimSetup()
+    setup = SimSetup(config=MPU9250Config(magnetometer=False))
     # The part answers on SPI but its samples come far slower than the driver's timeout.
-    model = setup.model()
+    model = setup.model(magnetometer=False)
     model.timing = dataclasses.replace(model.timing, odr_scale=200.0)
     result = run_frontend(setup, model=model, until=lambda st: st["int_timeout"] == 1)
     assert result.status["int_timeout"] == 1 and result.status["retries"] >= 1
@@ -107,12 +179,12 @@ def test_missing_interrupt_times_out_and_restarts():
 
 
 def test_slow_consumer_gets_overrun_flags():
-    setup = SimSetup()
+    setup = SimSetup(config=MPU9250Config(magnetometer=False), odr_scale=0.1)
     period = int(setup.sample_period_s * setup.clk_freq)
     # Ready for one cycle in every 2.5 sample periods: some samples must be dropped.
     stride = int(2.5 * period)
     result = run_frontend(setup, n_samples=5, ready=lambda c: c % stride == 0,
-                          max_cycles=30 * period + 20_000)
+                          model=setup.model(magnetometer=False), max_cycles=30 * period + 20_000)
     assert result.model.violations == []
     samples = result.samples
     assert len(samples) == 5
@@ -139,3 +211,5 @@ def test_config_validation():
         MPU9250Config(gyro_fs_dps=300)
     with pytest.raises(ValueError, match="smplrt_div"):
         MPU9250Config(smplrt_div=256)
+    with pytest.raises(ValueError, match="wiring"):
+        MPU9250Config(wiring="uart")

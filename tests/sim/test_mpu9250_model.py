@@ -295,3 +295,96 @@ def test_timing_scaled():
 def test_sample_out_of_range_rejected():
     with pytest.raises(ValueError, match="signed 16-bit"):
         SensorSample(accel=(40000, 0, 0))
+
+
+# -- auxiliary I2C master -------------------------------------------------------------------------
+
+from mpu9250_ahrs.hdl import ak8963_regs as A                    # noqa: E402
+from mpu9250_ahrs.sim.ak8963_model import AK8963Model, constant_field   # noqa: E402
+
+
+def aux_model(**kw):
+    ak = AK8963Model(source=constant_field(0x0102, -3, 0x3F00), **kw)
+    m, host = ready_model(aux_devices={A.I2C_ADDRESS: ak})
+    host.write(R.CONFIG, 1)                              # 1 kHz (reset value DLPF 0: 8 kHz)
+    host.write(R.USER_CTRL, R.USER_CTRL_I2C_IF_DIS | R.USER_CTRL_I2C_MST_EN)
+    host.write(R.I2C_MST_CTRL, R.I2C_MST_CLK_400KHZ)
+    return m, host, ak
+
+
+def slv4(host, m, addr, reg, do=0):
+    host.write(R.I2C_SLV4_ADDR, addr, reg, do, R.I2C_SLV_EN)
+    for _ in range(10):
+        host.wait(m.sample_period)
+        status = host.read(R.I2C_MST_STATUS)[0]
+        if status & R.I2C_MST_STATUS_SLV4_DONE:
+            return status, host.read(R.I2C_SLV4_DI)[0]
+    raise AssertionError("SLV4 never finished")
+
+
+def test_slv4_single_transfers():
+    m, host, ak = aux_model()
+    status, di = slv4(host, m, R.I2C_SLV_RNW | A.I2C_ADDRESS, A.WIA)
+    assert status == R.I2C_MST_STATUS_SLV4_DONE and di == 0x48
+    status, _ = slv4(host, m, A.I2C_ADDRESS, A.CNTL1, A.MODE_FUSE_ROM)
+    assert ak.mode == A.MODE_FUSE_ROM
+    assert host.read(R.I2C_SLV4_CTRL)[0] & R.I2C_SLV_EN == 0       # one transfer per enable
+    assert m.violations == [] and ak.violations == []
+
+
+def test_slv4_nack_when_absent():
+    m, host, ak = aux_model()
+    status, _ = slv4(host, m, R.I2C_SLV_RNW | 0x0D, A.WIA)
+    assert status == R.I2C_MST_STATUS_SLV4_DONE | R.I2C_MST_STATUS_SLV4_NACK
+    assert host.read(R.I2C_MST_STATUS) == bytes([0])                 # cleared on read
+
+
+def slv0_read(host, reg, n, ctrl_extra=0, slot=0):
+    base = R.I2C_SLV_ADDR[slot]
+    host.write(base, R.I2C_SLV_RNW | A.I2C_ADDRESS, reg, R.I2C_SLV_EN | ctrl_extra | n)
+
+
+def test_slv0_fills_ext_sens_data_each_sample():
+    m, host, ak = aux_model()
+    ak.write_reg(A.CNTL1, A.CNTL1_BIT_16 | A.MODE_CONT_100HZ)
+    slv0_read(host, A.ST1, A.SAMPLE_BYTES)
+    host.wait(0.0125)
+    data = host.read(R.EXT_SENS_DATA_00, 8, **FAST)
+    assert data[1:7] == bytes([0x02, 0x01, 0xFD, 0xFF, 0x00, 0x3F])
+    assert data[7] == A.ST2_BITM
+    assert len(m.aux_log) >= 12                               # one read per 1 kHz sample
+
+
+def test_ext_sens_data_allocated_in_slot_order_with_byte_swap():
+    m, host, ak = aux_model()
+    ak.write_reg(A.CNTL1, A.CNTL1_BIT_16 | A.MODE_CONT_100HZ)
+    slv0_read(host, A.WIA, 2, slot=0)                                   # 48 9A
+    # HXL..ST2 (ST2 releases the data registers); words start at odd addresses (GRP).
+    slv0_read(host, A.HXL, 7, ctrl_extra=R.I2C_SLV_BYTE_SW | R.I2C_SLV_GRP, slot=1)
+    host.wait(0.0125)
+    assert host.read(R.EXT_SENS_DATA_00, 4, **FAST) == bytes([0x48, 0x9A, 0x01, 0x02])
+
+
+def test_slot_delay_pacing():
+    m, host, ak = aux_model()
+    slv0_read(host, A.WIA, 1)
+    host.write(R.I2C_SLV4_CTRL, 4)                       # I2C_MST_DLY = 4: every 5th sample
+    host.write(R.I2C_MST_DELAY_CTRL, 0x01)
+    n = len(m.aux_log)
+    host.wait(0.0200)
+    assert len(m.aux_log) - n in (4, 5)
+
+
+def test_wait_for_es_delays_data_ready_by_the_transfer():
+    m, host, ak = aux_model()
+    host.write(R.I2C_MST_CTRL, R.I2C_MST_CTRL_WAIT_FOR_ES | R.I2C_MST_CLK_400KHZ)
+    slv0_read(host, A.ST1, A.SAMPLE_BYTES)
+    host.wait(0.005)
+    tick = m._next_sample
+    host.t = tick + 1e-6
+    host.wait(0)
+    n = len(m.samples)
+    host.wait((30 + 9 * 8) / 400e3 - 5e-6)               # just before the 8-byte read ends
+    assert len(m.samples) == n
+    host.wait(10e-6)
+    assert len(m.samples) == n + 1
