@@ -20,6 +20,10 @@ imu_cipo                  M2     PMOD pin 3: MPU9250 SDO/AD0
 imu_sclk                  M1     PMOD pin 4: MPU9250 SCLK/SCL
 imu_int                   N3     PMOD pin 5: MPU9250 INT
 ========================  =====  ====================================================
+
+An I2C-wired MPU9250 board uses the same header: SCL on ``imu_sclk``, SDA on ``imu_copi``
+(both open drain, with the board's pull-ups), AD0 driven on ``imu_cipo``, NCS held high on
+``imu_cs_n``. The ``imu_i2c`` resource names them so; ``build --wiring i2c`` requests it.
 """
 
 from amaranth.build import Attrs, Clock, Pins, PinsN, Resource, Subsignal
@@ -70,6 +74,12 @@ class MAX10Platform(AlteraPlatform):
                      Subsignal("clk", Pins(pinout["imu_sclk"], dir="o")),
                      Subsignal("copi", Pins(pinout["imu_copi"], dir="o")),
                      Subsignal("cipo", Pins(pinout["imu_cipo"], dir="i")),
+                     Subsignal("int", Pins(pinout["imu_int"], dir="i")), io),
+            Resource("imu_i2c", 0,
+                     Subsignal("scl", Pins(pinout["imu_sclk"], dir="io")),
+                     Subsignal("sda", Pins(pinout["imu_copi"], dir="io")),
+                     Subsignal("ad0", Pins(pinout["imu_cipo"], dir="o")),
+                     Subsignal("ncs", Pins(pinout["imu_cs_n"], dir="o")),
                      Subsignal("int", Pins(pinout["imu_int"], dir="i")), io),
         ]
         super().__init__(toolchain=toolchain)

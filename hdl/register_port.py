@@ -13,18 +13,25 @@ The driver speaks only this interface, so one sequencer serves both wirings.
 ``SPIRegisterPort`` turns commands into SPI transactions for an ``SPIController``:
 header byte (bit 7 = read), then the data byte or ``length`` dummy bytes. Latency: the
 transaction, plus one cycle.
+
+``I2CRegisterPort`` turns them into I2C operations for an ``I2CController``:
+write: START, address+W, register, data, STOP; read: START, address+W, register, repeated
+START, address+R, ``length`` bytes (ACK on all but the last), STOP. A NACK or a controller error
+ends the command with a STOP and ``error`` = 1. ``device`` 0 is the MPU9250 at ``mpu_address``
+(0x68 or 0x69), 1 the AK8963 at 0x0C (reachable once the MPU9250's bypass is on).
 """
 
 from amaranth import *
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
-from . import mpu9250_regs as R
+from . import ak8963_regs as A
+from .i2c_controller import I2COp, I2COperation, I2CResult
 from .spi_controller import SPIByte
 
 
 __all__ = ["MAX_READ", "RegisterCommand", "RegisterResponse", "RegisterPortSignature",
-           "SPIRegisterPort"]
+           "SPIRegisterPort", "I2CRegisterPort"]
 
 
 MAX_READ = 32
@@ -87,4 +94,104 @@ class SPIRegisterPort(wiring.Component):
                              self.port.rsp.payload.error.eq(0)]
         with m.If(self.port.rsp.valid & self.port.rsp.ready):
             m.d.sync += self.port.rsp.valid.eq(0)
+        return m
+
+
+class I2CRegisterPort(wiring.Component):
+    def __init__(self, *, mpu_address=0x68):
+        self.mpu_address = mpu_address
+        super().__init__({
+            "port": Out(RegisterPortSignature()),
+            "i2c_o": Out(stream.Signature(I2COperation)),
+            "i2c_i": In(stream.Signature(I2CResult)),
+        })
+
+    def elaborate(self, platform):
+        m = Module()
+        cmd = Signal(RegisterCommand)
+        address = Signal(7)
+        remaining = Signal(range(MAX_READ + 1))
+        error = Signal()
+        issued = Signal()           # the current operation went out; waiting for its result
+        op, res = self.i2c_o, self.i2c_i
+
+        m.d.comb += [self.port.cmd.ready.eq(0), res.ready.eq(0),
+                     self.port.rx.payload.eq(res.payload.data)]
+        with m.If(self.port.rsp.valid & self.port.rsp.ready):
+            m.d.sync += self.port.rsp.valid.eq(0)
+
+        def issue(kind, data=0, ack=0):
+            m.d.comb += [op.valid.eq(1), op.payload.op.eq(kind), op.payload.data.eq(data),
+                         op.payload.ack.eq(ack)]
+
+        def step(kind, next_state, data=0, ack=0, *, acked=False):
+            """Send one operation, wait for its result; on failure, STOP and report."""
+            with m.If(~issued):
+                issue(kind, data, ack)
+                with m.If(op.ready):
+                    m.d.sync += issued.eq(1)
+            with m.Else():
+                m.d.comb += res.ready.eq(1)
+                with m.If(res.valid):
+                    m.d.sync += issued.eq(0)
+                    bad = res.payload.error | (~res.payload.ack if acked else 0)
+                    with m.If(bad):
+                        m.d.sync += error.eq(1)
+                        m.next = "STOP"
+                    with m.Else():
+                        m.next = next_state
+
+        with m.FSM():
+            with m.State("IDLE"):
+                m.d.comb += self.port.cmd.ready.eq(~self.port.rsp.valid)
+                with m.If(self.port.cmd.valid & ~self.port.rsp.valid):
+                    p = self.port.cmd.payload
+                    m.d.sync += [cmd.eq(p), error.eq(0), remaining.eq(p.length),
+                                 address.eq(Mux(p.device, A.I2C_ADDRESS, self.mpu_address))]
+                    m.next = "START"
+            with m.State("START"):
+                step(I2COp.START, "ADDR_W")
+            with m.State("ADDR_W"):
+                step(I2COp.WRITE, "REG", Cat(Const(0, 1), address), acked=True)
+            with m.State("REG"):
+                step(I2COp.WRITE, "AFTER_REG", cmd.reg, acked=True)
+            with m.State("AFTER_REG"):
+                with m.If(cmd.write):
+                    m.next = "DATA"
+                with m.Else():
+                    m.next = "RESTART"
+            with m.State("DATA"):
+                step(I2COp.WRITE, "STOP", cmd.data, acked=True)
+            with m.State("RESTART"):
+                step(I2COp.START, "ADDR_R")
+            with m.State("ADDR_R"):
+                step(I2COp.WRITE, "READ", Cat(Const(1, 1), address), acked=True)
+            with m.State("READ"):
+                with m.If(~issued):
+                    issue(I2COp.READ, ack=remaining != 1)
+                    with m.If(op.ready):
+                        m.d.sync += issued.eq(1)
+                with m.Else():
+                    m.d.comb += res.ready.eq(1)
+                    with m.If(res.valid):
+                        m.d.sync += [issued.eq(0), remaining.eq(remaining - 1)]
+                        with m.If(res.payload.error):
+                            m.d.sync += error.eq(1)
+                            m.next = "STOP"
+                        with m.Else():
+                            m.d.comb += self.port.rx.valid.eq(1)
+                            with m.If(remaining == 1):
+                                m.next = "STOP"
+            with m.State("STOP"):
+                with m.If(~issued):
+                    issue(I2COp.STOP)
+                    with m.If(op.ready):
+                        m.d.sync += issued.eq(1)
+                with m.Else():
+                    m.d.comb += res.ready.eq(1)
+                    with m.If(res.valid):
+                        m.d.sync += [issued.eq(0), self.port.rsp.valid.eq(1),
+                                     self.port.rsp.payload.error.eq(error |
+                                                                    res.payload.error)]
+                        m.next = "IDLE"
         return m

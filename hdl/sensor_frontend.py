@@ -1,7 +1,12 @@
-"""Sensor front end: the MPU9250 driver wired to its SPI controller.
+"""Sensor front end: the MPU9250 driver, its register port and bus controller.
+
+``config.wiring`` picks the bus: "spi" (``SPIRegisterPort`` + ``SPIController``, the AK8963
+through the MPU9250's I2C master) or "i2c" (``I2CRegisterPort`` + ``I2CController``, the AK8963
+through the bypass multiplexer).
 
 Interface
-    ``pins`` (``SPIPinsSignature``): SCLK, COPI, CS_n out; CIPO in (raw).
+    ``pins``: ``SPIPinsSignature`` (SCLK, COPI, CS_n out; CIPO in, raw) or ``I2CPinsSignature``
+        (SCL/SDA pull-down enables out; line levels in, raw).
     ``int_pin`` (in): sensor INT, raw.
     ``samples`` (out, ``Sample`` stream) and ``status`` (out, ``DriverStatus``): from the driver.
 
@@ -15,7 +20,8 @@ from amaranth.lib.wiring import In, Out, connect, flipped
 
 from .mpu9250_driver import DriverTiming, MPU9250Config, MPU9250Driver
 from .sample import DriverStatus, Sample
-from .register_port import SPIRegisterPort
+from .i2c_controller import I2CController, I2CPinsSignature, I2CTiming
+from .register_port import I2CRegisterPort, SPIRegisterPort
 from .spi_controller import SPIController, SPIPinsSignature, SPITiming
 
 
@@ -24,14 +30,22 @@ __all__ = ["SensorFrontEnd"]
 
 class SensorFrontEnd(wiring.Component):
     def __init__(self, *, clk_freq, config=MPU9250Config(), timing=DriverTiming(),
-                 spi_timing=None):
+                 spi_timing=None, i2c_timing=None):
         self.clk_freq = clk_freq
-        self.spi_timing = spi_timing or SPITiming.for_clock(clk_freq)
+        self.config = config
         self.driver = MPU9250Driver(clk_freq=clk_freq, config=config, timing=timing)
-        self.spi = SPIController(self.spi_timing)
-        self.port = SPIRegisterPort()
+        if config.wiring == "spi":
+            self.bus_timing = spi_timing or SPITiming.for_clock(clk_freq)
+            self.bus = SPIController(self.bus_timing)
+            self.port = SPIRegisterPort()
+            pins = SPIPinsSignature()
+        else:
+            self.bus_timing = i2c_timing or I2CTiming.for_clock(clk_freq)
+            self.bus = I2CController(self.bus_timing)
+            self.port = I2CRegisterPort(mpu_address=config.i2c_address)
+            pins = I2CPinsSignature()
         super().__init__({
-            "pins": Out(SPIPinsSignature()),
+            "pins": Out(pins),
             "int_pin": In(1),
             "samples": Out(stream.Signature(Sample)),
             "status": Out(DriverStatus),
@@ -41,12 +55,16 @@ class SensorFrontEnd(wiring.Component):
     def elaborate(self, platform):
         m = Module()
         m.submodules.driver = driver = self.driver
-        m.submodules.spi = spi = self.spi
+        m.submodules.bus = bus = self.bus
         m.submodules.port = port = self.port
         connect(m, driver.port, port.port)
-        connect(m, port.spi_o, spi.i_stream)
-        connect(m, spi.o_stream, port.spi_i)
-        connect(m, spi.pins, flipped(self.pins))
+        if self.config.wiring == "spi":
+            connect(m, port.spi_o, bus.i_stream)
+            connect(m, bus.o_stream, port.spi_i)
+        else:
+            connect(m, port.i2c_o, bus.i_stream)
+            connect(m, bus.o_stream, port.i2c_i)
+        connect(m, bus.pins, flipped(self.pins))
         connect(m, driver.samples, flipped(self.samples))
         m.d.comb += [driver.int_pin.eq(self.int_pin), self.status.eq(driver.status),
                      self.asa.eq(driver.asa)]

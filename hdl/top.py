@@ -2,8 +2,12 @@
 
 ``AHRSCore`` is everything that is not a pin buffer: the sensor front end and the telemetry
 framer with its UART. It is what ``build --verilog-only`` exports and what simulations of the
-whole design drive. Ports: ``imu`` (SPI pins), ``imu_int``, ``uart_tx``, ``status``,
-``samples_seen`` (toggles every sample, for a heartbeat LED).
+whole design drive. Ports: ``imu`` (SPI pins, or I2C pins with ``config.wiring == "i2c"``),
+``imu_int``, ``uart_tx``, ``status``, ``asa``, ``samples_seen`` (counts samples, for a
+heartbeat LED).
+
+On an I2C-wired board the MPU9250's SCL/SDA are the pins SCLK/SDI use with SPI; ``BoardTop``
+then holds NCS high (I2C mode) and drives AD0 (SDO) to select 0x68 or 0x69.
 
 ``BoardTop`` puts ``lib.io`` buffers between ``AHRSCore`` and a ``MAX10Platform``'s pins and
 shows the driver status on the LEDs:
@@ -21,12 +25,13 @@ LED   meaning
 """
 
 from amaranth import *
-from amaranth.lib import io, wiring
+from amaranth.lib import data, io, wiring
 from amaranth.lib.wiring import In, Out, connect, flipped
 
 from .mpu9250_driver import DriverTiming, MPU9250Config
 from .sample import DriverStatus
 from .sensor_frontend import SensorFrontEnd
+from .i2c_controller import I2CPinsSignature
 from .spi_controller import SPIPinsSignature
 from .telemetry import TelemetryFramer
 from .uart_tx import UARTTransmitter
@@ -39,14 +44,16 @@ class AHRSCore(wiring.Component):
     def __init__(self, *, clk_freq, config=MPU9250Config(), timing=DriverTiming(),
                  baud=921_600):
         self.clk_freq = clk_freq
+        self.config = config
         self.frontend = SensorFrontEnd(clk_freq=clk_freq, config=config, timing=timing)
         self.framer = TelemetryFramer()
         self.uart = UARTTransmitter.for_baud(clk_freq, baud)
         super().__init__({
-            "imu": Out(SPIPinsSignature()),
+            "imu": Out(SPIPinsSignature() if config.wiring == "spi" else I2CPinsSignature()),
             "imu_int": In(1),
             "uart_tx": Out(1, init=1),
             "status": Out(DriverStatus),
+            "asa": Out(data.ArrayLayout(8, 3)),
             "samples_seen": Out(8),
         })
 
@@ -58,7 +65,7 @@ class AHRSCore(wiring.Component):
 
         connect(m, fe.pins, flipped(self.imu))
         m.d.comb += [fe.int_pin.eq(self.imu_int), self.status.eq(fe.status),
-                     self.uart_tx.eq(uart.tx)]
+                     self.asa.eq(fe.asa), self.uart_tx.eq(uart.tx)]
 
         # Sample stream -> frame (sample + status at the moment it was taken) -> UART.
         m.d.comb += [
@@ -81,25 +88,40 @@ class BoardTop(Elaboratable):
         m = Module()
         m.submodules.core = core = AHRSCore(clk_freq=platform.default_clk_frequency,
                                             **self.core_kwargs)
-
-        imu = platform.request("imu_spi", 0, dir="-")
+        config = core.config
         uart = platform.request("uart", 0, dir="-")
-        buffers = {
-            "imu_cs": io.Buffer("o", imu.cs), "imu_sclk": io.Buffer("o", imu.clk),
-            "imu_copi": io.Buffer("o", imu.copi), "imu_cipo": io.Buffer("i", imu.cipo),
-            "imu_int": io.Buffer("i", imu.int), "uart_tx": io.Buffer("o", uart.tx),
-        }
+        m.submodules.uart_tx = uart_tx = io.Buffer("o", uart.tx)
+        m.d.comb += uart_tx.o.eq(core.uart_tx)
+
+        if config.wiring == "spi":
+            imu = platform.request("imu_spi", 0, dir="-")
+            buffers = {"imu_cs": io.Buffer("o", imu.cs), "imu_sclk": io.Buffer("o", imu.clk),
+                       "imu_copi": io.Buffer("o", imu.copi),
+                       "imu_cipo": io.Buffer("i", imu.cipo), "imu_int": io.Buffer("i", imu.int)}
+            # The resource declares CS as PinsN, so the buffer's "o" is chip-select-active.
+            m.d.comb += [
+                buffers["imu_cs"].o.eq(~core.imu.cs_n),
+                buffers["imu_sclk"].o.eq(core.imu.sclk),
+                buffers["imu_copi"].o.eq(core.imu.copi),
+                core.imu.cipo.eq(buffers["imu_cipo"].i),  # synchronised in the SPI controller
+            ]
+        else:
+            imu = platform.request("imu_i2c", 0, dir="-")
+            buffers = {"imu_scl": io.Buffer("io", imu.scl), "imu_sda": io.Buffer("io", imu.sda),
+                       "imu_ncs": io.Buffer("o", imu.ncs), "imu_ad0": io.Buffer("o", imu.ad0),
+                       "imu_int": io.Buffer("i", imu.int)}
+            # Open drain: the output is always 0, enabled to pull the line low.
+            m.d.comb += [
+                buffers["imu_scl"].o.eq(0), buffers["imu_scl"].oe.eq(core.imu.scl_oe),
+                buffers["imu_sda"].o.eq(0), buffers["imu_sda"].oe.eq(core.imu.sda_oe),
+                core.imu.scl_i.eq(buffers["imu_scl"].i),  # synchronised in the I2C controller
+                core.imu.sda_i.eq(buffers["imu_sda"].i),
+                buffers["imu_ncs"].o.eq(1),               # NCS high: the MPU9250 stays on I2C
+                buffers["imu_ad0"].o.eq(config.i2c_address & 1),
+            ]
         for name, buf in buffers.items():
             m.submodules[name] = buf
-        # The resource declares CS as PinsN, so the buffer's "o" is chip-select-active.
-        m.d.comb += [
-            buffers["imu_cs"].o.eq(~core.imu.cs_n),
-            buffers["imu_sclk"].o.eq(core.imu.sclk),
-            buffers["imu_copi"].o.eq(core.imu.copi),
-            core.imu.cipo.eq(buffers["imu_cipo"].i),     # synchronised inside the SPI controller
-            core.imu_int.eq(buffers["imu_int"].i),       # synchronised inside the driver
-            buffers["uart_tx"].o.eq(core.uart_tx),
-        ]
+        m.d.comb += core.imu_int.eq(buffers["imu_int"].i)   # synchronised in the driver
 
         status = core.status
         leds = [status.streaming, status.whoami_error, status.no_response, status.int_timeout,

@@ -19,6 +19,7 @@ from amaranth.sim import Simulator
 
 from ..hdl.mpu9250_driver import DriverTiming, MPU9250Config
 from ..hdl.sensor_frontend import SensorFrontEnd
+from .i2c_bus import I2CBusModel
 from .mpu9250_model import MPU9250Model, MPU9250Timing
 from ..hdl import ak8963_regs as A
 from .ak8963_model import AK8963Model, AK8963Timing
@@ -26,68 +27,118 @@ from .sources import counting_field, counting_source
 from .telemetry import to_python
 
 
-__all__ = ["CosimHarness", "attach_mpu9250", "attach_stuck_miso", "SimSetup", "CosimResult", "run_frontend",
-           "sample_matches", "expected_mag"]
+__all__ = ["CosimHarness", "attach_models", "attach_mpu9250", "attach_stuck_miso", "SimSetup", "CosimResult", "run_frontend",
+           "sample_matches", "expected_mag", "sample_read_cycles"]
 
 
 class CosimHarness(Elaboratable):
     """Wraps a design for co-simulation with simulation-only helpers.
 
-    ``cycle`` counts clock edges: the time base of the models. A model process drives
-    ``cipo_model`` and ``int_model``; each reaches the design one clock later (the device's
-    output delay), so the process can run right after the edge it reacts to. ``wake_at`` is the
-    cycle at which the model next wants to run with no pin change; ``wake`` is high in it.
+    ``cycle`` counts clock edges: the time base of the models. The model process drives
+    ``cipo_model`` (SPI), ``scl_model_low``/``sda_model_low`` (I2C) and ``int_model``; each
+    reaches the design one clock later (the device's output delay), so the process can run right
+    after the edge it reacts to. The I2C lines ``scl``/``sda`` are the wired AND of the design's
+    and the devices' drivers. ``wake_at`` is the cycle at which the models next want to run with
+    no pin change; ``wake`` is high in it.
     """
-    def __init__(self, dut, pins, int_pin):
-        self.dut, self.pins, self.int_pin = dut, pins, int_pin
+    def __init__(self, dut, *, spi=None, i2c=None, int_pin=None):
+        self.dut, self.spi, self.i2c, self.int_pin = dut, spi, i2c, int_pin
         self.cycle = Signal(40)
         self.wake_at = Signal(40, init=(1 << 40) - 1)
         self.wake = Signal()
         self.cipo_model = Signal()
         self.int_model = Signal()
+        self.scl_model_low = Signal()
+        self.sda_model_low = Signal()
+        self.scl = Signal(init=1)
+        self.sda = Signal(init=1)
 
     def elaborate(self, platform):
         m = Module()
         m.submodules.dut = self.dut
-        m.d.sync += [self.cycle.eq(self.cycle + 1), self.pins.cipo.eq(self.cipo_model),
-                     self.int_pin.eq(self.int_model)]
+        m.d.sync += self.cycle.eq(self.cycle + 1)
         m.d.comb += self.wake.eq(self.cycle == self.wake_at)
+        if self.spi is not None:
+            m.d.sync += self.spi.cipo.eq(self.cipo_model)
+        if self.int_pin is not None:
+            m.d.sync += self.int_pin.eq(self.int_model)
+        if self.i2c is not None:
+            scl_q, sda_q = Signal(), Signal()
+            m.d.sync += [scl_q.eq(self.scl_model_low), sda_q.eq(self.sda_model_low)]
+            m.d.comb += [self.scl.eq(~(self.i2c.scl_oe | scl_q)),
+                         self.sda.eq(~(self.i2c.sda_oe | sda_q)),
+                         self.i2c.scl_i.eq(self.scl), self.i2c.sda_i.eq(self.sda)]
         return m
 
 
-def attach_mpu9250(sim, model, harness, clk_freq):
-    """Play ``model`` on the harness's SPI pins; wakes only on pin changes and model events."""
-    pins = harness.pins
-    never = (1 << 40) - 1
+NEVER = (1 << 40) - 1
+
+
+def attach_models(sim, harness, clk_freq, *, mpu, bus=None):
+    """Play ``mpu`` (an ``MPU9250Model``) on the harness's SPI pins, or ``bus`` (an
+    ``I2CBusModel`` holding the MPU9250 and what its bypass exposes) on its I2C lines, plus the
+    INT pin. The process wakes only on pin changes and on the models' own events."""
+    spi = harness.spi
+    watched = [harness.wake]
+    sampled = [harness.cycle]
+    if spi is not None:
+        watched += [spi.cs_n, spi.sclk]
+        sampled += [spi.copi]
+    if bus is not None:
+        watched += [harness.scl, harness.sda]
 
     async def process(ctx):
         cs_prev, sclk_prev = 1, 1
-        miso_prev = int_prev = None
-        wake_prev = never
-        async for cs_n, sclk, _wake, copi, cycle in ctx.changed(pins.cs_n, pins.sclk, harness.wake) \
-                .sample(pins.copi, harness.cycle):
+        driven = {}
+        wake_prev = NEVER
+
+        def drive(signal, value):
+            if driven.get(signal.name) != value:
+                driven[signal.name] = value
+                ctx.set(signal, value)
+
+        # What the models drive before anything happens (a bus stuck from the start, say).
+        if bus is not None:
+            drive(harness.scl_model_low, int(bus.scl_low))
+            drive(harness.sda_model_low, int(bus.sda_low))
+        if mpu is not None:
+            drive(harness.int_model, mpu.int_level)
+
+        async for values in ctx.changed(*watched).sample(*sampled):
+            changed = dict(zip(("wake", "a", "b"), values[:len(watched)]))
+            cycle = values[len(watched)]
             t = cycle / clk_freq
-            if cs_n != cs_prev and not cs_n:
-                model.cs_edge(t, cs_n)
-            if sclk != sclk_prev:
-                model.sclk_edge(t, sclk, copi)
-            if cs_n != cs_prev and cs_n:
-                model.cs_edge(t, cs_n)
-            cs_prev, sclk_prev = cs_n, sclk
-            model.advance(t)
-            if model.miso != miso_prev:
-                miso_prev = model.miso
-                ctx.set(harness.cipo_model, miso_prev)
-            level = model.int_level
-            if level != int_prev:
-                int_prev = level
-                ctx.set(harness.int_model, level)
-            event = model.next_event
-            wake = never if event is None else max(cycle + 1, math.ceil(event * clk_freq - 1e-6))
+            if mpu is not None:
+                mpu.advance(t)
+            if spi is not None:
+                cs_n, sclk, copi = changed["a"], changed["b"], values[len(watched) + 1]
+                if cs_n != cs_prev and not cs_n:
+                    mpu.cs_edge(t, cs_n)
+                if sclk != sclk_prev:
+                    mpu.sclk_edge(t, sclk, copi)
+                if cs_n != cs_prev and cs_n:
+                    mpu.cs_edge(t, cs_n)
+                cs_prev, sclk_prev = cs_n, sclk
+                mpu.advance(t)
+                drive(harness.cipo_model, mpu.miso)
+            if bus is not None:
+                bus.lines(t, changed["a"], changed["b"])
+                drive(harness.scl_model_low, int(bus.scl_low))
+                drive(harness.sda_model_low, int(bus.sda_low))
+            if mpu is not None:
+                drive(harness.int_model, mpu.int_level)
+            events = [e for e in (mpu and mpu.next_event, bus and bus.next_event) if e]
+            wake = NEVER if not events else \
+                max(cycle + 1, math.ceil(min(events) * clk_freq - 1e-6))
             if wake != wake_prev:
                 wake_prev = wake
                 ctx.set(harness.wake_at, wake)
     sim.add_process(process)
+
+
+def attach_mpu9250(sim, model, harness, clk_freq):
+    """SPI wiring: ``model`` on the harness's SPI pins and INT."""
+    attach_models(sim, harness, clk_freq, mpu=model)
 
 
 def attach_stuck_miso(sim, harness, level):
@@ -109,13 +160,14 @@ class SimSetup:
     config: MPU9250Config = field(default_factory=MPU9250Config)
     delay_scale: float = 1e-3
     odr_scale: float = 0.2
+    mag_power_down_s: float = 100e-6       # the driver's AK8963 power-down wait
 
     @property
     def sample_period_s(self):
         return self.odr_scale / self.config.output_data_rate
 
     def driver_timing(self):
-        return DriverTiming(time_scale=self.delay_scale,
+        return DriverTiming(time_scale=self.delay_scale, mag_power_down_s=self.mag_power_down_s,
                             int_timeout_s=4 * self.sample_period_s + 0.05 * self.delay_scale)
 
     def model_timing(self):
@@ -146,6 +198,7 @@ class CosimResult:
     bring_up_cycles: Optional[int]
     wall_s: float
     model: Optional[MPU9250Model]
+    bus: Optional[I2CBusModel] = None                       # I2C wiring
     status_log: List[tuple] = field(default_factory=list)   # (cycle, status dict) on change
     asa: List[int] = field(default_factory=list)            # the driver's asa port at the end
 
@@ -175,9 +228,13 @@ def expected_mag(ak_bytes, mag_ok=True):
 
 
 def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cycles=None,
-                 until=None, vcd=None, ready=None):
+                 until=None, vcd=None, ready=None, bus_kw=None):
     """Simulate until ``n_samples`` samples came out, ``until(status_dict)`` is true, or
     ``max_cycles`` (an error unless ``until`` was given and is merely never met).
+
+    The wiring follows ``setup.config.wiring``. ``stuck_miso`` (0 or 1) simulates an unplugged
+    sensor: SPI: CIPO stuck at that level; I2C: nothing on the bus acknowledges. ``bus_kw``: extra
+    ``I2CBusModel`` arguments (clock stretching, a stuck bus).
 
     ``ready(cycle)`` gives the consumer's ready per cycle (default: always ready).
     ``vcd``: path of a VCD file to write; a GTKWave save file is written beside it.
@@ -194,11 +251,19 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
             40 * period + 20_000
         max_cycles = int(bring_up + (n_samples + 3) * period * 1.5)
 
-    harness = CosimHarness(dut, dut.pins, dut.int_pin)
+    bus = None
+    if setup.config.wiring == "spi":
+        harness = CosimHarness(dut, spi=dut.pins, int_pin=dut.int_pin)
+    else:
+        harness = CosimHarness(dut, i2c=dut.pins, int_pin=dut.int_pin)
+        address = setup.config.i2c_address
+        lookup = ((lambda a: model.primary_bus_device(a, address)) if model is not None
+                  else (lambda a: None))
+        bus = I2CBusModel(lookup, **(bus_kw or {}))
     sim = Simulator(harness)
     sim.add_clock(1 / setup.clk_freq)
-    if model is not None:
-        attach_mpu9250(sim, model, harness, setup.clk_freq)
+    if model is not None or bus is not None:
+        attach_models(sim, harness, setup.clk_freq, mpu=model, bus=bus)
     else:
         attach_stuck_miso(sim, harness, stuck_miso)
 
@@ -254,12 +319,38 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
     start = time.perf_counter()
     if vcd:
         gtkw = str(vcd).rsplit(".", 1)[0] + ".gtkw"
-        traces = [dut.pins.cs_n, dut.pins.sclk, dut.pins.copi, dut.pins.cipo, dut.int_pin,
-                  dut.samples.valid, dut.status]
+        if bus is None:
+            traces = [dut.pins.cs_n, dut.pins.sclk, dut.pins.copi, dut.pins.cipo]
+        else:
+            traces = [harness.scl, harness.sda, dut.pins.scl_oe, dut.pins.sda_oe]
+        traces += [dut.int_pin, dut.samples.valid, dut.status]
         with sim.write_vcd(str(vcd), gtkw, traces=traces):
             sim.run()
     else:
         sim.run()
     wall = time.perf_counter() - start
     return CosimResult(out["samples"], out["status"], out["cycles"], out["bring_up"], wall,
-                       model, out["log"], out["asa"])
+                       model, bus, out["log"], out["asa"])
+
+
+def sample_read_cycles(result, setup):
+    """Median cycles the bus spends reading one sample: the SPI burst from INT_STATUS (CS fall
+    to CS rise), or on I2C the MPU9250 read's START to the AK8963 read's STOP."""
+    import statistics
+    from ..hdl import mpu9250_regs as R
+    f = setup.clk_freq
+    if result.bus is None:
+        spans = [end - start for start, end, first, n, read in result.model.transactions
+                 if read and first == R.INT_STATUS]
+    else:
+        bus = result.bus
+        spans = []
+        for k, (start, stop, first) in enumerate(bus.frames):
+            entry = bus.log[first] if first < len(bus.log) else None
+            if entry and entry[1] == setup.config.i2c_address and entry[3] == R.INT_STATUS:
+                end = stop
+                nxt = bus.frames[k + 1] if k + 1 < len(bus.frames) else None
+                if nxt and nxt[2] < len(bus.log) and bus.log[nxt[2]][1] == A.I2C_ADDRESS:
+                    end = nxt[1]
+                spans.append(end - start)
+    return round(statistics.median(spans) * f) if spans else None

@@ -118,6 +118,7 @@ class MPU9250Model:
         self.sample_times = []
         self.sample_reads = []      # index into ``samples`` of each read of ACCEL_XOUT_H
         self.ext_reads = []         # EXT_SENS_DATA_00..07 as that same read saw them
+        self.transactions = []      # SPI: (t CS fell, t CS rose, first register, bytes, read)
         self.resets = 0
 
         self.now = 0.0
@@ -296,6 +297,17 @@ class MPU9250Model:
         # Scaled with the sample period, so a scaled simulation keeps the real proportions.
         return bits / (khz * 1e3) * self.timing.odr_scale, apply
 
+    def primary_bus_device(self, address, own_address=R.MPU9250_I2C_ADDRESS):
+        """Who answers ``address`` on the primary I2C bus (I2C wiring): this part, unless it is
+        still starting up (then it does not acknowledge, and being addressed is a violation),
+        or an auxiliary device while the bypass is on."""
+        if address == own_address:
+            if self.busy:
+                self._violation("access during start-up", None, "addressed on I2C while busy")
+                return None
+            return self
+        return self.aux_devices.get(address) if self.bypass_active else None
+
     @property
     def bypass_active(self):
         """The auxiliary bus is joined to the primary I2C pins (I2C wiring only)."""
@@ -388,6 +400,8 @@ class MPU9250Model:
                                 f"part is busy for another {(self._busy_until - t) * 1e6:.3f} us")
         elif cs_n and self.selected:
             self.selected = False
+            first = None if self._bits < 8 else (self._addr - self._bits // 8 + 1) & 0x7F
+            self.transactions.append((self._t_cs, t, first, self._bits // 8, self._reading))
             if self._bits % 8:
                 self._violation("CS raised mid-byte", self._addr,
                                 f"{self._bits % 8} bits of a byte were sent")

@@ -9,14 +9,16 @@ import pytest
 from amaranth.back import verilog
 
 from mpu9250_ahrs.cli import main
+from mpu9250_ahrs.hdl.mpu9250_driver import MPU9250Config
 from mpu9250_ahrs.hdl.top import AHRSCore
 from tests.conftest import require_tool
 
 
-@pytest.fixture(scope="module")
-def core_verilog(tmp_path_factory):
+@pytest.fixture(scope="module", params=["spi", "i2c"])
+def core_verilog(request, tmp_path_factory):
     path = tmp_path_factory.mktemp("verilog") / "mpu9250_ahrs_core.v"
-    path.write_text(verilog.convert(AHRSCore(clk_freq=12e6), name="mpu9250_ahrs_core"))
+    core = AHRSCore(clk_freq=12e6, config=MPU9250Config(wiring=request.param))
+    path.write_text(verilog.convert(core, name="mpu9250_ahrs_core"))
     return path
 
 
@@ -52,6 +54,13 @@ def test_build_writes_quartus_project(tmp_path, capsys):
     assert "create_clock" in sdc and "83.33" in sdc           # 12 MHz
 
 
+def test_build_i2c_wiring(tmp_path):
+    assert main(["build", "--out", str(tmp_path), "--wiring", "i2c", "--i2c-address", "0x69"]) == 0
+    qsf = (tmp_path / "top.qsf").read_text()
+    assert 'set_location_assignment -to "imu_i2c_0__scl__io" PIN_M1' in qsf
+    assert 'set_location_assignment -to "imu_i2c_0__sda__io" PIN_L3' in qsf
+
+
 def test_build_pin_override(tmp_path):
     assert main(["build", "--out", str(tmp_path), "--pin", "imu_sclk=J1"]) == 0
     assert 'set_location_assignment -to "imu_spi_0__clk__io" PIN_J1' in \
@@ -77,8 +86,16 @@ def test_simulate_command(tmp_path, capsys):
     assert [s["counter"] for s in samples] == [0, 1, 2]
     summary = json.loads(lines[3])
     assert summary["violations"] == [] and summary["status"]["streaming"] == 1
+    assert summary["status"]["mag_ok"] == 1 and summary["sample_read_us"] > 0
     assert summary["bring_up_cycles"] > 0 and summary["cycles_per_s"] > 0
     assert vcd.stat().st_size > 0 and (tmp_path / "x.gtkw").is_file()
+
+
+def test_simulate_i2c_wiring(capsys):
+    assert main(["simulate", "--samples", "2", "--wiring", "i2c"]) == 0
+    summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert summary["wiring"] == "i2c" and summary["violations"] == []
+    assert summary["status"]["mag_ok"] == 1
 
 
 def test_help_lists_verbs(capsys):

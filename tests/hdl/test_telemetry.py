@@ -106,7 +106,7 @@ def test_core_end_to_end_over_uart(vcd):
     setup = SimSetup()
     core = AHRSCore(clk_freq=setup.clk_freq, config=setup.config,
                     timing=setup.driver_timing(), baud=3_000_000)
-    harness = CosimHarness(core, core.imu, core.imu_int)
+    harness = CosimHarness(core, spi=core.imu, int_pin=core.imu_int)
     model = setup.model()
     sim = Simulator(harness)
     sim.add_clock(1 / setup.clk_freq)
