@@ -27,6 +27,7 @@ Throughput: about (low + high + 3) cycles per bit, 9 bits per byte.
 """
 
 import math
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 from amaranth import *
@@ -127,10 +128,28 @@ class I2CController(wiring.Component):
         def wait(cycles):
             m.d.sync += timer.eq(cycles - 1)
 
-        def scl_high_then(next_state):
-            """Release SCL; once the line is seen high (no one stretching it), go on."""
-            m.d.sync += [self.pins.scl_oe.eq(0), timer.eq(t.timeout - 1)]
-            m.next = next_state
+        @contextmanager
+        def timed(name):
+            """A state that counts ``timer`` down and runs the body when it reaches zero."""
+            with m.State(name):
+                m.d.sync += timer.eq(timer - 1)
+                with m.If(timer == 0):
+                    yield
+
+        def clock_up(prefix, after, high):
+            """``{prefix}_LOW``: SCL stays low until the timer ends; ``{prefix}_RISE``: SCL is
+            released and, once the line is seen high (no device stretching it past the
+            time-out), ``after`` runs for ``high`` cycles."""
+            with timed(f"{prefix}_LOW"):
+                m.d.sync += [self.pins.scl_oe.eq(0), timer.eq(t.timeout - 1)]
+                m.next = f"{prefix}_RISE"
+            with m.State(f"{prefix}_RISE"):
+                m.d.sync += timer.eq(timer - 1)
+                with m.If(scl):
+                    wait(high)
+                    m.next = after
+                with m.Elif(timer == 0):
+                    abort(self.status.timeout)
 
         with m.FSM():
             with m.State("IDLE"):
@@ -147,7 +166,7 @@ class I2CController(wiring.Component):
                                 m.next = "RS_LOW"
                             with m.Elif(~sda):
                                 m.d.sync += recover.eq(0)
-                                m.next = "REC_LOW"
+                                m.next = "REC"
                             with m.Else():
                                 m.next = "START_A"
                         with m.Case(I2COp.STOP):
@@ -172,126 +191,71 @@ class I2CController(wiring.Component):
                 m.d.sync += self.pins.sda_oe.eq(1)
                 wait(t.high)
                 m.next = "START_B"
-            with m.State("START_B"):
-                m.d.sync += timer.eq(timer - 1)
-                with m.If(timer == 0):
-                    m.d.sync += [self.pins.scl_oe.eq(1), held.eq(1)]
+            with timed("START_B"):
+                m.d.sync += [self.pins.scl_oe.eq(1), held.eq(1)]
+                respond()
+
+            # -- repeated START: SCL up with SDA released, set-up time, then a START ------------
+            clock_up("RS", "RS_SETUP", t.low)
+            with timed("RS_SETUP"):
+                m.next = "START_A"
+
+            # -- STOP: SDA low in the middle of SCL low, SCL up, then SDA up --------------------
+            with timed("STOP_HOLD"):
+                m.d.sync += self.pins.sda_oe.eq(1)
+                wait(t.low - t.low // 2)
+                m.next = "STOP_LOW"
+            clock_up("STOP", "STOP_SETUP", t.high)
+            with timed("STOP_SETUP"):
+                m.d.sync += [self.pins.sda_oe.eq(0), held.eq(0)]
+                wait(t.low)                  # bus-free time before the next START
+                m.next = "STOP_FREE"
+            with timed("STOP_FREE"):
+                with m.If(then_start):
+                    m.d.sync += then_start.eq(0)
+                    m.next = "START_A"
+                with m.Else():
                     respond()
 
-            # -- repeated START -----------------------------------------------------------------
-            with m.State("RS_LOW"):
-                m.d.sync += timer.eq(timer - 1)
-                with m.If(timer == 0):
-                    scl_high_then("RS_RISE")
-            with m.State("RS_RISE"):
-                m.d.sync += timer.eq(timer - 1)
-                with m.If(scl):
-                    wait(t.low)              # repeated-START setup time
-                    m.next = "RS_SETUP"
-                with m.Elif(timer == 0):
-                    abort(self.status.timeout)
-            with m.State("RS_SETUP"):
-                m.d.sync += timer.eq(timer - 1)
-                with m.If(timer == 0):
-                    m.next = "START_A"
-
-            # -- STOP: SDA rises while SCL is high ----------------------------------------------
-            with m.State("STOP_HOLD"):
-                m.d.sync += timer.eq(timer - 1)
-                with m.If(timer == 0):
-                    m.d.sync += self.pins.sda_oe.eq(1)
-                    wait(t.low - t.low // 2)
-                    m.next = "STOP_LOW"
-            with m.State("STOP_LOW"):
-                m.d.sync += timer.eq(timer - 1)
-                with m.If(timer == 0):
-                    scl_high_then("STOP_RISE")
-            with m.State("STOP_RISE"):
-                m.d.sync += timer.eq(timer - 1)
-                with m.If(scl):
-                    wait(t.high)
-                    m.next = "STOP_SETUP"
-                with m.Elif(timer == 0):
-                    abort(self.status.timeout)
-            with m.State("STOP_SETUP"):
-                m.d.sync += timer.eq(timer - 1)
-                with m.If(timer == 0):
-                    m.d.sync += [self.pins.sda_oe.eq(0), held.eq(0)]
-                    wait(t.low)              # bus-free time before the next START
-                    m.next = "STOP_FREE"
-            with m.State("STOP_FREE"):
-                m.d.sync += timer.eq(timer - 1)
-                with m.If(timer == 0):
-                    with m.If(then_start):
-                        m.d.sync += then_start.eq(0)
-                        m.next = "START_A"
-                    with m.Else():
-                        respond()
-
             # -- one bit: SDA set in the middle of SCL low, sampled at the end of SCL high ------
-            with m.State("BIT_HOLD"):
-                m.d.sync += timer.eq(timer - 1)
-                with m.If(timer == 0):
-                    m.d.sync += [self.pins.sda_oe.eq(~shreg[8]), sent.eq(shreg[8])]
-                    wait(t.low - t.low // 2)
-                    m.next = "BIT_LOW"
-            with m.State("BIT_LOW"):
-                m.d.sync += timer.eq(timer - 1)
-                with m.If(timer == 0):
-                    scl_high_then("BIT_RISE")
-            with m.State("BIT_RISE"):
-                m.d.sync += timer.eq(timer - 1)
-                with m.If(scl):
-                    wait(t.high)
-                    m.next = "BIT_HIGH"
-                with m.Elif(timer == 0):
-                    abort(self.status.timeout)
-            with m.State("BIT_HIGH"):
-                m.d.sync += timer.eq(timer - 1)
-                with m.If(timer == 0):
-                    m.d.sync += [self.pins.scl_oe.eq(1), shreg.eq(shreg << 1), bit.eq(bit + 1)]
-                    with m.If(bit < 8):
-                        m.d.sync += rx.eq(Cat(sda, rx[:-1]))
-                    # A 1 we sent must read back as 1, except where the other side answers
-                    # (ACK of a WRITE, the data bits of a READ).
-                    is_ours = Mux(op.op == I2COp.WRITE, bit < 8, bit == 8)
-                    with m.If(sent & ~sda & is_ours):
-                        abort(self.status.arbitration)
-                    with m.Elif(bit == 8):
-                        respond(ack=~sda)
-                    with m.Else():
-                        wait(t.low // 2)
-                        m.next = "BIT_HOLD"
+            with timed("BIT_HOLD"):
+                m.d.sync += [self.pins.sda_oe.eq(~shreg[8]), sent.eq(shreg[8])]
+                wait(t.low - t.low // 2)
+                m.next = "BIT_LOW"
+            clock_up("BIT", "BIT_HIGH", t.high)
+            with timed("BIT_HIGH"):
+                m.d.sync += [self.pins.scl_oe.eq(1), shreg.eq(shreg << 1), bit.eq(bit + 1)]
+                with m.If(bit < 8):
+                    m.d.sync += rx.eq(Cat(sda, rx[:-1]))
+                # A 1 we sent must read back as 1, except where the other side answers
+                # (ACK of a WRITE, the data bits of a READ).
+                is_ours = Mux(op.op == I2COp.WRITE, bit < 8, bit == 8)
+                with m.If(sent & ~sda & is_ours):
+                    abort(self.status.arbitration)
+                with m.Elif(bit == 8):
+                    respond(ack=~sda)
+                with m.Else():
+                    wait(t.low // 2)
+                    m.next = "BIT_HOLD"
 
             # -- stuck-bus recovery: clock until SDA is released, then STOP ---------------------
-            with m.State("REC_LOW"):
+            with m.State("REC"):
                 m.d.sync += self.pins.scl_oe.eq(1)
                 wait(t.low)
-                m.next = "REC_WAIT_LOW"
-            with m.State("REC_WAIT_LOW"):
-                m.d.sync += timer.eq(timer - 1)
-                with m.If(timer == 0):
-                    scl_high_then("REC_RISE")
-            with m.State("REC_RISE"):
-                m.d.sync += timer.eq(timer - 1)
-                with m.If(scl):
-                    wait(t.high)
-                    m.next = "REC_HIGH"
-                with m.Elif(timer == 0):
-                    abort(self.status.timeout)
-            with m.State("REC_HIGH"):
-                m.d.sync += timer.eq(timer - 1)
-                with m.If(timer == 0):
-                    m.d.sync += recover.eq(recover + 1)
-                    with m.If(sda):
-                        # Released: a STOP (SDA low during SCL low, then up), then the START.
-                        with m.If(self.status.recoveries != 15):
-                            m.d.sync += self.status.recoveries.eq(self.status.recoveries + 1)
-                        m.d.sync += [self.pins.scl_oe.eq(1), held.eq(1), then_start.eq(1)]
-                        wait(t.low // 2)
-                        m.next = "STOP_HOLD"
-                    with m.Elif(recover == 8):
-                        abort(self.status.bus_stuck)
-                    with m.Else():
-                        m.next = "REC_LOW"
+                m.next = "REC_LOW"
+            clock_up("REC", "REC_HIGH", t.high)
+            with timed("REC_HIGH"):
+                m.d.sync += recover.eq(recover + 1)
+                with m.If(sda):
+                    # Released: a STOP (SDA low during SCL low, then up), then the START.
+                    with m.If(self.status.recoveries != 15):
+                        m.d.sync += self.status.recoveries.eq(self.status.recoveries + 1)
+                    m.d.sync += [self.pins.scl_oe.eq(1), held.eq(1), then_start.eq(1)]
+                    wait(t.low // 2)
+                    m.next = "STOP_HOLD"
+                with m.Elif(recover == 8):
+                    abort(self.status.bus_stuck)
+                with m.Else():
+                    m.next = "REC"
+
         return m
