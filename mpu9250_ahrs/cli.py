@@ -3,6 +3,7 @@
 import argparse
 import json
 import sys
+import time
 from pathlib import Path
 
 
@@ -11,6 +12,8 @@ VERBS_HELP = """verbs:
              scripts) without running Quartus; --verilog-only writes the core as plain Verilog
   simulate   cycle-accurate co-simulation: the gateware brings an MPU9250 model up over SPI
              and reads samples; prints them, the bring-up time and the simulator's speed
+  replay     run one of the reference filters on a recording (BROAD HDF5 format), quantised to
+             MPU9250/AK8963 counts, and print its errors against the optical truth as JSON
 """
 
 
@@ -114,6 +117,32 @@ def sample_read_time(result, setup):
     return None if cycles is None else round(cycles / setup.clk_freq * 1e6, 2)
 
 
+def cmd_replay(args):
+    import numpy as np
+    from .reference.evaluate import FILTERS, run_filter, score
+    from .sim.recording import Scales, load_broad, quantise, to_units
+
+    if args.fixed:
+        print("mpu9250-ahrs replay: error: --fixed: the fixed-point models are not written yet "
+              "(issue 4 leaves them open)", file=sys.stderr)
+        return 2
+    rec = load_broad(args.file)
+    scales = Scales(gyro_fs_dps=args.gyro_fs, accel_fs_g=args.accel_fs)
+    gyr, acc, mag = to_units(*quantise(rec.gyr, rec.acc, rec.mag, scales), scales)
+    params = {"beta": args.beta} if args.beta is not None else {}
+    start = time.perf_counter()
+    quat = run_filter(args.filter, gyr, acc, mag, rec.dt, **params)
+    elapsed = time.perf_counter() - start
+    result = {"file": rec.name, "filter": args.filter, "fixed": args.fixed,
+              **score(quat, rec.quat, rec.movement), "filter_s": round(elapsed, 3),
+              "samples_total": len(quat)}
+    if args.out:
+        np.savetxt(args.out, np.column_stack([np.arange(len(quat)) * rec.dt, quat]),
+                   delimiter=",", header="t_s,w,x,y,z", comments="", fmt="%.9g")
+    print(json.dumps(result))
+    return 0
+
+
 def build_parser():
     parser = argparse.ArgumentParser(
         prog="mpu9250-ahrs", description="MPU9250 attitude reference in FPGA gateware.",
@@ -148,6 +177,22 @@ def build_parser():
     p.add_argument("--quiet-summary", action="store_true", help="summary to stderr")
     _add_sensor_options(p)
     p.set_defaults(func=cmd_simulate)
+
+    p = sub.add_parser("replay", help="score a reference filter on a recording",
+                       description="Quantise a BROAD-format recording (imu_gyr rad/s, imu_acc "
+                                   "m/s², imu_mag µT, opt_quat, movement, sampling_rate) to "
+                                   "MPU9250/AK8963 counts, run a filter, and print one JSON line "
+                                   "with total/heading/inclination RMSE (BROAD's metric, degrees, "
+                                   "over the movement samples).")
+    p.add_argument("file", help="HDF5 recording, e.g. ../shared/data/broad/02_*.hdf5")
+    p.add_argument("--filter", choices=("kalman", "complementary", "madgwick", "flagship"),
+                   default="flagship")
+    p.add_argument("--fixed", action="store_true", help="the bit-exact fixed-point model")
+    p.add_argument("--out", help="write the estimated quaternions (t, w, x, y, z) as CSV")
+    p.add_argument("--beta", type=float, default=None, help="Madgwick gain (default 0.1)")
+    p.add_argument("--gyro-fs", type=int, default=2000, help="gyro full scale, °/s (2000)")
+    p.add_argument("--accel-fs", type=int, default=16, help="accelerometer full scale, g (16)")
+    p.set_defaults(func=cmd_replay)
     return parser
 
 
@@ -155,6 +200,6 @@ def main(argv=None):
     args = build_parser().parse_args(argv)
     try:
         return args.func(args)
-    except ValueError as e:
+    except (ValueError, OSError) as e:
         print(f"mpu9250-ahrs {args.verb}: error: {e}", file=sys.stderr)
         return 2

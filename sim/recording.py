@@ -1,0 +1,82 @@
+"""Recorded data: BROAD-format HDF5 files, quantised to what an MPU9250 + AK8963 would output.
+
+A BROAD file (``shared/data/broad/README.md``) holds ``imu_gyr`` (rad/s), ``imu_acc`` (m/s²),
+``imu_mag`` (µT) in the sensor frame, ``opt_quat`` (sensor->ENU, w x y z, NaN where the cameras
+lost the markers), ``movement`` (bool: the samples that are scored) and the ``sampling_rate``
+attribute. The recording's sensor frame is taken as the MPU9250 body frame.
+
+``quantise`` turns physical values into MPU9250 counts (gyro at the chosen full scale, accel at
+the chosen full scale, both saturating at ±32767/−32768) and AK8963 16-bit counts (0.15 µT/LSB,
+±32760), rounding to nearest. ``to_units`` turns counts back into rad/s, m/s² and µT, so the
+float filters see exactly the quantised data the gateware would.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+__all__ = ["Recording", "load_broad", "Scales", "quantise", "to_units", "G"]
+
+G = 9.81
+
+
+@dataclass
+class Recording:
+    name: str
+    rate: float
+    gyr: np.ndarray      # rad/s
+    acc: np.ndarray      # m/s²
+    mag: np.ndarray      # µT
+    quat: np.ndarray     # truth, sensor->ENU (w, x, y, z); NaN rows where unknown
+    movement: np.ndarray
+
+    @property
+    def dt(self):
+        return 1.0 / self.rate
+
+
+def load_broad(path):
+    import h5py
+    from pathlib import Path
+    with h5py.File(path, "r") as f:
+        missing = sorted({"imu_gyr", "imu_acc", "imu_mag", "opt_quat", "movement"} - set(f))
+        if "sampling_rate" not in f.attrs:
+            missing.append("attribute sampling_rate")
+        if missing:
+            raise ValueError(f"{path}: not a BROAD-format file (missing {', '.join(missing)})")
+        return Recording(Path(path).stem, float(f.attrs["sampling_rate"]),
+                         f["imu_gyr"][:], f["imu_acc"][:], f["imu_mag"][:], f["opt_quat"][:],
+                         f["movement"][:].astype(bool))
+
+
+@dataclass(frozen=True)
+class Scales:
+    gyro_fs_dps: int = 2000
+    accel_fs_g: int = 16
+    mag_ut_per_lsb: float = 0.15
+
+    @property
+    def gyro_lsb_per_rad(self):
+        return 32768 / self.gyro_fs_dps * 180 / np.pi      # 16.4 LSB/(°/s) at ±2000 °/s
+
+    @property
+    def accel_lsb_per_ms2(self):
+        return 32768 / self.accel_fs_g / G                 # 2048 LSB/g at ±16 g
+
+
+def _counts(x, scale, lo, hi):
+    return np.clip(np.round(np.asarray(x, float) * scale), lo, hi).astype(np.int32)
+
+
+def quantise(gyr, acc, mag, scales=Scales()):
+    """Physical -> raw counts (int32 arrays), saturating like the parts do."""
+    return (_counts(gyr, scales.gyro_lsb_per_rad, -32768, 32767),
+            _counts(acc, scales.accel_lsb_per_ms2, -32768, 32767),
+            _counts(mag, 1 / scales.mag_ut_per_lsb, -32760, 32760))
+
+
+def to_units(gyr_counts, acc_counts, mag_counts, scales=Scales()):
+    return (np.asarray(gyr_counts, float) / scales.gyro_lsb_per_rad,
+            np.asarray(acc_counts, float) / scales.accel_lsb_per_ms2,
+            np.asarray(mag_counts, float) * scales.mag_ut_per_lsb)
