@@ -119,19 +119,19 @@ def sample_read_time(result, setup):
 
 def cmd_replay(args):
     import numpy as np
-    from .reference.evaluate import FILTERS, run_filter, score
+    from .reference.evaluate import run_filter, run_fixed, score
     from .sim.recording import Scales, load_broad, quantise, to_units
 
-    if args.fixed:
-        print("mpu9250-ahrs replay: error: --fixed: the fixed-point models are not written yet "
-              "(issue 4 leaves them open)", file=sys.stderr)
-        return 2
     rec = load_broad(args.file)
     scales = Scales(gyro_fs_dps=args.gyro_fs, accel_fs_g=args.accel_fs)
-    gyr, acc, mag = to_units(*quantise(rec.gyr, rec.acc, rec.mag, scales), scales)
+    counts = quantise(rec.gyr, rec.acc, rec.mag, scales)
     params = {"beta": args.beta} if args.beta is not None else {}
     start = time.perf_counter()
-    quat = run_filter(args.filter, gyr, acc, mag, rec.dt, **params)
+    if args.fixed:
+        quat = run_fixed(args.filter, *counts, rec.dt,
+                         gyro_lsb_per_dps=scales.gyro_lsb_per_rad * np.pi / 180, **params)
+    else:
+        quat = run_filter(args.filter, *to_units(*counts, scales), rec.dt, **params)
     elapsed = time.perf_counter() - start
     result = {"file": rec.name, "filter": args.filter, "fixed": args.fixed,
               **score(quat, rec.quat, rec.movement), "filter_s": round(elapsed, 3),
@@ -187,7 +187,8 @@ def build_parser():
     p.add_argument("file", help="HDF5 recording, e.g. ../shared/data/broad/02_*.hdf5")
     p.add_argument("--filter", choices=("kalman", "complementary", "madgwick", "flagship"),
                    default="flagship")
-    p.add_argument("--fixed", action="store_true", help="the bit-exact fixed-point model")
+    p.add_argument("--fixed", action="store_true",
+                   help="the bit-exact fixed-point model (kalman and complementary so far)")
     p.add_argument("--out", help="write the estimated quaternions (t, w, x, y, z) as CSV")
     p.add_argument("--beta", type=float, default=None, help="Madgwick gain (default 0.1)")
     p.add_argument("--gyro-fs", type=int, default=2000, help="gyro full scale, °/s (2000)")

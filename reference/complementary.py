@@ -2,7 +2,8 @@
 
 Per axis: roll and pitch measured by accelerometer tilt, yaw by the tilt-compensated
 magnetometer heading (using the filter's own roll and pitch). Angles and the blend wrap at ±180°
-(the measurement is pulled to within 180° of the prediction before blending). ``rates`` as in
+(the measurement is pulled to within 180° of the prediction before blending). A zero
+accelerometer or field vector contributes nothing (the prediction stands). ``rates`` as in
 ``reference.kalman``. Units: degrees, °/s, seconds.
 """
 
@@ -29,6 +30,7 @@ def complementary_filter(gyr_dps, acc, mag, dt, *, tau=0.8, a=None, rates="euler
     a = coefficient(tau, dt) if a is None else a
     gyr = np.asarray(gyr_dps, float)
     n = len(gyr)
+    acc = np.asarray(acc, float)
     meas_rp = np.degrees(accel_tilt(acc))
     mag = np.asarray(mag, float)
     mag_valid = np.ones(n, bool) if mag_valid is None else np.asarray(mag_valid, bool)
@@ -44,11 +46,11 @@ def complementary_filter(gyr_dps, acc, mag, dt, *, tau=0.8, a=None, rates="euler
                           (sr * w[1] + cr * w[2]) / cp])
         pred = theta + w * dt
         meas = np.empty(3)
-        meas[:2] = meas_rp[k]
+        meas[:2] = meas_rp[k] if np.any(acc[k]) else pred[:2]     # free fall: no tilt
         meas[2] = np.degrees(tilt_compensated_heading(mag[k], np.radians(pred[0]),
                                                       np.radians(pred[1])))
         meas = pred + _wrap_deg(meas - pred)
-        if not mag_valid[k]:
+        if not mag_valid[k] or not np.any(mag[k]):
             meas[2] = pred[2]
         theta = _wrap_deg(a * pred + (1 - a) * meas)
         out[k] = theta

@@ -1,4 +1,8 @@
-"""Run any filter of this project on a recording and score it with BROAD's metric."""
+"""Run any filter of this project on a recording and score it with BROAD's metric.
+
+``run_filter`` takes physical units (float filters); ``run_fixed`` takes raw counts and runs the
+bit-exact fixed-point model (per-axis Kalman and complementary so far).
+"""
 
 import math
 
@@ -6,14 +10,15 @@ import numpy as np
 
 from .complementary import complementary_filter
 from .flagship import FlagshipParams, flagship_filter
-from .frames import orientation_errors
+from .frames import euler_to_quat, orientation_errors
 from .kalman import KalmanParams, kalman_filter
 from .madgwick import madgwick_filter
 
 
-__all__ = ["FILTERS", "run_filter", "score"]
+__all__ = ["FILTERS", "FIXED_FILTERS", "run_filter", "run_fixed", "score"]
 
 FILTERS = ("kalman", "complementary", "madgwick", "flagship")
+FIXED_FILTERS = ("kalman", "complementary")
 
 
 def run_filter(name, gyr, acc, mag, dt, **params):
@@ -21,13 +26,33 @@ def run_filter(name, gyr, acc, mag, dt, **params):
     if name == "kalman":
         return kalman_filter(np.degrees(gyr), acc, mag, dt, params.get("kalman", KalmanParams()))[2]
     if name == "complementary":
-        return complementary_filter(np.degrees(gyr), acc, mag, dt,
-                                    tau=params.get("tau", 0.8))[1]
+        return complementary_filter(np.degrees(gyr), acc, mag, dt, tau=params.get("tau", 0.8),
+                                    rates="body")[1]
     if name == "madgwick":
         return madgwick_filter(gyr, acc, mag, dt, beta=params.get("beta", 0.1))
     if name == "flagship":
         return flagship_filter(gyr, acc, mag, dt, params.get("flagship", FlagshipParams()))
     raise ValueError(f"unknown filter {name!r}; choose from {', '.join(FILTERS)}")
+
+
+def run_fixed(name, gyr_counts, acc_counts, mag_counts, dt, *, gyro_lsb_per_dps=16.4,
+              **params):
+    """Raw counts -> quaternions body->ENU from the fixed-point model of ``name``."""
+    from .fixed_point import KalmanFixedConfig, bam_to_deg, complementary_fixed, kalman_fixed
+    from .complementary import coefficient
+    if name == "kalman":
+        p = params.get("kalman", KalmanParams())
+        cfg = KalmanFixedConfig(dt=dt, gyro_lsb_per_dps=gyro_lsb_per_dps, q_angle=p.q_angle,
+                                q_bias=p.q_bias, r=p.r, p0=p.p0)
+        angles = kalman_fixed(gyr_counts, acc_counts, mag_counts, cfg)[0]
+    elif name == "complementary":
+        angles = complementary_fixed(gyr_counts, acc_counts, mag_counts, dt=dt,
+                                     a=coefficient(params.get("tau", 0.8), dt),
+                                     gyro_lsb_per_dps=gyro_lsb_per_dps)
+    else:
+        raise ValueError(f"no fixed-point model of {name!r} yet; there are: "
+                         f"{', '.join(FIXED_FILTERS)}")
+    return euler_to_quat(np.radians(bam_to_deg(angles)))
 
 
 def score(quat, truth, movement):

@@ -9,8 +9,8 @@ For each of roll, pitch and yaw, state x = [angle, gyro bias] (degrees, °/s):
 ``rates="body"`` feeds each axis its body rate (the published form: exact only near level);
 ``rates="euler"`` maps body rates to Euler-angle rates first (right at any attitude short of
 ±90° pitch, where yaw and roll are undefined).
-A sample with ``mag_valid`` false skips the yaw update; one with ``acc_valid`` false skips roll
-and pitch updates.
+A sample with ``mag_valid`` false, or a zero field, skips the yaw update; one with ``acc_valid``
+false, or a zero accelerometer vector (free fall), skips the roll and pitch updates.
 
 Units: gyro °/s, accelerometer and magnetometer any (only directions matter), T in seconds.
 """
@@ -32,7 +32,7 @@ class KalmanParams:
     r: float = 2.0              # measurement noise, deg²
     r_yaw: float = None         # yaw measurement noise (None: same as r)
     p0: float = 1.0             # initial covariance (identity · p0)
-    rates: str = "euler"
+    rates: str = "body"         # the published form (and the fixed-point model's)
 
 
 # The published preset (T = 0.01 s): x0 = 0, P0 = I, Q = diag(0.2, 0.1), R = 2, body rates.
@@ -48,6 +48,7 @@ def kalman_filter(gyr_dps, acc, mag, dt, params=KalmanParams(), *, mag_valid=Non
     """Run the filter over N samples. Returns (euler_deg (N,3), bias_dps (N,3), quat (N,4))."""
     gyr = np.asarray(gyr_dps, float)
     n = len(gyr)
+    acc = np.asarray(acc, float)
     meas_rp = np.degrees(accel_tilt(acc))
     mag = np.asarray(mag, float)
     mag_valid = np.ones(n, bool) if mag_valid is None else np.asarray(mag_valid, bool)
@@ -85,7 +86,9 @@ def kalman_filter(gyr_dps, acc, mag, dt, params=KalmanParams(), *, mag_valid=Non
         z[:2] = meas_rp[k]
         z[2] = np.degrees(tilt_compensated_heading(mag[k], np.radians(x[0, 0]),
                                                    np.radians(x[1, 0])))
-        use = np.array([acc_valid[k], acc_valid[k], mag_valid[k]])
+        # A zero vector (free fall, a dead magnetometer) has no direction: no update.
+        acc_ok = acc_valid[k] and np.any(acc[k])
+        use = np.array([acc_ok, acc_ok, mag_valid[k] and np.any(mag[k])])
         y = _wrap_deg(z - x[:, 0])
         s = P[:, 0, 0] + r
         k0, k1 = P[:, 0, 0] / s, P[:, 1, 0] / s
