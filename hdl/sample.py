@@ -47,7 +47,8 @@ from amaranth.hdl import signed
 from amaranth.lib import data
 
 
-__all__ = ["Vector3", "SampleFlags", "Sample", "DriverStatus"]
+__all__ = ["Vector3", "SampleFlags", "Sample", "DriverStatus", "AttitudeFlags", "Attitude",
+           "ConfigWrite"]
 
 
 Vector3 = data.ArrayLayout(signed(16), 3)
@@ -81,3 +82,42 @@ class DriverStatus(data.Struct):
     mag_ok: 1
     mag_absent: 1
     mag_wia_error: 1
+
+
+class AttitudeFlags(data.Struct):
+    """Per-result status of the attitude engine.
+
+    - ``acc_used``: the accelerometer tilt updated roll and pitch (0: the calibrated
+      accelerometer vector was zero, e.g. free fall; roll and pitch are gyro-only).
+    - ``mag_used``: the magnetometer heading updated yaw (0: no new valid field this sample —
+      ``mag_valid`` was 0, e.g. between the AK8963's 100 Hz measurements, on overflow, or with
+      the magnetometer down — or the calibrated field was zero).
+    - ``saturated``: some intermediate result of this update was clamped (a calibrated value
+      beyond 16 bits, a covariance or gain beyond its format, R ≤ 0): check the coefficients.
+    - ``complementary``: this result is the complementary filter's (0: Kalman).
+    - ``overrun``: the sample's own ``overrun`` flag: samples were dropped before it.
+    """
+    acc_used: 1
+    mag_used: 1
+    saturated: 1
+    complementary: 1
+    overrun: 1
+
+
+class Attitude(data.Struct):
+    """One result of the attitude engine.
+
+    ``angles``: roll, pitch, yaw (ZYX Euler, body axes of the MPU9250, yaw = heading East of
+    North) in BAM32: signed 32 bits, 2³² = 360°. ``bias``: the Kalman filter's gyro bias
+    estimates in gyro counts, Q16.16 (held while the complementary filter runs). ``counter``:
+    the sample's counter."""
+    angles: data.ArrayLayout(signed(32), 3)
+    bias: data.ArrayLayout(signed(32), 3)
+    counter: 16
+    flags: AttitudeFlags
+
+
+class ConfigWrite(data.Struct):
+    """A write to the attitude engine's register map (``hdl/attitude_program.py``)."""
+    addr: 7
+    data: signed(32)

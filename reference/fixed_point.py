@@ -4,17 +4,27 @@ Written directly from the formats in ``reference/FIXED_POINT.md`` (not by interp
 gateware); every rounding, saturation and iteration count is here and there. Python integers
 model the hardware registers; widths are checked with ``_fits`` where a register ends.
 
+Every value is a 32-bit signed register, every multiply a 32×32 product into a wide
+accumulator, rounded and saturated back to 32 bits: the operations the shared datapath of the
+gateware performs (``Status`` records whether any saturation happened).
+
 Primitives
     ``rshift_round(x, n)``: x / 2ⁿ rounded half up (add 2ⁿ⁻¹, arithmetic shift right).
     ``sat(x, bits)``: clamp to a signed ``bits``-bit range.
     ``wrap32(x)``: two's-complement wrap to 32 bits (angles in BAM32).
     ``div_trunc(num, den, frac)``: (num·2^frac)/den truncated towards zero (restoring divider).
+    ``div_q24(num, den)``: the datapath's divider: div_trunc(num, den, 24) saturated to 32 bits,
+    0 for den ≤ 0.
     ``cordic_vector(x, y)``: atan2(y, x) in BAM32 and √(x²+y²)·K, ``CORDIC_ITERATIONS`` steps.
     ``cordic_rotate(angle)``: (cos, sin) of a BAM32 angle in Q1.30.
 
-Filters (inputs are raw sensor counts, body axes; magnetometer already mapped from AK8963 axes)
+Stages (inputs are raw sensor counts)
+    ``calibrate_fixed``: gyro offset, accelerometer offset and scale, AK8963 ASA, axis mapping,
+    hard- and soft-iron: raw counts -> body-axis counts.
     ``kalman_fixed``: the per-axis Kalman filter with body rates (the published form).
     ``complementary_fixed``: the complementary filter with body rates.
+    ``attitude_fixed``: calibration then either filter, per sample, with the status flags: what
+    the gateware's attitude engine outputs.
 """
 
 import math
@@ -25,7 +35,8 @@ import numpy as np
 
 __all__ = ["BAM_BITS", "CORDIC_ITERATIONS", "ATAN_TABLE", "CORDIC_GAIN", "rshift_round", "sat",
            "wrap32", "div_trunc", "cordic_vector", "cordic_rotate", "bam_to_deg", "deg_to_bam",
-           "KalmanFixedConfig", "kalman_fixed", "complementary_fixed"]
+           "div_q24", "Status", "KalmanFixedConfig", "CalibrationFixed", "calibrate_fixed",
+           "kalman_fixed", "complementary_fixed", "attitude_fixed", "AttitudeFixed"]
 
 BAM_BITS = 32                     # angles: signed 32-bit, 2³² = 360°, 1 LSB = 8.38e-8°
 CORDIC_ITERATIONS = 24
@@ -60,6 +71,48 @@ def div_trunc(num, den, frac):
     return -q if num < 0 else q
 
 
+def div_q24(num, den, status=None):
+    """The datapath's divider: (num·2²⁴)/den truncated towards zero, saturated to 32 bits; a
+    denominator ≤ 0 gives 0 (and counts as a saturation)."""
+    if den <= 0:
+        if status is not None:
+            status.saturated = True
+        return 0
+    return sat32(div_trunc(num, den, 24), status)
+
+
+class Status:
+    """Sticky per-sample flag: did any result saturate?"""
+    def __init__(self):
+        self.saturated = False
+
+
+def sat32(x, status=None):
+    y = sat(x, 32)
+    if status is not None and y != x:
+        status.saturated = True
+    return y
+
+
+def sat16(x, status=None):
+    y = sat(x, 16)
+    if status is not None and y != x:
+        status.saturated = True
+    return y
+
+
+def mul(a, b, shift, status=None):
+    """sat32(rshift_round(a·b, shift)): one multiply of the datapath."""
+    return sat32(rshift_round(a * b, shift), status)
+
+
+def mac(terms, shift, status=None):
+    """sat32(rshift_round(Σ ±aᵢ·bᵢ, shift)): products summed exactly in the accumulator, one
+    rounding at the end. ``terms``: (a, b) or (a, b, -1) for a subtracted product."""
+    acc = sum(t[0] * t[1] * (t[2] if len(t) > 2 else 1) for t in terms)
+    return sat32(rshift_round(acc, shift), status)
+
+
 def bam_to_deg(a):
     return np.asarray(a, float) * (360.0 / 2 ** 32)
 
@@ -68,9 +121,10 @@ def deg_to_bam(d):
     return wrap32(int(round(d / 360.0 * 2 ** 32)))
 
 
-def cordic_vector(x, y):
-    """Vectoring CORDIC: (atan2(y, x) in BAM32, magnitude · K). Inputs are integers of up to 30
-    bits; the vector is first turned into the right half-plane (±180° as needed)."""
+def cordic_vector(x, y, status=None):
+    """Vectoring CORDIC: (atan2(y, x) in BAM32, magnitude · K saturated to 32 bits). Inputs are
+    32-bit integers (the gateware iterates on 35 bits, so nothing overflows inside); the vector
+    is first turned into the right half-plane (±180° as needed)."""
     if x == 0 and y == 0:
         return 0, 0                              # zero vector: angle 0 by definition
     # Left half-plane: turn the vector by 180°; adding 2³¹ (180°) and wrapping gives the angle.
@@ -84,7 +138,7 @@ def cordic_vector(x, y):
         else:
             x, y = x - (y >> i), y + (x >> i)
             angle -= ATAN_TABLE[i]
-    return wrap32(angle), x
+    return wrap32(angle), sat32(x, status)
 
 
 def cordic_rotate(angle):
@@ -103,126 +157,250 @@ def cordic_rotate(angle):
     return (-x, -y) if flip else (x, y)
 
 
+# -- calibration ---------------------------------------------------------------------------------
+
+Q14 = 1 << 14
+
+
+@dataclass(frozen=True)
+class CalibrationFixed:
+    """Run-time calibration registers (integers; FIXED_POINT.md, "Calibration").
+
+    gyro_offset: counts; accel_offset: counts; accel_scale: Q2.14 (16384 = 1);
+    hard_iron: counts in body axes, after the ASA adjustment; soft_iron: 3×3 row-major, Q2.14.
+    """
+    gyro_offset: tuple = (0, 0, 0)
+    accel_offset: tuple = (0, 0, 0)
+    accel_scale: tuple = (Q14, Q14, Q14)
+    hard_iron: tuple = (0, 0, 0)
+    soft_iron: tuple = (Q14, 0, 0, 0, Q14, 0, 0, 0, Q14)
+
+    @classmethod
+    def from_units(cls, *, gyro_offset=(0, 0, 0), accel_offset=(0, 0, 0),
+                   accel_scale=(1, 1, 1), hard_iron=(0, 0, 0), soft_iron=np.eye(3)):
+        """From calibration results in counts (``reference.calibration``): offsets rounded,
+        scale factors and the soft-iron matrix to Q2.14. ``accel_scale`` multiplies (use
+        1/scale from ``accel_six_pose``)."""
+        r = lambda v: tuple(int(round(x)) for x in np.ravel(v))
+        return cls(gyro_offset=r(gyro_offset), accel_offset=r(accel_offset),
+                   accel_scale=r(np.asarray(accel_scale, float) * Q14),
+                   hard_iron=r(hard_iron), soft_iron=r(np.asarray(soft_iron, float) * Q14))
+
+
+def _calibrate_one(g, a, h, asa, cal, st):
+    """One sample: raw gyro/accel counts, raw AK8963 counts (AK axes), raw ASA fuse bytes."""
+    gc = [sat16(sat32(g[i] - cal.gyro_offset[i], st), st) for i in range(3)]
+    ac = [sat16(mul(sat32(a[i] - cal.accel_offset[i], st), cal.accel_scale[i], 14, st), st)
+          for i in range(3)]
+    adj = [mul(h[j], asa[j] + 128, 8, st) for j in range(3)]          # ASA: ·(ASA + 128)/256
+    # AK8963 -> body axes: x_b = y_ak, y_b = x_ak, z_b = −z_ak; then the hard-iron offset
+    d = [sat32(adj[1] - cal.hard_iron[0], st), sat32(adj[0] - cal.hard_iron[1], st),
+         sat32(sat32(-adj[2], st) - cal.hard_iron[2], st)]
+    s = cal.soft_iron
+    mc = [sat16(mac([(s[3 * i + j], d[j]) for j in range(3)], 14, st), st) for i in range(3)]
+    return gc, ac, mc
+
+
+def calibrate_fixed(gyr_raw, acc_raw, mag_ak_raw, asa=(128, 128, 128), cal=CalibrationFixed()):
+    """Raw counts -> calibrated body-axis counts (gyro, accel, mag), each (N, 3) int."""
+    out = [np.empty((len(gyr_raw), 3), np.int64) for _ in range(3)]
+    for k, (g, a, h) in enumerate(zip(*(np.asarray(x, np.int64).tolist()
+                                         for x in (gyr_raw, acc_raw, mag_ak_raw)))):
+        for o, v in zip(out, _calibrate_one(g, a, h, asa, cal, Status())):
+            o[k] = v
+    return tuple(out)
+
+
 # -- filters -----------------------------------------------------------------------------------
 
 @dataclass(frozen=True)
 class KalmanFixedConfig:
-    """Run-time registers of the per-axis Kalman filter (values in real units; ``registers``
-    gives their integer encodings, see FIXED_POINT.md)."""
+    """Run-time registers of the filters (values in real units; ``registers`` gives their
+    integer encodings, see FIXED_POINT.md)."""
     dt: float = 0.01
     gyro_lsb_per_dps: float = 16.4
     q_angle: float = 0.2         # deg²
     q_bias: float = 0.1          # (deg/s)²
     r: float = 2.0               # deg²
     p0: float = 1.0
+    a: float = 0.98              # complementary filter coefficient
 
     def registers(self):
         q24 = 1 << 24
-        return {
-            # BAM per (count·step), Q16: Δθ = (ω_counts · RATE) >> 16, for the sum of two
-            # samples (the trapezoidal average's /2 is folded in).
-            "RATE": int(round(self.dt * 2 ** 32 / (360.0 * self.gyro_lsb_per_dps) / 2 * 2 ** 16)),
+        regs = {
+            # BAM per gyro count per sample period, Q16: Δθ = (ω_counts·2¹⁶ · RATE) >> 32
+            "RATE": int(round(self.dt * 2 ** 32 / (360.0 * self.gyro_lsb_per_dps) * 2 ** 16)),
             "T": int(round(self.dt * q24)),                          # Q0.24 seconds
             "Q_ANGLE": int(round(self.q_angle * q24)),               # Q8.24 deg²
             "Q_BIAS": int(round(self.q_bias * q24)),                 # Q8.24 (deg/s)²
             "R": int(round(self.r * q24)),                           # Q8.24 deg²
             "P0": int(round(self.p0 * q24)),
-            # counts per BAM-degree product: Δb_counts(Q16) = (K1 · y_BAM · BIAS_SCALE) >> …
-            "BIAS_SCALE": int(round(360.0 / 2 ** 32 * self.gyro_lsb_per_dps * 2 ** 40)),
+            # Δb [Q16 counts] = (t [BAM/s] · BIAS_SCALE) >> 24: 360/2³² deg/BAM · LSB · 2¹⁶
+            "BIAS_SCALE": int(round(360.0 * self.gyro_lsb_per_dps / 2 ** 16 * q24)),
+            "ONE_MINUS_A": int(round((1 - self.a) * q24)),          # Q0.24
         }
+        if not 0 < regs["RATE"] < 2 ** 31:
+            raise ValueError(f"RATE {regs['RATE']} does not fit 31 bits: dt "
+                             f"{self.dt} s is too long for {self.gyro_lsb_per_dps} LSB/(°/s)")
+        return regs
 
 
-def _tilt(ax, ay, az):
+def _tilt(ax, ay, az, st=None):
     """(roll, pitch) BAM32 from accelerometer counts: atan2(ay, az), atan2(−ax, √(ay²+az²))."""
-    roll, mag_k = cordic_vector(az << 8, ay << 8)
-    horiz = rshift_round(mag_k * INV_GAIN_Q30, 30)       # √(ay²+az²)·2⁸, K removed
-    pitch, _ = cordic_vector(horiz, -ax << 8)
+    roll, mag_k = cordic_vector(az << 8, ay << 8, st)
+    horiz = mul(mag_k, INV_GAIN_Q30, 30, st)             # √(ay²+az²)·2⁸, K removed
+    pitch, _ = cordic_vector(horiz, -ax << 8, st)
     return roll, pitch
 
 
-def _heading(mx, my, mz, roll, pitch):
+def _heading(mx, my, mz, roll, pitch, st=None):
     """Tilt-compensated heading, BAM32, from body-frame field counts and the filter's tilt."""
     cr, sr = cordic_rotate(roll)
     cp, sp = cordic_rotate(pitch)
-    # products of Q1.30 trig values with 16-bit counts: keep 12 fractional bits (counts · 2¹²,
-    # at most 30 bits for the three-term sum, so the CORDIC's growth fits 32)
-    hx = rshift_round(cp * mx + rshift_round(sp * sr, 30) * my + rshift_round(sp * cr, 30) * mz, 18)
-    hy = rshift_round(cr * my - sr * mz, 18)
-    angle, _ = cordic_vector(hy, hx)              # atan2(hx, hy): East of North is positive
+    # Q1.30 trig · 16-bit counts, 12 fractional bits kept: |hx| < 3·2²⁷, inside the CORDIC's
+    # ±2²⁹ comfort zone
+    spsr, spcr = mul(sp, sr, 30, st), mul(sp, cr, 30, st)
+    hx = mac([(cp, mx), (spsr, my), (spcr, mz)], 18, st)
+    hy = mac([(cr, my), (sr, mz, -1)], 18, st)
+    angle, _ = cordic_vector(hy, hx, st)          # atan2(hx, hy): East of North is positive
     return angle
+
+
+class _KalmanFixed:
+    """State and one step of the per-axis Kalman filter in integers."""
+
+    def __init__(self, config, overrides=None):
+        self.reg = {**config.registers(), **(overrides or {})}
+        self.theta = [0, 0, 0]
+        self.bias = [0, 0, 0]                     # Q16.16 gyro counts
+        self.P = [[self.reg["P0"], 0, 0, self.reg["P0"]] for _ in range(3)]
+        self.prev = None
+
+    def predict(self, g, st):
+        RATE, T, QA, QB = (self.reg[k] for k in ("RATE", "T", "Q_ANGLE", "Q_BIAS"))
+        prev = g if self.prev is None else self.prev
+        for i in range(3):
+            # u = (ω_{k−1} + ω_k)/2 − b in Q16 counts; θ += u·RATE >> 32
+            u = sat32(((prev[i] + g[i]) << 15) - self.bias[i], st)
+            self.theta[i] = wrap32(self.theta[i] + mul(u, RATE, 32, st))
+            p00, p01, p10, p11 = self.P[i]
+            tp11 = mul(T, p11, 24, st)
+            x = sat32(sat32(tp11 - p10, st) - p01, st)
+            n00 = sat32(sat32(p00 + mul(T, x, 24, st), st) + QA, st)
+            self.P[i] = [n00, sat32(p01 - tp11, st), sat32(p10 - tp11, st), sat32(p11 + QB, st)]
+        self.prev = list(g)
+
+    def update(self, i, z, st):
+        R, BS = self.reg["R"], self.reg["BIAS_SCALE"]
+        p00, p01, p10, p11 = self.P[i]
+        s = sat32(p00 + R, st)
+        k0, k1 = div_q24(p00, s, st), div_q24(p10, s, st)     # Q0.24, Q8.24 (1/s)
+        y = wrap32(z - self.theta[i])                          # BAM32 innovation
+        self.theta[i] = wrap32(self.theta[i] + mul(k0, y, 24, st))
+        t = mul(k1, y, 24, st)                                 # BAM/s
+        self.bias[i] = sat32(self.bias[i] + mul(t, BS, 24, st), st)
+        self.P[i] = [sat32(p00 - mul(k0, p00, 24, st), st), sat32(p01 - mul(k0, p01, 24, st), st),
+                     sat32(p10 - mul(k1, p00, 24, st), st), sat32(p11 - mul(k1, p01, 24, st), st)]
+
+    def step(self, g, a, m, mag_ok, st):
+        self.predict(g, st)
+        acc_ok = any(a)
+        mag_ok = bool(mag_ok) and any(m)
+        # measurements after all three predicts: yaw is compensated with the predicted tilt
+        roll_m, pitch_m = _tilt(*a, st) if acc_ok else (0, 0)
+        yaw_m = _heading(*m, self.theta[0], self.theta[1], st) if mag_ok else 0
+        for i, (use, z) in enumerate(((acc_ok, roll_m), (acc_ok, pitch_m), (mag_ok, yaw_m))):
+            if use:
+                self.update(i, z, st)
+        return acc_ok, mag_ok
+
+
+def _complementary_step(theta, g, a, m, mag_ok, reg, st):
+    """One complementary step on the shared angle registers; returns (θ, acc_ok, mag_ok)."""
+    pred = [wrap32(theta[i] + mul(g[i], reg["RATE"], 16, st)) for i in range(3)]
+    acc_ok = any(a)
+    mag_ok = bool(mag_ok) and any(m)
+    roll_m, pitch_m = _tilt(*a, st) if acc_ok else (pred[0], pred[1])
+    meas = [roll_m, pitch_m, _heading(*m, pred[0], pred[1], st) if mag_ok else pred[2]]
+    return [wrap32(pred[i] + mul(reg["ONE_MINUS_A"], wrap32(meas[i] - pred[i]), 24, st))
+            for i in range(3)], acc_ok, mag_ok
 
 
 def kalman_fixed(gyr_counts, acc_counts, mag_counts, config=KalmanFixedConfig(), *,
                  mag_valid=None):
-    """Per-axis Kalman filter in integers. Returns (angles BAM32 (N,3), bias Q16.16 counts
-    (N,3)). Formats and steps: FIXED_POINT.md, section "Per-axis Kalman filter"."""
-    reg = config.registers()
-    RATE, T, QA, QB, R, BS = (reg[k] for k in ("RATE", "T", "Q_ANGLE", "Q_BIAS", "R",
-                                               "BIAS_SCALE"))
-    gyr = np.asarray(gyr_counts, np.int64).tolist()
-    acc = np.asarray(acc_counts, np.int64).tolist()
-    mag = np.asarray(mag_counts, np.int64).tolist()
+    """Per-axis Kalman filter in integers on body-axis counts. Returns (angles BAM32 (N,3),
+    bias Q16.16 counts (N,3)). Formats and steps: FIXED_POINT.md."""
+    kf = _KalmanFixed(config)
+    gyr, acc, mag = (np.asarray(x, np.int64).tolist() for x in (gyr_counts, acc_counts,
+                                                                 mag_counts))
     n = len(gyr)
     valid = [True] * n if mag_valid is None else [bool(v) for v in mag_valid]
-    theta = [0, 0, 0]
-    bias = [0, 0, 0]                              # Q16.16 gyro counts
-    P = [[reg["P0"], 0, 0, reg["P0"]] for _ in range(3)]
-    prev = gyr[0]
     out_theta = np.empty((n, 3), np.int64)
     out_bias = np.empty((n, 3), np.int64)
     for k in range(n):
-        g = gyr[k]
-        for i in range(3):
-            # predict: θ += ((ω_{k−1} + ω_k)·2¹⁶ − 2b) · RATE >> 32
-            u = ((prev[i] + g[i]) << 16) - 2 * bias[i]
-            theta[i] = wrap32(theta[i] + rshift_round(u * RATE, 32))
-            p00, p01, p10, p11 = P[i]
-            tp11 = rshift_round(T * p11, 24)
-            n00 = p00 - rshift_round(T * (p10 + p01), 24) + rshift_round(T * tp11, 24) + QA
-            P[i] = [n00, p01 - tp11, p10 - tp11, p11 + QB]
-        prev = g
-        roll_m, pitch_m = _tilt(*acc[k])
-        yaw_m = _heading(*mag[k], theta[0], theta[1])
-        # A zero vector (free fall, a dead magnetometer) has no direction: no update.
-        acc_ok = any(acc[k])
-        use = (acc_ok, acc_ok, valid[k] and any(mag[k]))
-        for i, z in enumerate((roll_m, pitch_m, yaw_m)):
-            if not use[i]:
-                continue
-            p00, p01, p10, p11 = P[i]
-            s = p00 + R
-            k0 = div_trunc(p00, s, 24)            # Q0.24
-            k1 = div_trunc(p10, s, 24)            # Q8.24, 1/s
-            y = wrap32(z - theta[i])              # BAM32 innovation
-            theta[i] = wrap32(theta[i] + rshift_round(k0 * y, 24))
-            # bias (Q16 counts) += k1 [1/s] · y [deg] · LSB/(deg/s)
-            bias[i] += rshift_round(k1 * y * BS, 48)
-            P[i] = [p00 - rshift_round(k0 * p00, 24), p01 - rshift_round(k0 * p01, 24),
-                    p10 - rshift_round(k1 * p00, 24), p11 - rshift_round(k1 * p01, 24)]
-        out_theta[k] = theta
-        out_bias[k] = bias
+        kf.step(gyr[k], acc[k], mag[k], valid[k], Status())
+        out_theta[k] = kf.theta
+        out_bias[k] = kf.bias
     return out_theta, out_bias
 
 
 def complementary_fixed(gyr_counts, acc_counts, mag_counts, *, dt, a, gyro_lsb_per_dps=16.4,
                         mag_valid=None):
     """Complementary filter in integers: θ = pred + (1 − a)·wrap(meas − pred), pred = θ + ω·dt.
-    ``a`` is held as A_Q24 = round((1 − a)·2²⁴). Returns angles BAM32 (N,3)."""
-    one_minus_a = int(round((1 - a) * (1 << 24)))
-    rate = int(round(dt * 2 ** 32 / (360.0 * gyro_lsb_per_dps) * 2 ** 16))   # BAM/count, Q16
-    gyr = np.asarray(gyr_counts, np.int64).tolist()
-    acc = np.asarray(acc_counts, np.int64).tolist()
-    mag = np.asarray(mag_counts, np.int64).tolist()
+    Returns angles BAM32 (N,3)."""
+    reg = KalmanFixedConfig(dt=dt, gyro_lsb_per_dps=gyro_lsb_per_dps, a=a).registers()
+    gyr, acc, mag = (np.asarray(x, np.int64).tolist() for x in (gyr_counts, acc_counts,
+                                                                 mag_counts))
     n = len(gyr)
     valid = [True] * n if mag_valid is None else [bool(v) for v in mag_valid]
     theta = [0, 0, 0]
     out = np.empty((n, 3), np.int64)
     for k in range(n):
-        pred = [wrap32(theta[i] + rshift_round(gyr[k][i] * rate, 16)) for i in range(3)]
-        roll_m, pitch_m = _tilt(*acc[k]) if any(acc[k]) else (pred[0], pred[1])
-        meas = [roll_m, pitch_m,
-                _heading(*mag[k], pred[0], pred[1]) if valid[k] and any(mag[k]) else pred[2]]
-        theta = [wrap32(pred[i] + rshift_round(one_minus_a * wrap32(meas[i] - pred[i]), 24))
-                 for i in range(3)]
+        theta = _complementary_step(theta, gyr[k], acc[k], mag[k], valid[k], reg, Status())[0]
         out[k] = theta
+    return out
+
+
+@dataclass
+class AttitudeFixed:
+    """Per-sample outputs of ``attitude_fixed`` (arrays of N)."""
+    angles: np.ndarray           # (N, 3) BAM32 roll, pitch, yaw
+    bias: np.ndarray             # (N, 3) Q16.16 gyro counts (Kalman state; held by the other)
+    acc_used: np.ndarray         # roll/pitch measurement applied
+    mag_used: np.ndarray         # yaw measurement applied
+    saturated: np.ndarray        # some result of this sample's update saturated
+
+
+def attitude_fixed(gyr_raw, acc_raw, mag_ak_raw, mag_valid=None, *, asa=(128, 128, 128),
+                   cal=CalibrationFixed(), config=KalmanFixedConfig(), select="kalman",
+                   registers=None, resets=()):
+    """The gateware's attitude engine in integers: calibration, then the per-axis Kalman filter
+    or the complementary filter (``select``: a name, or an array of names per sample). Both
+    filters share the angle registers, so switching between them is seamless; the Kalman
+    state (bias, P) is held while the complementary filter runs. ``registers`` overrides
+    register values by name (raw integers, e.g. {"R": 0}); ``resets``: sample indices before
+    which the filter state is reset (angles 0, bias 0, P = P0·I, next sample is a first)."""
+    n = len(gyr_raw)
+    sel = [select] * n if isinstance(select, str) else list(select)
+    valid = [True] * n if mag_valid is None else [bool(v) for v in mag_valid]
+    resets = set(resets)
+    kf = _KalmanFixed(config, registers)
+    out = AttitudeFixed(np.empty((n, 3), np.int64), np.empty((n, 3), np.int64),
+                        np.zeros(n, bool), np.zeros(n, bool), np.zeros(n, bool))
+    for k, (g, a, h) in enumerate(zip(*(np.asarray(x, np.int64).tolist()
+                                         for x in (gyr_raw, acc_raw, mag_ak_raw)))):
+        if k in resets:
+            kf = _KalmanFixed(config, registers)
+        st = Status()
+        g, a, m = _calibrate_one(g, a, h, asa, cal, st)
+        if sel[k] == "kalman":
+            acc_ok, mag_ok = kf.step(g, a, m, valid[k], st)
+        elif sel[k] == "complementary":
+            kf.theta, acc_ok, mag_ok = _complementary_step(kf.theta, g, a, m, valid[k], kf.reg,
+                                                           st)
+            kf.prev = list(g)
+        else:
+            raise ValueError(f"unknown filter {sel[k]!r}")
+        out.angles[k], out.bias[k] = kf.theta, kf.bias
+        out.acc_used[k], out.mag_used[k], out.saturated[k] = acc_ok, mag_ok, st.saturated
     return out

@@ -1,0 +1,320 @@
+"""Attitude engine: calibration and attitude filters on one shared fixed-point datapath.
+
+A microcoded sequencer (program and register map in ``hdl/attitude_program.py``, instruction set
+in ``hdl/attitude_isa.py``) drives one datapath: a 32×32 multiplier with a 66-bit accumulator
+(rounding and saturation on write-back), a saturating/wrapping adder, an iterative CORDIC
+(``hdl/cordic.py``) and a divider (``hdl/divider.py``). Results equal
+``reference.fixed_point.attitude_fixed`` bit for bit.
+
+Pipeline: fetch (instruction ROM, synchronous) → read (register file, two synchronous read
+ports, transparent to the write port) → execute and write back. A result is visible to the
+next instruction without stalls; multi-cycle operations (MUL 2, DIV 11, VEC/ROT 27 cycles)
+hold the pipeline; a taken branch costs two bubbles.
+
+Interface
+    ``samples`` (in, stream of ``Sample``): one update per sample. Taken when the engine is
+        idle and the previous result has been taken; the sample is read from the payload while
+        it is loaded (12 cycles), then acknowledged.
+    ``asa`` (in, 3 × 8 bits): the AK8963's fuse-ROM sensitivity bytes (from the driver).
+    ``cfg`` (in, stream of ``ConfigWrite``): register writes (``attitude_program`` has the
+        map); accepted while the engine is idle. Address 0x7F is the control register.
+    ``results`` (out, stream of ``Attitude``): one per sample; valid until taken.
+    ``busy`` (out): an update or a filter reset is running.
+Latency (sample valid to result valid): see ``report`` (``cycles_per_update``).
+"""
+
+from amaranth import *
+from amaranth.lib import data, stream, wiring
+from amaranth.lib.memory import Memory
+from amaranth.lib.wiring import In, Out
+
+from ..reference.fixed_point import INV_GAIN_Q30, KalmanFixedConfig
+from .attitude_isa import ALU_SHIFTS, MUL_SHIFTS, REG_COUNT, Cond, Instr, Op
+from .attitude_program import CONTROL_ADDR, FLAG_ACC, FLAG_MAG, LOAD_ORDER, REGS, \
+    build_program, config_init
+from .cordic import CORDIC
+from .divider import Divider
+from .multiplier import Multiplier
+from .sample import Attitude, ConfigWrite, Sample
+
+
+__all__ = ["AttitudeEngine"]
+
+
+def _saturate(m, value, bits):
+    """(clamped value, clamped?) of a signed value to a signed ``bits``-bit range."""
+    hi, lo = (1 << (bits - 1)) - 1, -(1 << (bits - 1))
+    out, flag = Signal(signed(bits)), Signal()
+    with m.If(value > hi):
+        m.d.comb += [out.eq(hi), flag.eq(1)]
+    with m.Elif(value < lo):
+        m.d.comb += [out.eq(lo), flag.eq(1)]
+    with m.Else():
+        m.d.comb += out.eq(value)
+    return out, flag
+
+
+class AttitudeEngine(wiring.Component):
+    def __init__(self, config=KalmanFixedConfig(), cal=None, *, complementary=False,
+                 blackbox_multiplier=False, divider_bits_per_cycle=4):
+        self.config = config
+        self.cal = cal
+        self.complementary_at_reset = complementary
+        self.blackbox_multiplier = blackbox_multiplier
+        self.divider_bits_per_cycle = divider_bits_per_cycle
+        self.program, self.entry = build_program()
+        super().__init__({
+            "samples": In(stream.Signature(Sample)),
+            "asa": In(data.ArrayLayout(8, 3)),
+            "cfg": In(stream.Signature(ConfigWrite)),
+            "results": Out(stream.Signature(Attitude)),
+            "busy": Out(1),
+        })
+
+    def elaborate(self, platform):
+        m = Module()
+        m.submodules.cordic = cordic = CORDIC()
+        m.submodules.divider = divider = Divider(self.divider_bits_per_cycle)
+        m.submodules.multiplier = mult = Multiplier(blackbox=self.blackbox_multiplier)
+
+        m.submodules.rf = rf = Memory(shape=signed(32), depth=REG_COUNT,
+                                      init=config_init(self.config, INV_GAIN_Q30, self.cal))
+        wp = rf.write_port()
+        rpa = rf.read_port(transparent_for=(wp,))
+        rpb = rf.read_port(transparent_for=(wp,))
+        width = data.Layout.cast(Instr).size
+        m.submodules.rom = rom = Memory(shape=width, depth=len(self.program),
+                                        init=[i.encode() for i in self.program])
+        rom_rp = rom.read_port()
+
+        # -- sequencer state ------------------------------------------------------------------
+        fetch_pc = Signal(range(len(self.program) + 1))
+        rvalid = Signal()                                 # rom_rp.data is a real instruction
+        rinstr = data.View(Instr, rom_rp.data)
+        x = Signal(Instr)                                 # instruction in execute
+        xvalid = Signal()
+        phase = Signal(2)
+        advance = Signal()
+        flush = Signal()
+        branch_to = Signal.like(fetch_pc)
+
+        first = Signal(init=1)
+        compl = Signal(init=int(self.complementary_at_reset))
+        init_pending = Signal(init=1)                     # run the INIT program after reset
+        running_init = Signal()
+        mag_valid = Signal()
+        flag_acc, flag_mag, flag_sat = Signal(), Signal(), Signal()
+        out = Signal(Attitude)
+        result_valid = Signal()
+
+        m.d.comb += [
+            rom_rp.addr.eq(fetch_pc), rom_rp.en.eq(advance),
+            rpa.addr.eq(rinstr.a), rpb.addr.eq(rinstr.b),
+            rpa.en.eq(advance), rpb.en.eq(advance),
+            self.results.valid.eq(result_valid), self.results.payload.eq(out),
+        ]
+        opa, opb = rpa.data, rpb.data
+
+        # -- execute: the arithmetic ------------------------------------------------------------
+        # ALU: (a << shift) ± b, exact at 50 bits, then wrapped or saturated
+        shifted_a = Signal(signed(50))
+        with m.Switch(x.sh):
+            for code, s in enumerate(ALU_SHIFTS):
+                with m.Case(code):
+                    m.d.comb += shifted_a.eq(opa << s)
+        alu_full = Signal(signed(51))
+        m.d.comb += alu_full.eq(Mux(x.op == Op.SUB, shifted_a - opb, shifted_a + opb))
+
+        # MUL: the product is registered in the instruction's execute cycle; accumulation,
+        # rounding and write-back happen in the next cycle (the "pending" stage), overlapped
+        # with the next instruction when that is a MUL not reading the result (MAC chains,
+        # independent products), otherwise the pipeline waits that one cycle.
+        product = Signal(signed(64))
+        acc = Signal(signed(66))
+        acc_next = Signal(signed(66))
+        rounding = Signal(signed(66))
+        mul_shifted = Signal(signed(66))
+        pend = Signal()
+        pend_ins = Signal(Instr)
+        m.d.comb += [mult.a.eq(opa), mult.b.eq(opb)]
+        with m.Switch(pend_ins.sh):
+            for code, s in enumerate(MUL_SHIFTS):
+                with m.Case(code):
+                    m.d.comb += [rounding.eq((1 << s) >> 1), mul_shifted.eq(acc_next >> s)]
+        m.d.comb += acc_next.eq(Mux(pend_ins.acc, acc, rounding)
+                                + Mux(pend_ins.neg, -product, product))
+        mul_v32, mul_f32 = _saturate(m, mul_shifted, 32)
+        mul_v16, mul_f16 = _saturate(m, mul_v32, 16)
+        mul_result = Mux(pend_ins.sat16, mul_v16, mul_v32)
+        mul_sat = mul_f32 | (pend_ins.sat16 & mul_f16)
+
+        # ALU results: wrapped, or saturated to 32 or 16 bits
+        alu_wide = Signal(signed(51))
+        m.d.comb += alu_wide.eq(Mux(x.op == Op.OR, opa | opb, alu_full))
+        alu_v32, alu_f32 = _saturate(m, alu_wide, 32)
+        alu_v16, alu_f16 = _saturate(m, alu_v32, 16)
+        x_result = Signal(signed(32))
+        x_sat = Signal()
+        with m.If(x.wrap):
+            m.d.comb += x_result.eq(alu_full[:32])
+        with m.Elif(x.sat16):
+            m.d.comb += [x_result.eq(alu_v16), x_sat.eq(alu_f32 | alu_f16)]
+        with m.Else():
+            m.d.comb += [x_result.eq(alu_v32), x_sat.eq(alu_f32)]
+
+        # branch condition
+        cond = Signal()
+        with m.Switch(x.cond):
+            with m.Case(Cond.ALWAYS):
+                m.d.comb += cond.eq(1)
+            with m.Case(Cond.A_ZERO):
+                m.d.comb += cond.eq(opa == 0)
+            with m.Case(Cond.MAG_INVALID):
+                m.d.comb += cond.eq(~mag_valid)
+            with m.Case(Cond.FIRST):
+                m.d.comb += cond.eq(first)
+            with m.Case(Cond.COMPL):
+                m.d.comb += cond.eq(compl)
+
+        m.d.comb += [
+            cordic.x_in.eq(opa), cordic.y_in.eq(opb), cordic.angle_in.eq(opa),
+            cordic.mode.eq(x.op == Op.ROT),
+            divider.num.eq(opa), divider.den.eq(opb),
+        ]
+
+        # -- the write port: loader, host configuration, or the execute stage -------------------
+        w_en, w_addr, w_data, w_sat = Signal(), Signal(7), Signal(signed(32)), Signal()
+        m.d.comb += [wp.en.eq(w_en), wp.addr.eq(w_addr), wp.data.eq(w_data)]
+        with m.If(w_en):
+            for i in range(3):
+                with m.If(w_addr == REGS[f"THETA{i}"]):
+                    m.d.sync += out.angles[i].eq(w_data)
+                with m.If(w_addr == REGS[f"BIAS{i}"]):
+                    m.d.sync += out.bias[i].eq(w_data)
+            with m.If(w_sat):
+                m.d.sync += flag_sat.eq(1)
+
+        def execute():
+            """The execute stage for ``x`` (an FSM state body)."""
+            m.d.comb += advance.eq(1)                       # overridden below by stalls
+            with m.If(pend):
+                m.d.sync += [acc.eq(acc_next), pend.eq(0)]
+                with m.If(pend_ins.wb):
+                    m.d.comb += [w_en.eq(1), w_addr.eq(pend_ins.d), w_data.eq(mul_result),
+                                 w_sat.eq(mul_sat)]
+            with m.If(xvalid):
+                with m.Switch(x.op):
+                    with m.Case(Op.ADD, Op.SUB, Op.OR):
+                        m.d.comb += [w_en.eq(1), w_addr.eq(x.d), w_data.eq(x_result),
+                                     w_sat.eq(x_sat)]
+                    with m.Case(Op.MUL):
+                        with m.If(phase == 0):
+                            m.d.sync += [product.eq(mult.p), pend_ins.eq(x), pend.eq(1)]
+                            # overlap the pending stage with the next instruction if it is a
+                            # MUL (writes nothing now) that does not read this result
+                            reads_d = x.wb & ((rinstr.a == x.d) | (rinstr.b == x.d))
+                            with m.If(~(rvalid & (rinstr.op == Op.MUL) & ~reads_d)):
+                                m.d.comb += advance.eq(0)
+                                m.d.sync += phase.eq(1)
+                        with m.Else():
+                            m.d.sync += phase.eq(0)
+                    with m.Case(Op.DIV):
+                        with m.If(phase == 0):
+                            m.d.comb += [advance.eq(0), divider.start.eq(1)]
+                            m.d.sync += phase.eq(1)
+                        with m.Elif(~divider.done):
+                            m.d.comb += advance.eq(0)
+                        with m.Else():
+                            m.d.sync += phase.eq(0)
+                            m.d.comb += [w_en.eq(1), w_addr.eq(x.d),
+                                         w_data.eq(divider.quotient), w_sat.eq(divider.saturated)]
+                    with m.Case(Op.VEC, Op.ROT):
+                        is_rot = x.op == Op.ROT
+                        with m.If(phase == 0):
+                            m.d.comb += [advance.eq(0), cordic.start.eq(1)]
+                            m.d.sync += phase.eq(1)
+                        with m.Elif(phase == 1):
+                            m.d.comb += advance.eq(0)
+                            with m.If(cordic.done):
+                                m.d.comb += [w_en.eq(1), w_addr.eq(x.d),
+                                             w_data.eq(Mux(is_rot, cordic.cos, cordic.angle))]
+                                m.d.sync += phase.eq(2)
+                        with m.Else():
+                            m.d.sync += phase.eq(0)
+                            m.d.comb += [w_en.eq(1), w_addr.eq(x.d + 1),
+                                         w_data.eq(Mux(is_rot, cordic.sin, cordic.magnitude)),
+                                         w_sat.eq(~is_rot & cordic.saturated)]
+                    with m.Case(Op.BR):
+                        with m.If(cond ^ x.inv):
+                            m.d.comb += [flush.eq(1), branch_to.eq(x.target)]
+                    with m.Case(Op.SETF):
+                        with m.If(x.sh == FLAG_ACC):
+                            m.d.sync += flag_acc.eq(1)
+                        with m.If(x.sh == FLAG_MAG):
+                            m.d.sync += flag_mag.eq(1)
+            with m.If(advance):
+                m.d.sync += [
+                    x.eq(rom_rp.data), xvalid.eq(rvalid & ~flush),
+                    fetch_pc.eq(Mux(flush, branch_to, fetch_pc + 1)), rvalid.eq(~flush),
+                ]
+
+        def start(entry):
+            m.d.sync += [fetch_pc.eq(entry), rvalid.eq(0), xvalid.eq(0), phase.eq(0)]
+
+        load_index = Signal(range(len(LOAD_ORDER)))
+        fields = ([self.samples.payload.gyro[i] for i in range(3)]
+                  + [self.samples.payload.accel[i] for i in range(3)]
+                  + [self.samples.payload.mag[i] for i in range(3)]
+                  + [self.asa[i] + 128 for i in range(3)])
+        load_addr = Array(Const(REGS[n], 7) for n in LOAD_ORDER)
+        load_data = Array(f.as_signed() if i < 9 else f for i, f in enumerate(fields))
+
+        with m.If(self.results.valid & self.results.ready):
+            m.d.sync += result_valid.eq(0)
+
+        with m.FSM():
+            with m.State("IDLE"):
+                with m.If(init_pending):
+                    start(self.entry["init"])
+                    m.d.sync += [init_pending.eq(0), running_init.eq(1)]
+                    m.next = "RUN"
+                with m.Elif(self.samples.valid & ~result_valid):
+                    m.d.sync += [load_index.eq(0), flag_acc.eq(0), flag_mag.eq(0),
+                                 flag_sat.eq(0), mag_valid.eq(self.samples.payload.flags.mag_valid),
+                                 out.counter.eq(self.samples.payload.counter),
+                                 out.flags.overrun.eq(self.samples.payload.flags.overrun),
+                                 out.flags.complementary.eq(compl)]
+                    m.next = "LOAD"
+                with m.Else():
+                    m.d.comb += self.cfg.ready.eq(1)
+                    with m.If(self.cfg.valid):
+                        with m.If(self.cfg.payload.addr == CONTROL_ADDR):
+                            m.d.sync += compl.eq(self.cfg.payload.data[0])
+                            with m.If(self.cfg.payload.data[1]):
+                                m.d.sync += init_pending.eq(1)
+                        with m.Else():
+                            m.d.comb += [w_en.eq(1), w_addr.eq(self.cfg.payload.addr),
+                                         w_data.eq(self.cfg.payload.data)]
+            with m.State("LOAD"):
+                m.d.comb += [self.busy.eq(1), w_en.eq(1), w_addr.eq(load_addr[load_index]),
+                             w_data.eq(load_data[load_index])]
+                m.d.sync += load_index.eq(load_index + 1)
+                with m.If(load_index == len(LOAD_ORDER) - 1):
+                    m.d.comb += self.samples.ready.eq(1)
+                    start(self.entry["sample"])
+                    m.next = "RUN"
+            with m.State("RUN"):
+                m.d.comb += self.busy.eq(1)
+                with m.If(xvalid & (x.op == Op.END)):
+                    m.d.sync += running_init.eq(0)
+                    with m.If(running_init):
+                        m.d.sync += first.eq(1)
+                    with m.Else():
+                        m.d.sync += [first.eq(0), result_valid.eq(1),
+                                     out.flags.acc_used.eq(flag_acc),
+                                     out.flags.mag_used.eq(flag_mag),
+                                     out.flags.saturated.eq(flag_sat)]
+                    m.next = "IDLE"
+                with m.Else():
+                    execute()
+        return m

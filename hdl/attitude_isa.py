@@ -1,0 +1,193 @@
+"""Instruction set of the attitude engine's shared datapath, and a small assembler.
+
+The engine (``hdl/attitude_engine.py``) runs microcode from a ROM over a register file of 128
+32-bit words. One instruction names a destination ``d`` and two sources ``a`` and ``b``
+(register addresses); every result is saturated to 32 bits (or wrapped, or saturated to 16
+bits, as the instruction says) and a saturation sets the sample's ``saturated`` flag.
+
+====  ===========================================================  ======================
+op    effect                                                       cycles (engine)
+====  ===========================================================  ======================
+NOP   nothing                                                      1
+ADD   d = (a << ALU_SHIFTS[sh]) + b                                1
+SUB   d = (a << ALU_SHIFTS[sh]) − b                                1
+OR    d = a | b   (zero tests)                                     1
+MUL   acc = (acc if ``acc`` else 2^(s−1)) ± a·b, s = MUL_SHIFTS[sh]  2
+      (exact, 66 bits: the rounding constant goes in first);
+      if ``wb``: d = acc >> s  (= rshift_round of the sum)
+DIV   d = div_q24(a, b): (a·2²⁴)/b truncated, 0 if b ≤ 0          11
+VEC   CORDIC vectoring of (x = a, y = b): d = atan2 (BAM32),       27
+      d+1 = magnitude · K
+ROT   CORDIC rotation of the angle in a: d = cos, d+1 = sin (Q1.30)  27
+BR    if condition (``cond``, inverted by ``inv``): go to target   1, or 3 when taken
+SETF  set output flag ``sh`` (0: accelerometer used, 1: magnetometer used)   1
+END   the sample is done: results out                              1
+====  ===========================================================  ======================
+
+Conditions: ``ALWAYS``; ``A_ZERO`` (register a is 0); ``MAG_INVALID`` (the sample's
+``mag_valid`` flag is 0); ``FIRST`` (first sample since the filter was reset); ``COMPL`` (the
+complementary filter is selected).
+
+The assembler (``Assembler``) gives registers names, resolves labels and checks ranges; it
+knows nothing about hazards because the engine has none: a result is visible to the very next
+instruction.
+"""
+
+import enum
+from dataclasses import dataclass, field, replace
+
+from amaranth.hdl import unsigned
+from amaranth.lib import data
+
+
+__all__ = ["Op", "Cond", "ALU_SHIFTS", "MUL_SHIFTS", "REG_COUNT", "ROM_DEPTH", "Instr",
+           "Instruction", "Assembler"]
+
+REG_COUNT = 128
+ROM_DEPTH = 512
+ALU_SHIFTS = (0, 8, 15, 16)
+MUL_SHIFTS = (0, 8, 14, 16, 18, 24, 30, 32)
+
+
+class Op(enum.IntEnum):
+    NOP = 0
+    ADD = 1
+    SUB = 2
+    OR = 3
+    MUL = 4
+    DIV = 5
+    VEC = 6
+    ROT = 7
+    BR = 8
+    SETF = 9
+    END = 10
+
+
+class Cond(enum.IntEnum):
+    ALWAYS = 0
+    A_ZERO = 1
+    MAG_INVALID = 2
+    FIRST = 3
+    COMPL = 4
+
+
+class Instr(data.Struct):
+    op: unsigned(4)
+    d: unsigned(7)
+    a: unsigned(7)
+    b: unsigned(7)
+    sh: unsigned(3)
+    wrap: unsigned(1)       # ADD/SUB: wrap to 32 bits (angles) instead of saturating
+    sat16: unsigned(1)      # ADD/SUB/MUL: saturate to 16 bits (calibrated sensor values)
+    acc: unsigned(1)        # MUL: add to the running accumulator
+    neg: unsigned(1)        # MUL: subtract the product
+    wb: unsigned(1)         # MUL: write the rounded accumulator to d
+    cond: unsigned(3)
+    inv: unsigned(1)
+    target: unsigned(9)
+
+
+@dataclass(frozen=True)
+class Instruction:
+    op: Op
+    d: int = 0
+    a: int = 0
+    b: int = 0
+    sh: int = 0
+    wrap: bool = False
+    sat16: bool = False
+    acc: bool = False
+    neg: bool = False
+    wb: bool = True
+    cond: Cond = Cond.ALWAYS
+    inv: bool = False
+    target: object = 0          # label name until resolved
+
+    def encode(self):
+        """The ROM word (an integer laid out as ``Instr``)."""
+        layout = data.Layout.cast(Instr)
+        word = 0
+        for name, value in (("op", int(self.op)), ("d", self.d), ("a", self.a), ("b", self.b),
+                            ("sh", self.sh), ("wrap", self.wrap), ("sat16", self.sat16),
+                            ("acc", self.acc), ("neg", self.neg), ("wb", self.wb),
+                            ("cond", int(self.cond)), ("inv", self.inv),
+                            ("target", self.target)):
+            f = layout[name]
+            value = int(value)
+            if not 0 <= value < (1 << f.width):
+                raise ValueError(f"{self}: field {name}={value} does not fit {f.width} bits")
+            word |= value << f.offset
+        return word
+
+
+@dataclass
+class Assembler:
+    """Collects instructions for one ROM. Registers are given by address (ints); helpers take
+    the ALU/MUL shift amounts in bits and look up their codes."""
+    code: list = field(default_factory=list)
+    labels: dict = field(default_factory=dict)
+
+    def label(self, name):
+        if name in self.labels:
+            raise ValueError(f"label {name!r} defined twice")
+        self.labels[name] = len(self.code)
+
+    def _emit(self, ins):
+        self.code.append(ins)
+
+    @staticmethod
+    def _code(table, bits, what):
+        if bits not in table:
+            raise ValueError(f"{what} shift {bits} not one of {table}")
+        return table.index(bits)
+
+    def add(self, d, a, b, *, shl=0, wrap=False, sat16=False):
+        self._emit(Instruction(Op.ADD, d, a, b, self._code(ALU_SHIFTS, shl, "ALU"), wrap, sat16))
+
+    def sub(self, d, a, b, *, shl=0, wrap=False, sat16=False):
+        self._emit(Instruction(Op.SUB, d, a, b, self._code(ALU_SHIFTS, shl, "ALU"), wrap, sat16))
+
+    def or_(self, d, a, b):
+        self._emit(Instruction(Op.OR, d, a, b))
+
+    def mul(self, d, a, b, shr, *, acc=False, neg=False, wb=True, sat16=False):
+        self._emit(Instruction(Op.MUL, d, a, b, self._code(MUL_SHIFTS, shr, "MUL"),
+                               sat16=sat16, acc=acc, neg=neg, wb=wb))
+
+    def mac(self, d, terms, shr, *, sat16=False):
+        """d = rshift_round(Σ ±a·b, shr); ``terms``: (a, b) or (a, b, -1)."""
+        for i, t in enumerate(terms):
+            last = i == len(terms) - 1
+            self.mul(d if last else 0, t[0], t[1], shr, acc=i > 0,
+                     neg=len(t) > 2 and t[2] < 0, wb=last, sat16=sat16 and last)
+
+    def div(self, d, a, b):
+        self._emit(Instruction(Op.DIV, d, a, b))
+
+    def vec(self, d, x, y):
+        self._emit(Instruction(Op.VEC, d, x, y))
+
+    def rot(self, d, angle):
+        self._emit(Instruction(Op.ROT, d, angle))
+
+    def br(self, target, cond=Cond.ALWAYS, *, a=0, inv=False):
+        self._emit(Instruction(Op.BR, a=a, cond=cond, inv=inv, target=target))
+
+    def setf(self, flag):
+        self._emit(Instruction(Op.SETF, sh=flag))
+
+    def end(self):
+        self._emit(Instruction(Op.END))
+
+    def resolve(self):
+        """Instructions with label targets replaced by addresses."""
+        out = []
+        for ins in self.code:
+            if ins.op == Op.BR:
+                if ins.target not in self.labels:
+                    raise ValueError(f"branch to undefined label {ins.target!r}")
+                ins = replace(ins, target=self.labels[ins.target])
+            out.append(ins)
+        if len(out) > ROM_DEPTH:
+            raise ValueError(f"program of {len(out)} instructions exceeds the ROM ({ROM_DEPTH})")
+        return out

@@ -1,0 +1,275 @@
+"""Register map and microcode of the attitude engine: calibration, per-axis Kalman filter,
+complementary filter.
+
+The microcode computes exactly ``reference.fixed_point.attitude_fixed`` (formats in
+``reference/FIXED_POINT.md``); it is written from those formulas, step by step, and the tests
+compare the gateware with the reference sample by sample.
+
+Register map (32-bit words; the host writes the run-time registers through the engine's
+``cfg`` port at these addresses, any time the engine is idle)
+
+=======  ==============  =========================================================  ===========
+address  name            meaning, format                                            reset value
+=======  ==============  =========================================================  ===========
+0x00     ZERO            constant 0 (do not write)                                  0
+0x01     RATE            BAM per gyro count per period, Q16 (see FIXED_POINT.md)    from dt
+0x02     T               sample period, Q0.24 s                                     from dt
+0x03     Q_ANGLE         Kalman Q angle, Q8.24 deg²                                 0.2
+0x04     Q_BIAS          Kalman Q bias, Q8.24 (°/s)²                                0.1
+0x05     R               Kalman R, Q8.24 deg² (> 0)                                 2.0
+0x06     P0              initial covariance diagonal, Q8.24                         1.0
+0x07     BIAS_SCALE      360·LSB_per_dps/2¹⁶, Q8.24                                 from LSB
+0x08     ONE_MINUS_A     complementary filter 1 − a, Q0.24                          0.02
+0x09     INV_GAIN        1/K of the CORDIC, Q1.30 (do not write)                    0.607…
+0x0A-0C  GYRO_OFF x,y,z  gyro offset, counts                                        0
+0x0D-0F  ACC_OFF x,y,z   accelerometer offset, counts                               0
+0x10-12  ACC_SCALE       accelerometer scale, Q2.14                                 1.0
+0x13-15  HARD x,y,z      hard-iron offset, counts, body axes, after ASA             0
+0x16-1E  SOFT            soft-iron matrix, row-major, Q2.14                         identity
+0x7F     CONTROL         (not a register-file word) bit 0: 1 = complementary
+                         filter, 0 = Kalman; bit 1: write 1 to reset the filter
+                         state (angles 0, bias 0, P = P0·I)
+=======  ==============  =========================================================  ===========
+
+State and working registers follow from 0x20 (``REGS``); the host need not know them.
+"""
+
+from .attitude_isa import REG_COUNT, Assembler, Cond
+
+
+__all__ = ["CONFIG_REGS", "CONTROL_ADDR", "REGS", "ENTRY", "FLAG_ACC", "FLAG_MAG",
+           "build_program", "config_init"]
+
+CONTROL_ADDR = 0x7F
+FLAG_ACC, FLAG_MAG = 0, 1
+
+CONFIG_REGS = {
+    "ZERO": 0x00, "RATE": 0x01, "T": 0x02, "Q_ANGLE": 0x03, "Q_BIAS": 0x04, "R": 0x05,
+    "P0": 0x06, "BIAS_SCALE": 0x07, "ONE_MINUS_A": 0x08, "INV_GAIN": 0x09,
+    **{f"GYRO_OFF{i}": 0x0A + i for i in range(3)},
+    **{f"ACC_OFF{i}": 0x0D + i for i in range(3)},
+    **{f"ACC_SCALE{i}": 0x10 + i for i in range(3)},
+    **{f"HARD{i}": 0x13 + i for i in range(3)},
+    **{f"SOFT{i}{j}": 0x16 + 3 * i + j for i in range(3) for j in range(3)},
+}
+
+
+def _allocate():
+    names = []
+    names += [f"THETA{i}" for i in range(3)] + [f"BIAS{i}" for i in range(3)]
+    names += [f"P{i}_{e}" for i in range(3) for e in ("00", "01", "10", "11")]
+    names += [f"PREV{i}" for i in range(3)]
+    # inputs, written by the engine's loader: raw gyro, accel, AK8963 (AK axes), ASA + 128
+    names += [f"GRAW{i}" for i in range(3)] + [f"ARAW{i}" for i in range(3)]
+    names += [f"MRAW{i}" for i in range(3)] + [f"ASA{i}" for i in range(3)]
+    # calibrated body-axis sensor values
+    names += [f"G{i}" for i in range(3)] + [f"A{i}" for i in range(3)] + [f"M{i}" for i in range(3)]
+    # MEAS3 takes the magnitude the heading's vectoring CORDIC writes beside MEAS2
+    names += [f"PRED{i}" for i in range(3)] + [f"MEAS{i}" for i in range(4)]
+    names += ["ACC_OK", "MAG_OK"]
+    names += ["CR", "SR", "CP", "SP"]                         # CORDIC result pairs (d, d+1)
+    names += [f"T{i}" for i in range(12)]
+    regs = dict(CONFIG_REGS)
+    for k, name in enumerate(names):
+        regs[name] = 0x20 + k
+    assert max(regs.values()) < CONTROL_ADDR <= REG_COUNT - 1
+    return regs
+
+
+REGS = _allocate()
+# Loader order: the sample's fields are written to these registers before the program runs.
+LOAD_ORDER = ([f"GRAW{i}" for i in range(3)] + [f"ARAW{i}" for i in range(3)]
+              + [f"MRAW{i}" for i in range(3)] + [f"ASA{i}" for i in range(3)])
+
+
+def config_init(config, inv_gain_q30, cal=None):
+    """Reset values of the register file from a ``KalmanFixedConfig`` (and a
+    ``CalibrationFixed``): a list of REG_COUNT integers."""
+    from ..reference.fixed_point import CalibrationFixed
+    cal = CalibrationFixed() if cal is None else cal
+    init = [0] * REG_COUNT
+    for name, value in config.registers().items():
+        init[CONFIG_REGS[name]] = value
+    init[CONFIG_REGS["INV_GAIN"]] = inv_gain_q30
+    for i in range(3):
+        init[CONFIG_REGS[f"GYRO_OFF{i}"]] = cal.gyro_offset[i]
+        init[CONFIG_REGS[f"ACC_OFF{i}"]] = cal.accel_offset[i]
+        init[CONFIG_REGS[f"ACC_SCALE{i}"]] = cal.accel_scale[i]
+        init[CONFIG_REGS[f"HARD{i}"]] = cal.hard_iron[i]
+        for j in range(3):
+            init[CONFIG_REGS[f"SOFT{i}{j}"]] = cal.soft_iron[3 * i + j]
+    # the initial filter state is written by the INIT program, not here
+    return init
+
+
+def _init(asm, r):
+    for i in range(3):
+        asm.add(r[f"THETA{i}"], r["ZERO"], r["ZERO"])
+        asm.add(r[f"BIAS{i}"], r["ZERO"], r["ZERO"])
+        asm.add(r[f"P{i}_00"], r["P0"], r["ZERO"])
+        asm.add(r[f"P{i}_01"], r["ZERO"], r["ZERO"])
+        asm.add(r[f"P{i}_10"], r["ZERO"], r["ZERO"])
+        asm.add(r[f"P{i}_11"], r["P0"], r["ZERO"])
+    asm.end()
+
+
+def _calibrate(asm, r):
+    T = [r[f"T{i}"] for i in range(12)]
+    for i in range(3):
+        asm.sub(r[f"G{i}"], r[f"GRAW{i}"], r[f"GYRO_OFF{i}"], sat16=True)
+    for i in range(3):
+        asm.sub(T[i], r[f"ARAW{i}"], r[f"ACC_OFF{i}"])
+        asm.mul(r[f"A{i}"], T[i], r[f"ACC_SCALE{i}"], 14, sat16=True)
+    for j in range(3):                               # ASA: h·(ASA + 128)/256, AK axes
+        asm.mul(T[j], r[f"MRAW{j}"], r[f"ASA{j}"], 8)
+    # AK8963 -> body axes (x = y_ak, y = x_ak, z = −z_ak), minus the hard-iron offset
+    asm.sub(T[3], T[1], r["HARD0"])
+    asm.sub(T[4], T[0], r["HARD1"])
+    asm.sub(T[5], r["ZERO"], T[2])
+    asm.sub(T[5], T[5], r["HARD2"])
+    for i in range(3):
+        asm.mac(r[f"M{i}"], [(r[f"SOFT{i}{j}"], T[3 + j]) for j in range(3)], 14, sat16=True)
+
+
+def _tilt(asm, r, roll):
+    """roll = atan2(ay, az) into ``roll``, pitch = atan2(−ax, √(ay² + az²)) into ``roll`` + 1,
+    inputs scaled by 2⁸. Clobbers ``roll`` + 2 (the vectoring CORDIC writes its magnitude
+    beside the angle; the first one's is used for the pitch)."""
+    T = [r[f"T{i}"] for i in range(12)]
+    asm.add(T[0], r["A0"], r["ZERO"], shl=8)
+    asm.add(T[1], r["A1"], r["ZERO"], shl=8)
+    asm.add(T[2], r["A2"], r["ZERO"], shl=8)
+    asm.vec(roll, T[2], T[1])
+    asm.mul(T[3], roll + 1, r["INV_GAIN"], 30)
+    asm.sub(T[0], r["ZERO"], T[0])
+    asm.vec(roll + 1, T[3], T[0])
+
+
+def _heading(asm, r, roll, pitch, out):
+    """Tilt-compensated heading into ``out``; clobbers ``out`` + 1."""
+    T = [r[f"T{i}"] for i in range(12)]
+    asm.rot(r["CR"], roll)
+    asm.rot(r["CP"], pitch)
+    asm.mul(T[0], r["SP"], r["SR"], 30)
+    asm.mul(T[1], r["SP"], r["CR"], 30)
+    asm.mac(T[2], [(r["CP"], r["M0"]), (T[0], r["M1"]), (T[1], r["M2"])], 18)      # hx
+    asm.mac(T[3], [(r["CR"], r["M1"]), (r["SR"], r["M2"], -1)], 18)                # hy
+    asm.vec(out, T[3], T[2])
+
+
+def _zero_tests(asm, r, name):
+    """ACC_OK = ax|ay|az; MAG_OK = mx|my|mz, or 0 when the sample's magnetometer is invalid."""
+    asm.or_(r["ACC_OK"], r["A0"], r["A1"])
+    asm.or_(r["ACC_OK"], r["ACC_OK"], r["A2"])
+    asm.add(r["MAG_OK"], r["ZERO"], r["ZERO"])
+    asm.br(f"{name}_mag_checked", Cond.MAG_INVALID)
+    asm.or_(r["MAG_OK"], r["M0"], r["M1"])
+    asm.or_(r["MAG_OK"], r["MAG_OK"], r["M2"])
+    asm.label(f"{name}_mag_checked")
+
+
+def _kalman_update(asm, r, i, z):
+    T = [r[f"T{k}"] for k in range(12)]
+    th, b = r[f"THETA{i}"], r[f"BIAS{i}"]
+    p00, p01, p10, p11 = (r[f"P{i}_{e}"] for e in ("00", "01", "10", "11"))
+    asm.add(T[4], p00, r["R"])                           # s
+    asm.div(T[5], p00, T[4])                             # k0, Q0.24
+    asm.div(T[6], p10, T[4])                             # k1, Q8.24
+    asm.sub(T[7], z, th, wrap=True)                      # innovation y
+    asm.mul(T[8], T[5], T[7], 24)
+    asm.add(th, th, T[8], wrap=True)
+    asm.mul(T[8], T[6], T[7], 24)                        # k1·y, BAM/s
+    asm.mul(T[8], T[8], r["BIAS_SCALE"], 24)
+    asm.add(b, b, T[8])
+    asm.mul(T[8], T[5], p00, 24)
+    asm.mul(T[9], T[5], p01, 24)
+    asm.mul(T[10], T[6], p00, 24)
+    asm.mul(T[11], T[6], p01, 24)
+    asm.sub(p00, p00, T[8])
+    asm.sub(p01, p01, T[9])
+    asm.sub(p10, p10, T[10])
+    asm.sub(p11, p11, T[11])
+
+
+def _kalman(asm, r):
+    T = [r[f"T{k}"] for k in range(12)]
+    asm.br("k_predict", Cond.FIRST, inv=True)
+    for i in range(3):
+        asm.add(r[f"PREV{i}"], r[f"G{i}"], r["ZERO"])
+    asm.label("k_predict")
+    for i in range(3):
+        th, b = r[f"THETA{i}"], r[f"BIAS{i}"]
+        p00, p01, p10, p11 = (r[f"P{i}_{e}"] for e in ("00", "01", "10", "11"))
+        asm.add(T[0], r[f"PREV{i}"], r[f"G{i}"])
+        asm.sub(T[0], T[0], b, shl=15)                   # u = avg rate − bias, Q16 counts
+        asm.mul(T[0], T[0], r["RATE"], 32)
+        asm.add(th, th, T[0], wrap=True)
+        asm.add(r[f"PREV{i}"], r[f"G{i}"], r["ZERO"])
+        asm.mul(T[1], r["T"], p11, 24)                   # T·P11
+        asm.sub(T[2], T[1], p10)
+        asm.sub(T[2], T[2], p01)
+        asm.mul(T[2], r["T"], T[2], 24)
+        asm.add(p00, p00, T[2])
+        asm.add(p00, p00, r["Q_ANGLE"])
+        asm.sub(p01, p01, T[1])
+        asm.sub(p10, p10, T[1])
+        asm.add(p11, p11, r["Q_BIAS"])
+    _zero_tests(asm, r, "k")
+    asm.br("k_no_tilt", Cond.A_ZERO, a=r["ACC_OK"])
+    _tilt(asm, r, r["MEAS0"])
+    asm.label("k_no_tilt")
+    asm.br("k_no_heading", Cond.A_ZERO, a=r["MAG_OK"])
+    _heading(asm, r, r["THETA0"], r["THETA1"], r["MEAS2"])    # with the predicted tilt
+    asm.label("k_no_heading")
+    asm.br("k_skip_rp", Cond.A_ZERO, a=r["ACC_OK"])
+    _kalman_update(asm, r, 0, r["MEAS0"])
+    _kalman_update(asm, r, 1, r["MEAS1"])
+    asm.setf(FLAG_ACC)
+    asm.label("k_skip_rp")
+    asm.br("k_done", Cond.A_ZERO, a=r["MAG_OK"])
+    _kalman_update(asm, r, 2, r["MEAS2"])
+    asm.setf(FLAG_MAG)
+    asm.label("k_done")
+    asm.end()
+
+
+def _complementary(asm, r):
+    T = [r[f"T{k}"] for k in range(12)]
+    for i in range(3):
+        asm.mul(T[0], r[f"G{i}"], r["RATE"], 16)
+        asm.add(r[f"PRED{i}"], r[f"THETA{i}"], T[0], wrap=True)
+        asm.add(r[f"PREV{i}"], r[f"G{i}"], r["ZERO"])
+    _zero_tests(asm, r, "c")
+    asm.add(r["MEAS0"], r["PRED0"], r["ZERO"])
+    asm.add(r["MEAS1"], r["PRED1"], r["ZERO"])
+    asm.br("c_no_tilt", Cond.A_ZERO, a=r["ACC_OK"])
+    _tilt(asm, r, r["MEAS0"])
+    asm.setf(FLAG_ACC)
+    asm.label("c_no_tilt")
+    asm.add(r["MEAS2"], r["PRED2"], r["ZERO"])
+    asm.br("c_blend", Cond.A_ZERO, a=r["MAG_OK"])
+    _heading(asm, r, r["PRED0"], r["PRED1"], r["MEAS2"])
+    asm.setf(FLAG_MAG)
+    asm.label("c_blend")
+    for i in range(3):
+        asm.sub(T[0], r[f"MEAS{i}"], r[f"PRED{i}"], wrap=True)
+        asm.mul(T[0], r["ONE_MINUS_A"], T[0], 24)
+        asm.add(r[f"THETA{i}"], r[f"PRED{i}"], T[0], wrap=True)
+    asm.end()
+
+
+def build_program():
+    """(instructions, entry points {"init", "sample"})."""
+    asm, r = Assembler(), REGS
+    asm.label("init")
+    _init(asm, r)
+    asm.label("sample")
+    _calibrate(asm, r)
+    asm.br("complementary", Cond.COMPL)
+    _kalman(asm, r)
+    asm.label("complementary")
+    _complementary(asm, r)
+    return asm.resolve(), {"init": asm.labels["init"], "sample": asm.labels["sample"]}
+
+
+ENTRY = build_program()[1]

@@ -1,0 +1,102 @@
+"""Iterative CORDIC: vectoring (atan2 and magnitude) and rotation (cos and sin), BAM32 angles.
+
+Computes exactly ``reference.fixed_point.cordic_vector`` / ``cordic_rotate``: 24 iterations,
+one per cycle, arctangent table ``ATAN_TABLE`` (BAM32, rounded), arithmetic shifts of the
+values before each iteration.
+
+Interface
+    ``start`` (in): pulse with ``mode`` (0 vectoring, 1 rotation), ``x_in``, ``y_in`` (signed
+        32, vectoring) or ``angle_in`` (BAM32, rotation) valid. Ignored while ``busy``.
+    ``done`` (out): one-cycle pulse when the results are valid; they hold until the next start.
+    Vectoring results: ``angle`` (BAM32, atan2(y, x); (0, 0) gives 0), ``magnitude``
+        (√(x² + y²)·K saturated to 32 bits; ``saturated`` set if it was clamped).
+    Rotation results: ``cos``, ``sin`` in Q1.30 (on ``magnitude``/``angle``'s neighbours
+        ``x_out``, ``y_out``).
+Latency: ``done`` ``CORDIC_ITERATIONS`` + 1 cycles after ``start``; throughput one operation per
+that many cycles. Internal width 35 bits, so any 32-bit input converges without overflow.
+"""
+
+from amaranth import *
+from amaranth.lib import wiring
+from amaranth.lib.wiring import In, Out
+
+from ..reference.fixed_point import ATAN_TABLE, CORDIC_ITERATIONS, INV_GAIN_Q30
+
+
+__all__ = ["CORDIC"]
+
+WIDTH = 35
+
+
+class CORDIC(wiring.Component):
+    start: In(1)
+    mode: In(1)                 # 0: vectoring, 1: rotation
+    x_in: In(signed(32))
+    y_in: In(signed(32))
+    angle_in: In(signed(32))
+
+    busy: Out(1)
+    done: Out(1)
+    angle: Out(signed(32))      # vectoring: atan2(y, x)
+    magnitude: Out(signed(32))  # vectoring: |(x, y)|·K, saturated
+    saturated: Out(1)
+    cos: Out(signed(32))        # rotation, Q1.30
+    sin: Out(signed(32))
+
+    def elaborate(self, platform):
+        m = Module()
+        x = Signal(signed(WIDTH))
+        y = Signal(signed(WIDTH))
+        z = Signal(signed(33))              # angle accumulator; wraps to 32 bits at the end
+        i = Signal(range(CORDIC_ITERATIONS + 1))
+        rotate = Signal()
+        zero = Signal()                     # vectoring of (0, 0)
+        flip = Signal()                     # rotation beyond ±90°: results negated
+
+        atan = Array(Const(v, signed(33)) for v in ATAN_TABLE)
+        # σ = +1: x −= σ·(y >> i) … written out for both directions
+        up = Signal()
+        m.d.comb += up.eq(Mux(rotate, z < 0, y > 0))
+        xs, ys = Signal(signed(WIDTH)), Signal(signed(WIDTH))
+        m.d.comb += [xs.eq(x >> i), ys.eq(y >> i)]
+
+        with m.FSM():
+            with m.State("IDLE"):
+                with m.If(self.start):
+                    m.d.sync += [i.eq(0), rotate.eq(self.mode)]
+                    with m.If(self.mode):
+                        a = self.angle_in
+                        # beyond ±90°: turn by 180° (wrapping add of 2³¹) and negate at the end
+                        beyond = (a > (1 << 30)) | (a < -(1 << 30))
+                        m.d.sync += [x.eq(INV_GAIN_Q30), y.eq(0), flip.eq(beyond), zero.eq(0),
+                                     z.eq(Mux(beyond, (a + (1 << 31))[:32].as_signed(), a))]
+                    with m.Else():
+                        xi, yi = self.x_in, self.y_in
+                        m.d.sync += [zero.eq((xi == 0) & (yi == 0)), flip.eq(0)]
+                        with m.If(xi < 0):           # left half-plane: negate, start at 180°
+                            m.d.sync += [x.eq(-xi), y.eq(-yi), z.eq(1 << 31)]
+                        with m.Else():
+                            m.d.sync += [x.eq(xi), y.eq(yi), z.eq(0)]
+                    m.next = "RUN"
+            with m.State("RUN"):
+                m.d.comb += self.busy.eq(1)
+                with m.If(up):
+                    m.d.sync += [x.eq(x + ys), y.eq(y - xs), z.eq(z + atan[i])]
+                with m.Else():
+                    m.d.sync += [x.eq(x - ys), y.eq(y + xs), z.eq(z - atan[i])]
+                m.d.sync += i.eq(i + 1)
+                with m.If(i == CORDIC_ITERATIONS - 1):
+                    m.next = "DONE"
+            with m.State("DONE"):
+                m.d.comb += self.done.eq(1)
+                m.next = "IDLE"
+
+        max32, min32 = (1 << 31) - 1, -(1 << 31)
+        m.d.comb += [
+            self.angle.eq(Mux(zero, 0, z[:32].as_signed())),
+            self.magnitude.eq(Mux(zero, 0, Mux(x > max32, max32, x))),
+            self.saturated.eq(~zero & (x > max32)),
+            self.cos.eq(Mux(flip, -x, x)),
+            self.sin.eq(Mux(flip, -y, y)),
+        ]
+        return m

@@ -1,0 +1,95 @@
+"""Instruction-level model of the attitude engine: runs the microcode ROM in Python.
+
+Not a reference (``reference.fixed_point`` is, written independently of the microcode): a fast
+way to check the microcode against the reference on thousands of samples before the slower
+gateware simulation, and to debug a program one instruction at a time (``trace=True``).
+The datapath primitives are the reference's, so only the program's logic is under test here.
+"""
+
+from ..hdl.attitude_isa import ALU_SHIFTS, MUL_SHIFTS, Cond, Op
+from ..hdl.attitude_program import LOAD_ORDER, REGS, build_program, config_init
+from ..reference.fixed_point import (INV_GAIN_Q30, KalmanFixedConfig, Status, cordic_rotate,
+                                     cordic_vector, div_q24, sat, sat16, sat32,
+                                     wrap32)
+
+
+__all__ = ["AttitudeISAModel"]
+
+
+class AttitudeISAModel:
+    def __init__(self, config=KalmanFixedConfig(), cal=None):
+        self.program, self.entry = build_program()
+        self.regs = config_init(config, INV_GAIN_Q30, cal)
+        self.complementary = False
+        self.first = True
+        self.run(self.entry["init"])
+
+    def write(self, addr, value):
+        self.regs[addr] = sat(value, 32)
+
+    def run(self, pc, mag_valid=True, trace=False):
+        """Run from ``pc`` to END; returns (flags set, saturated, instructions executed)."""
+        r = self.regs
+        acc = 0
+        flags = set()
+        st = Status()
+        steps = 0
+        while True:
+            ins = self.program[pc]
+            steps += 1
+            pc += 1
+            a, b = r[ins.a], r[ins.b]
+            op = ins.op
+
+            def put(d, value, *, wrap=False):
+                if wrap:
+                    r[d] = wrap32(value)
+                else:
+                    value = sat32(value, st)
+                    r[d] = sat16(value, st) if ins.sat16 else value
+                if trace:
+                    print(f"{pc - 1:3d} {op.name:4s} r{d:02x} <- {r[d]}")
+
+            if op == Op.ADD:
+                put(ins.d, (a << ALU_SHIFTS[ins.sh]) + b, wrap=ins.wrap)
+            elif op == Op.SUB:
+                put(ins.d, (a << ALU_SHIFTS[ins.sh]) - b, wrap=ins.wrap)
+            elif op == Op.OR:
+                put(ins.d, a | b)
+            elif op == Op.MUL:
+                p = -a * b if ins.neg else a * b
+                s = MUL_SHIFTS[ins.sh]
+                acc = (acc if ins.acc else (1 << s >> 1)) + p     # rounding constant first
+                if ins.wb:
+                    put(ins.d, acc >> s)
+            elif op == Op.DIV:
+                put(ins.d, div_q24(a, b, st))
+            elif op == Op.VEC:
+                angle, mag = cordic_vector(a, b, st)
+                put(ins.d, angle)
+                put(ins.d + 1, mag)
+            elif op == Op.ROT:
+                c, s = cordic_rotate(a)
+                put(ins.d, c)
+                put(ins.d + 1, s)
+            elif op == Op.BR:
+                cond = {Cond.ALWAYS: True, Cond.A_ZERO: a == 0,
+                        Cond.MAG_INVALID: not mag_valid, Cond.FIRST: self.first,
+                        Cond.COMPL: self.complementary}[Cond(ins.cond)]
+                if cond != bool(ins.inv):
+                    pc = ins.target
+            elif op == Op.SETF:
+                flags.add(ins.sh)
+            elif op == Op.END:
+                return flags, st.saturated, steps
+
+    def sample(self, gyro, accel, mag_ak, mag_valid=True, asa=(128, 128, 128)):
+        for name, value in zip(LOAD_ORDER, [*gyro, *accel, *mag_ak, *(x + 128 for x in asa)]):
+            self.regs[REGS[name]] = int(value)
+        result = self.run(self.entry["sample"], mag_valid)
+        self.first = False
+        return result
+
+    def outputs(self):
+        r = self.regs
+        return ([r[REGS[f"THETA{i}"]] for i in range(3)], [r[REGS[f"BIAS{i}"]] for i in range(3)])
