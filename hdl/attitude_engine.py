@@ -25,7 +25,6 @@ Latency (sample valid to result valid): see ``report`` (``cycles_per_update``).
 
 from amaranth import *
 from amaranth.lib import data, stream, wiring
-from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
 from ..reference.fixed_point import INV_GAIN_Q30, KalmanFixedConfig
@@ -34,6 +33,7 @@ from .attitude_program import CONTROL_ADDR, FLAG_ACC, FLAG_MAG, LOAD_ORDER, REGS
     build_program, config_init
 from .cordic import CORDIC
 from .divider import Divider
+from .memories import MicrocodeROM, RegisterFile
 from .multiplier import Multiplier
 from .sample import Attitude, ConfigWrite, Sample
 
@@ -42,27 +42,32 @@ __all__ = ["AttitudeEngine"]
 
 
 def _saturate(m, value, bits):
-    """(clamped value, clamped?) of a signed value to a signed ``bits``-bit range."""
-    hi, lo = (1 << (bits - 1)) - 1, -(1 << (bits - 1))
+    """(clamped value, clamped?) of a signed value to a signed ``bits``-bit range. It fits when
+    the bits from ``bits`` − 1 up are all equal (a reduction, cheaper than two comparators)."""
+    top = value[bits - 1:]
+    fits = (top == 0) | (top == (1 << len(top)) - 1)
+    sign = value[-1]
     out, flag = Signal(signed(bits)), Signal()
-    with m.If(value > hi):
-        m.d.comb += [out.eq(hi), flag.eq(1)]
-    with m.Elif(value < lo):
-        m.d.comb += [out.eq(lo), flag.eq(1)]
-    with m.Else():
-        m.d.comb += out.eq(value)
+    hi = (1 << (bits - 1)) - 1
+    m.d.comb += [flag.eq(~fits),
+                 out.eq(Mux(fits, value[:bits], Mux(sign, C(hi + 1, bits), C(hi, bits))))]
     return out, flag
 
 
 class AttitudeEngine(wiring.Component):
     def __init__(self, config=KalmanFixedConfig(), cal=None, *, complementary=False,
-                 blackbox_multiplier=False, divider_bits_per_cycle=4):
+                 blackbox_hard_blocks=False, divider_bits_per_cycle=4):
         self.config = config
         self.cal = cal
         self.complementary_at_reset = complementary
-        self.blackbox_multiplier = blackbox_multiplier
         self.divider_bits_per_cycle = divider_bits_per_cycle
         self.program, self.entry = build_program()
+        # hard blocks (multiplier, memories) as empty modules: for ``report``'s synthesis
+        self.multiplier = Multiplier(blackbox=blackbox_hard_blocks)
+        self.regfile = RegisterFile(REG_COUNT, config_init(config, INV_GAIN_Q30, cal),
+                                    blackbox=blackbox_hard_blocks)
+        self.rom = MicrocodeROM([i.encode() for i in self.program],
+                                data.Layout.cast(Instr).size, blackbox=blackbox_hard_blocks)
         super().__init__({
             "samples": In(stream.Signature(Sample)),
             "asa": In(data.ArrayLayout(8, 3)),
@@ -75,22 +80,14 @@ class AttitudeEngine(wiring.Component):
         m = Module()
         m.submodules.cordic = cordic = CORDIC()
         m.submodules.divider = divider = Divider(self.divider_bits_per_cycle)
-        m.submodules.multiplier = mult = Multiplier(blackbox=self.blackbox_multiplier)
-
-        m.submodules.rf = rf = Memory(shape=signed(32), depth=REG_COUNT,
-                                      init=config_init(self.config, INV_GAIN_Q30, self.cal))
-        wp = rf.write_port()
-        rpa = rf.read_port(transparent_for=(wp,))
-        rpb = rf.read_port(transparent_for=(wp,))
-        width = data.Layout.cast(Instr).size
-        m.submodules.rom = rom = Memory(shape=width, depth=len(self.program),
-                                        init=[i.encode() for i in self.program])
-        rom_rp = rom.read_port()
+        m.submodules.multiplier = mult = self.multiplier
+        m.submodules.regfile = rf = self.regfile
+        m.submodules.rom = rom = self.rom
 
         # -- sequencer state ------------------------------------------------------------------
         fetch_pc = Signal(range(len(self.program) + 1))
         rvalid = Signal()                                 # rom_rp.data is a real instruction
-        rinstr = data.View(Instr, rom_rp.data)
+        rinstr = data.View(Instr, rom.data)
         x = Signal(Instr)                                 # instruction in execute
         xvalid = Signal()
         phase = Signal(2)
@@ -108,12 +105,11 @@ class AttitudeEngine(wiring.Component):
         result_valid = Signal()
 
         m.d.comb += [
-            rom_rp.addr.eq(fetch_pc), rom_rp.en.eq(advance),
-            rpa.addr.eq(rinstr.a), rpb.addr.eq(rinstr.b),
-            rpa.en.eq(advance), rpb.en.eq(advance),
+            rom.addr.eq(fetch_pc), rom.en.eq(advance),
+            rf.ra_addr.eq(rinstr.a), rf.rb_addr.eq(rinstr.b), rf.r_en.eq(advance),
             self.results.valid.eq(result_valid), self.results.payload.eq(out),
         ]
-        opa, opb = rpa.data, rpb.data
+        opa, opb = rf.ra_data, rf.rb_data
 
         # -- execute: the arithmetic ------------------------------------------------------------
         # ALU: (a << shift) ± b, exact at 50 bits, then wrapped or saturated
@@ -123,7 +119,8 @@ class AttitudeEngine(wiring.Component):
                 with m.Case(code):
                     m.d.comb += shifted_a.eq(opa << s)
         alu_full = Signal(signed(51))
-        m.d.comb += alu_full.eq(Mux(x.op == Op.SUB, shifted_a - opb, shifted_a + opb))
+        is_sub = x.op == Op.SUB
+        m.d.comb += alu_full.eq(shifted_a + Mux(is_sub, ~opb, opb) + is_sub)   # one adder
 
         # MUL: the product is registered in the instruction's execute cycle; accumulation,
         # rounding and write-back happen in the next cycle (the "pending" stage), overlapped
@@ -141,8 +138,9 @@ class AttitudeEngine(wiring.Component):
             for code, s in enumerate(MUL_SHIFTS):
                 with m.Case(code):
                     m.d.comb += [rounding.eq((1 << s) >> 1), mul_shifted.eq(acc_next >> s)]
+        # ± product with one adder: base + (~product if neg) + neg
         m.d.comb += acc_next.eq(Mux(pend_ins.acc, acc, rounding)
-                                + Mux(pend_ins.neg, -product, product))
+                                + Mux(pend_ins.neg, ~product, product) + pend_ins.neg)
         mul_v32, mul_f32 = _saturate(m, mul_shifted, 32)
         mul_v16, mul_f16 = _saturate(m, mul_v32, 16)
         mul_result = Mux(pend_ins.sat16, mul_v16, mul_v32)
@@ -184,7 +182,7 @@ class AttitudeEngine(wiring.Component):
 
         # -- the write port: loader, host configuration, or the execute stage -------------------
         w_en, w_addr, w_data, w_sat = Signal(), Signal(7), Signal(signed(32)), Signal()
-        m.d.comb += [wp.en.eq(w_en), wp.addr.eq(w_addr), wp.data.eq(w_data)]
+        m.d.comb += [rf.w_en.eq(w_en), rf.w_addr.eq(w_addr), rf.w_data.eq(w_data)]
         with m.If(w_en):
             for i in range(3):
                 with m.If(w_addr == REGS[f"THETA{i}"]):
@@ -254,7 +252,7 @@ class AttitudeEngine(wiring.Component):
                             m.d.sync += flag_mag.eq(1)
             with m.If(advance):
                 m.d.sync += [
-                    x.eq(rom_rp.data), xvalid.eq(rvalid & ~flush),
+                    x.eq(rom.data), xvalid.eq(rvalid & ~flush),
                     fetch_pc.eq(Mux(flush, branch_to, fetch_pc + 1)), rvalid.eq(~flush),
                 ]
 

@@ -51,7 +51,6 @@ class CORDIC(wiring.Component):
         i = Signal(range(CORDIC_ITERATIONS + 1))
         rotate = Signal()
         zero = Signal()                     # vectoring of (0, 0)
-        flip = Signal()                     # rotation beyond ±90°: results negated
 
         atan = Array(Const(v, signed(33)) for v in ATAN_TABLE)
         # σ = +1: x −= σ·(y >> i) … written out for both directions
@@ -66,13 +65,14 @@ class CORDIC(wiring.Component):
                     m.d.sync += [i.eq(0), rotate.eq(self.mode)]
                     with m.If(self.mode):
                         a = self.angle_in
-                        # beyond ±90°: turn by 180° (wrapping add of 2³¹) and negate at the end
+                        # beyond ±90°: turn by 180° (wrapping add of 2³¹), start from (−1/K, 0)
                         beyond = (a > (1 << 30)) | (a < -(1 << 30))
-                        m.d.sync += [x.eq(INV_GAIN_Q30), y.eq(0), flip.eq(beyond), zero.eq(0),
+                        m.d.sync += [x.eq(Mux(beyond, -INV_GAIN_Q30, INV_GAIN_Q30)), y.eq(0),
+                                     zero.eq(0),
                                      z.eq(Mux(beyond, (a + (1 << 31))[:32].as_signed(), a))]
                     with m.Else():
                         xi, yi = self.x_in, self.y_in
-                        m.d.sync += [zero.eq((xi == 0) & (yi == 0)), flip.eq(0)]
+                        m.d.sync += zero.eq((xi == 0) & (yi == 0))
                         with m.If(xi < 0):           # left half-plane: negate, start at 180°
                             m.d.sync += [x.eq(-xi), y.eq(-yi), z.eq(1 << 31)]
                         with m.Else():
@@ -80,10 +80,13 @@ class CORDIC(wiring.Component):
                     m.next = "RUN"
             with m.State("RUN"):
                 m.d.comb += self.busy.eq(1)
-                with m.If(up):
-                    m.d.sync += [x.eq(x + ys), y.eq(y - xs), z.eq(z + atan[i])]
-                with m.Else():
-                    m.d.sync += [x.eq(x - ys), y.eq(y + xs), z.eq(z - atan[i])]
+                # x ∓ (y >> i), y ± (x >> i), z ∓ atan: one adder each, the operand inverted
+                # (plus one) to subtract
+                m.d.sync += [
+                    x.eq(x + Mux(up, ys, ~ys) + ~up),
+                    y.eq(y + Mux(up, ~xs, xs) + up),
+                    z.eq(z + Mux(up, atan[i], ~atan[i]) + ~up),
+                ]
                 m.d.sync += i.eq(i + 1)
                 with m.If(i == CORDIC_ITERATIONS - 1):
                     m.next = "DONE"
@@ -96,7 +99,7 @@ class CORDIC(wiring.Component):
             self.angle.eq(Mux(zero, 0, z[:32].as_signed())),
             self.magnitude.eq(Mux(zero, 0, Mux(x > max32, max32, x))),
             self.saturated.eq(~zero & (x > max32)),
-            self.cos.eq(Mux(flip, -x, x)),
-            self.sin.eq(Mux(flip, -y, y)),
+            self.cos.eq(x),
+            self.sin.eq(y),
         ]
         return m

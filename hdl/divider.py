@@ -54,8 +54,9 @@ class Divider(wiring.Component):
         r, d, qq = rem, dividend, q
         for _ in range(k):
             trial = Cat(d[31], r)            # (r << 1) | next dividend bit, 33 bits
-            ge = trial >= den
-            r = Mux(ge, trial - den, trial)[:32]
+            diff = trial - den               # one subtractor: its sign is the comparison
+            ge = ~diff[33]
+            r = Mux(ge, diff, trial)[:32]
             qq = Cat(ge, qq[:31])
             d = Cat(C(0, 1), d[:31])
         next_rem, next_div, next_q = r, d, qq

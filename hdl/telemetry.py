@@ -2,7 +2,9 @@
 
 Frame (all bytes on the wire in this order)
     ``0xA5 0x5A``  sync
-    ``type``       frame type: 0x01 = ``SensorFrame`` (sample and driver status)
+    ``type``       frame type: 0x01 = ``SensorFrame`` (sample and driver status),
+                   0x02 = ``AttitudeFrame`` (attitude result, the sample it came from, driver
+                   status)
     ``length``     payload length in bytes
     payload        the frame struct packed as its ``lib.data`` layout says, least significant
                    byte first (padded with zeros to whole bytes)
@@ -12,8 +14,8 @@ Frame (all bytes on the wire in this order)
 host never disagree on a field position.
 
 Interface
-    ``i_stream`` (in, stream of the frame layout): one frame per transfer; taken when the
-        previous frame has been sent.
+    ``i_stream`` (in, stream of the frame layout): one frame per transfer; its payload is read
+        byte by byte while it is sent and acknowledged (``ready``) with the last byte.
     ``o_stream`` (out, byte stream): to a UART transmitter.
 Throughput: ``length + 5`` bytes per frame, one byte per ``o_stream`` handshake.
 """
@@ -23,10 +25,10 @@ from amaranth.lib import data, stream, wiring
 from amaranth.lib.crc.catalog import CRC8_SMBUS
 from amaranth.lib.wiring import In, Out
 
-from .sample import DriverStatus, Sample
+from .sample import Attitude, DriverStatus, Sample
 
 
-__all__ = ["SYNC", "CRC", "SensorFrame", "FRAME_TYPES", "TelemetryFramer"]
+__all__ = ["SYNC", "CRC", "SensorFrame", "AttitudeFrame", "FRAME_TYPES", "TelemetryFramer"]
 
 
 SYNC = (0xA5, 0x5A)
@@ -38,7 +40,13 @@ class SensorFrame(data.Struct):
     status: DriverStatus
 
 
-FRAME_TYPES = {0x01: SensorFrame}
+class AttitudeFrame(data.Struct):
+    attitude: Attitude
+    sample: Sample
+    status: DriverStatus
+
+
+FRAME_TYPES = {0x01: SensorFrame, 0x02: AttitudeFrame}
 
 
 def payload_bytes(layout):
@@ -60,11 +68,14 @@ class TelemetryFramer(wiring.Component):
     def elaborate(self, platform):
         m = Module()
         n = self.length
-        payload = Signal(8 * n)
         index = Signal(range(n + 5))
-        busy = Signal()
         m.submodules.crc = crc = CRC(data_width=8).create()
 
+        # Bytes straight from the payload through a byte multiplexer: the stream keeps the
+        # payload stable until ``ready``, which comes with the last byte, so no copy of the
+        # frame is needed (a copy would cost a register per payload bit).
+        bits = Cat(self.i_stream.payload.as_value(), C(0, 8 * n - len(self.i_stream.payload.as_value())))
+        payload_bytes = Array(bits[8 * i:8 * i + 8] for i in range(n))
         byte = Signal(8)
         with m.Switch(index):
             with m.Case(0):
@@ -78,22 +89,17 @@ class TelemetryFramer(wiring.Component):
             with m.Case(n + 4):
                 m.d.comb += byte.eq(crc.crc)
             with m.Default():
-                m.d.comb += byte.eq(payload[:8])
+                m.d.comb += byte.eq(payload_bytes[index - 4])
 
+        sent = self.o_stream.valid & self.o_stream.ready
         m.d.comb += [
-            self.i_stream.ready.eq(~busy),
-            self.o_stream.valid.eq(busy),
+            self.o_stream.valid.eq(self.i_stream.valid),
             self.o_stream.payload.eq(byte),
             crc.data.eq(byte),
-            crc.start.eq(self.i_stream.valid & ~busy),
+            crc.start.eq(sent & (index == 0)),
+            crc.valid.eq(sent & (index >= 2) & (index < n + 4)),
+            self.i_stream.ready.eq(sent & (index == n + 4)),
         ]
-        with m.If(self.i_stream.valid & ~busy):
-            m.d.sync += [payload.eq(self.i_stream.payload.as_value()), index.eq(0), busy.eq(1)]
-        with m.If(self.o_stream.valid & self.o_stream.ready):
-            m.d.comb += crc.valid.eq((index >= 2) & (index < n + 4))
-            m.d.sync += index.eq(index + 1)
-            with m.If((index >= 4) & (index < n + 4)):
-                m.d.sync += payload.eq(payload >> 8)   # a shifter is cheaper than a byte mux
-            with m.If(index == n + 4):
-                m.d.sync += busy.eq(0)
+        with m.If(sent):
+            m.d.sync += index.eq(Mux(index == n + 4, 0, index + 1))
         return m

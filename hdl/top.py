@@ -1,10 +1,16 @@
 """Top levels.
 
-``AHRSCore`` is everything that is not a pin buffer: the sensor front end and the telemetry
-framer with its UART. It is what ``build --verilog-only`` exports and what simulations of the
-whole design drive. Ports: ``imu`` (SPI pins, or I2C pins with ``config.wiring == "i2c"``),
-``imu_int``, ``uart_tx``, ``status``, ``asa``, ``samples_seen`` (counts samples, for a
-heartbeat LED).
+``AHRSCore`` is everything that is not a pin buffer: the sensor front end, the attitude engine
+(calibration and filters, ``attitude=True``), and the telemetry framer with its UART. It is what
+``build --verilog-only`` exports and what simulations of the whole design drive. Ports:
+``imu`` (SPI pins, or I2C pins with ``config.wiring == "i2c"``), ``imu_int``, ``uart_tx``,
+``status``, ``asa``, ``samples_seen`` (counts samples, for a heartbeat LED), and with the
+engine ``cfg`` (register writes to the engine; tie ``valid`` low to keep the reset values).
+
+Telemetry: with the engine, one ``AttitudeFrame`` (type 0x02: the result, the raw sample it
+came from and the driver status) per sample; without it, one ``SensorFrame`` (0x01). The
+engine's filters are set up for the sensor configuration: T = 1/ODR, gyro LSB per °/s from
+the full scale, the published Q, R, P₀.
 
 On an I2C-wired board the MPU9250's SCL/SDA are the pins SCLK/SDI use with SPI; ``BoardTop``
 then holds NCS high (I2C mode) and drives AD0 (SDO) to select 0x68 or 0x69.
@@ -25,15 +31,17 @@ LED   meaning
 """
 
 from amaranth import *
-from amaranth.lib import data, io, wiring
+from amaranth.lib import data, io, stream, wiring
 from amaranth.lib.wiring import In, Out, connect, flipped
 
 from .mpu9250_driver import DriverTiming, MPU9250Config
-from .sample import DriverStatus
+from ..reference.fixed_point import KalmanFixedConfig
+from .attitude_engine import AttitudeEngine
+from .sample import ConfigWrite, DriverStatus, Sample
 from .sensor_frontend import SensorFrontEnd
 from .i2c_controller import I2CPinsSignature
 from .spi_controller import SPIPinsSignature
-from .telemetry import TelemetryFramer
+from .telemetry import AttitudeFrame, TelemetryFramer
 from .uart_tx import UARTTransmitter
 
 
@@ -42,20 +50,33 @@ __all__ = ["AHRSCore", "BoardTop"]
 
 class AHRSCore(wiring.Component):
     def __init__(self, *, clk_freq, config=MPU9250Config(), timing=DriverTiming(),
-                 baud=921_600):
+                 baud=921_600, attitude=True, filter_config=None, calibration=None,
+                 blackbox_hard_blocks=False):
         self.clk_freq = clk_freq
         self.config = config
+        self.attitude = attitude
         self.frontend = SensorFrontEnd(clk_freq=clk_freq, config=config, timing=timing)
-        self.framer = TelemetryFramer()
+        if attitude:
+            if filter_config is None:
+                filter_config = KalmanFixedConfig(dt=1 / config.output_data_rate,
+                                                  gyro_lsb_per_dps=32768 / config.gyro_fs_dps)
+            self.engine = AttitudeEngine(filter_config, calibration,
+                                         blackbox_hard_blocks=blackbox_hard_blocks)
+            self.framer = TelemetryFramer(AttitudeFrame, 0x02)
+        else:
+            self.framer = TelemetryFramer()
         self.uart = UARTTransmitter.for_baud(clk_freq, baud)
-        super().__init__({
+        ports = {
             "imu": Out(SPIPinsSignature() if config.wiring == "spi" else I2CPinsSignature()),
             "imu_int": In(1),
             "uart_tx": Out(1, init=1),
             "status": Out(DriverStatus),
             "asa": Out(data.ArrayLayout(8, 3)),
             "samples_seen": Out(8),
-        })
+        }
+        if attitude:
+            ports["cfg"] = In(stream.Signature(ConfigWrite))
+        super().__init__(ports)
 
     def elaborate(self, platform):
         m = Module()
@@ -67,13 +88,32 @@ class AHRSCore(wiring.Component):
         m.d.comb += [fe.int_pin.eq(self.imu_int), self.status.eq(fe.status),
                      self.asa.eq(fe.asa), self.uart_tx.eq(uart.tx)]
 
-        # Sample stream -> frame (sample + status at the moment it was taken) -> UART.
-        m.d.comb += [
-            framer.i_stream.valid.eq(fe.samples.valid),
-            framer.i_stream.payload.sample.eq(fe.samples.payload),
-            framer.i_stream.payload.status.eq(fe.status),
-            fe.samples.ready.eq(framer.i_stream.ready),
-        ]
+        if self.attitude:
+            # Sample -> engine -> frame (result + the sample it came from + status) -> UART.
+            # The engine takes the next sample only once its result is framed, so one held
+            # copy of the sample is enough.
+            m.submodules.engine = engine = self.engine
+            connect(m, fe.samples, engine.samples)
+            connect(m, flipped(self.cfg), engine.cfg)
+            held = Signal(Sample)
+            with m.If(fe.samples.valid & fe.samples.ready):
+                m.d.sync += held.eq(fe.samples.payload)
+            m.d.comb += [
+                engine.asa.eq(fe.asa),
+                framer.i_stream.valid.eq(engine.results.valid),
+                framer.i_stream.payload.attitude.eq(engine.results.payload),
+                framer.i_stream.payload.sample.eq(held),
+                framer.i_stream.payload.status.eq(fe.status),
+                engine.results.ready.eq(framer.i_stream.ready),
+            ]
+        else:
+            # Sample stream -> frame (sample + status at the moment it was taken) -> UART.
+            m.d.comb += [
+                framer.i_stream.valid.eq(fe.samples.valid),
+                framer.i_stream.payload.sample.eq(fe.samples.payload),
+                framer.i_stream.payload.status.eq(fe.status),
+                fe.samples.ready.eq(framer.i_stream.ready),
+            ]
         connect(m, framer.o_stream, uart.i_stream)
         with m.If(fe.samples.valid & fe.samples.ready):
             m.d.sync += self.samples_seen.eq(self.samples_seen + 1)

@@ -14,6 +14,8 @@ VERBS_HELP = """verbs:
              and reads samples; prints them, the bring-up time and the simulator's speed
   replay     run one of the reference filters on a recording (BROAD HDF5 format), quantised to
              MPU9250/AK8963 counts, and print its errors against the optical truth as JSON
+  report     resources of the attitude datapath and of the whole design from Yosys (MAX10
+             mapping), and cycles per filter update, as JSON
 """
 
 
@@ -143,6 +145,12 @@ def cmd_replay(args):
     return 0
 
 
+def cmd_report(args):
+    from .report import report
+    print(json.dumps(report(clk_freq=args.clk_freq or 50e6, config=_config(args)), indent=1))
+    return 0
+
+
 def build_parser():
     parser = argparse.ArgumentParser(
         prog="mpu9250-ahrs", description="MPU9250 attitude reference in FPGA gateware.",
@@ -194,6 +202,18 @@ def build_parser():
     p.add_argument("--gyro-fs", type=int, default=2000, help="gyro full scale, °/s (2000)")
     p.add_argument("--accel-fs", type=int, default=16, help="accelerometer full scale, g (16)")
     p.set_defaults(func=cmd_replay)
+
+    p = sub.add_parser("report", help="resources (Yosys) and cycles per update, as JSON",
+                       description="Synthesise the attitude datapath alone and the whole design "
+                                   "with Debian's Yosys 0.23 (synth_intel -family max10; "
+                                   "apt-get install yosys) and simulate a few updates; print "
+                                   "JSON: {design, datapath} each with logic_elements, "
+                                   "registers, memory_bits, multipliers_18x18, logic_levels; "
+                                   "cycles_per_update per filter. About a minute.")
+    p.add_argument("--clk-freq", type=float, default=None,
+                   help="system clock of the whole design, Hz (default 50e6)")
+    _add_sensor_options(p)
+    p.set_defaults(func=cmd_report)
     return parser
 
 
@@ -201,6 +221,6 @@ def main(argv=None):
     args = build_parser().parse_args(argv)
     try:
         return args.func(args)
-    except (ValueError, OSError) as e:
+    except (ValueError, OSError, RuntimeError) as e:
         print(f"mpu9250-ahrs {args.verb}: error: {e}", file=sys.stderr)
         return 2

@@ -142,19 +142,21 @@ def cordic_vector(x, y, status=None):
 
 
 def cordic_rotate(angle):
-    """(cos, sin) of a BAM32 angle, Q1.30, by rotation-mode CORDIC from (1/K, 0)."""
+    """(cos, sin) of a BAM32 angle, Q1.30, by rotation-mode CORDIC from (1/K, 0); beyond ±90°
+    the angle is turned by 180° and the start vector is (−1/K, 0) instead (no negation of the
+    results needed)."""
     angle = wrap32(angle)
-    flip = False
-    if angle > (1 << 30) or angle < -(1 << 30):          # beyond ±90°: rotate by 180° first
+    x0 = INV_GAIN_Q30
+    if angle > (1 << 30) or angle < -(1 << 30):
         angle = wrap32(angle + (1 << 31))
-        flip = True
-    x, y, z = INV_GAIN_Q30, 0, angle
+        x0 = -INV_GAIN_Q30
+    x, y, z = x0, 0, angle
     for i in range(CORDIC_ITERATIONS):
         if z >= 0:
             x, y, z = x - (y >> i), y + (x >> i), z - ATAN_TABLE[i]
         else:
             x, y, z = x + (y >> i), y - (x >> i), z + ATAN_TABLE[i]
-    return (-x, -y) if flip else (x, y)
+    return x, y
 
 
 # -- calibration ---------------------------------------------------------------------------------

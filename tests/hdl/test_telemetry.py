@@ -9,6 +9,7 @@ from amaranth.sim import Simulator
 from mpu9250_ahrs.hdl.telemetry import CRC, SYNC, SensorFrame, TelemetryFramer
 from mpu9250_ahrs.hdl.top import AHRSCore
 from mpu9250_ahrs.hdl.uart_tx import UARTTransmitter
+from mpu9250_ahrs.reference.fixed_point import attitude_fixed
 from mpu9250_ahrs.sim.cosim import CosimHarness, SimSetup, attach_mpu9250, sample_matches
 from mpu9250_ahrs.sim.telemetry import FrameDecoder, FrameError, decode_frames, unpack
 from mpu9250_ahrs.sim.uart import attach_uart_receiver
@@ -102,7 +103,8 @@ def test_decoder_resynchronises_and_rejects_bad_crc():
 
 
 def test_core_end_to_end_over_uart(vcd):
-    """Model -> SPI -> driver -> framer -> UART -> host decoder, bit for bit."""
+    """Model -> SPI -> driver -> attitude engine -> framer -> UART -> host decoder, bit for
+    bit: the samples equal the model's, the attitude equals the fixed-point reference's."""
     setup = SimSetup()
     core = AHRSCore(clk_freq=setup.clk_freq, config=setup.config,
                     timing=setup.driver_timing(), baud=3_000_000)
@@ -114,12 +116,14 @@ def test_core_end_to_end_over_uart(vcd):
     received = bytearray()
     attach_uart_receiver(sim, core.uart_tx, core.uart.divisor, received)
     frames = []
+    asa = []
 
     async def tb(ctx):
         while len(frames) < 6:
             await ctx.tick().repeat(1000)
             frames[:] = [f for _, f in decode_frames(received)]
-            assert ctx.get(harness.cycle) < 40_000, f"only {len(frames)} frames"
+            assert ctx.get(harness.cycle) < 80_000, f"only {len(frames)} frames"
+        asa[:] = [ctx.get(core.asa[i]) for i in range(3)]
     sim.add_testbench(tb)
     path = vcd()
     if path:
@@ -135,3 +139,14 @@ def test_core_end_to_end_over_uart(vcd):
         assert s["counter"] == i and s["flags"]["overrun"] == 0
         assert sample_matches(s, model.samples[model.sample_reads[i]])
         assert frame["status"]["streaming"] == 1 and frame["status"]["who_am_i"] == 0x71
+    samples = [f["sample"] for f in frames]
+    ref = attitude_fixed([s["gyro"] for s in samples], [s["accel"] for s in samples],
+                         [s["mag"] for s in samples],
+                         [s["flags"]["mag_valid"] for s in samples], asa=asa,
+                         config=core.engine.config)
+    for k, frame in enumerate(frames):
+        att = frame["attitude"]
+        assert att["counter"] == k
+        assert (att["angles"], att["bias"]) == (ref.angles[k].tolist(), ref.bias[k].tolist())
+        assert (att["flags"]["acc_used"], att["flags"]["mag_used"]) == \
+            (ref.acc_used[k], ref.mag_used[k])

@@ -1,0 +1,97 @@
+"""The attitude engine's two memories, as small components.
+
+``RegisterFile``: ``depth`` × 32-bit words with initial values, one write port and two
+synchronous read ports that see a write in the same cycle (transparent), each with an enable
+that holds its data while low. ``MicrocodeROM``: the program, one synchronous read port with
+enable. On a MAX10 both fit M9K blocks (the register file takes two, one per read port, as
+Quartus duplicates a RAM for a second read address).
+
+``blackbox=True`` instantiates empty modules (``blackbox_stub()`` gives their Verilog) in place
+of ``lib.memory.Memory``: Debian's Yosys 0.23 cannot map initialised RAM onto MAX10 M9K blocks,
+so ``report`` counts their bits and keeps them out of the logic-element count.
+"""
+
+from amaranth import *
+from amaranth.lib import wiring
+from amaranth.lib.memory import Memory
+from amaranth.lib.wiring import In, Out
+
+
+__all__ = ["RegisterFile", "MicrocodeROM", "blackbox_stub"]
+
+
+class RegisterFile(wiring.Component):
+    def __init__(self, depth, init, *, blackbox=False):
+        self.depth = depth
+        self.init = list(init)
+        self.blackbox = blackbox
+        abits = (depth - 1).bit_length()
+        super().__init__({
+            "w_en": In(1), "w_addr": In(abits), "w_data": In(signed(32)),
+            "r_en": In(1), "ra_addr": In(abits), "rb_addr": In(abits),
+            "ra_data": Out(signed(32)), "rb_data": Out(signed(32)),
+        })
+
+    @property
+    def bits(self):
+        return 2 * self.depth * 32
+
+    def elaborate(self, platform):
+        m = Module()
+        if self.blackbox:
+            m.submodules.ram = Instance(
+                f"mpu9250_ahrs_regfile{self.depth}x32", i_clk=ClockSignal(), i_w_en=self.w_en,
+                i_w_addr=self.w_addr, i_w_data=self.w_data, i_r_en=self.r_en,
+                i_ra_addr=self.ra_addr, i_rb_addr=self.rb_addr, o_ra_data=self.ra_data,
+                o_rb_data=self.rb_data)
+            return m
+        m.submodules.mem = mem = Memory(shape=signed(32), depth=self.depth, init=self.init)
+        wp = mem.write_port()
+        rpa = mem.read_port(transparent_for=(wp,))
+        rpb = mem.read_port(transparent_for=(wp,))
+        m.d.comb += [
+            wp.en.eq(self.w_en), wp.addr.eq(self.w_addr), wp.data.eq(self.w_data),
+            rpa.addr.eq(self.ra_addr), rpb.addr.eq(self.rb_addr),
+            rpa.en.eq(self.r_en), rpb.en.eq(self.r_en),
+            self.ra_data.eq(rpa.data), self.rb_data.eq(rpb.data),
+        ]
+        return m
+
+
+class MicrocodeROM(wiring.Component):
+    def __init__(self, words, width, *, blackbox=False):
+        self.words = list(words)
+        self.width = width
+        self.blackbox = blackbox
+        self.abits = max(1, (len(self.words) - 1).bit_length())
+        super().__init__({"addr": In(self.abits), "en": In(1), "data": Out(width)})
+
+    @property
+    def bits(self):
+        return len(self.words) * self.width
+
+    def elaborate(self, platform):
+        m = Module()
+        if self.blackbox:
+            m.submodules.rom = Instance(
+                f"mpu9250_ahrs_rom{len(self.words)}x{self.width}", i_clk=ClockSignal(),
+                i_addr=self.addr, i_en=self.en, o_data=self.data)
+            return m
+        m.submodules.mem = mem = Memory(shape=self.width, depth=len(self.words),
+                                        init=self.words)
+        rp = mem.read_port()
+        m.d.comb += [rp.addr.eq(self.addr), rp.en.eq(self.en), self.data.eq(rp.data)]
+        return m
+
+
+def blackbox_stub(regfile, rom):
+    """Verilog declaring the two blackbox modules with their port directions."""
+    ra = (regfile.depth - 1).bit_length()
+    return (
+        f"(* blackbox *) module mpu9250_ahrs_regfile{regfile.depth}x32(input clk, input w_en, "
+        f"input [{ra - 1}:0] w_addr, input [31:0] w_data, input r_en, input [{ra - 1}:0] "
+        f"ra_addr, input [{ra - 1}:0] rb_addr, output [31:0] ra_data, output [31:0] rb_data);\n"
+        f"endmodule\n"
+        f"(* blackbox *) module mpu9250_ahrs_rom{len(rom.words)}x{rom.width}(input clk, "
+        f"input [{rom.abits - 1}:0] addr, input en, output [{rom.width - 1}:0] data);\n"
+        f"endmodule\n")

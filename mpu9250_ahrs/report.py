@@ -1,0 +1,162 @@
+"""``report``: what the design costs on a 10M08, from Yosys, and how many cycles an update takes.
+
+Synthesis is Debian's Yosys 0.23 (``apt-get install yosys``), ``synth_intel -family max10``.
+It cannot map multipliers or initialised RAM onto the MAX10's hard blocks, so the engine is
+elaborated with those as empty modules (``blackbox_hard_blocks``) and they are counted from
+their sizes:
+
+- ``multipliers_18x18``: each 32×32 multiplier takes four 18×18 blocks; any other non-constant
+  ``$mul`` in the netlist is counted as ⌈a/18⌉·⌈b/18⌉ blocks.
+- ``memory_bits``: the register file (twice: one copy per read port, as Quartus builds a RAM
+  with two read addresses) and the microcode ROM. Small constant tables Yosys turns into ROMs
+  (the CORDIC's arctangents) stay in logic here: ``rom_bits_in_logic``.
+- ``logic_elements``: ``fiftyfivenm_lcell_comb`` cells, or registers where those are more (a
+  MAX10 LE holds one LUT and one register). Yosys 0.23 maps adders without the LE's carry chain,
+  so this is pessimistic; ``logic_elements_carry_chain`` is the same design through
+  ``synth_ice40`` (LUT4 + carry chain + register: the same LE structure) for comparison.
+- ``logic_levels``: the longest path in LUTs between registers, memories and multipliers
+  (``ltp``), a stand-in for Fmax, which needs Quartus. The multiplier's own delay is not in it.
+"""
+
+import json
+import math
+import os
+import re
+import shutil
+import subprocess
+import tempfile
+
+from amaranth.back import verilog
+
+
+__all__ = ["DEVICE", "synthesize", "cycles_per_update", "report"]
+
+# Intel MAX10 10M08SCU169: the budget the figures are read against.
+DEVICE = {"name": "10M08SCU169C8G", "logic_elements": 8064, "multipliers_18x18": 24,
+          "memory_bits": 387072, "m9k_blocks": 42}
+
+YOSYS_HINT = "install it with: apt-get install yosys (Debian's 0.23 has synth_intel)"
+
+
+def _stubs(engine):
+    from .hdl.memories import blackbox_stub
+    from .hdl.multiplier import BLACKBOX_NAME
+    return (blackbox_stub(engine.regfile, engine.rom)
+            + f"(* blackbox *) module {BLACKBOX_NAME}(input [31:0] a, input [31:0] b, "
+              f"output [63:0] p);\nendmodule\n")
+
+
+def _yosys(script, cwd):
+    yosys = shutil.which("yosys")
+    if yosys is None:
+        raise RuntimeError(f"report needs yosys; {YOSYS_HINT}")
+    result = subprocess.run([yosys, "-q", "-p", script], cwd=cwd, capture_output=True,
+                            text=True)
+    if result.returncode:
+        raise RuntimeError(f"yosys failed:\n{result.stderr[-2000:]}")
+    return result
+
+
+def _count(stat_text, cell):
+    found = re.search(rf"^\s+{re.escape(cell)}\s+(\d+)\s*$", stat_text, re.M)
+    return int(found.group(1)) if found else 0
+
+
+def synthesize(top, name, engine):
+    """Figures for one elaboratable (``engine``: the AttitudeEngine inside it, elaborated with
+    ``blackbox_hard_blocks=True``)."""
+    from .hdl.multiplier import BLACKBOX_NAME, BLOCKS_18X18
+    with tempfile.TemporaryDirectory() as tmp:
+        with open(os.path.join(tmp, "design.v"), "w") as f:
+            f.write(verilog.convert(top, name=name))
+        with open(os.path.join(tmp, "stubs.v"), "w") as f:
+            f.write(_stubs(engine))
+        read = "read_verilog stubs.v; read_verilog design.v"
+        # netlist before mapping: multiplies and memories Yosys found itself
+        _yosys(f"{read}; hierarchy -top {name}; proc; flatten; opt; memory -nomap; opt; "
+               f"write_json pre.json", tmp)
+        with open(os.path.join(tmp, "pre.json")) as f:
+            pre = json.load(f)["modules"][name]
+        _yosys(f"{read}; synth_intel -family max10 -top {name} -nobram; tee -q -o intel.txt "
+               f"stat; delete t:dffeas t:mpu9250_ahrs_*; tee -q -o ltp.txt ltp", tmp)
+        _yosys(f"{read}; synth_ice40 -top {name} -nobram; tee -q -o ice40.txt stat", tmp)
+        intel = open(os.path.join(tmp, "intel.txt")).read()
+        ice40 = open(os.path.join(tmp, "ice40.txt")).read()
+        ltp = open(os.path.join(tmp, "ltp.txt")).read()
+
+    multipliers = _count(intel, BLACKBOX_NAME) * BLOCKS_18X18
+    other_muls = []
+    rom_bits = 0
+    for cell in pre["cells"].values():
+        p = cell["parameters"]
+        if cell["type"] == "$mul":
+            a, b = int(p["A_WIDTH"], 2), int(p["B_WIDTH"], 2)
+            other_muls.append(f"{a}x{b}")
+            multipliers += math.ceil(a / 18) * math.ceil(b / 18)
+        elif cell["type"] == "$mem_v2":
+            rom_bits += int(p["SIZE"], 2) * int(p["WIDTH"], 2)
+    luts = _count(intel, "fiftyfivenm_lcell_comb")
+    ffs = _count(intel, "dffeas")
+    ice_ffs = sum(int(n) for n in re.findall(r"^\s+SB_DFF\w*\s+(\d+)\s*$", ice40, re.M))
+    levels = re.search(r"length=(\d+)", ltp)
+    return {
+        "logic_elements": max(luts, ffs),
+        "logic_elements_carry_chain": max(_count(ice40, "SB_LUT4"), ice_ffs),
+        "registers": ffs,
+        "memory_bits": engine.regfile.bits + engine.rom.bits,
+        "rom_bits_in_logic": rom_bits,
+        "m9k_blocks": 2 * math.ceil(engine.regfile.depth * 32 / 9216)
+        + math.ceil(engine.rom.width / 36) * math.ceil(len(engine.rom.words) / 256),
+        "multipliers_18x18": multipliers,
+        "other_multiplies": other_muls,
+        "logic_levels": int(levels.group(1)) if levels else None,
+    }
+
+
+def cycles_per_update(samples=6):
+    """Cycles from a sample offered to its result, per filter: the most over a short static
+    pose with every update taken (accelerometer and magnetometer valid each sample)."""
+    import numpy as np
+    from .hdl.attitude_engine import AttitudeEngine
+    from .hdl.attitude_program import CONTROL_ADDR
+    from .sim.attitude_bench import control_word, run_engine
+    from .sim.motion import SensorModel, static
+
+    gc, ac, mc = SensorModel(seed=1).counts(static((30, -20, 100), samples / 100))
+    mag_ak = np.stack([mc[:, 1], mc[:, 0], -mc[:, 2]], axis=1)
+    out = {}
+    for name, compl in (("kalman", False), ("complementary", True)):
+        run = run_engine(AttitudeEngine(), gc, ac, mag_ak,
+                         writes={0: [(CONTROL_ADDR, control_word(complementary=compl))]})
+        assert run.mag_used.all() and run.acc_used.all()
+        out[name] = max(run.cycles)
+    return out
+
+
+def report(*, clk_freq=50e6, config=None):
+    from .hdl.attitude_engine import AttitudeEngine
+    from .hdl.mpu9250_driver import MPU9250Config
+    from .hdl.top import AHRSCore
+
+    config = MPU9250Config() if config is None else config
+    engine = AttitudeEngine(blackbox_hard_blocks=True)
+    datapath = synthesize(engine, "attitude_engine", engine)
+    core = AHRSCore(clk_freq=clk_freq, config=config, blackbox_hard_blocks=True)
+    design = synthesize(core, "mpu9250_ahrs_core", core.engine)
+    cycles = cycles_per_update()
+    return {
+        "device": DEVICE,
+        "design": design,
+        "datapath": datapath,
+        "cycles_per_update": cycles,
+        "update_us_at_50MHz": {k: round(v / 50, 2) for k, v in cycles.items()},
+        "design_percent_of_device": {
+            "logic_elements": round(100 * design["logic_elements"] / DEVICE["logic_elements"], 1),
+            "logic_elements_carry_chain": round(
+                100 * design["logic_elements_carry_chain"] / DEVICE["logic_elements"], 1),
+            "multipliers_18x18": round(
+                100 * design["multipliers_18x18"] / DEVICE["multipliers_18x18"], 1),
+            "memory_bits": round(100 * design["memory_bits"] / DEVICE["memory_bits"], 1),
+        },
+        "tool": "Yosys 0.23 synth_intel -family max10 (see mpu9250_ahrs/report.py for method)",
+    }
