@@ -87,6 +87,8 @@ def cmd_simulate(args):
     for s in result.samples:
         print(json.dumps({"counter": s["counter"], "accel": s["accel"], "temp": s["temp"],
                           "gyro": s["gyro"], "mag": s["mag"], "flags": s["flags"]}))
+    if args.attitude and result.samples:
+        print_attitude(result, config)
     read = sample_read_time(result, setup)
     violations = [str(v) for who in (model, result.bus, *model.aux_devices.values())
                   if who is not None for v in who.violations]
@@ -108,6 +110,28 @@ def cmd_simulate(args):
     if args.vcd:
         print(f"wrote {args.vcd} and {str(args.vcd).rsplit('.', 1)[0]}.gtkw")
     return 1 if violations else 0
+
+
+def print_attitude(result, config):
+    """Feed the co-simulated samples through the attitude engine (its own simulation) and print
+    each result in degrees."""
+    from .hdl.attitude_engine import AttitudeEngine
+    from .reference.fixed_point import KalmanFixedConfig, bam_to_deg
+    from .sim.attitude_bench import run_engine
+
+    s = result.samples
+    engine = AttitudeEngine(KalmanFixedConfig(dt=1 / config.output_data_rate,
+                                              gyro_lsb_per_dps=32768 / config.gyro_fs_dps))
+    run = run_engine(engine, [x["gyro"] for x in s], [x["accel"] for x in s],
+                     [x["mag"] for x in s], [x["flags"]["mag_valid"] for x in s],
+                     asa=result.asa or (128, 128, 128))
+    for k in range(len(s)):
+        print(json.dumps({"counter": int(run.counter[k]),
+                          "roll_pitch_yaw_deg": [round(float(v), 4)
+                                                 for v in bam_to_deg(run.angles[k])],
+                          "bias_counts": [round(float(v) / 65536, 4) for v in run.bias[k]],
+                          "acc_used": bool(run.acc_used[k]), "mag_used": bool(run.mag_used[k]),
+                          "saturated": bool(run.saturated[k]), "cycles": run.cycles[k]}))
 
 
 def sample_read_time(result, setup):
@@ -183,6 +207,9 @@ def build_parser():
     p.add_argument("--odr-scale", type=float, default=None,
                    help="scale of the sample period (default 0.2 with SPI, 1 with I2C)")
     p.add_argument("--quiet-summary", action="store_true", help="summary to stderr")
+    p.add_argument("--attitude", action="store_true",
+                   help="also run the samples through the attitude engine (Kalman filter) and "
+                        "print roll/pitch/yaw per sample")
     _add_sensor_options(p)
     p.set_defaults(func=cmd_simulate)
 

@@ -1,1 +1,1 @@
-"""NumPy reference filters (float and bit-exact fixed point). Not yet written: see issue 4."""
+"""NumPy reference: float filters, calibration, the bit-exact fixed-point model, scoring."""

@@ -27,7 +27,7 @@ def run_filter(name, gyr, acc, mag, dt, **params):
         return kalman_filter(np.degrees(gyr), acc, mag, dt, params.get("kalman", KalmanParams()))[2]
     if name == "complementary":
         return complementary_filter(np.degrees(gyr), acc, mag, dt, tau=params.get("tau", 0.8),
-                                    rates="body")[1]
+                                    rates=params.get("rates", "body"))[1]
     if name == "madgwick":
         return madgwick_filter(gyr, acc, mag, dt, beta=params.get("beta", 0.1))
     if name == "flagship":

@@ -1,0 +1,129 @@
+"""The comparison table on BROAD recordings, and the figure.
+
+    python -m mpu9250_ahrs.reference.benchmark ../shared/data/broad/*.hdf5 \\
+        [--json results.json] [--figure trial.png] [--jobs 2]
+
+Every filter gets the same quantised inputs (MPU9250 ±2000 °/s, ±16 g; AK8963 0.15 µT/LSB) and
+one parameter set for all trials. Prints a markdown table of total RMSE (BROAD's metric,
+degrees, over the movement samples) per trial and the mean. The fixed-point rows run the
+bit-exact integer models (slow in Python: about a minute per trial each).
+Needs the ``bench`` extra for the libraries (``pip install -e ".[bench]"``).
+"""
+
+import argparse
+import json
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor
+
+import numpy as np
+
+from ..sim.recording import Scales, load_broad, quantise, to_units
+from .compare import external_filters
+from .evaluate import run_filter, run_fixed, score
+from .kalman import KalmanParams
+
+
+__all__ = ["FILTER_SET", "run_trial", "main"]
+
+# (row name, kind, filter, parameters): one parameter set for all trials
+FILTER_SET = [
+    ("kalman (float)", "float", "kalman", {}),
+    ("kalman (fixed)", "fixed", "kalman", {}),
+    ("kalman, Euler rates (float)", "float", "kalman",
+     {"kalman": KalmanParams(rates="euler")}),
+    ("complementary (float)", "float", "complementary", {}),
+    ("complementary (fixed)", "fixed", "complementary", {}),
+    ("complementary, Euler rates (float)", "float", "complementary", {"rates": "euler"}),
+    ("madgwick β=0.1 (float)", "float", "madgwick", {"beta": 0.1}),
+    ("madgwick β=0.2 (float)", "float", "madgwick", {"beta": 0.2}),
+    ("flagship (float)", "float", "flagship", {}),
+]
+
+
+def run_trial(path, with_fixed=True):
+    rec = load_broad(path)
+    scales = Scales()
+    counts = quantise(rec.gyr, rec.acc, rec.mag, scales)
+    gyr, acc, mag = to_units(*counts, scales)
+    out = {}
+    for row, kind, name, params in FILTER_SET:
+        if kind == "fixed" and not with_fixed:
+            continue
+        start = time.perf_counter()
+        if kind == "float":
+            quat = run_filter(name, gyr, acc, mag, rec.dt, **params)
+        else:
+            quat = run_fixed(name, *counts, rec.dt,
+                             gyro_lsb_per_dps=scales.gyro_lsb_per_rad * np.pi / 180, **params)
+        out[row] = {**score(quat, rec.quat, rec.movement),
+                    "seconds": round(time.perf_counter() - start, 2)}
+    for row, fn in external_filters().items():
+        start = time.perf_counter()
+        quat = fn(gyr, acc, mag, rec.rate)
+        out[row] = {**score(quat, rec.quat, rec.movement),
+                    "seconds": round(time.perf_counter() - start, 2)}
+    return rec.name, out
+
+
+def table(results):
+    trials = sorted(results)
+    rows = list(next(iter(results.values())))
+    short = [t.split("_")[0] for t in trials]
+    lines = ["| filter | " + " | ".join(short) + " | mean |",
+             "|---" * (len(trials) + 2) + "|"]
+    for row in rows:
+        vals = [results[t][row]["total_rmse_deg"] for t in trials if row in results[t]]
+        cells = [f"{results[t][row]['total_rmse_deg']:.2f}" if row in results[t] else "–"
+                 for t in trials]
+        lines.append(f"| {row} | " + " | ".join(cells) + f" | {np.mean(vals):.2f} |")
+    return "\n".join(lines)
+
+
+def figure(path, out_png, filter_name="flagship"):
+    """Estimated vs true roll, pitch, yaw over time for one trial."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from .frames import quat_to_euler
+
+    rec = load_broad(path)
+    gyr, acc, mag = to_units(*quantise(rec.gyr, rec.acc, rec.mag))
+    est = np.degrees(quat_to_euler(run_filter(filter_name, gyr, acc, mag, rec.dt)))
+    truth = np.degrees(quat_to_euler(rec.quat))
+    t = np.arange(len(est)) * rec.dt
+    fig, axes = plt.subplots(3, 1, figsize=(11, 7), sharex=True)
+    for ax, k, label in zip(axes, range(3), ("roll", "pitch", "yaw")):
+        ax.plot(t, truth[:, k], "k-", lw=1.0, label="optical truth")
+        ax.plot(t, est[:, k], "C1-", lw=0.8, label=f"{filter_name} (MPU9250-quantised)")
+        ax.set_ylabel(f"{label} [°]")
+        ax.grid(alpha=0.3)
+    axes[0].legend(loc="upper right")
+    axes[-1].set_xlabel("time [s]")
+    fig.suptitle(f"BROAD trial {rec.name}")
+    fig.tight_layout()
+    fig.savefig(out_png, dpi=110)
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(prog="python -m mpu9250_ahrs.reference.benchmark",
+                                description=__doc__.split("\n\n")[0])
+    p.add_argument("files", nargs="+")
+    p.add_argument("--json", help="write all figures as JSON")
+    p.add_argument("--figure", help="PNG of roll/pitch/yaw vs truth for the first file")
+    p.add_argument("--no-fixed", action="store_true", help="skip the (slow) fixed-point rows")
+    p.add_argument("--jobs", type=int, default=1)
+    args = p.parse_args(argv)
+    with ProcessPoolExecutor(args.jobs) as pool:
+        results = dict(pool.map(run_trial, args.files, [not args.no_fixed] * len(args.files)))
+    print(table(results))
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(results, f, indent=1)
+    if args.figure:
+        figure(args.files[0], args.figure)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
