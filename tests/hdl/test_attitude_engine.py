@@ -62,6 +62,16 @@ def _run_unit(dut, testbench):
     sim.run()
 
 
+async def _operate(ctx, dut, **inputs):
+    """Set the inputs, pulse ``start``, wait for ``done``."""
+    for name, value in inputs.items():
+        ctx.set(getattr(dut, name), value)
+    ctx.set(dut.start, 1)
+    await ctx.tick()
+    ctx.set(dut.start, 0)
+    await ctx.tick().until(dut.done)
+
+
 def test_cordic_against_reference():
     rng = np.random.default_rng(5)
     vectors = [(0, 0), (-5, 0), (0, -7), (-(2 ** 31), -(2 ** 31)), (2 ** 31 - 1, 2 ** 31 - 1),
@@ -73,25 +83,14 @@ def test_cordic_against_reference():
 
     async def testbench(ctx):
         for x, y in vectors:
-            ctx.set(dut.x_in, x)
-            ctx.set(dut.y_in, y)
-            ctx.set(dut.mode, 0)
-            ctx.set(dut.start, 1)
-            await ctx.tick()
-            ctx.set(dut.start, 0)
-            await ctx.tick().until(dut.done)
+            await _operate(ctx, dut, x_in=x, y_in=y, mode=0)
             st = Status()
             want = cordic_vector(x, y, st)
             got = (ctx.get(dut.angle), ctx.get(dut.magnitude))
             assert got == want, f"vector({x}, {y}): {got} != {want}"
             assert ctx.get(dut.saturated) == st.saturated
         for a in angles:
-            ctx.set(dut.angle_in, a)
-            ctx.set(dut.mode, 1)
-            ctx.set(dut.start, 1)
-            await ctx.tick()
-            ctx.set(dut.start, 0)
-            await ctx.tick().until(dut.done)
+            await _operate(ctx, dut, angle_in=a, mode=1)
             got = (ctx.get(dut.cos), ctx.get(dut.sin))
             assert got == cordic_rotate(a), f"rotate({a}): {got} != {cordic_rotate(a)}"
     _run_unit(dut, testbench)
@@ -110,12 +109,7 @@ def test_divider_against_reference():
 
     async def testbench(ctx):
         for num, den in cases:
-            ctx.set(dut.num, num)
-            ctx.set(dut.den, den)
-            ctx.set(dut.start, 1)
-            await ctx.tick()
-            ctx.set(dut.start, 0)
-            await ctx.tick().until(dut.done)
+            await _operate(ctx, dut, num=num, den=den)
             st = Status()
             want = div_q24(num, den, st)
             assert ctx.get(dut.quotient) == want, f"div({num}, {den})"
