@@ -130,18 +130,30 @@ class AttitudeEngine(wiring.Component):
         acc = Signal(signed(66))
         acc_next = Signal(signed(66))
         rounding = Signal(signed(66))
-        mul_shifted = Signal(signed(66))
         pend = Signal()
         pend_ins = Signal(Instr)
         m.d.comb += [mult.a.eq(opa), mult.b.eq(opb)]
         with m.Switch(pend_ins.sh):
             for code, s in enumerate(MUL_SHIFTS):
                 with m.Case(code):
-                    m.d.comb += [rounding.eq((1 << s) >> 1), mul_shifted.eq(acc_next >> s)]
+                    m.d.comb += rounding.eq(1 << (s - 1))
         # ± product with one adder: base + (~product if neg) + neg
         m.d.comb += acc_next.eq(Mux(pend_ins.acc, acc, rounding)
                                 + Mux(pend_ins.neg, ~product, product) + pend_ins.neg)
-        mul_v32, mul_f32 = _saturate(m, mul_shifted, 32)
+        # acc >> s saturated to 32 bits: per shift, the 32 result bits and whether the bits
+        # above them are all copies of the sign (cheaper than shifting all 66 bits)
+        mul_v32 = Signal(signed(32))
+        mul_f32 = Signal()
+        with m.Switch(pend_ins.sh):
+            for code, s in enumerate(MUL_SHIFTS):
+                with m.Case(code):
+                    top = acc_next[s + 31:]
+                    fits = (top == 0) | (top == (1 << len(top)) - 1)
+                    m.d.comb += [
+                        mul_f32.eq(~fits),
+                        mul_v32.eq(Mux(fits, acc_next[s:s + 32],
+                                       Mux(acc_next[-1], C(1 << 31, 32), C((1 << 31) - 1, 32)))),
+                    ]
         mul_v16, mul_f16 = _saturate(m, mul_v32, 16)
         mul_result = Mux(pend_ins.sat16, mul_v16, mul_v32)
         mul_sat = mul_f32 | (pend_ins.sat16 & mul_f16)
@@ -262,10 +274,11 @@ class AttitudeEngine(wiring.Component):
         load_index = Signal(range(len(LOAD_ORDER)))
         fields = ([self.samples.payload.gyro[i] for i in range(3)]
                   + [self.samples.payload.accel[i] for i in range(3)]
-                  + [self.samples.payload.mag[i] for i in range(3)]
+                  + [self.samples.payload.mag[i] << 16 for i in range(3)]
                   + [self.asa[i] + 128 for i in range(3)])
         load_addr = Array(Const(REGS[n], 7) for n in LOAD_ORDER)
-        load_data = Array(f.as_signed() if i < 9 else f for i, f in enumerate(fields))
+        load_data = Array(f.as_signed()[:32].as_signed() if i < 9 else f
+                          for i, f in enumerate(fields))
 
         with m.If(self.results.valid & self.results.ready):
             m.d.sync += result_valid.eq(0)

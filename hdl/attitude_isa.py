@@ -46,7 +46,9 @@ __all__ = ["Op", "Cond", "ALU_SHIFTS", "MUL_SHIFTS", "REG_COUNT", "ROM_DEPTH", "
 REG_COUNT = 128
 ROM_DEPTH = 512
 ALU_SHIFTS = (0, 8, 15, 16)
-MUL_SHIFTS = (0, 8, 14, 16, 18, 24, 30, 32)
+# the rounding shifts the programs use (each one costs a 32-bit multiplexer input and an
+# overflow test): products by 2¹⁶-scaled operands make 8 and 16 unnecessary
+MUL_SHIFTS = (14, 18, 24, 30, 32)
 
 
 class Op(enum.IntEnum):

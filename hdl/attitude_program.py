@@ -59,7 +59,8 @@ def _allocate():
     names += [f"THETA{i}" for i in range(3)] + [f"BIAS{i}" for i in range(3)]
     names += [f"P{i}_{e}" for i in range(3) for e in ("00", "01", "10", "11")]
     names += [f"PREV{i}" for i in range(3)]
-    # inputs, written by the engine's loader: raw gyro, accel, AK8963 (AK axes), ASA + 128
+    # inputs, written by the engine's loader: raw gyro, accel, AK8963 (AK axes, times 2¹⁶),
+    # ASA + 128
     names += [f"GRAW{i}" for i in range(3)] + [f"ARAW{i}" for i in range(3)]
     names += [f"MRAW{i}" for i in range(3)] + [f"ASA{i}" for i in range(3)]
     # calibrated body-axis sensor values
@@ -121,7 +122,7 @@ def _calibrate(asm, r):
         asm.sub(T[i], r[f"ARAW{i}"], r[f"ACC_OFF{i}"])
         asm.mul(r[f"A{i}"], T[i], r[f"ACC_SCALE{i}"], 14, sat16=True)
     for j in range(3):                               # ASA: h·(ASA + 128)/256, AK axes
-        asm.mul(T[j], r[f"MRAW{j}"], r[f"ASA{j}"], 8)
+        asm.mul(T[j], r[f"MRAW{j}"], r[f"ASA{j}"], 24)           # MRAW holds h·2¹⁶
     # AK8963 -> body axes (x = y_ak, y = x_ak, z = −z_ak), minus the hard-iron offset
     asm.sub(T[3], T[1], r["HARD0"])
     asm.sub(T[4], T[0], r["HARD1"])
@@ -193,9 +194,9 @@ def _kalman_update(asm, r, i, z):
 
 def _kalman(asm, r):
     T = [r[f"T{k}"] for k in range(12)]
-    asm.br("k_predict", Cond.FIRST, inv=True)
-    for i in range(3):
-        asm.add(r[f"PREV{i}"], r[f"G{i}"], r["ZERO"])
+    # the first sample after a reset takes ω₍ₖ₋₁₎ = ωₖ: out of line, so that every other
+    # sample falls through (a taken branch costs two bubbles)
+    asm.br("k_first", Cond.FIRST)
     asm.label("k_predict")
     for i in range(3):
         th, b = r[f"THETA{i}"], r[f"BIAS{i}"]
@@ -231,12 +232,17 @@ def _kalman(asm, r):
     asm.setf(FLAG_MAG)
     asm.label("k_done")
     asm.end()
+    asm.label("k_first")
+    for i in range(3):
+        asm.add(r[f"PREV{i}"], r[f"G{i}"], r["ZERO"])
+    asm.br("k_predict")
 
 
 def _complementary(asm, r):
     T = [r[f"T{k}"] for k in range(12)]
     for i in range(3):
-        asm.mul(T[0], r[f"G{i}"], r["RATE"], 16)
+        asm.add(T[1], r[f"G{i}"], r["ZERO"], shl=16)             # ω·RATE >> 16 as
+        asm.mul(T[0], T[1], r["RATE"], 32)                        # (ω·2¹⁶)·RATE >> 32
         asm.add(r[f"PRED{i}"], r[f"THETA{i}"], T[0], wrap=True)
         asm.add(r[f"PREV{i}"], r[f"G{i}"], r["ZERO"])
     _zero_tests(asm, r, "c")

@@ -84,7 +84,8 @@ class AttitudeISAModel:
                 return flags, st.saturated, steps
 
     def sample(self, gyro, accel, mag_ak, mag_valid=True, asa=(128, 128, 128)):
-        for name, value in zip(LOAD_ORDER, [*gyro, *accel, *mag_ak, *(x + 128 for x in asa)]):
+        values = [*gyro, *accel, *(int(h) << 16 for h in mag_ak), *(x + 128 for x in asa)]
+        for name, value in zip(LOAD_ORDER, values):
             self.regs[REGS[name]] = int(value)
         result = self.run(self.entry["sample"], mag_valid)
         self.first = False
