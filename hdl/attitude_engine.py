@@ -18,6 +18,9 @@ Interface
     ``asa`` (in, 3 × 8 bits): the AK8963's fuse-ROM sensitivity bytes (from the driver).
     ``cfg`` (in, stream of ``ConfigWrite``): register writes (``attitude_program`` has the
         map); accepted while the engine is idle. Address 0x7F is the control register.
+    ``cfg_read`` (in, stream of 7-bit addresses) / ``cfg_read_data`` (out, stream of signed
+        32): register read-back, accepted while idle, the word one cycle later (address 0x7F
+        reads the filter select bit; any address reads the register file, state included).
     ``results`` (out, stream of ``Attitude``): one per sample; valid until taken.
     ``busy`` (out): an update or a filter reset is running.
 Latency (sample valid to result valid): see ``report`` (``cycles_per_update``).
@@ -72,6 +75,8 @@ class AttitudeEngine(wiring.Component):
             "samples": In(stream.Signature(Sample)),
             "asa": In(data.ArrayLayout(8, 3)),
             "cfg": In(stream.Signature(ConfigWrite)),
+            "cfg_read": In(stream.Signature(7)),
+            "cfg_read_data": Out(stream.Signature(signed(32))),
             "results": Out(stream.Signature(Attitude)),
             "busy": Out(1),
         })
@@ -283,6 +288,14 @@ class AttitudeEngine(wiring.Component):
         with m.If(self.results.valid & self.results.ready):
             m.d.sync += result_valid.eq(0)
 
+        # register read-back: the word arrives one cycle after the address
+        read_busy, read_control = Signal(), Signal()
+        with m.If(read_busy):
+            m.d.sync += [read_busy.eq(0), self.cfg_read_data.valid.eq(1),
+                         self.cfg_read_data.payload.eq(Mux(read_control, compl, rf.ra_data))]
+        with m.If(self.cfg_read_data.valid & self.cfg_read_data.ready):
+            m.d.sync += self.cfg_read_data.valid.eq(0)
+
         with m.FSM():
             with m.State("IDLE"):
                 with m.If(init_pending):
@@ -306,6 +319,12 @@ class AttitudeEngine(wiring.Component):
                         with m.Else():
                             m.d.comb += [w_en.eq(1), w_addr.eq(self.cfg.payload.addr),
                                          w_data.eq(self.cfg.payload.data)]
+                    # read-back: the register file's first read port is free while idle
+                    m.d.comb += self.cfg_read.ready.eq(~read_busy & ~self.cfg_read_data.valid)
+                    with m.If(self.cfg_read.valid & self.cfg_read.ready):
+                        m.d.comb += [rf.ra_addr.eq(self.cfg_read.payload), rf.r_en.eq(1)]
+                        m.d.sync += [read_busy.eq(1),
+                                     read_control.eq(self.cfg_read.payload == CONTROL_ADDR)]
             with m.State("LOAD"):
                 m.d.comb += [self.busy.eq(1), w_en.eq(1), w_addr.eq(load_addr[load_index]),
                              w_data.eq(load_data[load_index])]

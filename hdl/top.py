@@ -5,7 +5,8 @@
 ``build --verilog-only`` exports and what simulations of the whole design drive. Ports:
 ``imu`` (SPI pins, or I2C pins with ``config.wiring == "i2c"``), ``imu_int``, ``uart_tx``,
 ``status``, ``asa``, ``samples_seen`` (counts samples, for a heartbeat LED), and with the
-engine ``cfg`` (register writes to the engine; tie ``valid`` low to keep the reset values).
+engine ``cfg`` (register writes to the engine; tie ``valid`` low to keep the reset values)
+and ``cfg_read`` / ``cfg_read_data`` (read-back).
 
 Telemetry: with the engine, one ``AttitudeFrame`` (type 0x02: the result, the raw sample it
 came from and the driver status) per sample; without it, one ``SensorFrame`` (0x01). The
@@ -76,6 +77,8 @@ class AHRSCore(wiring.Component):
         }
         if attitude:
             ports["cfg"] = In(stream.Signature(ConfigWrite))
+            ports["cfg_read"] = In(stream.Signature(7))
+            ports["cfg_read_data"] = Out(stream.Signature(signed(32)))
         super().__init__(ports)
 
     def elaborate(self, platform):
@@ -95,6 +98,8 @@ class AHRSCore(wiring.Component):
             m.submodules.engine = engine = self.engine
             connect(m, fe.samples, engine.samples)
             connect(m, flipped(self.cfg), engine.cfg)
+            connect(m, flipped(self.cfg_read), engine.cfg_read)
+            connect(m, engine.cfg_read_data, flipped(self.cfg_read_data))
             held = Signal(Sample)
             with m.If(fe.samples.valid & fe.samples.ready):
                 m.d.sync += held.eq(fe.samples.payload)

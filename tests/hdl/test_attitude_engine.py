@@ -14,7 +14,7 @@ from amaranth.sim import Simulator
 from hypothesis import given, settings, strategies as st
 
 from mpu9250_ahrs.hdl.attitude_engine import AttitudeEngine
-from mpu9250_ahrs.hdl.attitude_program import CONFIG_REGS, CONTROL_ADDR
+from mpu9250_ahrs.hdl.attitude_program import CONFIG_REGS, CONTROL_ADDR, REGS
 from mpu9250_ahrs.hdl.cordic import CORDIC
 from mpu9250_ahrs.hdl.divider import Divider
 from mpu9250_ahrs.reference.fixed_point import (CalibrationFixed, KalmanFixedConfig,
@@ -242,3 +242,36 @@ def test_recorded_stretch():
     gc, ac, mc = quantise(*(x[start:start + 40] for x in (rec.gyr, rec.acc, rec.mag)))
     dt = rec.dt
     check(gc, ac, body_to_ak(mc), config=KalmanFixedConfig(dt=dt))
+
+
+def test_register_read_back():
+    """Writes, the control register and the filter state read back through ``cfg_read``."""
+    dut = AttitudeEngine()
+    got = {}
+
+    async def read(ctx, addr):
+        ctx.set(dut.cfg_read.payload, addr)
+        ctx.set(dut.cfg_read.valid, 1)
+        await ctx.tick().until(dut.cfg_read.ready)
+        ctx.set(dut.cfg_read.valid, 0)
+        ctx.set(dut.cfg_read_data.ready, 1)
+        *_, data = await ctx.tick().sample(dut.cfg_read_data.payload).until(
+            dut.cfg_read_data.valid)
+        ctx.set(dut.cfg_read_data.ready, 0)
+        return data
+
+    async def testbench(ctx):
+        while ctx.get(dut.busy) or ctx.get(dut.cfg.ready) == 0:
+            await ctx.tick()
+        got["R"] = await read(ctx, CONFIG_REGS["R"])
+        for addr, value in ((CONFIG_REGS["R"], 12345), (CONTROL_ADDR, control_word(True))):
+            ctx.set(dut.cfg.payload, {"addr": addr, "data": value})
+            ctx.set(dut.cfg.valid, 1)
+            await ctx.tick().until(dut.cfg.ready)
+            ctx.set(dut.cfg.valid, 0)
+        got["R2"] = await read(ctx, CONFIG_REGS["R"])
+        got["control"] = await read(ctx, CONTROL_ADDR)
+        got["p00"] = await read(ctx, REGS["P0_00"])
+    _run_unit(dut, testbench)
+    assert got == {"R": KalmanFixedConfig().registers()["R"], "R2": 12345, "control": 1,
+                   "p00": KalmanFixedConfig().registers()["P0"]}
