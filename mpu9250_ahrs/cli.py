@@ -155,7 +155,8 @@ def cmd_replay(args):
     start = time.perf_counter()
     if args.fixed:
         quat = run_fixed(args.filter, *counts, rec.dt,
-                         gyro_lsb_per_dps=scales.gyro_lsb_per_rad * np.pi / 180, **params)
+                         gyro_lsb_per_dps=scales.gyro_lsb_per_rad * np.pi / 180,
+                         accel_lsb_per_ms2=scales.accel_lsb_per_ms2, **params)
     else:
         quat = run_filter(args.filter, *to_units(*counts, scales), rec.dt, **params)
     elapsed = time.perf_counter() - start
@@ -223,7 +224,8 @@ def build_parser():
     p.add_argument("--filter", choices=("kalman", "complementary", "madgwick", "flagship"),
                    default="flagship")
     p.add_argument("--fixed", action="store_true",
-                   help="the bit-exact fixed-point model (kalman and complementary so far)")
+                   help="the bit-exact fixed-point model (kalman, complementary, flagship; not "
+                        "madgwick)")
     p.add_argument("--out", help="write the estimated quaternions (t, w, x, y, z) as CSV")
     p.add_argument("--beta", type=float, default=None, help="Madgwick gain (default 0.1)")
     p.add_argument("--gyro-fs", type=int, default=2000, help="gyro full scale, °/s (2000)")

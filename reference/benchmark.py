@@ -38,6 +38,7 @@ FILTER_SET = [
     ("madgwick β=0.1 (float)", "float", "madgwick", {"beta": 0.1}),
     ("madgwick β=0.2 (float)", "float", "madgwick", {"beta": 0.2}),
     ("flagship (float)", "float", "flagship", {}),
+    ("flagship (fixed)", "fixed", "flagship", {}),
 ]
 
 
@@ -55,7 +56,8 @@ def run_trial(path, with_fixed=True):
             quat = run_filter(name, gyr, acc, mag, rec.dt, **params)
         else:
             quat = run_fixed(name, *counts, rec.dt,
-                             gyro_lsb_per_dps=scales.gyro_lsb_per_rad * np.pi / 180, **params)
+                             gyro_lsb_per_dps=scales.gyro_lsb_per_rad * np.pi / 180,
+                             accel_lsb_per_ms2=scales.accel_lsb_per_ms2, **params)
         out[row] = {**score(quat, rec.quat, rec.movement),
                     "seconds": round(time.perf_counter() - start, 2)}
     for row, fn in external_filters().items():

@@ -1,7 +1,7 @@
 """Run any filter of this project on a recording and score it with BROAD's metric.
 
 ``run_filter`` takes physical units (float filters); ``run_fixed`` takes raw counts and runs the
-bit-exact fixed-point model (per-axis Kalman and complementary so far).
+bit-exact fixed-point model (per-axis Kalman, complementary, flagship).
 """
 
 import math
@@ -18,7 +18,7 @@ from .madgwick import madgwick_filter
 __all__ = ["FILTERS", "FIXED_FILTERS", "run_filter", "run_fixed", "score"]
 
 FILTERS = ("kalman", "complementary", "madgwick", "flagship")
-FIXED_FILTERS = ("kalman", "complementary")
+FIXED_FILTERS = ("kalman", "complementary", "flagship")
 
 
 def run_filter(name, gyr, acc, mag, dt, **params):
@@ -36,8 +36,13 @@ def run_filter(name, gyr, acc, mag, dt, **params):
 
 
 def run_fixed(name, gyr_counts, acc_counts, mag_counts, dt, *, gyro_lsb_per_dps=16.4,
-              **params):
+              accel_lsb_per_ms2=2048 / 9.80665, **params):
     """Raw counts -> quaternions body->ENU from the fixed-point model of ``name``."""
+    if name == "flagship":
+        from .flagship_fixed import FlagshipFixedConfig, flagship_fixed, q30_to_float
+        cfg = FlagshipFixedConfig(dt, gyro_lsb_per_dps * 180 / np.pi, accel_lsb_per_ms2,
+                                  params.get("flagship", FlagshipParams()))
+        return q30_to_float(flagship_fixed(gyr_counts, acc_counts, mag_counts, cfg)[0])
     from .fixed_point import KalmanFixedConfig, bam_to_deg, complementary_fixed, kalman_fixed
     from .complementary import coefficient
     if name == "kalman":

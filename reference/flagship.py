@@ -25,13 +25,9 @@ written from the paper's description, simplified:
   tried here made the recordings worse, so motion-time bias estimation is left out for now.)
 There are no Euler angles in it, so it works at any attitude (no gimbal lock at ±90° pitch).
 
-Cost per sample (for the fixed-point design): quaternion integration 16 multiplies; rotating a
-and m into I and E: 2 × 9 with the 3×3 matrices (rebuilt from the quaternions: 2 × 12); the
-low-pass 3; inclination correction: a cross product (6), a normalisation (one reciprocal square
-root) and a quaternion product (16); heading: one atan2 (CORDIC, vectoring) and one sin/cos pair
-(CORDIC, rotation). About 130 multiplies, 2 CORDIC runs and 2 reciprocal square
-roots per sample: at 1 kHz, well inside one 18×18 multiplier at 50 MHz. (The rest detector adds
-9 multiplies and one comparison of squared norms.)
+Cost per sample in fixed point (``reference/flagship_fixed.py``, the same steps in the
+datapath's operations): about 57 single multiplies and 114 multiply-accumulate terms, 4
+vectoring and 3 rotation CORDIC runs, no division (normalisation is one Newton step).
 """
 
 import math
@@ -182,8 +178,9 @@ def flagship_filter(gyr, acc, mag, dt, params=FlagshipParams(), *, mag_valid=Non
                 if ref_norm is None:
                     ref_acc.append((mn, dip))
                     if t >= p.mag_ref_s:
-                        ref_norm = float(np.median([r[0] for r in ref_acc]))
-                        ref_dip = float(np.median([r[1] for r in ref_acc]))
+                        # the mean (a running sum in hardware) of the first seconds
+                        ref_norm = float(np.mean([r[0] for r in ref_acc]))
+                        ref_dip = float(np.mean([r[1] for r in ref_acc]))
                 good = ref_norm is None or (abs(mn / ref_norm - 1) < p.mag_norm_gate and
                                            abs(dip - ref_dip) < p.mag_dip_gate)
                 if ref_norm is not None and not good:
