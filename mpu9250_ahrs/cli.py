@@ -82,7 +82,8 @@ def cmd_simulate(args):
         (0.2 if config.wiring == "spi" else 1.0)
     setup = SimSetup(clk_freq=args.clk_freq or 12e6, config=config,
                      delay_scale=args.delay_scale, odr_scale=odr_scale)
-    model = setup.model(who_am_i=args.who_am_i, magnetometer=not args.no_mag)
+    sources = _pose_sources(args.pose, args.samples, config, setup) if args.pose else {}
+    model = setup.model(who_am_i=args.who_am_i, magnetometer=not args.no_mag, **sources)
     result = run_frontend(setup, n_samples=args.samples, model=model, vcd=args.vcd)
     for s in result.samples:
         print(json.dumps({"counter": s["counter"], "accel": s["accel"], "temp": s["temp"],
@@ -110,6 +111,25 @@ def cmd_simulate(args):
     if args.vcd:
         print(f"wrote {args.vcd} and {str(args.vcd).rsplit('.', 1)[0]}.gtkw")
     return 1 if violations else 0
+
+
+def _pose_sources(pose, samples, config, setup):
+    """Model sources for a board held still at ``pose`` ("roll,pitch,yaw" in degrees), with
+    the sensor error model's noise: MPU9250 and AK8963 values in counts."""
+    from .hdl import ak8963_regs as A
+    from .sim.motion import SensorModel, accel_gyro_source, mag_source, static
+    from .sim.recording import Scales
+    euler = [float(v) for v in pose.split(",")]
+    if len(euler) != 3:
+        raise ValueError("--pose takes roll,pitch,yaw in degrees, e.g. 30,-10,45")
+    rate = config.output_data_rate
+    traj = static(euler, (samples + 10) / rate, rate=rate)
+    gc, ac, mc = SensorModel(seed=0).counts(
+        traj, Scales(gyro_fs_dps=config.gyro_fs_dps, accel_fs_g=config.accel_fs_g))
+    out = {"source": accel_gyro_source(gc, ac)}
+    if config.magnetometer:
+        out["aux_devices"] = {A.I2C_ADDRESS: setup.ak8963(source=mag_source(mc))}
+    return out
 
 
 def print_attitude(result, config):
@@ -208,6 +228,9 @@ def build_parser():
     p.add_argument("--odr-scale", type=float, default=None,
                    help="scale of the sample period (default 0.2 with SPI, 1 with I2C)")
     p.add_argument("--quiet-summary", action="store_true", help="summary to stderr")
+    p.add_argument("--pose", default=None, metavar="ROLL,PITCH,YAW",
+                   help="the models read a board held still at this attitude (degrees, with "
+                        "sensor noise) instead of the counting test pattern")
     p.add_argument("--attitude", action="store_true",
                    help="also run the samples through the attitude engine (Kalman filter) and "
                         "print roll/pitch/yaw per sample")

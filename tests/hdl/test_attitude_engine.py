@@ -275,3 +275,16 @@ def test_register_read_back():
     _run_unit(dut, testbench)
     assert got == {"R": KalmanFixedConfig().registers()["R"], "R2": 12345, "control": 1,
                    "p00": KalmanFixedConfig().registers()["P0"]}
+
+
+def test_simulate_verb_with_pose_and_attitude(capsys):
+    """``simulate --pose --attitude``: the co-simulated samples through the engine converge to
+    the pose (roll and pitch from the accelerometer within a few samples)."""
+    import json
+    from mpu9250_ahrs.cli import main
+    assert main(["simulate", "--samples", "12", "--pose", "30,-10,45", "--attitude"]) == 0
+    rows = [json.loads(line) for line in capsys.readouterr().out.splitlines()
+            if "roll_pitch_yaw_deg" in line]
+    assert len(rows) == 12 and not any(r["saturated"] for r in rows)
+    roll, pitch, _ = rows[-1]["roll_pitch_yaw_deg"]
+    assert abs(roll - 30) < 1.5 and abs(pitch + 10) < 1.5
