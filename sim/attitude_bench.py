@@ -80,7 +80,11 @@ def run_engine(dut, gyro, accel, mag_ak, mag_valid=None, *, asa=(128, 128, 128),
     sim = Simulator(dut)
     sim.add_clock(1e-6)
     sim.add_testbench(testbench)
-    with sim.write_vcd(vcd, gtkw) if vcd else nullcontext():
+    if vcd and gtkw is None:
+        gtkw = str(vcd).rsplit(".", 1)[0] + ".gtkw"
+    traces = [dut.samples.valid, dut.samples.ready, dut.busy, dut.results.valid,
+              dut.results.payload.angles, dut.results.payload.bias, dut.results.payload.flags]
+    with sim.write_vcd(vcd, gtkw, traces=traces) if vcd else nullcontext():
         sim.run()
     return EngineRun(
         angles=np.array([[r.angles[i] for i in range(3)] for r in rows], np.int64),
