@@ -13,6 +13,7 @@ import numpy as np
 from amaranth.sim import Simulator
 
 from ..hdl.attitude_program import CONTROL_ADDR
+from .streams import stream_put
 
 
 __all__ = ["EngineRun", "run_engine", "first_mismatch", "control_word"]
@@ -49,10 +50,7 @@ def run_engine(dut, gyro, accel, mag_ak, mag_valid=None, *, asa=(128, 128, 128),
             ctx.set(dut.asa[i], int(asa[i]))
         for k in range(n):
             for addr, value in writes.get(k, ()):
-                ctx.set(dut.cfg.payload, {"addr": addr, "data": int(value)})
-                ctx.set(dut.cfg.valid, 1)
-                await ctx.tick().until(dut.cfg.ready)
-                ctx.set(dut.cfg.valid, 0)
+                await stream_put(ctx, dut.cfg, {"addr": addr, "data": int(value)})
             ctx.set(dut.samples.payload, {
                 "gyro": [int(v) for v in gyro[k]], "accel": [int(v) for v in accel[k]],
                 "mag": [int(v) for v in mag_ak[k]], "temp": 0, "counter": k % 65536,

@@ -24,6 +24,7 @@ from mpu9250_ahrs.reference.kalman import KalmanParams, kalman_filter
 from mpu9250_ahrs.sim.attitude_bench import control_word, first_mismatch, run_engine
 from mpu9250_ahrs.sim.motion import SensorModel, concat, static, turntable
 from mpu9250_ahrs.sim.recording import load_broad, quantise
+from mpu9250_ahrs.sim.streams import stream_put
 
 
 def body_to_ak(mag_body):
@@ -250,10 +251,7 @@ def test_register_read_back():
     got = {}
 
     async def read(ctx, addr):
-        ctx.set(dut.cfg_read.payload, addr)
-        ctx.set(dut.cfg_read.valid, 1)
-        await ctx.tick().until(dut.cfg_read.ready)
-        ctx.set(dut.cfg_read.valid, 0)
+        await stream_put(ctx, dut.cfg_read, addr)
         ctx.set(dut.cfg_read_data.ready, 1)
         *_, data = await ctx.tick().sample(dut.cfg_read_data.payload).until(
             dut.cfg_read_data.valid)
@@ -265,10 +263,7 @@ def test_register_read_back():
             await ctx.tick()
         got["R"] = await read(ctx, CONFIG_REGS["R"])
         for addr, value in ((CONFIG_REGS["R"], 12345), (CONTROL_ADDR, control_word(True))):
-            ctx.set(dut.cfg.payload, {"addr": addr, "data": value})
-            ctx.set(dut.cfg.valid, 1)
-            await ctx.tick().until(dut.cfg.ready)
-            ctx.set(dut.cfg.valid, 0)
+            await stream_put(ctx, dut.cfg, {"addr": addr, "data": value})
         got["R2"] = await read(ctx, CONFIG_REGS["R"])
         got["control"] = await read(ctx, CONTROL_ADDR)
         got["p00"] = await read(ctx, REGS["P0_00"])

@@ -7,6 +7,7 @@ from amaranth.sim import Simulator
 from mpu9250_ahrs.hdl.i2c_controller import I2CController, I2COp, I2CTiming
 from mpu9250_ahrs.sim.cosim import CosimHarness, attach_models
 from mpu9250_ahrs.sim.i2c_bus import I2CBusModel
+from mpu9250_ahrs.sim.streams import stream_put
 
 
 CLK = 12e6
@@ -55,10 +56,7 @@ def run(ops, *, timing=None, bus_kw=None):
         ctx.set(dut.o_stream.ready, 1)
         await ctx.tick().repeat(10)          # let the lines settle through the synchronisers
         for op, data, ack in ops:
-            ctx.set(dut.i_stream.payload, {"op": op, "data": data, "ack": ack})
-            ctx.set(dut.i_stream.valid, 1)
-            await ctx.tick().until(dut.i_stream.ready)
-            ctx.set(dut.i_stream.valid, 0)
+            await stream_put(ctx, dut.i_stream, {"op": op, "data": data, "ack": ack})
             for _ in range(200_000):
                 _, _, valid, payload = await ctx.tick().sample(dut.o_stream.valid,
                                                                dut.o_stream.payload)

@@ -4,6 +4,7 @@ import pytest
 from amaranth.sim import Simulator
 
 from mpu9250_ahrs.hdl.spi_controller import SPIController, SPITiming
+from mpu9250_ahrs.sim.streams import stream_put
 
 
 def response_byte(index):
@@ -52,11 +53,8 @@ def run(timing, transactions, *, consumer_stall=0, vcd=None):
     async def producer(ctx):
         for data, fast in transactions:
             for i, byte in enumerate(data):
-                ctx.set(dut.i_stream.payload, {"data": byte, "fast": fast,
-                                               "last": i == len(data) - 1})
-                ctx.set(dut.i_stream.valid, 1)
-                await ctx.tick().until(dut.i_stream.ready)
-                ctx.set(dut.i_stream.valid, 0)
+                await stream_put(ctx, dut.i_stream, {"data": byte, "fast": fast,
+                                                     "last": i == len(data) - 1})
 
     async def consumer(ctx):
         # Ready for one cycle after every ``consumer_stall`` cycles (always, if 0).

@@ -11,6 +11,7 @@ from mpu9250_ahrs.hdl.top import AHRSCore
 from mpu9250_ahrs.hdl.uart_tx import UARTTransmitter
 from mpu9250_ahrs.reference.fixed_point import attitude_fixed
 from mpu9250_ahrs.sim.cosim import CosimHarness, SimSetup, attach_mpu9250, sample_matches
+from mpu9250_ahrs.sim.streams import stream_put
 from mpu9250_ahrs.sim.telemetry import FrameDecoder, FrameError, decode_frames, unpack
 from mpu9250_ahrs.sim.uart import attach_uart_receiver
 
@@ -30,10 +31,7 @@ def test_uart_transmitter_bytes():
 
     async def tb(ctx):
         for byte in sent:
-            ctx.set(dut.i_stream.payload, byte)
-            ctx.set(dut.i_stream.valid, 1)
-            await ctx.tick().until(dut.i_stream.ready)
-            ctx.set(dut.i_stream.valid, 0)
+            await stream_put(ctx, dut.i_stream, byte)
         await ctx.tick().repeat(5 * 12)
     sim.add_testbench(tb)
     sim.run()
@@ -56,10 +54,7 @@ def test_framer_against_decoder():
 
     async def producer(ctx):
         for f in frames:
-            ctx.set(dut.i_stream.payload, f)
-            ctx.set(dut.i_stream.valid, 1)
-            await ctx.tick().until(dut.i_stream.ready)
-            ctx.set(dut.i_stream.valid, 0)
+            await stream_put(ctx, dut.i_stream, f)
 
     async def consumer(ctx):
         n = 0
