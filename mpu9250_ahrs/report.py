@@ -120,11 +120,12 @@ def cycles_per_update(samples=6):
     import numpy as np
     from .hdl.attitude_engine import AttitudeEngine
     from .hdl.attitude_program import CONTROL_ADDR
+    from .reference.frames import body_to_mag
     from .sim.attitude_bench import control_word, run_engine
     from .sim.motion import SensorModel, static
 
     gc, ac, mc = SensorModel(seed=1).counts(static((30, -20, 100), samples / 100))
-    mag_ak = np.stack([mc[:, 1], mc[:, 0], -mc[:, 2]], axis=1)
+    mag_ak = body_to_mag(mc)
     out, first = {}, {}
     for name, compl in (("kalman", False), ("complementary", True)):
         run = run_engine(AttitudeEngine(), gc, ac, mag_ak,

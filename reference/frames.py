@@ -19,6 +19,7 @@ import numpy as np
 __all__ = ["quat_mul", "quat_conj", "quat_normalize", "quat_rotate", "quat_to_matrix",
            "matrix_to_quat", "quat_from_rotvec", "quat_to_euler", "euler_to_quat",
            "accel_tilt", "tilt_compensated_heading", "quat_from_accel_mag", "mag_to_body",
+           "body_to_mag",
            "wrap_angle", "orientation_errors"]
 
 
@@ -144,9 +145,15 @@ def quat_from_accel_mag(acc, mag):
 
 
 def mag_to_body(mag_ak):
-    """AK8963 axes -> MPU9250 body axes: (x, y, z)_body = (y, x, −z)_AK8963."""
-    m = np.asarray(mag_ak, float)
+    """AK8963 axes -> MPU9250 body axes: (x, y, z)_body = (y, x, −z)_AK8963 (the dtype is
+    kept, so counts stay integers)."""
+    m = np.asarray(mag_ak)
     return np.stack([m[..., 1], m[..., 0], -m[..., 2]], axis=-1)
+
+
+def body_to_mag(mag_body):
+    """MPU9250 body axes -> AK8963 axes: the same swap, which is its own inverse."""
+    return mag_to_body(mag_body)
 
 
 def orientation_errors(q, q_ref):

@@ -19,8 +19,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..reference.frames import (euler_to_quat, quat_conj, quat_from_rotvec, quat_mul,
-                                quat_normalize, quat_to_matrix)
+from ..reference.frames import (body_to_mag, euler_to_quat, quat_conj, quat_from_rotvec,
+                                quat_mul, quat_normalize, quat_to_matrix)
 from .recording import G, Scales, quantise
 from .sources import SensorSample
 
@@ -183,7 +183,8 @@ def accel_gyro_source(gyr_counts, acc_counts, temp=0):
 def mag_source(mag_counts_body):
     """A source for ``AK8963Model``: body-frame counts turned into the AK8963's own axes
     (x_ak = y_body, y_ak = x_body, z_ak = −z_body)."""
+    mag_ak = body_to_mag(mag_counts_body)
+
     def source(index, t):
-        m = mag_counts_body[min(index, len(mag_counts_body) - 1)]
-        return (int(m[1]), int(m[0]), -int(m[2]))
+        return tuple(int(v) for v in mag_ak[min(index, len(mag_ak) - 1)])
     return source

@@ -20,17 +20,12 @@ from mpu9250_ahrs.hdl.divider import Divider
 from mpu9250_ahrs.reference.fixed_point import (CalibrationFixed, KalmanFixedConfig,
                                                 attitude_fixed, bam_to_deg, cordic_rotate,
                                                 cordic_vector, div_q24, Status)
+from mpu9250_ahrs.reference.frames import body_to_mag
 from mpu9250_ahrs.reference.kalman import KalmanParams, kalman_filter
 from mpu9250_ahrs.sim.attitude_bench import control_word, first_mismatch, run_engine
 from mpu9250_ahrs.sim.motion import SensorModel, concat, static, turntable
 from mpu9250_ahrs.sim.recording import load_broad, quantise
 from mpu9250_ahrs.sim.streams import stream_put
-
-
-def body_to_ak(mag_body):
-    """Body-axis field counts -> AK8963 axes (x_ak = y_b, y_ak = x_b, z_ak = −z_b)."""
-    m = np.asarray(mag_body)
-    return np.stack([m[:, 1], m[:, 0], -m[:, 2]], axis=1)
 
 
 def check(gyro, accel, mag_ak, mag_valid=None, *, config=KalmanFixedConfig(), cal=None,
@@ -144,7 +139,7 @@ def test_static_35_degree_tilt(vcd):
     """Bit for bit with the reference, and within 0.05° of the float filter (issue 5)."""
     traj = static((35, 0, 20), 0.8)
     gc, ac, mc = SENSOR.counts(traj)
-    run, ref = check(gc, ac, body_to_ak(mc), vcd=vcd())
+    run, ref = check(gc, ac, body_to_mag(mc), vcd=vcd())
     euler, _, _ = kalman_filter(gc / 16.4, ac.astype(float), mc.astype(float), traj.dt,
                                 KalmanParams(rates="body"))
     assert angle_diff(bam_to_deg(run.angles), euler).max() < 0.05
@@ -158,7 +153,7 @@ def test_heading_across_180_and_complementary_switch():
     n = len(gc)
     select = ["kalman"] * (n // 2) + ["complementary"] * (n - n // 2)
     writes = {n // 2: [(CONTROL_ADDR, control_word(complementary=True))]}
-    run, _ = check(gc, ac, body_to_ak(mc), writes=writes, select=select)
+    run, _ = check(gc, ac, body_to_mag(mc), writes=writes, select=select)
     yaw = bam_to_deg(run.angles[:, 2])
     assert yaw.max() > 170 and yaw.min() < -170                  # it did cross the wrap
     assert not run.complementary[0] and run.complementary[-1]
@@ -167,7 +162,7 @@ def test_heading_across_180_and_complementary_switch():
 @pytest.mark.parametrize("euler", [(0, 90, 0), (0, -90, 30), (30, 89.9, 0)])
 def test_pitch_at_90_degrees(euler):
     gc, ac, mc = SENSOR.counts(static(euler, 0.1))
-    check(gc, ac, body_to_ak(mc))
+    check(gc, ac, body_to_mag(mc))
 
 
 def test_full_scale_zero_vectors_and_invalid_field():
@@ -190,7 +185,7 @@ def test_coefficient_extremes_and_reset():
     reset through the control register."""
     traj = static((20, 10, -40), 0.12)
     gc, ac, mc = SENSOR.counts(traj)
-    mc = body_to_ak(mc)
+    mc = body_to_mag(mc)
     big = 2 ** 31 - 1
     writes = {0: [(CONFIG_REGS["R"], -(2 ** 31))],
               3: [(CONFIG_REGS["R"], 2 << 24), (CONFIG_REGS["Q_ANGLE"], big),
@@ -242,7 +237,7 @@ def test_recorded_stretch():
     start = 3000                                     # into the movement
     gc, ac, mc = quantise(*(x[start:start + 40] for x in (rec.gyr, rec.acc, rec.mag)))
     dt = rec.dt
-    check(gc, ac, body_to_ak(mc), config=KalmanFixedConfig(dt=dt))
+    check(gc, ac, body_to_mag(mc), config=KalmanFixedConfig(dt=dt))
 
 
 def test_register_read_back():
