@@ -375,13 +375,15 @@ class AttitudeFixed:
 
 def attitude_fixed(gyr_raw, acc_raw, mag_ak_raw, mag_valid=None, *, asa=(128, 128, 128),
                    cal=CalibrationFixed(), config=KalmanFixedConfig(), select="kalman",
-                   registers=None, resets=()):
+                   registers=None, resets=(), writes=None):
     """The gateware's attitude engine in integers: calibration, then the per-axis Kalman filter
     or the complementary filter (``select``: a name, or an array of names per sample). Both
     filters share the angle registers, so switching between them is seamless; the Kalman
     state (bias, P) is held while the complementary filter runs. ``registers`` overrides
     register values by name (raw integers, e.g. {"R": 0}); ``resets``: sample indices before
-    which the filter state is reset (angles 0, bias 0, P = P0·I, next sample is a first)."""
+    which the filter state is reset (angles 0, bias 0, P = P0·I, next sample is a first; the
+    registers keep their values); ``writes``: {sample index: {name: value}}, register writes
+    applied before that sample (after a reset there)."""
     n = len(gyr_raw)
     sel = [select] * n if isinstance(select, str) else list(select)
     valid = [True] * n if mag_valid is None else [bool(v) for v in mag_valid]
@@ -392,7 +394,8 @@ def attitude_fixed(gyr_raw, acc_raw, mag_ak_raw, mag_valid=None, *, asa=(128, 12
     for k, (g, a, h) in enumerate(zip(*(np.asarray(x, np.int64).tolist()
                                          for x in (gyr_raw, acc_raw, mag_ak_raw)))):
         if k in resets:
-            kf = _KalmanFixed(config, registers)
+            kf = _KalmanFixed(config, kf.reg)
+        kf.reg.update((writes or {}).get(k, {}))
         st = Status()
         g, a, m = _calibrate_one(g, a, h, asa, cal, st)
         if sel[k] == "kalman":

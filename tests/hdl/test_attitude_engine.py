@@ -5,7 +5,6 @@ A mismatch names the first differing sample and field.
 """
 
 import glob
-import math
 import pathlib
 
 import numpy as np
@@ -28,14 +27,21 @@ from mpu9250_ahrs.sim.recording import load_broad, quantise
 from mpu9250_ahrs.sim.streams import stream_put
 
 
+REG_NAMES = {addr: name for name, addr in CONFIG_REGS.items()}
+
+
 def check(gyro, accel, mag_ak, mag_valid=None, *, config=KalmanFixedConfig(), cal=None,
-          asa=(128, 128, 128), writes=None, select="kalman", registers=None, resets=(),
-          vcd=None):
+          asa=(128, 128, 128), writes=None, select="kalman", resets=(), vcd=None):
+    """Engine and reference on the same samples; ``writes`` as for ``run_engine`` (the
+    reference gets the register-file writes; the filter select and resets are ``select`` and
+    ``resets``)."""
     cal = CalibrationFixed() if cal is None else cal
     dut = AttitudeEngine(config, cal)
     run = run_engine(dut, gyro, accel, mag_ak, mag_valid, asa=asa, writes=writes, vcd=vcd)
+    ref_writes = {k: {REG_NAMES[a]: v for a, v in w if a != CONTROL_ADDR}
+                  for k, w in (writes or {}).items()}
     ref = attitude_fixed(gyro, accel, mag_ak, mag_valid, asa=asa, cal=cal, config=config,
-                         select=select, registers=registers, resets=resets)
+                         select=select, resets=resets, writes=ref_writes)
     mismatch = first_mismatch(run, ref)
     assert mismatch is None, mismatch
     return run, ref
@@ -195,34 +201,8 @@ def test_coefficient_extremes_and_reset():
               9: [(CONTROL_ADDR, control_word(complementary=True))],
               10: [(CONFIG_REGS["ONE_MINUS_A"], 1 << 24)]}
     n = len(gc)
-    dut_select = ["kalman"] * 9 + ["complementary"] * (n - 9)
-    # the reference applies register values per run; split at the writes
-    cal = CalibrationFixed()
-    dut = AttitudeEngine(KalmanFixedConfig(), cal)
-    run = run_engine(dut, gc, ac, mc, writes=writes)
-    from mpu9250_ahrs.reference import fixed_point as fp
-    expect = []
-    kf = fp._KalmanFixed(KalmanFixedConfig())
-    for k in range(n):
-        for addr, value in writes.get(k, ()):
-            if addr == CONTROL_ADDR:
-                if value & 2:
-                    kf = fp._KalmanFixed(KalmanFixedConfig(), kf.reg)
-            else:
-                name = next(n_ for n_, a_ in CONFIG_REGS.items() if a_ == addr)
-                kf.reg[name] = value
-        s = fp.Status()
-        g, a, m = fp._calibrate_one(gc[k].tolist(), ac[k].tolist(), mc[k].tolist(),
-                                    (128, 128, 128), cal, s)
-        if dut_select[k] == "kalman":
-            used = kf.step(g, a, m, True, s)
-        else:
-            kf.theta, *used = fp._complementary_step(kf.theta, g, a, m, True, kf.reg, s)
-            kf.prev = list(g)
-        expect.append((list(kf.theta), list(kf.bias), s.saturated))
-    for k, (theta, bias, sat) in enumerate(expect):
-        got = (run.angles[k].tolist(), run.bias[k].tolist(), bool(run.saturated[k]))
-        assert got == (theta, bias, sat), f"sample {k}: gateware {got} != reference"
+    run, _ = check(gc, ac, mc, writes=writes, select=["kalman"] * 9 + ["complementary"] * (n - 9),
+                   resets={6})
     assert run.saturated[0] and run.saturated[3]         # R < 0; covariance clamped
     assert not run.saturated[7]                          # after the reset
 
