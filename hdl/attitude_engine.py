@@ -41,7 +41,14 @@ from .multiplier import Multiplier
 from .sample import Attitude, ConfigWrite, Sample
 
 
-__all__ = ["AttitudeEngine"]
+__all__ = ["AttitudeEngine", "default_filter_config"]
+
+
+def default_filter_config(sensor):
+    """The filter registers for an ``MPU9250Config``: T = 1/ODR, the gyro's LSB per °/s from
+    its full scale, and the published Q, R, P₀."""
+    return KalmanFixedConfig(dt=1 / sensor.output_data_rate,
+                             gyro_lsb_per_dps=32768 / sensor.gyro_fs_dps)
 
 
 def _saturate(m, value, bits):

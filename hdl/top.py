@@ -36,8 +36,7 @@ from amaranth.lib import data, io, stream, wiring
 from amaranth.lib.wiring import In, Out, connect, flipped
 
 from .mpu9250_driver import DriverTiming, MPU9250Config
-from ..reference.fixed_point import KalmanFixedConfig
-from .attitude_engine import AttitudeEngine
+from .attitude_engine import AttitudeEngine, default_filter_config
 from .sample import ConfigWrite, DriverStatus, Sample
 from .sensor_frontend import SensorFrontEnd
 from .i2c_controller import I2CPinsSignature
@@ -59,8 +58,7 @@ class AHRSCore(wiring.Component):
         self.frontend = SensorFrontEnd(clk_freq=clk_freq, config=config, timing=timing)
         if attitude:
             if filter_config is None:
-                filter_config = KalmanFixedConfig(dt=1 / config.output_data_rate,
-                                                  gyro_lsb_per_dps=32768 / config.gyro_fs_dps)
+                filter_config = default_filter_config(config)
             self.engine = AttitudeEngine(filter_config, calibration,
                                          blackbox_hard_blocks=blackbox_hard_blocks)
             self.framer = TelemetryFramer(AttitudeFrame, 0x02)

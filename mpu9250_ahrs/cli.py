@@ -135,13 +135,12 @@ def _pose_sources(pose, samples, config, setup):
 def print_attitude(result, config):
     """Feed the co-simulated samples through the attitude engine (its own simulation) and print
     each result in degrees."""
-    from .hdl.attitude_engine import AttitudeEngine
-    from .reference.fixed_point import KalmanFixedConfig, bam_to_deg
+    from .hdl.attitude_engine import AttitudeEngine, default_filter_config
+    from .reference.fixed_point import bam_to_deg
     from .sim.attitude_bench import run_engine
 
     s = result.samples
-    engine = AttitudeEngine(KalmanFixedConfig(dt=1 / config.output_data_rate,
-                                              gyro_lsb_per_dps=32768 / config.gyro_fs_dps))
+    engine = AttitudeEngine(default_filter_config(config))
     run = run_engine(engine, [x["gyro"] for x in s], [x["accel"] for x in s],
                      [x["mag"] for x in s], [x["flags"]["mag_valid"] for x in s],
                      asa=result.asa or (128, 128, 128))
@@ -175,7 +174,7 @@ def cmd_replay(args):
     start = time.perf_counter()
     if args.fixed:
         quat = run_fixed(args.filter, *counts, rec.dt,
-                         gyro_lsb_per_dps=scales.gyro_lsb_per_rad * np.pi / 180,
+                         gyro_lsb_per_dps=scales.gyro_lsb_per_dps,
                          accel_lsb_per_ms2=scales.accel_lsb_per_ms2, **params)
     else:
         quat = run_filter(args.filter, *to_units(*counts, scales), rec.dt, **params)

@@ -56,7 +56,7 @@ def run_trial(path, with_fixed=True):
             quat = run_filter(name, gyr, acc, mag, rec.dt, **params)
         else:
             quat = run_fixed(name, *counts, rec.dt,
-                             gyro_lsb_per_dps=scales.gyro_lsb_per_rad * np.pi / 180,
+                             gyro_lsb_per_dps=scales.gyro_lsb_per_dps,
                              accel_lsb_per_ms2=scales.accel_lsb_per_ms2, **params)
         out[row] = {**score(quat, rec.quat, rec.movement),
                     "seconds": round(time.perf_counter() - start, 2)}

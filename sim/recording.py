@@ -57,8 +57,12 @@ class Scales:
     mag_ut_per_lsb: float = 0.15
 
     @property
+    def gyro_lsb_per_dps(self):
+        return 32768 / self.gyro_fs_dps                    # 16.4 LSB/(°/s) at ±2000 °/s
+
+    @property
     def gyro_lsb_per_rad(self):
-        return 32768 / self.gyro_fs_dps * 180 / np.pi      # 16.4 LSB/(°/s) at ±2000 °/s
+        return self.gyro_lsb_per_dps * 180 / np.pi
 
     @property
     def accel_lsb_per_ms2(self):
