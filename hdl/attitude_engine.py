@@ -152,20 +152,14 @@ class AttitudeEngine(wiring.Component):
         # ± product with one adder: base + (~product if neg) + neg
         m.d.comb += acc_next.eq(Mux(pend_ins.acc, acc, rounding)
                                 + Mux(pend_ins.neg, ~product, product) + pend_ins.neg)
-        # acc >> s saturated to 32 bits: per shift, the 32 result bits and whether the bits
-        # above them are all copies of the sign (cheaper than shifting all 66 bits)
+        # acc >> s saturated to 32 bits, selected per shift (each a slice of the accumulator)
         mul_v32 = Signal(signed(32))
         mul_f32 = Signal()
         with m.Switch(pend_ins.sh):
             for code, s in enumerate(MUL_SHIFTS):
                 with m.Case(code):
-                    top = acc_next[s + 31:]
-                    fits = (top == 0) | (top == (1 << len(top)) - 1)
-                    m.d.comb += [
-                        mul_f32.eq(~fits),
-                        mul_v32.eq(Mux(fits, acc_next[s:s + 32],
-                                       Mux(acc_next[-1], C(1 << 31, 32), C((1 << 31) - 1, 32)))),
-                    ]
+                    v32, f32 = _saturate(m, acc_next[s:].as_signed(), 32)
+                    m.d.comb += [mul_v32.eq(v32), mul_f32.eq(f32)]
         mul_v16, mul_f16 = _saturate(m, mul_v32, 16)
         mul_result = Mux(pend_ins.sat16, mul_v16, mul_v32)
         mul_sat = mul_f32 | (pend_ins.sat16 & mul_f16)
