@@ -36,7 +36,8 @@ import numpy as np
 __all__ = ["BAM_BITS", "CORDIC_ITERATIONS", "ATAN_TABLE", "CORDIC_GAIN", "rshift_round", "sat",
            "wrap32", "div_trunc", "cordic_vector", "cordic_rotate", "bam_to_deg", "deg_to_bam",
            "div_q24", "Status", "KalmanFixedConfig", "CalibrationFixed", "calibrate_fixed",
-           "kalman_fixed", "complementary_fixed", "attitude_fixed", "AttitudeFixed"]
+           "kalman_fixed", "complementary_fixed", "attitude_fixed", "AttitudeFixed", "tilt_angles",
+           "mul", "mac", "sat32", "sat16"]
 
 BAM_BITS = 32                     # angles: signed 32-bit, 2³² = 360°, 1 LSB = 8.38e-8°
 CORDIC_ITERATIONS = 24
@@ -247,12 +248,18 @@ class KalmanFixedConfig:
         return regs
 
 
-def _tilt(ax, ay, az, st=None):
-    """(roll, pitch) BAM32 from accelerometer counts: atan2(ay, az), atan2(−ax, √(ay²+az²))."""
-    roll, mag_k = cordic_vector(az << 8, ay << 8, st)
-    horiz = mul(mag_k, INV_GAIN_Q30, 30, st)             # √(ay²+az²)·2⁸, K removed
-    pitch, _ = cordic_vector(horiz, -ax << 8, st)
+def tilt_angles(x, y, z, st=None):
+    """(roll, pitch) BAM32 of a specific-force vector in any scale: atan2(y, z),
+    atan2(−x, √(y² + z²))."""
+    roll, mag_k = cordic_vector(z, y, st)
+    horiz = mul(mag_k, INV_GAIN_Q30, 30, st)             # √(y² + z²), K removed
+    pitch, _ = cordic_vector(horiz, sat32(-x, st), st)
     return roll, pitch
+
+
+def _tilt(ax, ay, az, st=None):
+    """(roll, pitch) BAM32 from accelerometer counts, scaled by 2⁸ for the CORDIC."""
+    return tilt_angles(ax << 8, ay << 8, az << 8, st)
 
 
 def _heading(mx, my, mz, roll, pitch, st=None):

@@ -17,8 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .fixed_point import (INV_GAIN_Q30, cordic_rotate, cordic_vector, mac, mul, sat32,
-                          wrap32)
+from .fixed_point import (INV_GAIN_Q30, Status, cordic_rotate, cordic_vector, mac, mul, sat32,
+                          tilt_angles, wrap32)
 from .flagship import FlagshipParams
 
 
@@ -100,9 +100,7 @@ def _rotate(m, v, st):
 
 def _inclination_quat(a, st):
     """q_a = Ry(pitch)·Rx(roll) putting ``a`` up, from CORDIC half-angle sines and cosines."""
-    roll, mag_k = cordic_vector(a[2], a[1], st)
-    horiz = mul(mag_k, INV_GAIN_Q30, 30, st)
-    pitch, _ = cordic_vector(horiz, sat32(-a[0], st), st)
+    roll, pitch = tilt_angles(*a, st)
     cr, sr = cordic_rotate(roll >> 1)
     cp, sp = cordic_rotate(pitch >> 1)
     return (mul(cr, cp, 30, st), mul(sr, cp, 30, st), mul(cr, sp, 30, st),
@@ -120,7 +118,6 @@ def _field(me, st):
 def flagship_fixed(gyr_counts, acc_counts, mag_counts, config, *, mag_valid=None):
     """Quaternions body->ENU in Q2.30 (N, 4) int, and the bias in Q16.16 counts (N, 3)."""
     reg = config.registers()
-    from .fixed_point import Status
     st = Status()
     gyr = np.asarray(gyr_counts, np.int64).tolist()
     acc = np.asarray(acc_counts, np.int64).tolist()
