@@ -33,7 +33,7 @@ from amaranth.lib.wiring import In, Out
 from ..reference.fixed_point import INV_GAIN_Q30, KalmanFixedConfig
 from .attitude_isa import ALU_SHIFTS, MUL_SHIFTS, REG_COUNT, Cond, Instr, Op
 from .attitude_program import CONTROL_ADDR, FLAG_ACC, FLAG_MAG, LOAD_ORDER, REGS, \
-    build_program, config_init
+    build_program, config_init, load_words
 from .cordic import CORDIC
 from .divider import Divider
 from .memories import MicrocodeROM, RegisterFile
@@ -278,13 +278,12 @@ class AttitudeEngine(wiring.Component):
             m.d.sync += [fetch_pc.eq(entry), rvalid.eq(0), xvalid.eq(0), phase.eq(0)]
 
         load_index = Signal(range(len(LOAD_ORDER)))
-        fields = ([self.samples.payload.gyro[i] for i in range(3)]
-                  + [self.samples.payload.accel[i] for i in range(3)]
-                  + [self.samples.payload.mag[i] << 16 for i in range(3)]
-                  + [self.asa[i] + 128 for i in range(3)])
+        sample = self.samples.payload
         load_addr = Array(Const(REGS[n], 7) for n in LOAD_ORDER)
-        load_data = Array(f.as_signed()[:32].as_signed() if i < 9 else f
-                          for i, f in enumerate(fields))
+        load_data = Array(load_words([sample.gyro[i] for i in range(3)],
+                                     [sample.accel[i] for i in range(3)],
+                                     [sample.mag[i] for i in range(3)],
+                                     [self.asa[i] for i in range(3)]))
 
         with m.If(self.results.valid & self.results.ready):
             m.d.sync += result_valid.eq(0)

@@ -38,7 +38,7 @@ from .attitude_isa import REG_COUNT, Assembler, Cond
 
 
 __all__ = ["CONFIG_REGS", "CONTROL_ADDR", "REGS", "ENTRY", "FLAG_ACC", "FLAG_MAG",
-           "build_program", "config_init"]
+           "LOAD_ORDER", "TEMPS", "build_program", "config_init", "load_words"]
 
 CONTROL_ADDR = 0x7F
 FLAG_ACC, FLAG_MAG = 0, 1
@@ -79,8 +79,16 @@ def _allocate():
 
 REGS = _allocate()
 # Loader order: the sample's fields are written to these registers before the program runs.
+TEMPS = [REGS[f"T{i}"] for i in range(12)]
 LOAD_ORDER = ([f"GRAW{i}" for i in range(3)] + [f"ARAW{i}" for i in range(3)]
               + [f"MRAW{i}" for i in range(3)] + [f"ASA{i}" for i in range(3)])
+
+
+def load_words(gyro, accel, mag_ak, asa):
+    """The words the loader writes, in ``LOAD_ORDER``, from a sample's fields and the ASA
+    bytes: the field times 2¹⁶ (so the ASA product rounds with a MUL_SHIFTS shift) and
+    ASA + 128. Works on integers (the models) and on Amaranth values (the engine)."""
+    return [*gyro, *accel, *(h << 16 for h in mag_ak), *(a + 128 for a in asa)]
 
 
 def config_init(config, inv_gain_q30, cal=None):
@@ -115,7 +123,7 @@ def _init(asm, r):
 
 
 def _calibrate(asm, r):
-    T = [r[f"T{i}"] for i in range(12)]
+    T = TEMPS
     for i in range(3):
         asm.sub(r[f"G{i}"], r[f"GRAW{i}"], r[f"GYRO_OFF{i}"], sat16=True)
     for i in range(3):
@@ -136,7 +144,7 @@ def _tilt(asm, r, roll):
     """roll = atan2(ay, az) into ``roll``, pitch = atan2(−ax, √(ay² + az²)) into ``roll`` + 1,
     inputs scaled by 2⁸. Clobbers ``roll`` + 2 (the vectoring CORDIC writes its magnitude
     beside the angle; the first one's is used for the pitch)."""
-    T = [r[f"T{i}"] for i in range(12)]
+    T = TEMPS
     asm.add(T[0], r["A0"], r["ZERO"], shl=8)
     asm.add(T[1], r["A1"], r["ZERO"], shl=8)
     asm.add(T[2], r["A2"], r["ZERO"], shl=8)
@@ -148,7 +156,7 @@ def _tilt(asm, r, roll):
 
 def _heading(asm, r, roll, pitch, out):
     """Tilt-compensated heading into ``out``; clobbers ``out`` + 1."""
-    T = [r[f"T{i}"] for i in range(12)]
+    T = TEMPS
     asm.rot(r["CR"], roll)
     asm.rot(r["CP"], pitch)
     asm.mul(T[0], r["SP"], r["SR"], 30)
@@ -170,7 +178,7 @@ def _zero_tests(asm, r, name):
 
 
 def _kalman_update(asm, r, i, z):
-    T = [r[f"T{k}"] for k in range(12)]
+    T = TEMPS
     th, b = r[f"THETA{i}"], r[f"BIAS{i}"]
     p00, p01, p10, p11 = (r[f"P{i}_{e}"] for e in ("00", "01", "10", "11"))
     asm.add(T[4], p00, r["R"])                           # s
@@ -193,7 +201,7 @@ def _kalman_update(asm, r, i, z):
 
 
 def _kalman(asm, r):
-    T = [r[f"T{k}"] for k in range(12)]
+    T = TEMPS
     # the first sample after a reset takes ω₍ₖ₋₁₎ = ωₖ: out of line, so that every other
     # sample falls through (a taken branch costs two bubbles)
     asm.br("k_first", Cond.FIRST)
@@ -239,7 +247,7 @@ def _kalman(asm, r):
 
 
 def _complementary(asm, r):
-    T = [r[f"T{k}"] for k in range(12)]
+    T = TEMPS
     for i in range(3):
         asm.add(T[1], r[f"G{i}"], r["ZERO"], shl=16)             # ω·RATE >> 16 as
         asm.mul(T[0], T[1], r["RATE"], 32)                        # (ω·2¹⁶)·RATE >> 32

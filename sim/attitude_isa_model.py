@@ -7,7 +7,7 @@ The datapath primitives are the reference's, so only the program's logic is unde
 """
 
 from ..hdl.attitude_isa import ALU_SHIFTS, MUL_SHIFTS, Cond, Op
-from ..hdl.attitude_program import LOAD_ORDER, REGS, build_program, config_init
+from ..hdl.attitude_program import LOAD_ORDER, REGS, build_program, config_init, load_words
 from ..reference.fixed_point import (INV_GAIN_Q30, KalmanFixedConfig, Status, cordic_rotate,
                                      cordic_vector, div_q24, sat, sat16, sat32,
                                      wrap32)
@@ -84,7 +84,7 @@ class AttitudeISAModel:
                 return flags, st.saturated, steps
 
     def sample(self, gyro, accel, mag_ak, mag_valid=True, asa=(128, 128, 128)):
-        values = [*gyro, *accel, *(int(h) << 16 for h in mag_ak), *(x + 128 for x in asa)]
+        values = load_words(*([int(v) for v in x] for x in (gyro, accel, mag_ak, asa)))
         for name, value in zip(LOAD_ORDER, values):
             self.regs[REGS[name]] = int(value)
         result = self.run(self.entry["sample"], mag_valid)
