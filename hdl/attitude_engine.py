@@ -64,6 +64,13 @@ def _saturate(m, value, bits):
     return out, flag
 
 
+def _with_sat16(m, v32, f32, sat16):
+    """A value already saturated to 32 bits (flag ``f32``), saturated further to 16 bits when
+    ``sat16``: (value, clamped?)."""
+    v16, f16 = _saturate(m, v32, 16)
+    return Mux(sat16, v16, v32), f32 | (sat16 & f16)
+
+
 class AttitudeEngine(wiring.Component):
     def __init__(self, config=KalmanFixedConfig(), cal=None, *, complementary=False,
                  blackbox_hard_blocks=False, divider_bits_per_cycle=4):
@@ -98,7 +105,7 @@ class AttitudeEngine(wiring.Component):
 
         # -- sequencer state ------------------------------------------------------------------
         fetch_pc = Signal(range(len(self.program) + 1))
-        rvalid = Signal()                                 # rom_rp.data is a real instruction
+        rvalid = Signal()                                 # rom.data is a real instruction
         rinstr = data.View(Instr, rom.data)
         x = Signal(Instr)                                 # instruction in execute
         xvalid = Signal()
@@ -160,23 +167,17 @@ class AttitudeEngine(wiring.Component):
                 with m.Case(code):
                     v32, f32 = _saturate(m, acc_next[s:].as_signed(), 32)
                     m.d.comb += [mul_v32.eq(v32), mul_f32.eq(f32)]
-        mul_v16, mul_f16 = _saturate(m, mul_v32, 16)
-        mul_result = Mux(pend_ins.sat16, mul_v16, mul_v32)
-        mul_sat = mul_f32 | (pend_ins.sat16 & mul_f16)
+        mul_result, mul_sat = _with_sat16(m, mul_v32, mul_f32, pend_ins.sat16)
 
         # ALU results: wrapped, or saturated to 32 or 16 bits
         alu_wide = Signal(signed(51))
         m.d.comb += alu_wide.eq(Mux(x.op == Op.OR, opa | opb, alu_full))
         alu_v32, alu_f32 = _saturate(m, alu_wide, 32)
-        alu_v16, alu_f16 = _saturate(m, alu_v32, 16)
+        alu_sat_v, alu_sat_f = _with_sat16(m, alu_v32, alu_f32, x.sat16)
         x_result = Signal(signed(32))
         x_sat = Signal()
-        with m.If(x.wrap):
-            m.d.comb += x_result.eq(alu_full[:32])
-        with m.Elif(x.sat16):
-            m.d.comb += [x_result.eq(alu_v16), x_sat.eq(alu_f32 | alu_f16)]
-        with m.Else():
-            m.d.comb += [x_result.eq(alu_v32), x_sat.eq(alu_f32)]
+        m.d.comb += [x_result.eq(Mux(x.wrap, alu_full[:32], alu_sat_v)),
+                     x_sat.eq(~x.wrap & alu_sat_f)]
 
         # branch condition
         cond = Signal()
