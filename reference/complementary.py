@@ -9,7 +9,7 @@ accelerometer or field vector contributes nothing (the prediction stands). ``rat
 
 import numpy as np
 
-from .frames import accel_tilt, euler_to_quat, tilt_compensated_heading
+from .frames import accel_tilt, euler_to_quat, filter_inputs, tilt_compensated_heading
 from .kalman import _wrap_deg
 
 
@@ -28,12 +28,9 @@ def complementary_filter(gyr_dps, acc, mag, dt, *, tau=0.8, a=None, rates="euler
                          mag_valid=None, theta0=None):
     """Returns (euler_deg (N,3), quat (N,4)). ``a`` overrides τ."""
     a = coefficient(tau, dt) if a is None else a
-    gyr = np.asarray(gyr_dps, float)
+    gyr, acc, mag, mag_valid = filter_inputs(gyr_dps, acc, mag, mag_valid)
     n = len(gyr)
-    acc = np.asarray(acc, float)
     meas_rp = np.degrees(accel_tilt(acc))
-    mag = np.asarray(mag, float)
-    mag_valid = np.ones(n, bool) if mag_valid is None else np.asarray(mag_valid, bool)
     theta = np.zeros(3) if theta0 is None else np.array(theta0, float)
     out = np.empty((n, 3))
     for k in range(n):

@@ -35,7 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .frames import quat_from_accel_mag
+from .frames import filter_inputs, quat_from_accel_mag
 
 
 __all__ = ["FlagshipParams", "flagship_filter"]
@@ -95,12 +95,9 @@ def flagship_filter(gyr, acc, mag, dt, params=FlagshipParams(), *, mag_valid=Non
     """gyr rad/s, acc m/s² (any unit: only directions and deviations matter, rest_acc is in the
     same unit), mag any unit or None (6-axis). Returns quaternions body->ENU (N,4)."""
     p = params
-    gyr = np.asarray(gyr, float)
-    acc = np.asarray(acc, float)
+    gyr, acc, magv, valid = filter_inputs(gyr, acc, mag, mag_valid)
     n = len(gyr)
-    use_mag = mag is not None
-    magv = np.asarray(mag, float) if use_mag else None
-    valid = np.ones(n, bool) if mag_valid is None else np.asarray(mag_valid, bool)
+    use_mag = magv is not None
     gyr_l, acc_l = gyr.tolist(), acc.tolist()
     mag_l = magv.tolist() if use_mag else None
 

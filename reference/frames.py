@@ -18,7 +18,7 @@ import numpy as np
 
 __all__ = ["quat_mul", "quat_conj", "quat_normalize", "quat_rotate", "quat_to_matrix",
            "matrix_to_quat", "quat_from_rotvec", "quat_to_euler", "euler_to_quat",
-           "accel_tilt", "tilt_compensated_heading", "quat_from_accel_mag", "mag_to_body",
+           "accel_tilt", "tilt_compensated_heading", "quat_from_accel_mag", "filter_inputs", "mag_to_body",
            "body_to_mag",
            "wrap_angle", "orientation_errors"]
 
@@ -142,6 +142,15 @@ def quat_from_accel_mag(acc, mag):
     north = np.cross(up, east)
     R = np.stack([east, north, up], axis=-2)        # rows: earth axes in body coordinates
     return matrix_to_quat(R)
+
+
+def filter_inputs(gyr, acc, mag, mag_valid=None):
+    """A filter's inputs as arrays: (gyr, acc, mag or None, mag_valid) — floats, and a
+    boolean mask that is all true when ``mag_valid`` is None."""
+    gyr = np.asarray(gyr, float)
+    mask = np.ones(len(gyr), bool) if mag_valid is None else np.asarray(mag_valid, bool)
+    return (gyr, np.asarray(acc, float), None if mag is None else np.asarray(mag, float),
+            mask)
 
 
 def mag_to_body(mag_ak):

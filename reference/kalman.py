@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .frames import accel_tilt, euler_to_quat, tilt_compensated_heading
+from .frames import accel_tilt, euler_to_quat, filter_inputs, tilt_compensated_heading
 
 
 __all__ = ["KalmanParams", "PUBLISHED", "kalman_filter"]
@@ -46,12 +46,9 @@ def _wrap_deg(a):
 def kalman_filter(gyr_dps, acc, mag, dt, params=KalmanParams(), *, mag_valid=None,
                   acc_valid=None, x0=None):
     """Run the filter over N samples. Returns (euler_deg (N,3), bias_dps (N,3), quat (N,4))."""
-    gyr = np.asarray(gyr_dps, float)
+    gyr, acc, mag, mag_valid = filter_inputs(gyr_dps, acc, mag, mag_valid)
     n = len(gyr)
-    acc = np.asarray(acc, float)
     meas_rp = np.degrees(accel_tilt(acc))
-    mag = np.asarray(mag, float)
-    mag_valid = np.ones(n, bool) if mag_valid is None else np.asarray(mag_valid, bool)
     acc_valid = np.ones(n, bool) if acc_valid is None else np.asarray(acc_valid, bool)
     r = np.array([params.r, params.r, params.r if params.r_yaw is None else params.r_yaw])
 

@@ -17,7 +17,7 @@ import math
 
 import numpy as np
 
-from .frames import quat_from_accel_mag
+from .frames import filter_inputs, quat_from_accel_mag
 
 
 __all__ = ["madgwick_filter"]
@@ -41,12 +41,9 @@ def _gradient_terms(w, x, y, z, d, s):
 
 def madgwick_filter(gyr, acc, mag, dt, *, beta=0.1, q0=None, align=True, mag_valid=None):
     """Returns quaternions (N,4). ``gyr`` in rad/s. ``mag=None`` runs the IMU (6-axis) form."""
-    gyr = np.asarray(gyr, float)
-    acc = np.asarray(acc, float)
+    gyr, acc, magv, valid = filter_inputs(gyr, acc, mag, mag_valid)
     n = len(gyr)
-    use_mag = mag is not None
-    magv = np.asarray(mag, float) if use_mag else None
-    valid = np.ones(n, bool) if mag_valid is None else np.asarray(mag_valid, bool)
+    use_mag = magv is not None
     if q0 is not None:
         w, x, y, z = (float(v) for v in q0)
     elif align and use_mag:
