@@ -74,7 +74,8 @@ class TelemetryFramer(wiring.Component):
         # Bytes straight from the payload through a byte multiplexer: the stream keeps the
         # payload stable until ``ready``, which comes with the last byte, so no copy of the
         # frame is needed (a copy would cost a register per payload bit).
-        bits = Cat(self.i_stream.payload.as_value(), C(0, 8 * n - len(self.i_stream.payload.as_value())))
+        value = self.i_stream.payload.as_value()
+        bits = Cat(value, C(0, 8 * n - len(value)))
         payload_bytes = Array(bits[8 * i:8 * i + 8] for i in range(n))
         byte = Signal(8)
         with m.Switch(index):

@@ -18,9 +18,8 @@ import numpy as np
 
 __all__ = ["quat_mul", "quat_conj", "quat_normalize", "quat_rotate", "quat_to_matrix",
            "matrix_to_quat", "quat_from_rotvec", "quat_to_euler", "euler_to_quat",
-           "accel_tilt", "tilt_compensated_heading", "quat_from_accel_mag", "filter_inputs", "mag_to_body",
-           "body_to_mag",
-           "wrap_angle", "orientation_errors"]
+           "accel_tilt", "tilt_compensated_heading", "quat_from_accel_mag", "filter_inputs",
+           "mag_to_body", "body_to_mag", "wrap_angle", "orientation_errors"]
 
 
 def quat_mul(p, q):
