@@ -31,7 +31,7 @@ from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
 from ..reference.fixed_point import INV_GAIN_Q30, KalmanFixedConfig
-from .attitude_isa import ALU_SHIFTS, MUL_SHIFTS, REG_COUNT, Cond, Instr, Op
+from .attitude_isa import MUL_SHIFTS, REG_COUNT, Cond, Instr, Op
 from .attitude_program import CONTROL_ADDR, FLAG_ACC, FLAG_MAG, LOAD_ORDER, REGS, \
     build_program, config_init, load_words
 from .cordic import CORDIC
@@ -64,20 +64,14 @@ def _saturate(m, value, bits):
     return out, flag
 
 
-def _with_sat16(m, v32, f32, sat16):
-    """A value already saturated to 32 bits (flag ``f32``), saturated further to 16 bits when
-    ``sat16``: (value, clamped?)."""
-    v16, f16 = _saturate(m, v32, 16)
-    return Mux(sat16, v16, v32), f32 | (sat16 & f16)
 
 
 class AttitudeEngine(wiring.Component):
     def __init__(self, config=KalmanFixedConfig(), cal=None, *, complementary=False,
-                 blackbox_hard_blocks=False, divider_bits_per_cycle=4):
+                 blackbox_hard_blocks=False):
         self.config = config
         self.cal = cal
         self.complementary_at_reset = complementary
-        self.divider_bits_per_cycle = divider_bits_per_cycle
         self.program, self.entry = build_program()
         # hard blocks (multiplier, memories) as empty modules: for ``report``'s synthesis
         self.multiplier = Multiplier(blackbox=blackbox_hard_blocks)
@@ -98,7 +92,7 @@ class AttitudeEngine(wiring.Component):
     def elaborate(self, platform):
         m = Module()
         m.submodules.cordic = cordic = CORDIC()
-        m.submodules.divider = divider = Divider(self.divider_bits_per_cycle)
+        m.submodules.divider = divider = Divider()
         m.submodules.multiplier = mult = self.multiplier
         m.submodules.regfile = rf = self.regfile
         m.submodules.rom = rom = self.rom
@@ -107,7 +101,9 @@ class AttitudeEngine(wiring.Component):
         fetch_pc = Signal(range(len(self.program) + 1))
         rvalid = Signal()                                 # rom.data is a real instruction
         rinstr = data.View(Instr, rom.data)
-        x = Signal(Instr)                                 # instruction in execute
+        # datapath registers are reset-less: whatever they hold is qualified by a valid bit
+        # or overwritten before use, and a reset costs a LUT (or the LE's clear) per bit
+        x = Signal(Instr, reset_less=True)                # instruction in execute
         xvalid = Signal()
         phase = Signal(2)
         advance = Signal()
@@ -120,7 +116,7 @@ class AttitudeEngine(wiring.Component):
         running_init = Signal()
         mag_valid = Signal()
         flag_acc, flag_mag, flag_sat = Signal(), Signal(), Signal()
-        out = Signal(Attitude)
+        out = Signal(Attitude, reset_less=True)
         result_valid = Signal()
 
         m.d.comb += [
@@ -131,26 +127,21 @@ class AttitudeEngine(wiring.Component):
         opa, opb = rf.ra_data, rf.rb_data
 
         # -- execute: the arithmetic ------------------------------------------------------------
-        # ALU: (a << shift) ± b, exact at 50 bits, then wrapped or saturated
-        shifted_a = Signal(signed(50))
-        with m.Switch(x.sh):
-            for code, s in enumerate(ALU_SHIFTS):
-                with m.Case(code):
-                    m.d.comb += shifted_a.eq(opa << s)
-        alu_full = Signal(signed(51))
+        # ALU: a ± b, exact at 33 bits, then wrapped or saturated
+        alu_full = Signal(signed(33))
         is_sub = x.op == Op.SUB
-        m.d.comb += alu_full.eq(shifted_a + Mux(is_sub, ~opb, opb) + is_sub)   # one adder
+        m.d.comb += alu_full.eq(opa + Mux(is_sub, ~opb, opb) + is_sub)   # one adder
 
         # MUL: the product is registered in the instruction's execute cycle; accumulation,
         # rounding and write-back happen in the next cycle (the "pending" stage), overlapped
         # with the next instruction when that is a MUL not reading the result (MAC chains,
         # independent products), otherwise the pipeline waits that one cycle.
-        product = Signal(signed(64))
-        acc = Signal(signed(66))
+        product = Signal(signed(64), reset_less=True)
+        acc = Signal(signed(66), reset_less=True)
         acc_next = Signal(signed(66))
         rounding = Signal(signed(66))
         pend = Signal()
-        pend_ins = Signal(Instr)
+        pend_ins = Signal(Instr, reset_less=True)
         m.d.comb += [mult.a.eq(opa), mult.b.eq(opb)]
         with m.Switch(pend_ins.sh):
             for code, s in enumerate(MUL_SHIFTS):
@@ -167,13 +158,14 @@ class AttitudeEngine(wiring.Component):
                 with m.Case(code):
                     v32, f32 = _saturate(m, acc_next[s:].as_signed(), 32)
                     m.d.comb += [mul_v32.eq(v32), mul_f32.eq(f32)]
-        mul_result, mul_sat = _with_sat16(m, mul_v32, mul_f32, pend_ins.sat16)
 
         # ALU results: wrapped, or saturated to 32 or 16 bits
-        alu_wide = Signal(signed(51))
+        alu_wide = Signal(signed(33))
         m.d.comb += alu_wide.eq(Mux(x.op == Op.OR, opa | opb, alu_full))
         alu_v32, alu_f32 = _saturate(m, alu_wide, 32)
-        alu_sat_v, alu_sat_f = _with_sat16(m, alu_v32, alu_f32, x.sat16)
+        alu_v16, alu_f16 = _saturate(m, alu_v32, 16)
+        alu_sat_v = Mux(x.sat16, alu_v16, alu_v32)
+        alu_sat_f = alu_f32 | (x.sat16 & alu_f16)
         x_result = Signal(signed(32))
         x_sat = Signal()
         m.d.comb += [x_result.eq(Mux(x.wrap, alu_full[:32], alu_sat_v)),
@@ -217,8 +209,8 @@ class AttitudeEngine(wiring.Component):
             with m.If(pend):
                 m.d.sync += [acc.eq(acc_next), pend.eq(0)]
                 with m.If(pend_ins.wb):
-                    m.d.comb += [w_en.eq(1), w_addr.eq(pend_ins.d), w_data.eq(mul_result),
-                                 w_sat.eq(mul_sat)]
+                    m.d.comb += [w_en.eq(1), w_addr.eq(pend_ins.d), w_data.eq(mul_v32),
+                                 w_sat.eq(mul_f32)]
             with m.If(xvalid):
                 with m.Switch(x.op):
                     with m.Case(Op.ADD, Op.SUB, Op.OR):
@@ -278,7 +270,7 @@ class AttitudeEngine(wiring.Component):
         def start(entry):
             m.d.sync += [fetch_pc.eq(entry), rvalid.eq(0), xvalid.eq(0), phase.eq(0)]
 
-        load_index = Signal(range(len(LOAD_ORDER)))
+        load_index = Signal(range(len(LOAD_ORDER)), reset_less=True)
         sample = self.samples.payload
         load_addr = Array(Const(REGS[n], 7) for n in LOAD_ORDER)
         load_data = Array(load_words([sample.gyro[i] for i in range(3)],
@@ -291,9 +283,11 @@ class AttitudeEngine(wiring.Component):
 
         # register read-back: the word arrives one cycle after the address
         read_busy, read_control = Signal(), Signal()
+        read_word = Signal(signed(32), reset_less=True)
+        m.d.comb += self.cfg_read_data.payload.eq(read_word)
         with m.If(read_busy):
             m.d.sync += [read_busy.eq(0), self.cfg_read_data.valid.eq(1),
-                         self.cfg_read_data.payload.eq(Mux(read_control, compl, rf.ra_data))]
+                         read_word.eq(Mux(read_control, compl, rf.ra_data))]
         with m.If(self.cfg_read_data.valid & self.cfg_read_data.ready):
             m.d.sync += self.cfg_read_data.valid.eq(0)
 

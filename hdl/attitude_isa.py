@@ -9,16 +9,17 @@ bits, as the instruction says) and a saturation sets the sample's ``saturated`` 
 op    effect                                                       cycles (engine)
 ====  ===========================================================  ======================
 NOP   nothing                                                      1
-ADD   d = (a << ALU_SHIFTS[sh]) + b                                1
-SUB   d = (a << ALU_SHIFTS[sh]) − b                                1
+ADD   d = a + b                                                    1
+SUB   d = a − b                                                    1
 OR    d = a | b   (zero tests)                                     1
-MUL   acc = (acc if ``acc`` else 2^(s−1)) ± a·b, s = MUL_SHIFTS[sh]  2
+MUL   acc = (acc if ``acc`` else 2^(s−1)) ± a·b, s = MUL_SHIFTS[sh]  2, or 1 if a MUL
+                                                                   not reading d follows
       (exact, 66 bits: the rounding constant goes in first);
       if ``wb``: d = acc >> s  (= rshift_round of the sum)
-DIV   d = div_q24(a, b): (a·2²⁴)/b truncated, 0 if b ≤ 0          11
-VEC   CORDIC vectoring of (x = a, y = b): d = atan2 (BAM32),       27
+DIV   d = div_q24(a, b): ⌊a·2²⁴/b⌋, 0 if b ≤ 0                      18
+VEC   CORDIC vectoring of (x = a, y = b): d = atan2 (BAM32),       19
       d+1 = magnitude · K
-ROT   CORDIC rotation of the angle in a: d = cos, d+1 = sin (Q1.30)  27
+ROT   CORDIC rotation of the angle in a: d = cos, d+1 = sin (Q1.30)  19
 BR    if condition (``cond``, inverted by ``inv``): go to target   1, or 3 when taken
 SETF  set output flag ``sh`` (0: accelerometer used, 1: magnetometer used)   1
 END   the sample is done: results out                              1
@@ -40,15 +41,16 @@ from amaranth.hdl import unsigned
 from amaranth.lib import data
 
 
-__all__ = ["Op", "Cond", "ALU_SHIFTS", "MUL_SHIFTS", "REG_COUNT", "ROM_DEPTH", "Instr",
+__all__ = ["Op", "Cond", "MUL_SHIFTS", "REG_COUNT", "ROM_DEPTH", "Instr",
            "Instruction", "Assembler"]
 
 REG_COUNT = 128
 ROM_DEPTH = 512
-ALU_SHIFTS = (0, 8, 15, 16)
-# the rounding shifts the programs use (each one costs a 32-bit multiplexer input and an
-# overflow test): products by 2¹⁶-scaled operands make 8 and 16 unnecessary
-MUL_SHIFTS = (14, 18, 24, 30, 32)
+# The rounding shifts the programs use. Each one costs a 32-bit multiplexer input and an overflow
+# test, so there are few: formats are chosen to share them (Q2.14 coefficients, Q8.24
+# covariances, Q1.30 sines, RATE in Q14), and a left shift is a MUL by a power-of-two constant
+# register (the ALU has no shifter).
+MUL_SHIFTS = (14, 18, 24, 30)
 
 
 class Op(enum.IntEnum):
@@ -78,9 +80,9 @@ class Instr(data.Struct):
     d: unsigned(7)
     a: unsigned(7)
     b: unsigned(7)
-    sh: unsigned(3)
+    sh: unsigned(3)         # MUL: MUL_SHIFTS index; SETF: the flag
     wrap: unsigned(1)       # ADD/SUB: wrap to 32 bits (angles) instead of saturating
-    sat16: unsigned(1)      # ADD/SUB/MUL: saturate to 16 bits (calibrated sensor values)
+    sat16: unsigned(1)      # ADD/SUB: saturate to 16 bits (calibrated sensor values)
     acc: unsigned(1)        # MUL: add to the running accumulator
     neg: unsigned(1)        # MUL: subtract the product
     wb: unsigned(1)         # MUL: write the rounded accumulator to d
@@ -124,8 +126,8 @@ class Instruction:
 
 @dataclass
 class Assembler:
-    """Collects instructions for one ROM. Registers are given by address (ints); helpers take
-    the ALU/MUL shift amounts in bits and look up their codes."""
+    """Collects instructions for one ROM. Registers are given by address (ints); ``mul`` takes
+    its shift in bits and looks up its code."""
     code: list = field(default_factory=list)
     labels: dict = field(default_factory=dict)
 
@@ -143,25 +145,25 @@ class Assembler:
             raise ValueError(f"{what} shift {bits} not one of {table}")
         return table.index(bits)
 
-    def add(self, d, a, b, *, shl=0, wrap=False, sat16=False):
-        self._emit(Instruction(Op.ADD, d, a, b, self._code(ALU_SHIFTS, shl, "ALU"), wrap, sat16))
+    def add(self, d, a, b, *, wrap=False, sat16=False):
+        self._emit(Instruction(Op.ADD, d, a, b, wrap=wrap, sat16=sat16))
 
-    def sub(self, d, a, b, *, shl=0, wrap=False, sat16=False):
-        self._emit(Instruction(Op.SUB, d, a, b, self._code(ALU_SHIFTS, shl, "ALU"), wrap, sat16))
+    def sub(self, d, a, b, *, wrap=False, sat16=False):
+        self._emit(Instruction(Op.SUB, d, a, b, wrap=wrap, sat16=sat16))
 
     def or_(self, d, a, b):
         self._emit(Instruction(Op.OR, d, a, b))
 
-    def mul(self, d, a, b, shr, *, acc=False, neg=False, wb=True, sat16=False):
+    def mul(self, d, a, b, shr, *, acc=False, neg=False, wb=True):
         self._emit(Instruction(Op.MUL, d, a, b, self._code(MUL_SHIFTS, shr, "MUL"),
-                               sat16=sat16, acc=acc, neg=neg, wb=wb))
+                               acc=acc, neg=neg, wb=wb))
 
-    def mac(self, d, terms, shr, *, sat16=False):
+    def mac(self, d, terms, shr):
         """d = rshift_round(Σ ±a·b, shr); ``terms``: (a, b) or (a, b, -1)."""
         for i, t in enumerate(terms):
             last = i == len(terms) - 1
             self.mul(d if last else 0, t[0], t[1], shr, acc=i > 0,
-                     neg=len(t) > 2 and t[2] < 0, wb=last, sat16=sat16 and last)
+                     neg=len(t) > 2 and t[2] < 0, wb=last)
 
     def div(self, d, a, b):
         self._emit(Instruction(Op.DIV, d, a, b))

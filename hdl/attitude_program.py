@@ -12,7 +12,7 @@ Register map (32-bit words; the host writes the run-time registers through the e
 address  name            meaning, format                                            reset value
 =======  ==============  =========================================================  ===========
 0x00     ZERO            constant 0 (do not write)                                  0
-0x01     RATE            BAM per gyro count per period, Q16 (see FIXED_POINT.md)    from dt
+0x01     RATE            BAM per gyro count per period, Q14 (see FIXED_POINT.md)    from dt
 0x02     T               sample period, Q0.24 s                                     from dt
 0x03     Q_ANGLE         Kalman Q angle, Q8.24 deg²                                 0.2
 0x04     Q_BIAS          Kalman Q bias, Q8.24 (°/s)²                                0.1
@@ -21,6 +21,8 @@ address  name            meaning, format                                        
 0x07     BIAS_SCALE      360·LSB_per_dps/2¹⁶, Q8.24                                 from LSB
 0x08     ONE_MINUS_A     complementary filter 1 − a, Q0.24                          0.02
 0x09     INV_GAIN        1/K of the CORDIC, Q1.30 (do not write)                    0.607…
+0x1F     SHL8            2²²: a MUL by it with shift 14 is a left shift by 8        2²²
+                         (do not write)
 0x0A-0C  GYRO_OFF x,y,z  gyro offset, counts                                        0
 0x0D-0F  ACC_OFF x,y,z   accelerometer offset, counts                               0
 0x10-12  ACC_SCALE       accelerometer scale, Q2.14                                 1.0
@@ -45,7 +47,7 @@ FLAG_ACC, FLAG_MAG = 0, 1
 
 CONFIG_REGS = {
     "ZERO": 0x00, "RATE": 0x01, "T": 0x02, "Q_ANGLE": 0x03, "Q_BIAS": 0x04, "R": 0x05,
-    "P0": 0x06, "BIAS_SCALE": 0x07, "ONE_MINUS_A": 0x08, "INV_GAIN": 0x09,
+    "P0": 0x06, "BIAS_SCALE": 0x07, "ONE_MINUS_A": 0x08, "INV_GAIN": 0x09, "SHL8": 0x1F,
     **{f"GYRO_OFF{i}": 0x0A + i for i in range(3)},
     **{f"ACC_OFF{i}": 0x0D + i for i in range(3)},
     **{f"ACC_SCALE{i}": 0x10 + i for i in range(3)},
@@ -59,8 +61,7 @@ def _allocate():
     names += [f"THETA{i}" for i in range(3)] + [f"BIAS{i}" for i in range(3)]
     names += [f"P{i}_{e}" for i in range(3) for e in ("00", "01", "10", "11")]
     names += [f"PREV{i}" for i in range(3)]
-    # inputs, written by the engine's loader: raw gyro, accel, AK8963 (AK axes, times 2¹⁶),
-    # ASA + 128
+    # inputs, written by the engine's loader: raw gyro, accel, AK8963 (AK axes), (ASA + 128)·2¹⁰
     names += [f"GRAW{i}" for i in range(3)] + [f"ARAW{i}" for i in range(3)]
     names += [f"MRAW{i}" for i in range(3)] + [f"ASA{i}" for i in range(3)]
     # calibrated body-axis sensor values
@@ -69,6 +70,7 @@ def _allocate():
     names += [f"PRED{i}" for i in range(3)] + [f"MEAS{i}" for i in range(4)]
     names += ["ACC_OK", "MAG_OK"]
     names += ["CR", "SR", "CP", "SP"]                         # CORDIC result pairs (d, d+1)
+    names += ["SHL15"]                            # constant 2²⁹ (reset value; no program writes it)
     names += [f"T{i}" for i in range(12)]
     regs = dict(CONFIG_REGS)
     for k, name in enumerate(names):
@@ -86,9 +88,10 @@ LOAD_ORDER = ([f"GRAW{i}" for i in range(3)] + [f"ARAW{i}" for i in range(3)]
 
 def load_words(gyro, accel, mag_ak, asa):
     """The words the loader writes, in ``LOAD_ORDER``, from a sample's fields and the ASA
-    bytes: the field times 2¹⁶ (so the ASA product rounds with a MUL_SHIFTS shift) and
-    ASA + 128. Works on integers (the models) and on Amaranth values (the engine)."""
-    return [*gyro, *accel, *(h << 16 for h in mag_ak), *(a + 128 for a in asa)]
+    bytes: the fields as they are and (ASA + 128)·2¹⁰, so that the ASA product h·(ASA + 128)/2⁸
+    rounds with a MUL_SHIFTS shift (18). Works on integers (the models) and on Amaranth values
+    (the engine: an unsigned 8-bit ASA plus 128 is wiring, no adder)."""
+    return [*gyro, *accel, *mag_ak, *((a + 128) << 10 for a in asa)]
 
 
 def config_init(config, inv_gain_q30, cal=None):
@@ -100,6 +103,8 @@ def config_init(config, inv_gain_q30, cal=None):
     for name, value in config.registers().items():
         init[CONFIG_REGS[name]] = value
     init[CONFIG_REGS["INV_GAIN"]] = inv_gain_q30
+    init[CONFIG_REGS["SHL8"]] = 1 << 22
+    init[REGS["SHL15"]] = 1 << 29
     for i in range(3):
         init[CONFIG_REGS[f"GYRO_OFF{i}"]] = cal.gyro_offset[i]
         init[CONFIG_REGS[f"ACC_OFF{i}"]] = cal.accel_offset[i]
@@ -126,18 +131,26 @@ def _calibrate(asm, r):
     T = TEMPS
     for i in range(3):
         asm.sub(r[f"G{i}"], r[f"GRAW{i}"], r[f"GYRO_OFF{i}"], sat16=True)
+    # the multiplier does not saturate to 16 bits: products go to temporaries, then an ADD
+    # saturates them (sat16 of sat32 is sat16, so the result is the same)
     for i in range(3):
         asm.sub(T[i], r[f"ARAW{i}"], r[f"ACC_OFF{i}"])
-        asm.mul(r[f"A{i}"], T[i], r[f"ACC_SCALE{i}"], 14, sat16=True)
-    for j in range(3):                               # ASA: h·(ASA + 128)/256, AK axes
-        asm.mul(T[j], r[f"MRAW{j}"], r[f"ASA{j}"], 24)           # MRAW holds h·2¹⁶
-    # AK8963 -> body axes (x = y_ak, y = x_ak, z = −z_ak), minus the hard-iron offset
-    asm.sub(T[3], T[1], r["HARD0"])
-    asm.sub(T[4], T[0], r["HARD1"])
-    asm.sub(T[5], r["ZERO"], T[2])
-    asm.sub(T[5], T[5], r["HARD2"])
     for i in range(3):
-        asm.mac(r[f"M{i}"], [(r[f"SOFT{i}{j}"], T[3 + j]) for j in range(3)], 14, sat16=True)
+        asm.mul(T[i], T[i], r[f"ACC_SCALE{i}"], 14)
+    for j in range(3):                               # ASA: h·(ASA + 128)/256, AK axes
+        asm.mul(T[3 + j], r[f"MRAW{j}"], r[f"ASA{j}"], 18)       # ASA holds (ASA + 128)·2¹⁰
+    for i in range(3):
+        asm.add(r[f"A{i}"], T[i], r["ZERO"], sat16=True)
+    # AK8963 -> body axes (x = y_ak, y = x_ak, z = −z_ak), minus the hard-iron offset
+    d = T[9:12]
+    asm.sub(d[0], T[4], r["HARD0"])
+    asm.sub(d[1], T[3], r["HARD1"])
+    asm.sub(d[2], r["ZERO"], T[5])
+    asm.sub(d[2], d[2], r["HARD2"])
+    for i in range(3):
+        asm.mac(T[6 + i], [(r[f"SOFT{i}{j}"], d[j]) for j in range(3)], 14)
+    for i in range(3):
+        asm.add(r[f"M{i}"], T[6 + i], r["ZERO"], sat16=True)
 
 
 def _tilt(asm, r, roll):
@@ -145,9 +158,8 @@ def _tilt(asm, r, roll):
     inputs scaled by 2⁸. Clobbers ``roll`` + 2 (the vectoring CORDIC writes its magnitude
     beside the angle; the first one's is used for the pitch)."""
     T = TEMPS
-    asm.add(T[0], r["A0"], r["ZERO"], shl=8)
-    asm.add(T[1], r["A1"], r["ZERO"], shl=8)
-    asm.add(T[2], r["A2"], r["ZERO"], shl=8)
+    for i in range(3):
+        asm.mul(T[i], r[f"A{i}"], r["SHL8"], 14)           # a << 8
     asm.vec(roll, T[2], T[1])
     asm.mul(T[3], roll + 1, r["INV_GAIN"], 30)
     asm.sub(T[0], r["ZERO"], T[0])
@@ -186,10 +198,10 @@ def _kalman_update(asm, r, i, z):
     asm.div(T[6], p10, T[4])                             # k1, Q8.24
     asm.sub(T[7], z, th, wrap=True)                      # innovation y
     asm.mul(T[8], T[5], T[7], 24)
+    asm.mul(T[9], T[6], T[7], 24)                        # k1·y, BAM/s
     asm.add(th, th, T[8], wrap=True)
-    asm.mul(T[8], T[6], T[7], 24)                        # k1·y, BAM/s
-    asm.mul(T[8], T[8], r["BIAS_SCALE"], 24)
-    asm.add(b, b, T[8])
+    asm.mul(T[9], T[9], r["BIAS_SCALE"], 24)
+    asm.add(b, b, T[9])
     asm.mul(T[8], T[5], p00, 24)
     asm.mul(T[9], T[5], p01, 24)
     asm.mul(T[10], T[6], p00, 24)
@@ -206,22 +218,33 @@ def _kalman(asm, r):
     # sample falls through (a taken branch costs two bubbles)
     asm.br("k_first", Cond.FIRST)
     asm.label("k_predict")
+    # the three axes interleaved, so that products follow products: a MUL followed by a MUL
+    # that does not read its result takes one cycle instead of two
+    U, TP, D = T[0:3], T[3:6], T[6:9]
+    P = [[r[f"P{i}_{e}"] for e in ("00", "01", "10", "11")] for i in range(3)]
     for i in range(3):
-        th, b = r[f"THETA{i}"], r[f"BIAS{i}"]
-        p00, p01, p10, p11 = (r[f"P{i}_{e}"] for e in ("00", "01", "10", "11"))
-        asm.add(T[0], r[f"PREV{i}"], r[f"G{i}"])
-        asm.sub(T[0], T[0], b, shl=15)                   # u = avg rate − bias, Q16 counts
-        asm.mul(T[0], T[0], r["RATE"], 32)
-        asm.add(th, th, T[0], wrap=True)
+        asm.add(U[i], r[f"PREV{i}"], r[f"G{i}"])
+    for i in range(3):
+        asm.mul(U[i], U[i], r["SHL15"], 14)              # << 15 (exact: |ω| < 2¹⁶)
+    for i in range(3):
+        asm.sub(U[i], U[i], r[f"BIAS{i}"])               # u = avg rate − bias, Q16 counts
+    for i in range(3):
+        asm.mul(U[i], U[i], r["RATE"], 30)
+    for i in range(3):
+        asm.mul(TP[i], r["T"], P[i][3], 24)              # T·P11
+    for i in range(3):
+        asm.add(r[f"THETA{i}"], r[f"THETA{i}"], U[i], wrap=True)
         asm.add(r[f"PREV{i}"], r[f"G{i}"], r["ZERO"])
-        asm.mul(T[1], r["T"], p11, 24)                   # T·P11
-        asm.sub(T[2], T[1], p10)
-        asm.sub(T[2], T[2], p01)
-        asm.mul(T[2], r["T"], T[2], 24)
-        asm.add(p00, p00, T[2])
+        asm.sub(D[i], TP[i], P[i][2])
+        asm.sub(D[i], D[i], P[i][1])
+    for i in range(3):
+        asm.mul(D[i], r["T"], D[i], 24)
+    for i in range(3):
+        p00, p01, p10, p11 = P[i]
+        asm.add(p00, p00, D[i])
         asm.add(p00, p00, r["Q_ANGLE"])
-        asm.sub(p01, p01, T[1])
-        asm.sub(p10, p10, T[1])
+        asm.sub(p01, p01, TP[i])
+        asm.sub(p10, p10, TP[i])
         asm.add(p11, p11, r["Q_BIAS"])
     _zero_tests(asm, r, "k")
     asm.br("k_no_tilt", Cond.A_ZERO, a=r["ACC_OK"])
@@ -249,8 +272,7 @@ def _kalman(asm, r):
 def _complementary(asm, r):
     T = TEMPS
     for i in range(3):
-        asm.add(T[1], r[f"G{i}"], r["ZERO"], shl=16)             # ω·RATE >> 16 as
-        asm.mul(T[0], T[1], r["RATE"], 32)                        # (ω·2¹⁶)·RATE >> 32
+        asm.mul(T[0], r[f"G{i}"], r["RATE"], 14)                   # ω·RATE >> 14
         asm.add(r[f"PRED{i}"], r[f"THETA{i}"], T[0], wrap=True)
         asm.add(r[f"PREV{i}"], r[f"G{i}"], r["ZERO"])
     _zero_tests(asm, r, "c")

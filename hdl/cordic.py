@@ -1,7 +1,7 @@
 """Iterative CORDIC: vectoring (atan2 and magnitude) and rotation (cos and sin), BAM32 angles.
 
-Computes exactly ``reference.fixed_point.cordic_vector`` / ``cordic_rotate``: 24 iterations,
-one per cycle, arctangent table ``ATAN_TABLE`` (BAM32, rounded), arithmetic shifts of the
+Computes exactly ``reference.fixed_point.cordic_vector`` / ``cordic_rotate``:
+``CORDIC_ITERATIONS`` (16) iterations, one per cycle, arctangent table ``ATAN_TABLE`` (BAM32, rounded), arithmetic shifts of the
 values before each iteration.
 
 Interface
@@ -45,14 +45,17 @@ class CORDIC(wiring.Component):
 
     def elaborate(self, platform):
         m = Module()
-        x = Signal(signed(WIDTH))
-        y = Signal(signed(WIDTH))
-        z = Signal(signed(33))              # angle accumulator; wraps to 32 bits at the end
-        i = Signal(range(CORDIC_ITERATIONS + 1))
-        rotate = Signal()
-        zero = Signal()                     # vectoring of (0, 0)
+        # reset-less: loaded by every start (a reset would cost a LUT per bit)
+        x = Signal(signed(WIDTH), reset_less=True)
+        y = Signal(signed(WIDTH), reset_less=True)
+        # angle accumulator: BAM32 wraps by itself, and in rotation |z| stays below 100°, so
+        # its sign is the direction
+        z = Signal(signed(32), reset_less=True)
+        i = Signal(range(CORDIC_ITERATIONS), reset_less=True)
+        rotate = Signal(reset_less=True)
+        zero = Signal(reset_less=True)                     # vectoring of (0, 0)
 
-        atan = Array(Const(v, signed(33)) for v in ATAN_TABLE)
+        atan = Array(Const(v, signed(32)) for v in ATAN_TABLE)
         # σ = +1: x −= σ·(y >> i) … written out for both directions
         up = Signal()
         m.d.comb += up.eq(Mux(rotate, z < 0, y > 0))
@@ -68,15 +71,15 @@ class CORDIC(wiring.Component):
                         # beyond ±90°: turn by 180° (wrapping add of 2³¹), start from (−1/K, 0)
                         beyond = (a > (1 << 30)) | (a < -(1 << 30))
                         m.d.sync += [x.eq(Mux(beyond, -INV_GAIN_Q30, INV_GAIN_Q30)), y.eq(0),
-                                     zero.eq(0),
-                                     z.eq(Mux(beyond, (a + (1 << 31))[:32].as_signed(), a))]
+                                     zero.eq(0), z.eq(Cat(a[:31], a[31] ^ beyond))]
                     with m.Else():
                         xi, yi = self.x_in, self.y_in
                         m.d.sync += zero.eq((xi == 0) & (yi == 0))
-                        with m.If(xi < 0):           # left half-plane: negate, start at 180°
-                            m.d.sync += [x.eq(-xi), y.eq(-yi), z.eq(1 << 31)]
-                        with m.Else():
-                            m.d.sync += [x.eq(xi), y.eq(yi), z.eq(0)]
+                        # left half-plane: invert (−v − 1: no adder), start at 180°
+                        left = xi[31]
+                        m.d.sync += [x.eq(xi ^ left.replicate(32).as_signed()),
+                                     y.eq(yi ^ left.replicate(32).as_signed()),
+                                     z.eq(Cat(C(0, 31), left))]
                     m.next = "RUN"
             with m.State("RUN"):
                 m.d.comb += self.busy.eq(1)
@@ -96,7 +99,7 @@ class CORDIC(wiring.Component):
 
         max32, min32 = (1 << 31) - 1, -(1 << 31)
         m.d.comb += [
-            self.angle.eq(Mux(zero, 0, z[:32].as_signed())),
+            self.angle.eq(Mux(zero, 0, z)),
             self.magnitude.eq(Mux(zero, 0, Mux(x > max32, max32, x))),
             self.saturated.eq(~zero & (x > max32)),
             self.cos.eq(x),

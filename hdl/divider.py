@@ -1,19 +1,22 @@
-"""Fixed-point divider for the Kalman gains: q = (num·2²⁴)/den truncated towards zero.
+"""Fixed-point divider for the Kalman gains: q = ⌊num·2²⁴ / den⌋, saturated to 32 bits.
 
-Computes exactly ``reference.fixed_point.div_q24``: a restoring divider on |num| with the sign
-applied at the end; a quotient that does not fit 32 bits saturates (2³¹ − 1, or −2³¹), and a
+Computes exactly ``reference.fixed_point.div_q24``: a restoring divider, two quotient bits per
+cycle, 32 quotient bits. A quotient that does not fit 32 bits saturates (2³¹ − 1, or −2³¹) and a
 denominator ≤ 0 gives 0; both set ``saturated``.
 
-Why it can stop at 32 quotient bits: if |num| >> 7 < den the quotient is below 2³¹, so the
-partial remainder after the dividend's top 24 bits is just |num| >> 8 and only the 32 bits
-below need iterations (one overflow test replaces 24 iterations). If |num| < den (a Kalman
-gain below 1, the usual case) the quotient is below 2²⁴ and 24 iterations suffice.
+Why it is small: there is no negation anywhere. The result rounds towards −∞ (floor), so for a
+negative numerator N = num·2²⁴ it divides ~N ≥ 0 (the inverted numerator followed by 24 ones)
+and inverts the quotient: ⌊N/d⌋ = ~⌊~N/d⌋. Why 32 iterations are enough: they start with the
+partial remainder at the numerator's top bits (``|num| >> 8``); if that is already ≥ den the
+first quotient bit (2³¹) is set by the first trial anyway, and a set bit 31 means "saturate"
+either way. One register holds the dividend's low bits, shifted out at the top, and the
+quotient, shifted in at the bottom.
 
 Interface
     ``start`` (in): pulse with ``num``, ``den`` (signed 32) valid; ignored while ``busy``.
     ``done`` (out): one-cycle pulse; ``quotient`` and ``saturated`` hold until the next start.
-Latency: iterations / ``bits_per_cycle`` + 2 cycles: 10 (|num| ≥ den) or 8 (|num| < den)
-with the default 4 bits per cycle, 2 for the saturating cases.
+Latency: ``done`` 17 cycles after ``start`` (16 with two bits each, then the pulse); throughput
+one division per 18 cycles.
 """
 
 from amaranth import *
@@ -22,6 +25,8 @@ from amaranth.lib.wiring import In, Out
 
 
 __all__ = ["Divider"]
+
+BITS_PER_CYCLE = 2
 
 
 class Divider(wiring.Component):
@@ -34,63 +39,51 @@ class Divider(wiring.Component):
     quotient: Out(signed(32))
     saturated: Out(1)
 
-    def __init__(self, bits_per_cycle=4):
-        if 24 % bits_per_cycle or 32 % bits_per_cycle:
-            raise ValueError("bits_per_cycle must divide 24 and 32")
-        self.bits_per_cycle = bits_per_cycle
-        super().__init__()
-
     def elaborate(self, platform):
         m = Module()
-        k = self.bits_per_cycle
-        rem = Signal(32)                     # < den ≤ 2³¹ − 1
-        dividend = Signal(32)                # the bits still to bring down, MSB first
-        q = Signal(32)
-        den = Signal(32)
-        negative = Signal()
-        count = Signal(range(32 // k + 1))
+        # reset-less: loaded by every start (a reset would cost a LUT per bit)
+        rem = Signal(31, reset_less=True)    # < den ≤ 2³¹ − 1
+        shreg = Signal(32, reset_less=True)  # dividend bits (top) / quotient bits (bottom)
+        den = Signal(31, reset_less=True)
+        negative = Signal(reset_less=True)
+        den_bad = Signal(reset_less=True)
+        count = Signal(range(32 // BITS_PER_CYCLE), reset_less=True)
 
-        # k restoring steps per cycle, unrolled
-        r, d, qq = rem, dividend, q
-        for _ in range(k):
-            trial = Cat(d[31], r)            # (r << 1) | next dividend bit, 33 bits
-            diff = trial - den               # one subtractor: its sign is the comparison
-            ge = ~diff[33]
-            r = Mux(ge, diff, trial)[:32]
-            qq = Cat(ge, qq[:31])
-            d = Cat(C(0, 1), d[:31])
-        next_rem, next_div, next_q = r, d, qq
+        r, q = rem, shreg
+        for _ in range(BITS_PER_CYCLE):
+            trial = Cat(q[31], r)                            # (r << 1) | next bit, 32 bits
+            diff = Signal(signed(33))
+            m.d.comb += diff.eq(trial - den)                 # its sign is the comparison
+            ge = ~diff[32]
+            r = Mux(ge, diff[:31], trial[:31])
+            q = Cat(ge, q[:31])
 
-        magnitude = Mux(self.num < 0, -self.num, self.num)[:32]     # |num| ≤ 2³¹
-        max32 = (1 << 31) - 1
-        # saturated results are held in q with negative = 0
-        m.d.comb += self.quotient.eq(Mux(negative, -q.as_signed(), q.as_signed()))
+        num = self.num
+        inverted = (num ^ num[31].replicate(32))[:31]        # num ≥ 0: num; else ~num ≥ 0
+        overflow = shreg[31]                                 # quotient ≥ 2³¹
+        magnitude = Mux(overflow, C((1 << 31) - 1, 32), shreg)
+        m.d.comb += [
+            self.quotient.eq(Mux(den_bad, 0, magnitude ^ negative.replicate(32))),
+            self.saturated.eq(den_bad | overflow),
+        ]
         with m.FSM():
             with m.State("IDLE"):
                 with m.If(self.start):
-                    m.d.sync += [negative.eq(self.num < 0), den.eq(self.den),
-                                 self.saturated.eq(0), q.eq(0)]
-                    with m.If(self.den <= 0):
-                        m.d.sync += [negative.eq(0), self.saturated.eq(1)]
+                    bad = self.den[31] | (self.den == 0)
+                    m.d.sync += [
+                        negative.eq(num[31]), den.eq(self.den[:31]), den_bad.eq(bad),
+                        rem.eq(inverted >> 8),
+                        # the dividend's low 32 bits: the numerator's low 8, then 24 fill bits
+                        shreg.eq(Cat(num[31].replicate(24), inverted[:8])),
+                        count.eq(0),
+                    ]
+                    m.next = "RUN"
+                    with m.If(bad):
                         m.next = "DONE"
-                    with m.Elif((magnitude >> 7) >= self.den):
-                        m.d.sync += [q.eq(Mux(self.num < 0, 1 << 31, max32)), negative.eq(0),
-                                     self.saturated.eq(1)]
-                        m.next = "DONE"
-                    with m.Elif(magnitude < self.den):
-                        # quotient < 2²⁴: the remainder after the top 32 dividend bits is
-                        # |num| itself; iterate over the 24 zero bits below
-                        m.d.sync += [rem.eq(magnitude), dividend.eq(0), count.eq(8 // k)]
-                        m.next = "RUN"
-                    with m.Else():
-                        m.d.sync += [rem.eq(magnitude >> 8), dividend.eq(magnitude[:8] << 24),
-                                     count.eq(0)]
-                        m.next = "RUN"
             with m.State("RUN"):
                 m.d.comb += self.busy.eq(1)
-                m.d.sync += [rem.eq(next_rem), dividend.eq(next_div), q.eq(next_q),
-                             count.eq(count + 1)]
-                with m.If(count == 32 // k - 1):
+                m.d.sync += [rem.eq(r), shreg.eq(q), count.eq(count + 1)]
+                with m.If(count == 32 // BITS_PER_CYCLE - 1):
                     m.next = "DONE"
             with m.State("DONE"):
                 m.d.comb += self.done.eq(1)

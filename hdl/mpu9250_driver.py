@@ -273,7 +273,8 @@ class MPU9250Driver(wiring.Component):
 
         # -- register commands --------------------------------------------------------------------
         port = self.port
-        buf = Array(Signal(8, name=f"rx{i}") for i in range(SAMPLE_BYTES))
+        # reset-less: a sample is only read once all its bytes are in
+        buf = Array(Signal(8, name=f"rx{i}", reset_less=True) for i in range(SAMPLE_BYTES))
         rx_index = Signal(range(SAMPLE_BYTES + 1))
         m.d.comb += [port.rx.ready.eq(1), port.rsp.ready.eq(1)]
         with m.If(port.rx.valid & (rx_index < SAMPLE_BYTES)):

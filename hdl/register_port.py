@@ -61,7 +61,7 @@ class SPIRegisterPort(wiring.Component):
 
     def elaborate(self, platform):
         m = Module()
-        cmd = Signal(RegisterCommand)
+        cmd = Signal(RegisterCommand, reset_less=True)    # captured with each command
         total = Signal(range(MAX_READ + 2))    # bytes in the transaction, header included
         tx_index = Signal.like(total)
         rx_index = Signal.like(total)
@@ -108,7 +108,7 @@ class I2CRegisterPort(wiring.Component):
 
     def elaborate(self, platform):
         m = Module()
-        cmd = Signal(RegisterCommand)
+        cmd = Signal(RegisterCommand, reset_less=True)    # captured with each command
         address = Signal(7)
         remaining = Signal(range(MAX_READ + 1))
         error = Signal()

@@ -107,7 +107,7 @@ class SPIController(wiring.Component):
         timer = Signal(range(max(t.slow_half, t.fast_half, t.cs_hold, t.cs_gap) + 1))
         fast = Signal()         # rate of the current transaction
         last = Signal()         # current byte ends the transaction
-        tx = Signal(8)
+        tx = Signal(8, reset_less=True)     # loaded with each byte
         bit = Signal(range(8))
         half = Signal.like(timer)
         m.d.comb += half.eq(Mux(fast, t.fast_half, t.slow_half))
@@ -117,7 +117,7 @@ class SPIController(wiring.Component):
         strobe = Signal(t.capture_delay)
         rise = Signal()
         m.d.sync += strobe.eq(Cat(rise, strobe[:-1]))
-        rx = Signal(8)
+        rx = Signal(8, reset_less=True)     # read after 8 captures
         rx_count = Signal(range(9))
         with m.If(strobe[-1]):
             m.d.sync += [rx.eq(Cat(cipo, rx[:-1])), rx_count.eq(rx_count + 1)]

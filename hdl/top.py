@@ -98,7 +98,7 @@ class AHRSCore(wiring.Component):
             connect(m, flipped(self.cfg), engine.cfg)
             connect(m, flipped(self.cfg_read), engine.cfg_read)
             connect(m, engine.cfg_read_data, flipped(self.cfg_read_data))
-            held = Signal(Sample)
+            held = Signal(Sample, reset_less=True)
             with m.If(fe.samples.valid & fe.samples.ready):
                 m.d.sync += held.eq(fe.samples.payload)
             m.d.comb += [

@@ -6,7 +6,7 @@ gateware simulation, and to debug a program one instruction at a time (``trace=T
 The datapath primitives are the reference's, so only the program's logic is under test here.
 """
 
-from ..hdl.attitude_isa import ALU_SHIFTS, MUL_SHIFTS, Cond, Op
+from ..hdl.attitude_isa import MUL_SHIFTS, Cond, Op
 from ..hdl.attitude_program import LOAD_ORDER, REGS, build_program, config_init, load_words
 from ..reference.fixed_point import (INV_GAIN_Q30, KalmanFixedConfig, Status, cordic_rotate,
                                      cordic_vector, div_q24, sat, sat16, sat32,
@@ -46,14 +46,15 @@ class AttitudeISAModel:
                     r[d] = wrap32(value)
                 else:
                     value = sat32(value, st)
-                    r[d] = sat16(value, st) if ins.sat16 else value
+                    r[d] = sat16(value, st) if ins.sat16 and op in (Op.ADD, Op.SUB) \
+                        else value
                 if trace:
                     print(f"{pc - 1:3d} {op.name:4s} r{d:02x} <- {r[d]}")
 
             if op == Op.ADD:
-                put(ins.d, (a << ALU_SHIFTS[ins.sh]) + b, wrap=ins.wrap)
+                put(ins.d, a + b, wrap=ins.wrap)
             elif op == Op.SUB:
-                put(ins.d, (a << ALU_SHIFTS[ins.sh]) - b, wrap=ins.wrap)
+                put(ins.d, a - b, wrap=ins.wrap)
             elif op == Op.OR:
                 put(ins.d, a | b)
             elif op == Op.MUL:

@@ -102,7 +102,9 @@ def test_divider_against_reference():
     rng = np.random.default_rng(6)
     cases = [(1, 0), (5, -3), (-(2 ** 31), 1), (2 ** 31 - 1, 1), (2 ** 31 - 1, 2 ** 31 - 1),
              (-(2 ** 31), 2 ** 31 - 1), (0, 5), (-7, 3), (3, 7), (2 ** 24, 2 ** 17),
-             (2 ** 24, 2 ** 17 + 1), (-(2 ** 24), 2 ** 17 + 1)]
+             (2 ** 24, 2 ** 17 + 1), (-(2 ** 24), 2 ** 17 + 1),
+             # the saturation edges: 127·2²⁴ fits, 128·2²⁴ = 2³¹ does not; −128·2²⁴ = −2³¹ fits
+             (127, 1), (128, 1), (-128, 1), (-129, 1), (-1, 1), (-1, 2 ** 31 - 1), (-6, 3)]
     cases += [tuple(int(v) for v in (rng.integers(-2 ** 31, 2 ** 31), rng.integers(1, 2 ** 31)))
               for _ in range(15)]
     cases += [(int(rng.integers(-2 ** 26, 2 ** 26)), int(rng.integers(2 ** 20, 2 ** 28)))
