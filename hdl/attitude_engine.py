@@ -136,7 +136,7 @@ class AttitudeEngine(wiring.Component):
         # rounding and write-back happen in the next cycle (the "pending" stage), overlapped
         # with the next instruction when that is a MUL not reading the result (MAC chains,
         # independent products), otherwise the pipeline waits that one cycle.
-        product = Signal(signed(64), reset_less=True)
+        product = Signal(signed(64), reset_less=True)     # inverted already when ``neg``
         acc = Signal(signed(66), reset_less=True)
         acc_next = Signal(signed(66))
         rounding = Signal(signed(66))
@@ -147,9 +147,10 @@ class AttitudeEngine(wiring.Component):
             for code, s in enumerate(MUL_SHIFTS):
                 with m.Case(code):
                     m.d.comb += rounding.eq(1 << (s - 1))
-        # ± product with one adder: base + (~product if neg) + neg
+        # ± product with one adder: base + (~product if neg) + neg; the inversion is done before
+        # the product register, so each adder bit has four inputs (one LUT4)
         m.d.comb += acc_next.eq(Mux(pend_ins.acc, acc, rounding)
-                                + Mux(pend_ins.neg, ~product, product) + pend_ins.neg)
+                                + product + pend_ins.neg)
         # acc >> s saturated to 32 bits, selected per shift (each a slice of the accumulator)
         mul_v32 = Signal(signed(32))
         mul_f32 = Signal()
@@ -218,7 +219,8 @@ class AttitudeEngine(wiring.Component):
                                      w_sat.eq(x_sat)]
                     with m.Case(Op.MUL):
                         with m.If(phase == 0):
-                            m.d.sync += [product.eq(mult.p), pend_ins.eq(x), pend.eq(1)]
+                            m.d.sync += [product.eq(mult.p ^ x.neg.replicate(64)), pend_ins.eq(x),
+                                         pend.eq(1)]
                             # overlap the pending stage with the next instruction if it is a
                             # MUL (writes nothing now) that does not read this result
                             reads_d = x.wb & ((rinstr.a == x.d) | (rinstr.b == x.d))
@@ -273,10 +275,12 @@ class AttitudeEngine(wiring.Component):
         load_index = Signal(range(len(LOAD_ORDER)), reset_less=True)
         sample = self.samples.payload
         load_addr = Array(Const(REGS[n], 7) for n in LOAD_ORDER)
-        load_data = Array(load_words([sample.gyro[i] for i in range(3)],
-                                     [sample.accel[i] for i in range(3)],
-                                     [sample.mag[i] for i in range(3)],
-                                     [self.asa[i] for i in range(3)]))
+        # every load word fits 16 bits: multiplex 16, sign-extend on the write
+        load_data = Array(Value.cast(v)[:16].as_signed()
+                          for v in load_words([sample.gyro[i] for i in range(3)],
+                                              [sample.accel[i] for i in range(3)],
+                                              [sample.mag[i] for i in range(3)],
+                                              [self.asa[i] for i in range(3)]))
 
         with m.If(self.results.valid & self.results.ready):
             m.d.sync += result_valid.eq(0)

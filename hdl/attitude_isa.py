@@ -47,10 +47,10 @@ __all__ = ["Op", "Cond", "MUL_SHIFTS", "REG_COUNT", "ROM_DEPTH", "Instr",
 REG_COUNT = 128
 ROM_DEPTH = 512
 # The rounding shifts the programs use. Each one costs a 32-bit multiplexer input and an overflow
-# test, so there are few: formats are chosen to share them (Q2.14 coefficients, Q8.24
+# test, so there are few: formats are chosen to share them (Q2.14 coefficients and ASA, Q8.24
 # covariances, Q1.30 sines, RATE in Q14), and a left shift is a MUL by a power-of-two constant
-# register (the ALU has no shifter).
-MUL_SHIFTS = (14, 18, 24, 30)
+# register with shift 14 (the ALU has no shifter).
+MUL_SHIFTS = (14, 24, 30)
 
 
 class Op(enum.IntEnum):

@@ -61,7 +61,7 @@ def _allocate():
     names += [f"THETA{i}" for i in range(3)] + [f"BIAS{i}" for i in range(3)]
     names += [f"P{i}_{e}" for i in range(3) for e in ("00", "01", "10", "11")]
     names += [f"PREV{i}" for i in range(3)]
-    # inputs, written by the engine's loader: raw gyro, accel, AK8963 (AK axes), (ASA + 128)·2¹⁰
+    # inputs, written by the engine's loader: raw gyro, accel, AK8963 (AK axes), (ASA + 128)·2⁶
     names += [f"GRAW{i}" for i in range(3)] + [f"ARAW{i}" for i in range(3)]
     names += [f"MRAW{i}" for i in range(3)] + [f"ASA{i}" for i in range(3)]
     # calibrated body-axis sensor values
@@ -70,7 +70,8 @@ def _allocate():
     names += [f"PRED{i}" for i in range(3)] + [f"MEAS{i}" for i in range(4)]
     names += ["ACC_OK", "MAG_OK"]
     names += ["CR", "SR", "CP", "SP"]                         # CORDIC result pairs (d, d+1)
-    names += ["SHL15"]                            # constant 2²⁹ (reset value; no program writes it)
+    # constants (reset values; no program writes them): MUL by them with shift 14 shifts left
+    names += ["SHL12", "SHL15"]                   # 2²⁶, 2²⁹
     names += [f"T{i}" for i in range(12)]
     regs = dict(CONFIG_REGS)
     for k, name in enumerate(names):
@@ -88,10 +89,11 @@ LOAD_ORDER = ([f"GRAW{i}" for i in range(3)] + [f"ARAW{i}" for i in range(3)]
 
 def load_words(gyro, accel, mag_ak, asa):
     """The words the loader writes, in ``LOAD_ORDER``, from a sample's fields and the ASA
-    bytes: the fields as they are and (ASA + 128)·2¹⁰, so that the ASA product h·(ASA + 128)/2⁸
-    rounds with a MUL_SHIFTS shift (18). Works on integers (the models) and on Amaranth values
-    (the engine: an unsigned 8-bit ASA plus 128 is wiring, no adder)."""
-    return [*gyro, *accel, *mag_ak, *((a + 128) << 10 for a in asa)]
+    bytes: the fields as they are and (ASA + 128)·2⁶, so that the ASA product h·(ASA + 128)/2⁸
+    rounds with a MUL_SHIFTS shift (14). Every word fits 16 bits, so the engine multiplexes 16
+    bits and sign-extends. Works on integers (the models) and on Amaranth values (the engine:
+    an unsigned 8-bit ASA plus 128 is wiring, no adder)."""
+    return [*gyro, *accel, *mag_ak, *((a + 128) << 6 for a in asa)]
 
 
 def config_init(config, inv_gain_q30, cal=None):
@@ -104,6 +106,7 @@ def config_init(config, inv_gain_q30, cal=None):
         init[CONFIG_REGS[name]] = value
     init[CONFIG_REGS["INV_GAIN"]] = inv_gain_q30
     init[CONFIG_REGS["SHL8"]] = 1 << 22
+    init[REGS["SHL12"]] = 1 << 26
     init[REGS["SHL15"]] = 1 << 29
     for i in range(3):
         init[CONFIG_REGS[f"GYRO_OFF{i}"]] = cal.gyro_offset[i]
@@ -138,7 +141,7 @@ def _calibrate(asm, r):
     for i in range(3):
         asm.mul(T[i], T[i], r[f"ACC_SCALE{i}"], 14)
     for j in range(3):                               # ASA: h·(ASA + 128)/256, AK axes
-        asm.mul(T[3 + j], r[f"MRAW{j}"], r[f"ASA{j}"], 18)       # ASA holds (ASA + 128)·2¹⁰
+        asm.mul(T[3 + j], r[f"MRAW{j}"], r[f"ASA{j}"], 14)       # ASA holds (ASA + 128)·2⁶
     for i in range(3):
         asm.add(r[f"A{i}"], T[i], r["ZERO"], sat16=True)
     # AK8963 -> body axes (x = y_ak, y = x_ak, z = −z_ak), minus the hard-iron offset
@@ -171,10 +174,14 @@ def _heading(asm, r, roll, pitch, out):
     T = TEMPS
     asm.rot(r["CR"], roll)
     asm.rot(r["CP"], pitch)
+    # (sine · m) >> 18 as (sine · (m << 12)) >> 30: the same bits, one rounding shift fewer
+    ms = T[4:7]
+    for i in range(3):
+        asm.mul(ms[i], r[f"M{i}"], r["SHL12"], 14)
     asm.mul(T[0], r["SP"], r["SR"], 30)
     asm.mul(T[1], r["SP"], r["CR"], 30)
-    asm.mac(T[2], [(r["CP"], r["M0"]), (T[0], r["M1"]), (T[1], r["M2"])], 18)      # hx
-    asm.mac(T[3], [(r["CR"], r["M1"]), (r["SR"], r["M2"], -1)], 18)                # hy
+    asm.mac(T[2], [(r["CP"], ms[0]), (T[0], ms[1]), (T[1], ms[2])], 30)      # hx
+    asm.mac(T[3], [(r["CR"], ms[1]), (r["SR"], ms[2], -1)], 30)              # hy
     asm.vec(out, T[3], T[2])
 
 

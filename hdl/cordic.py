@@ -13,7 +13,8 @@ Interface
     Rotation results: ``cos``, ``sin`` in Q1.30 (on ``magnitude``/``angle``'s neighbours
         ``x_out``, ``y_out``).
 Latency: ``done`` ``CORDIC_ITERATIONS`` + 1 cycles after ``start``; throughput one operation per
-that many cycles. Internal width 35 bits, so any 32-bit input converges without overflow.
+that many cycles. Internal width 34 bits: a 32-bit vector's length times K (1.647) is below 2³³,
+so any 32-bit input converges without overflow.
 """
 
 from amaranth import *
@@ -25,7 +26,8 @@ from ..reference.fixed_point import ATAN_TABLE, CORDIC_ITERATIONS, INV_GAIN_Q30
 
 __all__ = ["CORDIC"]
 
-WIDTH = 35
+WIDTH = 34
+ATAN_SUM = sum(ATAN_TABLE)
 
 
 class CORDIC(wiring.Component):
@@ -53,12 +55,12 @@ class CORDIC(wiring.Component):
         z = Signal(signed(32), reset_less=True)
         i = Signal(range(CORDIC_ITERATIONS), reset_less=True)
         rotate = Signal(reset_less=True)
-        zero = Signal(reset_less=True)                     # vectoring of (0, 0)
 
         atan = Array(Const(v, signed(32)) for v in ATAN_TABLE)
         # σ = +1: x −= σ·(y >> i) … written out for both directions
         up = Signal()
-        m.d.comb += up.eq(Mux(rotate, z < 0, y > 0))
+        # the signs alone (y ≥ 0 rather than y > 0: no zero test)
+        m.d.comb += up.eq(Mux(rotate, z[-1], ~y[-1]))
         xs, ys = Signal(signed(WIDTH)), Signal(signed(WIDTH))
         m.d.comb += [xs.eq(x >> i), ys.eq(y >> i)]
 
@@ -71,15 +73,17 @@ class CORDIC(wiring.Component):
                         # beyond ±90°: turn by 180° (wrapping add of 2³¹), start from (−1/K, 0)
                         beyond = (a > (1 << 30)) | (a < -(1 << 30))
                         m.d.sync += [x.eq(Mux(beyond, -INV_GAIN_Q30, INV_GAIN_Q30)), y.eq(0),
-                                     zero.eq(0), z.eq(Cat(a[:31], a[31] ^ beyond))]
+                                     z.eq(Cat(a[:31], a[31] ^ beyond))]
                     with m.Else():
                         xi, yi = self.x_in, self.y_in
-                        m.d.sync += zero.eq((xi == 0) & (yi == 0))
                         # left half-plane: invert (−v − 1: no adder), start at 180°
                         left = xi[31]
+                        # (0, 0) stays (0, 0) and turns the same way (y ≥ 0) every iteration,
+                        # so starting it at −Σ atan ends it at angle 0: no output multiplexer
+                        zero = (xi == 0) & (yi == 0)
                         m.d.sync += [x.eq(xi ^ left.replicate(32).as_signed()),
                                      y.eq(yi ^ left.replicate(32).as_signed()),
-                                     z.eq(Cat(C(0, 31), left))]
+                                     z.eq(Mux(zero, -ATAN_SUM, Cat(C(0, 31), left)))]
                     m.next = "RUN"
             with m.State("RUN"):
                 m.d.comb += self.busy.eq(1)
@@ -99,9 +103,9 @@ class CORDIC(wiring.Component):
 
         max32, min32 = (1 << 31) - 1, -(1 << 31)
         m.d.comb += [
-            self.angle.eq(Mux(zero, 0, z)),
-            self.magnitude.eq(Mux(zero, 0, Mux(x > max32, max32, x))),
-            self.saturated.eq(~zero & (x > max32)),
+            self.angle.eq(z),
+            self.magnitude.eq(Mux(x > max32, max32, x)),
+            self.saturated.eq(x > max32),
             self.cos.eq(x),
             self.sin.eq(y),
         ]

@@ -8,7 +8,10 @@ Quartus duplicates a RAM for a second read address).
 
 ``blackbox=True`` instantiates empty modules (``blackbox_stub()`` gives their Verilog) in place
 of ``lib.memory.Memory``: Debian's Yosys 0.23 cannot map initialised RAM onto MAX10 M9K blocks,
-so ``report`` counts their bits and keeps them out of the logic-element count.
+so ``report`` counts their bits and keeps them out of the logic-element count. The register
+file's blackbox reads old data, as an M9K does between its ports, and the logic Quartus adds for
+the transparent reads (the written word, a registered address match, a multiplexer per port)
+is built around it, so that it is counted.
 """
 
 from amaranth import *
@@ -39,11 +42,21 @@ class RegisterFile(wiring.Component):
     def elaborate(self, platform):
         m = Module()
         if self.blackbox:
+            ram_a, ram_b = Signal(signed(32)), Signal(signed(32))
             m.submodules.ram = Instance(
                 f"mpu9250_ahrs_regfile{self.depth}x32", i_clk=ClockSignal(), i_w_en=self.w_en,
                 i_w_addr=self.w_addr, i_w_data=self.w_data, i_r_en=self.r_en,
-                i_ra_addr=self.ra_addr, i_rb_addr=self.rb_addr, o_ra_data=self.ra_data,
-                o_rb_data=self.rb_data)
+                i_ra_addr=self.ra_addr, i_rb_addr=self.rb_addr, o_ra_data=ram_a,
+                o_rb_data=ram_b)
+            # read-during-write bypass: what makes the M9K's old-data reads transparent
+            written = Signal(signed(32), reset_less=True)
+            hit_a, hit_b = Signal(reset_less=True), Signal(reset_less=True)
+            with m.If(self.r_en):
+                m.d.sync += [written.eq(self.w_data),
+                             hit_a.eq(self.w_en & (self.w_addr == self.ra_addr)),
+                             hit_b.eq(self.w_en & (self.w_addr == self.rb_addr))]
+            m.d.comb += [self.ra_data.eq(Mux(hit_a, written, ram_a)),
+                         self.rb_data.eq(Mux(hit_b, written, ram_b))]
             return m
         m.submodules.mem = mem = Memory(shape=signed(32), depth=self.depth, init=self.init)
         wp = mem.write_port()

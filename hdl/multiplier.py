@@ -1,9 +1,19 @@
 """Signed 32 × 32 → 64-bit multiplier, combinational.
 
-On a MAX10 Quartus maps it onto four embedded 18×18 multipliers (a 32-bit signed operand needs
-two 18-bit parts). ``blackbox=True`` instantiates an empty module (``BLACKBOX_NAME``) instead,
-so that a synthesis tool which cannot map multipliers (Debian's Yosys 0.23 for MAX10) counts it
-as a hard block rather than thousands of logic elements; ``report`` uses that.
+On a MAX10 it takes four embedded 18 × 18 multipliers: with a = a_h·2¹⁷ + a_l (a_l the low 17
+bits, unsigned; a_h the top 15, signed) and b likewise,
+
+    a·b = a_h·b_h·2³⁴ + (a_h·b_l + a_l·b_h)·2¹⁷ + a_l·b_l,
+
+where a_l·b_l < 2³⁴, so the first and last terms are just placed side by side and the logic
+adds only the two middle products and the sum into bits 17 up (the MAX10's blocks have no
+adders; Quartus puts these in logic elements too).
+
+``blackbox=True`` instantiates the four blocks as empty modules (``BLACKBOX_NAME``) with that
+adder logic around them, so that a synthesis tool which cannot map multipliers (Debian's
+Yosys 0.23 for MAX10) counts the blocks apart and the adders as logic; ``report`` uses it.
+``split=True`` builds the same structure with real 18 × 18 products, for simulation (the test
+that the decomposition is exact).
 
 Interface: ``a``, ``b`` (in, signed 32), ``p`` (out, signed 64); latency 0 (the engine registers
 the product).
@@ -14,10 +24,11 @@ from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
 
-__all__ = ["Multiplier", "BLACKBOX_NAME", "BLOCKS_18X18"]
+__all__ = ["Multiplier", "BLACKBOX_NAME", "BLACKBOX_STUB"]
 
-BLACKBOX_NAME = "mpu9250_ahrs_mul32x32"
-BLOCKS_18X18 = 4
+BLACKBOX_NAME = "mpu9250_ahrs_mul18x18"
+BLACKBOX_STUB = (f"(* blackbox *) module {BLACKBOX_NAME}(input signed [17:0] a, "
+                 f"input signed [17:0] b, output signed [35:0] p);\nendmodule\n")
 
 
 class Multiplier(wiring.Component):
@@ -25,14 +36,34 @@ class Multiplier(wiring.Component):
     b: In(signed(32))
     p: Out(signed(64))
 
-    def __init__(self, *, blackbox=False):
+    def __init__(self, *, blackbox=False, split=False):
         self.blackbox = blackbox
+        self.split = split or blackbox
         super().__init__()
 
     def elaborate(self, platform):
         m = Module()
-        if self.blackbox:
-            m.submodules.mul = Instance(BLACKBOX_NAME, i_a=self.a, i_b=self.b, o_p=self.p)
-        else:
+        if not self.split:
             m.d.comb += self.p.eq(self.a * self.b)
+            return m
+
+        def halves(v):
+            # 18-bit signed block inputs: the low 17 bits zero-extended, the top 15 sign-extended
+            return v[:17].as_unsigned(), v[17:].as_signed()
+
+        (al, ah), (bl, bh) = halves(self.a), halves(self.b)
+        products = {}
+        for name, x, y in (("ll", al, bl), ("lh", al, bh), ("hl", ah, bl), ("hh", ah, bh)):
+            product = Signal(signed(36), name=f"p_{name}")
+            if self.blackbox:
+                m.submodules[f"mul_{name}"] = Instance(BLACKBOX_NAME, i_a=x, i_b=y, o_p=product)
+            else:
+                m.d.comb += product.eq(x * y)
+            products[name] = product
+        middle = Signal(signed(33))
+        m.d.comb += [
+            middle.eq(products["lh"] + products["hl"]),
+            self.p.eq(Cat(products["ll"][:34], products["hh"][:30]).as_signed()
+                      + (middle << 17)),
+        ]
         return m

@@ -5,8 +5,10 @@ It cannot map multipliers or initialised RAM onto the MAX10's hard blocks, so th
 elaborated with those as empty modules (``blackbox_hard_blocks``) and they are counted from
 their sizes:
 
-- ``multipliers_18x18``: each 32×32 multiplier takes four 18×18 blocks; any other non-constant
-  ``$mul`` in the netlist is counted as ⌈a/18⌉·⌈b/18⌉ blocks.
+- ``multipliers_18x18``: the engine's 32×32 multiplier is built from four 18×18 blocks (empty
+  modules here) and the adders that combine their products, in logic as on a MAX10 (its blocks
+  have no adders), so those adders are in ``logic_elements``; any other non-constant ``$mul``
+  in the netlist is counted as ⌈a/18⌉·⌈b/18⌉ blocks.
 - ``memory_bits``: the register file (twice: one copy per read port, as Quartus builds a RAM
   with two read addresses) and the microcode ROM. Small constant tables Yosys turns into ROMs
   (the CORDIC's arctangents) stay in logic here: ``rom_bits_in_logic``.
@@ -40,10 +42,8 @@ YOSYS_HINT = "install it with: apt-get install yosys (Debian's 0.23 has synth_in
 
 def _stubs(engine):
     from .hdl.memories import blackbox_stub
-    from .hdl.multiplier import BLACKBOX_NAME
-    return (blackbox_stub(engine.regfile, engine.rom)
-            + f"(* blackbox *) module {BLACKBOX_NAME}(input [31:0] a, input [31:0] b, "
-              f"output [63:0] p);\nendmodule\n")
+    from .hdl.multiplier import BLACKBOX_STUB
+    return blackbox_stub(engine.regfile, engine.rom) + BLACKBOX_STUB
 
 
 def _yosys(script, cwd):
@@ -65,7 +65,7 @@ def _count(stat_text, cell):
 def synthesize(top, name, engine):
     """Figures for one elaboratable (``engine``: the AttitudeEngine inside it, elaborated with
     ``blackbox_hard_blocks=True``)."""
-    from .hdl.multiplier import BLACKBOX_NAME, BLOCKS_18X18
+    from .hdl.multiplier import BLACKBOX_NAME
     with tempfile.TemporaryDirectory() as tmp:
         with open(os.path.join(tmp, "design.v"), "w") as f:
             f.write(verilog.convert(top, name=name))
@@ -84,7 +84,7 @@ def synthesize(top, name, engine):
         ice40 = open(os.path.join(tmp, "ice40.txt")).read()
         ltp = open(os.path.join(tmp, "ltp.txt")).read()
 
-    multipliers = _count(intel, BLACKBOX_NAME) * BLOCKS_18X18
+    multipliers = _count(intel, BLACKBOX_NAME)
     other_muls = []
     rom_bits = 0
     for cell in pre["cells"].values():

@@ -127,7 +127,7 @@ def deg_to_bam(d):
 
 def cordic_vector(x, y, status=None):
     """Vectoring CORDIC: (atan2(y, x) in BAM32, magnitude · K saturated to 32 bits). Inputs are
-    32-bit integers (the gateware iterates on 35 bits, so nothing overflows inside); the vector
+    32-bit integers (the gateware iterates on 34 bits, so nothing overflows inside); the vector
     is first turned into the right half-plane (±180° as needed) by inverting its bits, −v − 1
     rather than −v: one LSB off, and no adder in the gateware."""
     if x == 0 and y == 0:
@@ -137,7 +137,7 @@ def cordic_vector(x, y, status=None):
     if x < 0:
         x, y, angle = ~x, ~y, 1 << 31
     for i in range(CORDIC_ITERATIONS):
-        if y > 0:
+        if y >= 0:                               # a sign test, no zero test
             x, y = x + (y >> i), y - (x >> i)
             angle += ATAN_TABLE[i]
         else:
