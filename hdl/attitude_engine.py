@@ -8,7 +8,7 @@ in ``hdl/attitude_isa.py``) drives one datapath: a 32×32 multiplier with a 66-b
 
 Pipeline: fetch (instruction ROM, synchronous) → read (register file, two synchronous read
 ports, transparent to the write port) → execute and write back. A result is visible to the
-next instruction without stalls; multi-cycle operations (MUL 2, DIV 11, VEC/ROT 27 cycles)
+next instruction without stalls; multi-cycle operations (MUL 2, DIV 18, VEC/ROT 19 cycles)
 hold the pipeline; a taken branch costs two bubbles.
 
 Interface
@@ -32,8 +32,8 @@ from amaranth.lib.wiring import In, Out
 
 from ..reference.fixed_point import INV_GAIN_Q30, KalmanFixedConfig
 from .attitude_isa import MUL_SHIFTS, REG_COUNT, Cond, Instr, Op
-from .attitude_program import CONTROL_ADDR, FLAG_ACC, FLAG_MAG, LOAD_ORDER, REGS, \
-    build_program, config_init, load_words
+from .attitude_program import (CONTROL_ADDR, FLAG_ACC, FLAG_MAG, LOAD_BASE, LOAD_ORDER, REGS,
+                               build_program, config_init, load_words)
 from .cordic import CORDIC
 from .divider import Divider
 from .memories import MicrocodeROM, RegisterFile
@@ -274,7 +274,6 @@ class AttitudeEngine(wiring.Component):
 
         load_index = Signal(range(len(LOAD_ORDER)), reset_less=True)
         sample = self.samples.payload
-        load_addr = Array(Const(REGS[n], 7) for n in LOAD_ORDER)
         # every load word fits 16 bits: multiplex 16, sign-extend on the write
         load_data = Array(Value.cast(v)[:16].as_signed()
                           for v in load_words([sample.gyro[i] for i in range(3)],
@@ -325,7 +324,7 @@ class AttitudeEngine(wiring.Component):
                         m.d.sync += [read_busy.eq(1),
                                      read_control.eq(self.cfg_read.payload == CONTROL_ADDR)]
             with m.State("LOAD"):
-                m.d.comb += [self.busy.eq(1), w_en.eq(1), w_addr.eq(load_addr[load_index]),
+                m.d.comb += [self.busy.eq(1), w_en.eq(1), w_addr.eq(LOAD_BASE | load_index),
                              w_data.eq(load_data[load_index])]
                 m.d.sync += load_index.eq(load_index + 1)
                 with m.If(load_index == len(LOAD_ORDER) - 1):

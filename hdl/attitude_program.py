@@ -33,14 +33,16 @@ address  name            meaning, format                                        
                          state (angles 0, bias 0, P = P0·I)
 =======  ==============  =========================================================  ===========
 
-State and working registers follow from 0x20 (``REGS``); the host need not know them.
+From 0x20 (``REGS``): the loader's inputs, the filter state, working registers and two more
+constants (``SHL12`` = 2²⁶, ``SHL15`` = 2²⁹, reset values that no program writes; do not write
+them either); the host need not know them.
 """
 
 from .attitude_isa import REG_COUNT, Assembler, Cond
 
 
 __all__ = ["CONFIG_REGS", "CONTROL_ADDR", "REGS", "ENTRY", "FLAG_ACC", "FLAG_MAG",
-           "LOAD_ORDER", "TEMPS", "build_program", "config_init", "load_words"]
+           "LOAD_BASE", "LOAD_ORDER", "TEMPS", "build_program", "config_init", "load_words"]
 
 CONTROL_ADDR = 0x7F
 FLAG_ACC, FLAG_MAG = 0, 1
@@ -58,12 +60,13 @@ CONFIG_REGS = {
 
 def _allocate():
     names = []
+    # inputs, written by the engine's loader: raw gyro, accel, AK8963 (AK axes), (ASA + 128)·2⁶;
+    # first, at 0x20, so that the loader's address is its counter with 0b010 above it
+    names += [f"GRAW{i}" for i in range(3)] + [f"ARAW{i}" for i in range(3)]
+    names += [f"MRAW{i}" for i in range(3)] + [f"ASA{i}" for i in range(3)]
     names += [f"THETA{i}" for i in range(3)] + [f"BIAS{i}" for i in range(3)]
     names += [f"P{i}_{e}" for i in range(3) for e in ("00", "01", "10", "11")]
     names += [f"PREV{i}" for i in range(3)]
-    # inputs, written by the engine's loader: raw gyro, accel, AK8963 (AK axes), (ASA + 128)·2⁶
-    names += [f"GRAW{i}" for i in range(3)] + [f"ARAW{i}" for i in range(3)]
-    names += [f"MRAW{i}" for i in range(3)] + [f"ASA{i}" for i in range(3)]
     # calibrated body-axis sensor values
     names += [f"G{i}" for i in range(3)] + [f"A{i}" for i in range(3)] + [f"M{i}" for i in range(3)]
     # MEAS3 takes the magnitude the heading's vectoring CORDIC writes beside MEAS2
@@ -85,6 +88,8 @@ REGS = _allocate()
 TEMPS = [REGS[f"T{i}"] for i in range(12)]
 LOAD_ORDER = ([f"GRAW{i}" for i in range(3)] + [f"ARAW{i}" for i in range(3)]
               + [f"MRAW{i}" for i in range(3)] + [f"ASA{i}" for i in range(3)])
+LOAD_BASE = 0x20
+assert [REGS[n] for n in LOAD_ORDER] == list(range(LOAD_BASE, LOAD_BASE + len(LOAD_ORDER)))
 
 
 def load_words(gyro, accel, mag_ak, asa):

@@ -76,7 +76,7 @@ def div_floor(num, den, frac):
 
 
 def div_q24(num, den, status=None):
-    """The datapath's divider: (num·2²⁴)/den truncated towards zero, saturated to 32 bits; a
+    """The datapath's divider: ⌊num·2²⁴/den⌋ (towards −∞), saturated to 32 bits; a
     denominator ≤ 0 gives 0 (and counts as a saturation)."""
     if den <= 0:
         if status is not None:
