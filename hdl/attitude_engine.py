@@ -64,8 +64,6 @@ def _saturate(m, value, bits):
     return out, flag
 
 
-
-
 class AttitudeEngine(wiring.Component):
     def __init__(self, config=KalmanFixedConfig(), cal=None, *, complementary=False,
                  blackbox_hard_blocks=False):

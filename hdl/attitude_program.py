@@ -21,13 +21,13 @@ address  name            meaning, format                                        
 0x07     BIAS_SCALE      360·LSB_per_dps/2¹⁶, Q8.24                                 from LSB
 0x08     ONE_MINUS_A     complementary filter 1 − a, Q0.24                          0.02
 0x09     INV_GAIN        1/K of the CORDIC, Q1.30 (do not write)                    0.607…
-0x1F     SHL8            2²²: a MUL by it with shift 14 is a left shift by 8        2²²
-                         (do not write)
 0x0A-0C  GYRO_OFF x,y,z  gyro offset, counts                                        0
 0x0D-0F  ACC_OFF x,y,z   accelerometer offset, counts                               0
 0x10-12  ACC_SCALE       accelerometer scale, Q2.14                                 1.0
 0x13-15  HARD x,y,z      hard-iron offset, counts, body axes, after ASA             0
 0x16-1E  SOFT            soft-iron matrix, row-major, Q2.14                         identity
+0x1F     SHL8            2²²: a MUL by it with shift 14 is a left shift by 8        2²²
+                         (do not write)
 0x7F     CONTROL         (not a register-file word) bit 0: 1 = complementary
                          filter, 0 = Kalman; bit 1: write 1 to reset the filter
                          state (angles 0, bias 0, P = P0·I)

@@ -1,8 +1,8 @@
 """Iterative CORDIC: vectoring (atan2 and magnitude) and rotation (cos and sin), BAM32 angles.
 
 Computes exactly ``reference.fixed_point.cordic_vector`` / ``cordic_rotate``:
-``CORDIC_ITERATIONS`` (16) iterations, one per cycle, arctangent table ``ATAN_TABLE`` (BAM32, rounded), arithmetic shifts of the
-values before each iteration.
+``CORDIC_ITERATIONS`` (16) iterations, one per cycle, arctangent table ``ATAN_TABLE`` (BAM32,
+rounded), arithmetic shifts of the values before each iteration.
 
 Interface
     ``start`` (in): pulse with ``mode`` (0 vectoring, 1 rotation), ``x_in``, ``y_in`` (signed
@@ -101,7 +101,7 @@ class CORDIC(wiring.Component):
                 m.d.comb += self.done.eq(1)
                 m.next = "IDLE"
 
-        max32, min32 = (1 << 31) - 1, -(1 << 31)
+        max32 = (1 << 31) - 1
         m.d.comb += [
             self.angle.eq(z),
             self.magnitude.eq(Mux(x > max32, max32, x)),

@@ -77,9 +77,10 @@ class Divider(wiring.Component):
                         shreg.eq(Cat(num[31].replicate(24), inverted[:8])),
                         count.eq(0),
                     ]
-                    m.next = "RUN"
                     with m.If(bad):
                         m.next = "DONE"
+                    with m.Else():
+                        m.next = "RUN"
             with m.State("RUN"):
                 m.d.comb += self.busy.eq(1)
                 m.d.sync += [rem.eq(r), shreg.eq(q), count.eq(count + 1)]

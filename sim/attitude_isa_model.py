@@ -46,8 +46,7 @@ class AttitudeISAModel:
                     r[d] = wrap32(value)
                 else:
                     value = sat32(value, st)
-                    r[d] = sat16(value, st) if ins.sat16 and op in (Op.ADD, Op.SUB) \
-                        else value
+                    r[d] = sat16(value, st) if ins.sat16 else value
                 if trace:
                     print(f"{pc - 1:3d} {op.name:4s} r{d:02x} <- {r[d]}")
 
