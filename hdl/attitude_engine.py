@@ -1,10 +1,12 @@
 """Attitude engine: calibration and attitude filters on one shared fixed-point datapath.
 
-A microcoded sequencer (program and register map in ``hdl/attitude_program.py``, instruction set
-in ``hdl/attitude_isa.py``) drives one datapath: a 32×32 multiplier with a 66-bit accumulator
-(rounding and saturation on write-back), a saturating/wrapping adder, an iterative CORDIC
-(``hdl/cordic.py``) and a divider (``hdl/divider.py``). Results equal
-``reference.fixed_point.attitude_fixed`` bit for bit.
+A microcoded sequencer (program and register map in ``hdl/attitude_program.py``, the flagship's
+routine in ``hdl/flagship_microcode.py``, instruction set in ``hdl/attitude_isa.py``) drives one
+datapath: a 32×32 multiplier with a 66-bit accumulator (rounding and saturation on write-back),
+a saturating/wrapping adder, an iterative CORDIC (``hdl/cordic.py``) and a divider
+(``hdl/divider.py``). Results equal ``reference.fixed_point.EngineModel`` bit for bit. Three
+filters, selected at run time: the flagship quaternion filter (the reset default), the per-axis
+Kalman filter and the complementary filter.
 
 Pipeline: fetch (instruction ROM, synchronous) → read (register file, two synchronous read
 ports, transparent to the write port) → execute and write back. A result is visible to the
@@ -17,23 +19,32 @@ Interface
         it is loaded (12 cycles), then acknowledged.
     ``asa`` (in, 3 × 8 bits): the AK8963's fuse-ROM sensitivity bytes (from the driver).
     ``cfg`` (in, stream of ``ConfigWrite``): register writes (``attitude_program`` has the
-        map); accepted while the engine is idle. Address 0x7F is the control register.
-    ``cfg_read`` (in, stream of 7-bit addresses) / ``cfg_read_data`` (out, stream of signed
-        32): register read-back, accepted while idle, the word one cycle later (address 0x7F
-        reads the filter select bit; any address reads the register file, state included).
-    ``results`` (out, stream of ``Attitude``): one per sample; valid until taken.
+        map); accepted while the engine is idle. ``CONTROL_ADDR`` (0xFF) is the control
+        register: bits 1:0 select the filter (0 Kalman, 1 complementary, 2 flagship), bit 2
+        resets the filter state; selecting another filter makes the next sample a first one.
+    ``cfg_read`` (in, stream of 8-bit addresses) / ``cfg_read_data`` (out, stream of signed
+        32): register read-back, accepted while idle, the word one cycle later (0xFF reads the
+        filter select; any other address reads the register file, state included).
+    ``results`` (out, stream of ``Attitude``): one per sample — quaternion, angles, bias,
+        counter, flags — valid (and unchanging) until taken.
     ``busy`` (out): an update or a filter reset is running.
-Latency (sample valid to result valid): see ``report`` (``cycles_per_update``).
+Latency (sample valid to result valid) and throughput (one sample per update): ``report``'s
+``cycles_per_update`` per filter; every instruction has a fixed time, so only the branches
+taken (measurements skipped or rejected) make an update shorter.
 """
+
+import math
 
 from amaranth import *
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
-from ..reference.fixed_point import INV_GAIN_Q30, KalmanFixedConfig
-from .attitude_isa import MUL_SHIFTS, REG_COUNT, Cond, Instr, Op
-from .attitude_program import (CONTROL_ADDR, FLAG_ACC, FLAG_MAG, LOAD_BASE, LOAD_ORDER, REGS,
-                               build_program, config_init, load_words)
+from ..reference.fixed_point import (INV_GAIN_Q30, CalibrationFixed, KalmanFixedConfig,
+                                     calibration_registers)
+from ..reference.flagship_fixed import FlagshipFixedConfig
+from .attitude_isa import MUL_SHIFTS, REG_BITS, REG_COUNT, Cond, Flag, Instr, Op
+from .attitude_program import (CONTROL_ADDR, CONTROL_RESET, FILTER_CODES, LOAD_BASE, LOAD_ORDER,
+                               REGS, build_program, config_init, load_words)
 from .cordic import CORDIC
 from .divider import Divider
 from .memories import MicrocodeROM, RegisterFile
@@ -41,7 +52,7 @@ from .multiplier import Multiplier
 from .sample import Attitude, ConfigWrite, Sample
 
 
-__all__ = ["AttitudeEngine", "default_filter_config"]
+__all__ = ["AttitudeEngine", "default_filter_config", "default_flagship_config"]
 
 
 def default_filter_config(sensor):
@@ -49,6 +60,14 @@ def default_filter_config(sensor):
     its full scale, and the published Q, R, P₀."""
     return KalmanFixedConfig(dt=1 / sensor.output_data_rate,
                              gyro_lsb_per_dps=32768 / sensor.gyro_fs_dps)
+
+
+def default_flagship_config(sensor):
+    """The flagship's registers for an ``MPU9250Config``: T = 1/ODR and the LSBs of its full
+    scales (rad/s and m/s²), the published parameters otherwise."""
+    return FlagshipFixedConfig(dt=1 / sensor.output_data_rate,
+                               gyro_lsb_per_rad=32768 / sensor.gyro_fs_dps * 180 / math.pi,
+                               accel_lsb_per_ms2=32768 / sensor.accel_fs_g / 9.80665)
 
 
 def _saturate(m, value, bits):
@@ -65,15 +84,22 @@ def _saturate(m, value, bits):
 
 
 class AttitudeEngine(wiring.Component):
-    def __init__(self, config=KalmanFixedConfig(), cal=None, *, complementary=False,
-                 blackbox_hard_blocks=False):
+    """``config`` (``KalmanFixedConfig``), ``cal`` (``CalibrationFixed``) and ``flagship``
+    (``FlagshipFixedConfig``) give the register file's reset values; ``filter`` the filter
+    selected at reset (a ``FILTER_CODES`` name: the flagship unless told)."""
+
+    def __init__(self, config=KalmanFixedConfig(), cal=None, flagship=None, *,
+                 filter="flagship", blackbox_hard_blocks=False):
         self.config = config
-        self.cal = cal
-        self.complementary_at_reset = complementary
+        self.cal = CalibrationFixed() if cal is None else cal
+        self.flagship = FlagshipFixedConfig(dt=config.dt) if flagship is None else flagship
+        self.filter_at_reset = FILTER_CODES[filter]
         self.program, self.entry = build_program()
         # hard blocks (multiplier, memories) as empty modules: for ``report``'s synthesis
         self.multiplier = Multiplier(blackbox=blackbox_hard_blocks)
-        self.regfile = RegisterFile(REG_COUNT, config_init(config, INV_GAIN_Q30, cal),
+        registers = {**config.registers(), **self.flagship.registers(),
+                     **calibration_registers(self.cal)}
+        self.regfile = RegisterFile(REG_COUNT, config_init(registers, INV_GAIN_Q30),
                                     blackbox=blackbox_hard_blocks)
         self.rom = MicrocodeROM([i.encode() for i in self.program],
                                 data.Layout.cast(Instr).size, blackbox=blackbox_hard_blocks)
@@ -81,7 +107,7 @@ class AttitudeEngine(wiring.Component):
             "samples": In(stream.Signature(Sample)),
             "asa": In(data.ArrayLayout(8, 3)),
             "cfg": In(stream.Signature(ConfigWrite)),
-            "cfg_read": In(stream.Signature(7)),
+            "cfg_read": In(stream.Signature(REG_BITS)),
             "cfg_read_data": Out(stream.Signature(signed(32))),
             "results": Out(stream.Signature(Attitude)),
             "busy": Out(1),
@@ -109,11 +135,12 @@ class AttitudeEngine(wiring.Component):
         branch_to = Signal.like(fetch_pc)
 
         first = Signal(init=1)
-        compl = Signal(init=int(self.complementary_at_reset))
+        filter_sel = Signal(2, init=self.filter_at_reset)
         init_pending = Signal(init=1)                     # run the INIT program after reset
         running_init = Signal()
         mag_valid = Signal()
-        flag_acc, flag_mag, flag_sat = Signal(), Signal(), Signal()
+        flags_set = Signal(len(Flag))                       # SETF flags of this update
+        flag_sat = Signal()
         out = Signal(Attitude, reset_less=True)
         result_valid = Signal()
 
@@ -177,12 +204,16 @@ class AttitudeEngine(wiring.Component):
                 m.d.comb += cond.eq(1)
             with m.Case(Cond.A_ZERO):
                 m.d.comb += cond.eq(opa == 0)
+            with m.Case(Cond.A_NEG):
+                m.d.comb += cond.eq(opa[-1])
             with m.Case(Cond.MAG_INVALID):
                 m.d.comb += cond.eq(~mag_valid)
             with m.Case(Cond.FIRST):
                 m.d.comb += cond.eq(first)
             with m.Case(Cond.COMPL):
-                m.d.comb += cond.eq(compl)
+                m.d.comb += cond.eq(filter_sel == FILTER_CODES["complementary"])
+            with m.Case(Cond.FLAGSHIP):
+                m.d.comb += cond.eq(filter_sel == FILTER_CODES["flagship"])
 
         m.d.comb += [
             cordic.x_in.eq(opa), cordic.y_in.eq(opb), cordic.angle_in.eq(opa),
@@ -191,14 +222,16 @@ class AttitudeEngine(wiring.Component):
         ]
 
         # -- the write port: loader, host configuration, or the execute stage -------------------
-        w_en, w_addr, w_data, w_sat = Signal(), Signal(7), Signal(signed(32)), Signal()
+        w_en, w_addr, w_data, w_sat = Signal(), Signal(REG_BITS), Signal(signed(32)), Signal()
         m.d.comb += [rf.w_en.eq(w_en), rf.w_addr.eq(w_addr), rf.w_data.eq(w_data)]
+        # the result is snooped from the register writes (no copy at the end of an update)
+        snooped = [(out.quat[i], f"QOUT{i}") for i in range(4)]
+        snooped += [(out.angles[i], f"THETA{i}") for i in range(3)]
+        snooped += [(out.bias[i], f"BIAS{i}") for i in range(3)]
         with m.If(w_en):
-            for i in range(3):
-                with m.If(w_addr == REGS[f"THETA{i}"]):
-                    m.d.sync += out.angles[i].eq(w_data)
-                with m.If(w_addr == REGS[f"BIAS{i}"]):
-                    m.d.sync += out.bias[i].eq(w_data)
+            for field, name in snooped:
+                with m.If(w_addr == REGS[name]):
+                    m.d.sync += field.eq(w_data)
             with m.If(w_sat):
                 m.d.sync += flag_sat.eq(1)
 
@@ -257,10 +290,7 @@ class AttitudeEngine(wiring.Component):
                         with m.If(cond ^ x.inv):
                             m.d.comb += [flush.eq(1), branch_to.eq(x.target)]
                     with m.Case(Op.SETF):
-                        with m.If(x.sh == FLAG_ACC):
-                            m.d.sync += flag_acc.eq(1)
-                        with m.If(x.sh == FLAG_MAG):
-                            m.d.sync += flag_mag.eq(1)
+                        m.d.sync += flags_set.bit_select(x.sh, 1).eq(1)
             with m.If(advance):
                 m.d.sync += [
                     x.eq(rom.data), xvalid.eq(rvalid & ~flush),
@@ -288,7 +318,7 @@ class AttitudeEngine(wiring.Component):
         m.d.comb += self.cfg_read_data.payload.eq(read_word)
         with m.If(read_busy):
             m.d.sync += [read_busy.eq(0), self.cfg_read_data.valid.eq(1),
-                         read_word.eq(Mux(read_control, compl, rf.ra_data))]
+                         read_word.eq(Mux(read_control, filter_sel, rf.ra_data))]
         with m.If(self.cfg_read_data.valid & self.cfg_read_data.ready):
             m.d.sync += self.cfg_read_data.valid.eq(0)
 
@@ -299,18 +329,22 @@ class AttitudeEngine(wiring.Component):
                     m.d.sync += [init_pending.eq(0), running_init.eq(1)]
                     m.next = "RUN"
                 with m.Elif(self.samples.valid & ~result_valid):
-                    m.d.sync += [load_index.eq(0), flag_acc.eq(0), flag_mag.eq(0),
+                    m.d.sync += [load_index.eq(0), flags_set.eq(0),
                                  flag_sat.eq(0), mag_valid.eq(self.samples.payload.flags.mag_valid),
                                  out.counter.eq(self.samples.payload.counter),
                                  out.flags.overrun.eq(self.samples.payload.flags.overrun),
-                                 out.flags.complementary.eq(compl)]
+                                 out.flags.filter.eq(filter_sel)]
                     m.next = "LOAD"
                 with m.Else():
                     m.d.comb += self.cfg.ready.eq(1)
                     with m.If(self.cfg.valid):
                         with m.If(self.cfg.payload.addr == CONTROL_ADDR):
-                            m.d.sync += compl.eq(self.cfg.payload.data[0])
-                            with m.If(self.cfg.payload.data[1]):
+                            new_filter = self.cfg.payload.data[:2]
+                            m.d.sync += filter_sel.eq(new_filter)
+                            # another filter: its first sample starts it
+                            with m.If(new_filter != filter_sel):
+                                m.d.sync += first.eq(1)
+                            with m.If(self.cfg.payload.data[CONTROL_RESET.bit_length() - 1]):
                                 m.d.sync += init_pending.eq(1)
                         with m.Else():
                             m.d.comb += [w_en.eq(1), w_addr.eq(self.cfg.payload.addr),
@@ -337,9 +371,9 @@ class AttitudeEngine(wiring.Component):
                         m.d.sync += first.eq(1)
                     with m.Else():
                         m.d.sync += [first.eq(0), result_valid.eq(1),
-                                     out.flags.acc_used.eq(flag_acc),
-                                     out.flags.mag_used.eq(flag_mag),
                                      out.flags.saturated.eq(flag_sat)]
+                        for flag in Flag:
+                            m.d.sync += out.flags[flag.name.lower()].eq(flags_set[flag])
                     m.next = "IDLE"
                 with m.Else():
                     execute()

@@ -1,6 +1,6 @@
 """Instruction set of the attitude engine's shared datapath, and a small assembler.
 
-The engine (``hdl/attitude_engine.py``) runs microcode from a ROM over a register file of 128
+The engine (``hdl/attitude_engine.py``) runs microcode from a ROM over a register file of 256
 32-bit words. One instruction names a destination ``d`` and two sources ``a`` and ``b``
 (register addresses); every result is saturated to 32 bits (or wrapped, or saturated to 16
 bits, as the instruction says) and a saturation sets the sample's ``saturated`` flag.
@@ -21,13 +21,14 @@ VEC   CORDIC vectoring of (x = a, y = b): d = atan2 (BAM32),       19
       d+1 = magnitude · K
 ROT   CORDIC rotation of the angle in a: d = cos, d+1 = sin (Q1.30)  19
 BR    if condition (``cond``, inverted by ``inv``): go to target   1, or 3 when taken
-SETF  set output flag ``sh`` (0: accelerometer used, 1: magnetometer used)   1
+SETF  set result flag ``sh`` (``Flag``)                          1
 END   the sample is done: results out                              1
 ====  ===========================================================  ======================
 
-Conditions: ``ALWAYS``; ``A_ZERO`` (register a is 0); ``MAG_INVALID`` (the sample's
-``mag_valid`` flag is 0); ``FIRST`` (first sample since the filter was reset); ``COMPL`` (the
-complementary filter is selected).
+Conditions: ``ALWAYS``; ``A_ZERO`` (register a is 0); ``A_NEG`` (register a is negative: a
+comparison is a SUB then this); ``MAG_INVALID`` (the sample's ``mag_valid`` flag is 0);
+``FIRST`` (first sample since the filter was reset or another filter selected); ``COMPL`` /
+``FLAGSHIP`` (that filter is selected).
 
 The assembler (``Assembler``) gives registers names, resolves labels and checks ranges; it
 knows nothing about hazards because the engine has none: a result is visible to the very next
@@ -41,16 +42,20 @@ from amaranth.hdl import unsigned
 from amaranth.lib import data
 
 
-__all__ = ["Op", "Cond", "MUL_SHIFTS", "REG_COUNT", "ROM_DEPTH", "Instr",
+__all__ = ["Op", "Cond", "Flag", "MUL_SHIFTS", "REG_COUNT", "REG_BITS", "ROM_DEPTH", "ROM_BITS",
+           "Instr",
            "Instruction", "Assembler"]
 
-REG_COUNT = 128
-ROM_DEPTH = 512
+REG_COUNT = 256
+ROM_DEPTH = 1024
+REG_BITS = (REG_COUNT - 1).bit_length()
+ROM_BITS = (ROM_DEPTH - 1).bit_length()
 # The rounding shifts the programs use. Each one costs a 32-bit multiplexer input and an overflow
 # test, so there are few: formats are chosen to share them (Q2.14 coefficients and ASA, Q8.24
-# covariances, Q1.30 sines, RATE in Q14), and a left shift is a MUL by a power-of-two constant
-# register with shift 14 (the ALU has no shifter).
-MUL_SHIFTS = (14, 24, 30)
+# covariances, Q1.30 sines, RATE in Q14; 29 for the doubled products 2·a·b of a rotation
+# matrix), and a left shift is a MUL by a power-of-two constant register with shift 14 (the ALU
+# has no shifter).
+MUL_SHIFTS = (14, 24, 29, 30)
 
 
 class Op(enum.IntEnum):
@@ -73,13 +78,25 @@ class Cond(enum.IntEnum):
     MAG_INVALID = 2
     FIRST = 3
     COMPL = 4
+    A_NEG = 5
+    FLAGSHIP = 6
+
+
+class Flag(enum.IntEnum):
+    """Result flags a program sets with SETF (``AttitudeFlags`` fields of the same names)."""
+    ACC_USED = 0
+    MAG_USED = 1
+    MAG_DISTURBED = 2
+    MAG_NEW_REF = 3
+    AT_REST = 4
+    BIAS_UPDATED = 5
 
 
 class Instr(data.Struct):
     op: unsigned(4)
-    d: unsigned(7)
-    a: unsigned(7)
-    b: unsigned(7)
+    d: unsigned(REG_BITS)
+    a: unsigned(REG_BITS)
+    b: unsigned(REG_BITS)
     sh: unsigned(3)         # MUL: MUL_SHIFTS index; SETF: the flag
     wrap: unsigned(1)       # ADD/SUB: wrap to 32 bits (angles) instead of saturating
     sat16: unsigned(1)      # ADD/SUB: saturate to 16 bits (calibrated sensor values)
@@ -88,7 +105,7 @@ class Instr(data.Struct):
     wb: unsigned(1)         # MUL: write the rounded accumulator to d
     cond: unsigned(3)
     inv: unsigned(1)
-    target: unsigned(9)
+    target: unsigned(ROM_BITS)
 
 
 @dataclass(frozen=True)

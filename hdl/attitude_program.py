@@ -1,7 +1,8 @@
-"""Register map and microcode of the attitude engine: calibration, per-axis Kalman filter,
-complementary filter.
+"""Register map and microcode of the attitude engine: calibration, the flagship quaternion
+filter (``hdl/flagship_microcode.py``), the per-axis Kalman filter, the complementary filter,
+and the result quaternion (or angles) each of them reports.
 
-The microcode computes exactly ``reference.fixed_point.attitude_fixed`` (formats in
+The microcode computes exactly ``reference.fixed_point.EngineModel`` (formats in
 ``reference/FIXED_POINT.md``); it is written from those formulas, step by step, and the tests
 compare the gateware with the reference sample by sample.
 
@@ -28,24 +29,45 @@ address  name            meaning, format                                        
 0x16-1E  SOFT            soft-iron matrix, row-major, Q2.14                         identity
 0x1F     SHL8            2²²: a MUL by it with shift 14 is a left shift by 8        2²²
                          (do not write)
-0x7F     CONTROL         (not a register-file word) bit 0: 1 = complementary
-                         filter, 0 = Kalman; bit 1: write 1 to reset the filter
-                         state (angles 0, bias 0, P = P0·I)
+0x70     K_RAD           flagship: T / LSB_per_rad · 2⁴⁴ (v = (ω−b)·K_RAD >> 30)    from dt
+0x71-75  A_DET, A_REST,  flagship low-pass gains 1 − exp(−T/τ), Q0.30 (τ = 0.5 s,   from dt
+         A_ACC, A_MAG,   tau_rest, tau_acc, tau_mag, min(tau_mag, 0.2 s))
+         A_MAG_FAST
+0x76-77  REST_GYRO2,     flagship rest thresholds, counts² / 4                      from LSB
+         REST_ACC2
+0x78     GATE_NORM       flagship field-norm gate, relative, Q0.30                  0.1
+0x79     GATE_DIP        flagship dip gate, BAM32                                   10°
+0x7A-7D  K_REST, K_REF,  flagship times in samples (rest, reference learning, fast  from dt
+         K_FAST, K_NEW   heading, new reference)
+0xFF     CONTROL         (not a register-file word) bits 1:0 filter: 0 = per-axis
+                         Kalman, 1 = complementary, 2 = flagship (the reset
+                         default); bit 2: write 1 to reset the filter state
+                         (angles 0, bias 0, P = P0·I, flagship afresh). Selecting
+                         another filter makes the next sample a first one.
 =======  ==============  =========================================================  ===========
 
-From 0x20 (``REGS``): the loader's inputs, the filter state, working registers and two more
-constants (``SHL12`` = 2²⁶, ``SHL15`` = 2²⁹, reset values that no program writes; do not write
-them either); the host need not know them.
+From 0x20 (``REGS``): the loader's inputs, the filters' state, working registers and more
+constants (``SHL12``, ``SHL15``, ``ONE``, ``HALF`` ...: reset values that no program writes; do
+not write them either); the host need not know them. Reading back works for every word.
 """
 
-from .attitude_isa import REG_COUNT, Assembler, Cond
+from .attitude_isa import REG_COUNT, Assembler, Cond, Flag
+from .flagship_microcode import FLAGSHIP_REGISTERS, flagship_names, flagship_routine
 
 
-__all__ = ["CONFIG_REGS", "CONTROL_ADDR", "REGS", "ENTRY", "FLAG_ACC", "FLAG_MAG",
-           "LOAD_BASE", "LOAD_ORDER", "TEMPS", "build_program", "config_init", "load_words"]
+__all__ = ["CONFIG_REGS", "CONTROL_ADDR", "REGS", "FILTER_CODES", "LOAD_BASE", "LOAD_ORDER",
+           "TEMPS", "CONSTANTS", "build_program", "config_init", "load_words", "control_word"]
 
-CONTROL_ADDR = 0x7F
-FLAG_ACC, FLAG_MAG = 0, 1
+CONTROL_ADDR = REG_COUNT - 1
+# filter select codes (CONTROL bits 1:0); the flagship is the reset default
+FILTER_CODES = {"kalman": 0, "complementary": 1, "flagship": 2}
+CONTROL_RESET = 1 << 2
+
+
+def control_word(filter="flagship", reset=False):
+    """The CONTROL register value selecting ``filter`` (a name), with a filter reset."""
+    return FILTER_CODES[filter] | (CONTROL_RESET if reset else 0)
+
 
 CONFIG_REGS = {
     "ZERO": 0x00, "RATE": 0x01, "T": 0x02, "Q_ANGLE": 0x03, "Q_BIAS": 0x04, "R": 0x05,
@@ -55,6 +77,7 @@ CONFIG_REGS = {
     **{f"ACC_SCALE{i}": 0x10 + i for i in range(3)},
     **{f"HARD{i}": 0x13 + i for i in range(3)},
     **{f"SOFT{i}{j}": 0x16 + 3 * i + j for i in range(3) for j in range(3)},
+    **{name: 0x70 + k for k, name in enumerate(FLAGSHIP_REGISTERS)},
 }
 
 
@@ -72,15 +95,29 @@ def _allocate():
     # MEAS3 takes the magnitude the heading's vectoring CORDIC writes beside MEAS2
     names += [f"PRED{i}" for i in range(3)] + [f"MEAS{i}" for i in range(4)]
     names += ["ACC_OK", "MAG_OK"]
-    names += ["CR", "SR", "CP", "SP"]                         # CORDIC result pairs (d, d+1)
+    names += ["CR", "SR", "CP", "SP", "CY", "SY"]             # CORDIC result pairs (d, d+1)
     # constants (reset values; no program writes them): MUL by them with shift 14 shifts left
-    names += ["SHL12", "SHL15"]                   # 2²⁶, 2²⁹
     names += [f"T{i}" for i in range(12)]
+    names += ["QOUT0", "QOUT1", "QOUT2", "QOUT3"]           # the result quaternion
+    names += list(CONSTANTS)
+    names += flagship_names()
     regs = dict(CONFIG_REGS)
-    for k, name in enumerate(names):
-        regs[name] = 0x20 + k
-    assert max(regs.values()) < CONTROL_ADDR <= REG_COUNT - 1
+    free = (a for a in range(0x20, CONTROL_ADDR) if a not in CONFIG_REGS.values())
+    for name in names:
+        if name in regs:
+            raise ValueError(f"register {name} allocated twice")
+        regs[name] = next(free, None)
+        if regs[name] is None:
+            raise ValueError(f"the register file ({REG_COUNT} words) is full at {name}")
     return regs
+
+
+# Constants (register-file reset values that no program writes): a MUL by SHL12/SHL15/ONE with
+# shift 14 shifts left by 12/15/16; by HALF/EIGHTH/SHR10 with shift 30 halves, divides by 8 and
+# by 2¹⁰ (rounded); the rest are operands of the flagship (``reference.flagship_fixed``).
+CONSTANTS = {"SHL12": 1 << 26, "SHL15": 1 << 29, "ONE": 1 << 30, "HALF": 1 << 29,
+             "EIGHTH": 1 << 27, "ONE_48": (1 << 30) // 48, "THREE_HALVES": 3 << 29,
+             "SHR10": 1 << 20, "INT1": 1, "INT64": 64}
 
 
 REGS = _allocate()
@@ -101,25 +138,16 @@ def load_words(gyro, accel, mag_ak, asa):
     return [*gyro, *accel, *mag_ak, *((a + 128) << 6 for a in asa)]
 
 
-def config_init(config, inv_gain_q30, cal=None):
-    """Reset values of the register file from a ``KalmanFixedConfig`` (and a
-    ``CalibrationFixed``): a list of REG_COUNT integers."""
-    from ..reference.fixed_point import CalibrationFixed
-    cal = CalibrationFixed() if cal is None else cal
+def config_init(registers, inv_gain_q30):
+    """Reset values of the register file: a list of REG_COUNT integers from ``registers``
+    (values by name: the filters' coefficients and the calibration) and the constants."""
     init = [0] * REG_COUNT
-    for name, value in config.registers().items():
+    for name, value in registers.items():
         init[CONFIG_REGS[name]] = value
     init[CONFIG_REGS["INV_GAIN"]] = inv_gain_q30
     init[CONFIG_REGS["SHL8"]] = 1 << 22
-    init[REGS["SHL12"]] = 1 << 26
-    init[REGS["SHL15"]] = 1 << 29
-    for i in range(3):
-        init[CONFIG_REGS[f"GYRO_OFF{i}"]] = cal.gyro_offset[i]
-        init[CONFIG_REGS[f"ACC_OFF{i}"]] = cal.accel_offset[i]
-        init[CONFIG_REGS[f"ACC_SCALE{i}"]] = cal.accel_scale[i]
-        init[CONFIG_REGS[f"HARD{i}"]] = cal.hard_iron[i]
-        for j in range(3):
-            init[CONFIG_REGS[f"SOFT{i}{j}"]] = cal.soft_iron[3 * i + j]
+    for name, value in CONSTANTS.items():
+        init[REGS[name]] = value
     # the initial filter state is written by the INIT program, not here
     return init
 
@@ -268,13 +296,14 @@ def _kalman(asm, r):
     asm.br("k_skip_rp", Cond.A_ZERO, a=r["ACC_OK"])
     _kalman_update(asm, r, 0, r["MEAS0"])
     _kalman_update(asm, r, 1, r["MEAS1"])
-    asm.setf(FLAG_ACC)
+    asm.setf(Flag.ACC_USED)
+    asm.setf(Flag.BIAS_UPDATED)
     asm.label("k_skip_rp")
-    asm.br("k_done", Cond.A_ZERO, a=r["MAG_OK"])
+    asm.br("angles_out", Cond.A_ZERO, a=r["MAG_OK"])
     _kalman_update(asm, r, 2, r["MEAS2"])
-    asm.setf(FLAG_MAG)
-    asm.label("k_done")
-    asm.end()
+    asm.setf(Flag.MAG_USED)
+    asm.setf(Flag.BIAS_UPDATED)
+    asm.br("angles_out")
     asm.label("k_first")
     for i in range(3):
         asm.add(r[f"PREV{i}"], r[f"G{i}"], r["ZERO"])
@@ -292,17 +321,36 @@ def _complementary(asm, r):
     asm.add(r["MEAS1"], r["PRED1"], r["ZERO"])
     asm.br("c_no_tilt", Cond.A_ZERO, a=r["ACC_OK"])
     _tilt(asm, r, r["MEAS0"])
-    asm.setf(FLAG_ACC)
+    asm.setf(Flag.ACC_USED)
     asm.label("c_no_tilt")
     asm.add(r["MEAS2"], r["PRED2"], r["ZERO"])
     asm.br("c_blend", Cond.A_ZERO, a=r["MAG_OK"])
     _heading(asm, r, r["PRED0"], r["PRED1"], r["MEAS2"])
-    asm.setf(FLAG_MAG)
+    asm.setf(Flag.MAG_USED)
     asm.label("c_blend")
     for i in range(3):
         asm.sub(T[0], r[f"MEAS{i}"], r[f"PRED{i}"], wrap=True)
         asm.mul(T[0], r["ONE_MINUS_A"], T[0], 24)
         asm.add(r[f"THETA{i}"], r[f"PRED{i}"], T[0], wrap=True)
+
+
+def _angles_out(asm, r):
+    """The result quaternion of the per-axis filters' angles (``euler_quat_fixed``), then END."""
+    T = TEMPS
+    for i in range(3):
+        asm.mul(T[i], r[f"THETA{i}"], r["HALF"], 30)
+    for i, pair in enumerate(("CR", "CP", "CY")):
+        asm.rot(r[pair], T[i])
+    cr, sr, cp, sp, cy, sy = (r[n] for n in ("CR", "SR", "CP", "SP", "CY", "SY"))
+    cc, ss, cs, sc = T[0:4]
+    asm.mul(cc, cy, cp, 30)
+    asm.mul(ss, sy, sp, 30)
+    asm.mul(cs, cy, sp, 30)
+    asm.mul(sc, sy, cp, 30)
+    asm.mac(r["QOUT0"], [(cr, cc), (sr, ss)], 30)
+    asm.mac(r["QOUT1"], [(sr, cc), (cr, ss, -1)], 30)
+    asm.mac(r["QOUT2"], [(cr, cs), (sr, sc)], 30)
+    asm.mac(r["QOUT3"], [(cr, sc), (sr, cs, -1)], 30)
     asm.end()
 
 
@@ -313,11 +361,14 @@ def build_program():
     _init(asm, r)
     asm.label("sample")
     _calibrate(asm, r)
+    asm.br("flagship", Cond.FLAGSHIP)
     asm.br("complementary", Cond.COMPL)
     _kalman(asm, r)
     asm.label("complementary")
     _complementary(asm, r)
+    asm.label("angles_out")
+    _angles_out(asm, r)
+    asm.label("flagship")
+    _zero_tests(asm, r, "f")
+    flagship_routine(asm, r, TEMPS)
     return asm.resolve(), {"init": asm.labels["init"], "sample": asm.labels["sample"]}
-
-
-ENTRY = build_program()[1]

@@ -36,7 +36,8 @@ from amaranth.lib import data, io, stream, wiring
 from amaranth.lib.wiring import In, Out, connect, flipped
 
 from .mpu9250_driver import DriverTiming, MPU9250Config
-from .attitude_engine import AttitudeEngine, default_filter_config
+from .attitude_isa import REG_BITS
+from .attitude_engine import AttitudeEngine, default_filter_config, default_flagship_config
 from .sample import ConfigWrite, DriverStatus, Sample
 from .sensor_frontend import SensorFrontEnd
 from .i2c_controller import I2CPinsSignature
@@ -51,7 +52,7 @@ __all__ = ["AHRSCore", "BoardTop"]
 class AHRSCore(wiring.Component):
     def __init__(self, *, clk_freq, config=MPU9250Config(), timing=DriverTiming(),
                  baud=921_600, attitude=True, filter_config=None, calibration=None,
-                 blackbox_hard_blocks=False):
+                 flagship_config=None, filter="flagship", blackbox_hard_blocks=False):
         self.clk_freq = clk_freq
         self.config = config
         self.attitude = attitude
@@ -59,7 +60,10 @@ class AHRSCore(wiring.Component):
         if attitude:
             if filter_config is None:
                 filter_config = default_filter_config(config)
-            self.engine = AttitudeEngine(filter_config, calibration,
+            if flagship_config is None:
+                flagship_config = default_flagship_config(config)
+            self.engine = AttitudeEngine(filter_config, calibration, flagship_config,
+                                         filter=filter,
                                          blackbox_hard_blocks=blackbox_hard_blocks)
             self.framer = TelemetryFramer(AttitudeFrame, 0x02)
         else:
@@ -75,7 +79,7 @@ class AHRSCore(wiring.Component):
         }
         if attitude:
             ports["cfg"] = In(stream.Signature(ConfigWrite))
-            ports["cfg_read"] = In(stream.Signature(7))
+            ports["cfg_read"] = In(stream.Signature(REG_BITS))
             ports["cfg_read_data"] = Out(stream.Signature(signed(32)))
         super().__init__(ports)
 

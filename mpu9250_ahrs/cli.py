@@ -12,8 +12,10 @@ VERBS_HELP = """verbs:
              scripts) without running Quartus; --verilog-only writes the core as plain Verilog
   simulate   cycle-accurate co-simulation: the gateware brings an MPU9250 model up over SPI
              and reads samples; prints them, the bring-up time and the simulator's speed
-  replay     run one of the reference filters on a recording (BROAD HDF5 format), quantised to
-             MPU9250/AK8963 counts, and print its errors against the optical truth as JSON
+  replay     run a filter on a recording (BROAD HDF5 format), quantised to MPU9250/AK8963
+             counts: the float reference, the bit-exact model (--engine fixed) or the gateware
+             in a compiled simulation (--engine gateware); print its errors against the optical
+             truth as JSON
   report     resources of the attitude datapath and of the whole design from Yosys (MAX10
              mapping), and cycles per filter update, as JSON
 """
@@ -89,7 +91,7 @@ def cmd_simulate(args):
         print(json.dumps({"counter": s["counter"], "accel": s["accel"], "temp": s["temp"],
                           "gyro": s["gyro"], "mag": s["mag"], "flags": s["flags"]}))
     if args.attitude and result.samples:
-        print_attitude(result, config)
+        print_attitude(result, config, args.filter)
     read = sample_read_time(result, setup)
     violations = [str(v) for who in (model, result.bus, *model.aux_devices.values())
                   if who is not None for v in who.violations]
@@ -132,24 +134,28 @@ def _pose_sources(pose, samples, config, setup):
     return out
 
 
-def print_attitude(result, config):
+def print_attitude(result, config, filter="flagship"):
     """Feed the co-simulated samples through the attitude engine (its own simulation) and print
-    each result in degrees."""
-    from .hdl.attitude_engine import AttitudeEngine, default_filter_config
-    from .reference.fixed_point import bam_to_deg
+    each result: quaternion, angles in degrees, bias, flags."""
+    from .hdl.attitude_engine import (AttitudeEngine, default_filter_config,
+                                      default_flagship_config)
+    from .reference.fixed_point import RESULT_FLAGS, bam_to_deg
+    from .reference.flagship_fixed import q30_to_float
     from .sim.attitude_bench import run_engine
 
     s = result.samples
-    engine = AttitudeEngine(default_filter_config(config))
+    engine = AttitudeEngine(default_filter_config(config), None, default_flagship_config(config),
+                            filter=filter)
     run = run_engine(engine, [x["gyro"] for x in s], [x["accel"] for x in s],
                      [x["mag"] for x in s], [x["flags"]["mag_valid"] for x in s],
                      asa=result.asa or (128, 128, 128))
     for k in range(len(s)):
-        print(json.dumps({"counter": int(run.counter[k]),
+        print(json.dumps({"counter": int(run.counter[k]), "filter": filter,
+                          "quat": [round(float(v), 6) for v in q30_to_float(run.quat[k])],
                           "roll_pitch_yaw_deg": [round(float(v), 4)
                                                  for v in bam_to_deg(run.angles[k])],
                           "bias_counts": [round(float(v) / 65536, 4) for v in run.bias[k]],
-                          "acc_used": bool(run.acc_used[k]), "mag_used": bool(run.mag_used[k]),
+                          **{f: bool(getattr(run, f)[k]) for f in RESULT_FLAGS},
                           "saturated": bool(run.saturated[k]), "cycles": run.cycles[k]}))
 
 
@@ -164,29 +170,47 @@ def sample_read_time(result, setup):
 
 def cmd_replay(args):
     import numpy as np
-    from .reference.evaluate import run_filter, run_fixed, score
+    from .reference.evaluate import FIXED_FILTERS, run_filter, run_fixed, score
     from .sim.recording import Scales, load_broad, quantise, to_units
 
+    engine = "fixed" if args.fixed else args.engine
+    if engine != "float" and args.filter not in FIXED_FILTERS:
+        raise ValueError(f"--engine {engine} runs {', '.join(FIXED_FILTERS)}, not "
+                         f"{args.filter}")
     rec = load_broad(args.file)
     scales = Scales(gyro_fs_dps=args.gyro_fs, accel_fs_g=args.accel_fs)
     counts = quantise(rec.gyr, rec.acc, rec.mag, scales)
     params = {"beta": args.beta} if args.beta is not None else {}
+    units = {"gyro_lsb_per_dps": scales.gyro_lsb_per_dps,
+             "accel_lsb_per_ms2": scales.accel_lsb_per_ms2}
+    extra = {}
     start = time.perf_counter()
-    if args.fixed:
-        quat = run_fixed(args.filter, *counts, rec.dt,
-                         gyro_lsb_per_dps=scales.gyro_lsb_per_dps,
-                         accel_lsb_per_ms2=scales.accel_lsb_per_ms2, **params)
+    if engine == "gateware":
+        from .reference.flagship_fixed import q30_to_float
+        from .sim.attitude_bench import first_mismatch
+        from .sim.compiled_engine import replay_gateware
+        run, ref, compiled = replay_gateware(args.filter, *counts, rec.dt, **units, **params)
+        quat = q30_to_float(run.quat)
+        mismatch = first_mismatch(run, ref)
+        extra = {"bit_exact": mismatch is None, "first_mismatch": mismatch,
+                 "build_s": round(compiled.build_s, 1),
+                 "gateware_sim_s": round(compiled.last_wall_s, 3),
+                 "gateware_cycles": compiled.last_cycles,
+                 "gateware_cycles_per_s": round(compiled.cycles_per_s),
+                 "cycles_per_update_max": max(run.cycles[1:], default=None)}
+    elif engine == "fixed":
+        quat = run_fixed(args.filter, *counts, rec.dt, **units, **params)
     else:
         quat = run_filter(args.filter, *to_units(*counts, scales), rec.dt, **params)
     elapsed = time.perf_counter() - start
-    result = {"file": rec.name, "filter": args.filter, "fixed": args.fixed,
-              **score(quat, rec.quat, rec.movement), "filter_s": round(elapsed, 3),
-              "samples_total": len(quat)}
+    result = {"file": rec.name, "filter": args.filter, "engine": engine,
+              "fixed": engine != "float", **score(quat, rec.quat, rec.movement),
+              "filter_s": round(elapsed, 3), "samples_total": len(quat), **extra}
     if args.out:
         np.savetxt(args.out, np.column_stack([np.arange(len(quat)) * rec.dt, quat]),
                    delimiter=",", header="t_s,w,x,y,z", comments="", fmt="%.9g")
     print(json.dumps(result))
-    return 0
+    return 0 if extra.get("bit_exact", True) else 1
 
 
 def cmd_report(args):
@@ -231,8 +255,10 @@ def build_parser():
                    help="the models read a board held still at this attitude (degrees, with "
                         "sensor noise) instead of the counting test pattern")
     p.add_argument("--attitude", action="store_true",
-                   help="also run the samples through the attitude engine (Kalman filter) and "
-                        "print roll/pitch/yaw per sample")
+                   help="also run the samples through the attitude engine and print its result "
+                        "per sample (quaternion, roll/pitch/yaw, bias, flags)")
+    p.add_argument("--filter", choices=("flagship", "kalman", "complementary"),
+                   default="flagship", help="the engine's filter with --attitude (flagship)")
     _add_sensor_options(p)
     p.set_defaults(func=cmd_simulate)
 
@@ -245,9 +271,13 @@ def build_parser():
     p.add_argument("file", help="HDF5 recording, e.g. ../shared/data/broad/02_*.hdf5")
     p.add_argument("--filter", choices=("kalman", "complementary", "madgwick", "flagship"),
                    default="flagship")
-    p.add_argument("--fixed", action="store_true",
-                   help="the bit-exact fixed-point model (kalman, complementary, flagship; not "
-                        "madgwick)")
+    p.add_argument("--engine", choices=("float", "fixed", "gateware"), default="float",
+                   help="float: the float reference filter; fixed: the bit-exact integer model "
+                        "of the attitude engine; gateware: the engine's Verilog in Verilator "
+                        "(built once and cached; needs verilator and g++), compared with the "
+                        "fixed model on every sample (bit_exact, first_mismatch; exit 1 on a "
+                        "mismatch). fixed and gateware: kalman, complementary, flagship")
+    p.add_argument("--fixed", action="store_true", help="the same as --engine fixed")
     p.add_argument("--out", help="write the estimated quaternions (t, w, x, y, z) as CSV")
     p.add_argument("--beta", type=float, default=None, help="Madgwick gain (default 0.1)")
     p.add_argument("--gyro-fs", type=int, default=2000, help="gyro full scale, °/s (2000)")

@@ -116,20 +116,19 @@ def synthesize(top, name, engine):
 def cycles_per_update(samples=6):
     """Cycles from a sample offered to its result, per filter: the most over a short static
     pose with every update taken (accelerometer and magnetometer valid each sample), leaving
-    out the first sample after a reset (returned apart: it also copies the previous rate)."""
-    import numpy as np
+    out the first sample after a reset (returned apart: it also starts the filter)."""
     from .hdl.attitude_engine import AttitudeEngine
-    from .hdl.attitude_program import CONTROL_ADDR
+    from .hdl.attitude_program import CONTROL_ADDR, FILTER_CODES, control_word
     from .reference.frames import body_to_mag
-    from .sim.attitude_bench import control_word, run_engine
+    from .sim.attitude_bench import run_engine
     from .sim.motion import SensorModel, static
 
     gc, ac, mc = SensorModel(seed=1).counts(static((30, -20, 100), samples / 100))
     mag_ak = body_to_mag(mc)
     out, first = {}, {}
-    for name, compl in (("kalman", False), ("complementary", True)):
+    for name in FILTER_CODES:
         run = run_engine(AttitudeEngine(), gc, ac, mag_ak,
-                         writes={0: [(CONTROL_ADDR, control_word(complementary=compl))]})
+                         writes={0: [(CONTROL_ADDR, control_word(name, reset=True))]})
         assert run.mag_used.all() and run.acc_used.all()
         out[name] = max(run.cycles[1:])
         first[name] = run.cycles[0]
@@ -147,13 +146,15 @@ def report(*, clk_freq=50e6, config=None):
     core = AHRSCore(clk_freq=clk_freq, config=config, blackbox_hard_blocks=True)
     design = synthesize(core, "mpu9250_ahrs_core", core.engine)
     cycles, first = cycles_per_update()
+    mhz = clk_freq / 1e6
     return {
+        "clock_hz": clk_freq,
         "device": DEVICE,
         "design": design,
         "datapath": datapath,
         "cycles_per_update": cycles,
         "cycles_first_update_after_reset": first,
-        "update_us_at_50MHz": {k: round(v / 50, 2) for k, v in cycles.items()},
+        "update_us": {k: round(v / mhz, 2) for k, v in cycles.items()},
         "design_percent_of_device": {
             "logic_elements": round(100 * design["logic_elements"] / DEVICE["logic_elements"], 1),
             "logic_elements_carry_chain": round(

@@ -6,7 +6,9 @@
 Every filter gets the same quantised inputs (MPU9250 ±2000 °/s, ±16 g; AK8963 0.15 µT/LSB) and
 one parameter set for all trials. Prints a markdown table of total RMSE (BROAD's metric,
 degrees, over the movement samples) per trial and the mean. The fixed-point rows run the
-bit-exact integer models (slow in Python: about a minute per trial each).
+bit-exact integer model of the engine (slow in Python: about half a minute per trial each); the
+gateware rows run the engine's Verilog in Verilator (needs verilator and g++) and are checked
+bit for bit against the fixed rows.
 Needs the ``bench`` extra for the libraries (``pip install -e ".[bench]"``).
 """
 
@@ -39,6 +41,11 @@ FILTER_SET = [
     ("madgwick β=0.2 (float)", "float", "madgwick", {"beta": 0.2}),
     ("flagship (float)", "float", "flagship", {}),
     ("flagship (fixed)", "fixed", "flagship", {}),
+    # the engine's Verilog in Verilator (sim/compiled_engine.py); "≠" marks a result that is
+    # not bit for bit the fixed row's
+    ("kalman (gateware)", "gateware", "kalman", {}),
+    ("complementary (gateware)", "gateware", "complementary", {}),
+    ("flagship (gateware)", "gateware", "flagship", {}),
 ]
 
 
@@ -47,18 +54,31 @@ def run_trial(path, with_fixed=True):
     scales = Scales()
     counts = quantise(rec.gyr, rec.acc, rec.mag, scales)
     gyr, acc, mag = to_units(*counts, scales)
-    out = {}
+    units = {"gyro_lsb_per_dps": scales.gyro_lsb_per_dps,
+             "accel_lsb_per_ms2": scales.accel_lsb_per_ms2}
+    out, fixed = {}, {}
     for row, kind, name, params in FILTER_SET:
-        if kind == "fixed" and not with_fixed:
+        if kind != "float" and not with_fixed:
             continue
         start = time.perf_counter()
+        extra = {}
         if kind == "float":
             quat = run_filter(name, gyr, acc, mag, rec.dt, **params)
+        elif kind == "fixed":
+            quat = fixed[name] = run_fixed(name, *counts, rec.dt, **units, **params)
         else:
-            quat = run_fixed(name, *counts, rec.dt,
-                             gyro_lsb_per_dps=scales.gyro_lsb_per_dps,
-                             accel_lsb_per_ms2=scales.accel_lsb_per_ms2, **params)
-        out[row] = {**score(quat, rec.quat, rec.movement),
+            from ..sim.compiled_engine import CompiledEngine, configuration_writes
+            from ..hdl.attitude_engine import AttitudeEngine
+            from .evaluate import engine_configs
+            from .flagship_fixed import q30_to_float
+            from .frames import body_to_mag
+            run = CompiledEngine(AttitudeEngine).run(
+                *counts[:2], body_to_mag(counts[2]),
+                writes={0: configuration_writes(name, *engine_configs(name, rec.dt, **units,
+                                                                       **params))})
+            quat = q30_to_float(run.quat)
+            extra = {"bit_exact": bool(np.array_equal(quat, fixed.get(name)))}
+        out[row] = {**score(quat, rec.quat, rec.movement), **extra,
                     "seconds": round(time.perf_counter() - start, 2)}
     for row, fn in external_filters().items():
         start = time.perf_counter()
@@ -76,8 +96,9 @@ def table(results):
              "|---" * (len(trials) + 2) + "|"]
     for row in rows:
         vals = [results[t][row]["total_rmse_deg"] for t in trials if row in results[t]]
-        cells = [f"{results[t][row]['total_rmse_deg']:.2f}" if row in results[t] else "–"
-                 for t in trials]
+        cells = [(f"{results[t][row]['total_rmse_deg']:.2f}"
+                  + ("" if results[t][row].get("bit_exact", True) else " ≠"))
+                 if row in results[t] else "–" for t in trials]
         lines.append(f"| {row} | " + " | ".join(cells) + f" | {np.mean(vals):.2f} |")
     return "\n".join(lines)
 
@@ -113,7 +134,8 @@ def main(argv=None):
     p.add_argument("files", nargs="+")
     p.add_argument("--json", help="write all figures as JSON")
     p.add_argument("--figure", help="PNG of roll/pitch/yaw vs truth for the first file")
-    p.add_argument("--no-fixed", action="store_true", help="skip the (slow) fixed-point rows")
+    p.add_argument("--no-fixed", action="store_true",
+                   help="skip the (slow) fixed-point and gateware rows")
     p.add_argument("--jobs", type=int, default=1)
     args = p.parse_args(argv)
     with ProcessPoolExecutor(args.jobs) as pool:

@@ -15,7 +15,7 @@ from .kalman import KalmanParams, kalman_filter
 from .madgwick import madgwick_filter
 
 
-__all__ = ["FILTERS", "FIXED_FILTERS", "run_filter", "run_fixed", "score"]
+__all__ = ["FILTERS", "FIXED_FILTERS", "run_filter", "run_fixed", "engine_configs", "score"]
 
 FILTERS = ("kalman", "complementary", "madgwick", "flagship")
 FIXED_FILTERS = ("kalman", "complementary", "flagship")
@@ -35,29 +35,37 @@ def run_filter(name, gyr, acc, mag, dt, **params):
     raise ValueError(f"unknown filter {name!r}; choose from {', '.join(FILTERS)}")
 
 
-def run_fixed(name, gyr_counts, acc_counts, mag_counts, dt, *, gyro_lsb_per_dps=16.4,
-              accel_lsb_per_ms2=2048 / 9.80665, **params):
-    """Raw counts -> quaternions body->ENU from the fixed-point model of ``name``."""
-    if name == "flagship":
-        from .flagship_fixed import FlagshipFixedConfig, flagship_fixed, q30_to_float
-        cfg = FlagshipFixedConfig(dt, gyro_lsb_per_dps * 180 / np.pi, accel_lsb_per_ms2,
-                                  params.get("flagship", FlagshipParams()))
-        return q30_to_float(flagship_fixed(gyr_counts, acc_counts, mag_counts, cfg)[0])
-    from .fixed_point import KalmanFixedConfig, bam_to_deg, complementary_fixed, kalman_fixed
+def engine_configs(name, dt, *, gyro_lsb_per_dps=16.4, accel_lsb_per_ms2=2048 / 9.80665,
+                   **params):
+    """The engine's registers for filter ``name`` with this module's default parameters (or
+    ``params``): (KalmanFixedConfig, FlagshipFixedConfig)."""
     from .complementary import coefficient
-    if name == "kalman":
-        p = params.get("kalman", KalmanParams())
-        cfg = KalmanFixedConfig(dt=dt, gyro_lsb_per_dps=gyro_lsb_per_dps, q_angle=p.q_angle,
-                                q_bias=p.q_bias, r=p.r, p0=p.p0)
-        angles = kalman_fixed(gyr_counts, acc_counts, mag_counts, cfg)[0]
-    elif name == "complementary":
-        angles = complementary_fixed(gyr_counts, acc_counts, mag_counts, dt=dt,
-                                     a=coefficient(params.get("tau", 0.8), dt),
-                                     gyro_lsb_per_dps=gyro_lsb_per_dps)
-    else:
+    from .fixed_point import KalmanFixedConfig
+    from .flagship_fixed import FlagshipFixedConfig
+    if name not in FIXED_FILTERS:
         raise ValueError(f"no fixed-point model of {name!r} yet; there are: "
                          f"{', '.join(FIXED_FILTERS)}")
-    return euler_to_quat(np.radians(bam_to_deg(angles)))
+    p = params.get("kalman", KalmanParams())
+    kalman = KalmanFixedConfig(dt=dt, gyro_lsb_per_dps=gyro_lsb_per_dps, q_angle=p.q_angle,
+                               q_bias=p.q_bias, r=p.r, p0=p.p0,
+                               a=coefficient(params.get("tau", 0.8), dt))
+    flagship = FlagshipFixedConfig(dt, gyro_lsb_per_dps * 180 / np.pi, accel_lsb_per_ms2,
+                                   params.get("flagship", FlagshipParams()))
+    return kalman, flagship
+
+
+def run_fixed(name, gyr_counts, acc_counts, mag_counts, dt, *, gyro_lsb_per_dps=16.4,
+              accel_lsb_per_ms2=2048 / 9.80665, mag_valid=None, **params):
+    """Raw body-axis counts -> quaternions body->ENU from the bit-exact model of the engine
+    running ``name`` (``fixed_point.attitude_fixed``: the quaternion the gateware reports)."""
+    from .fixed_point import attitude_fixed
+    from .flagship_fixed import q30_to_float
+    from .frames import body_to_mag
+    kalman, flagship = engine_configs(name, dt, gyro_lsb_per_dps=gyro_lsb_per_dps,
+                                      accel_lsb_per_ms2=accel_lsb_per_ms2, **params)
+    out = attitude_fixed(gyr_counts, acc_counts, body_to_mag(mag_counts), mag_valid,
+                         config=kalman, flagship=flagship, select=name)
+    return q30_to_float(out.quat)
 
 
 def score(quat, truth, movement):

@@ -37,7 +37,8 @@ __all__ = ["BAM_BITS", "CORDIC_ITERATIONS", "ATAN_TABLE", "CORDIC_GAIN", "rshift
            "wrap32", "div_floor", "cordic_vector", "cordic_rotate", "bam_to_deg", "deg_to_bam",
            "div_q24", "Status", "KalmanFixedConfig", "CalibrationFixed", "calibrate_fixed",
            "kalman_fixed", "complementary_fixed", "attitude_fixed", "AttitudeFixed", "tilt_angles",
-           "mul", "mac", "sat32", "sat16"]
+           "mul", "mac", "sat32", "sat16", "EngineModel", "FILTERS", "RESULT_FLAGS",
+           "calibration_registers"]
 
 BAM_BITS = 32                     # angles: signed 32-bit, 2³² = 360°, 1 LSB = 8.38e-8°
 # 16 iterations leave at most atan(2⁻¹⁵) = 0.0018° of angle: far below the sensors' noise, and
@@ -374,49 +375,141 @@ def complementary_fixed(gyr_counts, acc_counts, mag_counts, *, dt, a, gyro_lsb_p
     return out
 
 
+FILTERS = ("kalman", "complementary", "flagship")       # the engine's filter select codes 0, 1, 2
+RESULT_FLAGS = ("acc_used", "mag_used", "mag_disturbed", "mag_new_ref", "at_rest",
+                "bias_updated")
+
+
 @dataclass
 class AttitudeFixed:
-    """Per-sample outputs of ``attitude_fixed`` (arrays of N)."""
+    """Per-sample outputs of ``attitude_fixed`` (arrays of N): the engine's result stream."""
+    quat: np.ndarray             # (N, 4) Q2.30 body->ENU
     angles: np.ndarray           # (N, 3) BAM32 roll, pitch, yaw
-    bias: np.ndarray             # (N, 3) Q16.16 gyro counts (Kalman state; held by the other)
-    acc_used: np.ndarray         # roll/pitch measurement applied
-    mag_used: np.ndarray         # yaw measurement applied
+    bias: np.ndarray             # (N, 3) Q16.16 gyro counts (shared by Kalman and flagship)
+    acc_used: np.ndarray         # the accelerometer corrected the tilt
+    mag_used: np.ndarray         # the magnetometer corrected the heading
+    mag_disturbed: np.ndarray    # a valid field was rejected by the flagship's gates
+    mag_new_ref: np.ndarray      # the flagship adopted a magnetic reference
+    at_rest: np.ndarray          # the flagship's rest detector holds
+    bias_updated: np.ndarray     # the bias estimate changed
     saturated: np.ndarray        # some result of this sample's update saturated
+    filter: np.ndarray           # filter select code (FILTERS)
+
+
+def calibration_registers(cal):
+    """A ``CalibrationFixed`` as register values by name (the engine's register map)."""
+    regs = {}
+    for i in range(3):
+        regs[f"GYRO_OFF{i}"], regs[f"ACC_OFF{i}"] = cal.gyro_offset[i], cal.accel_offset[i]
+        regs[f"ACC_SCALE{i}"], regs[f"HARD{i}"] = cal.accel_scale[i], cal.hard_iron[i]
+        for j in range(3):
+            regs[f"SOFT{i}{j}"] = cal.soft_iron[3 * i + j]
+    return regs
+
+
+def _calibration_of(reg):
+    return CalibrationFixed(
+        gyro_offset=tuple(reg[f"GYRO_OFF{i}"] for i in range(3)),
+        accel_offset=tuple(reg[f"ACC_OFF{i}"] for i in range(3)),
+        accel_scale=tuple(reg[f"ACC_SCALE{i}"] for i in range(3)),
+        hard_iron=tuple(reg[f"HARD{i}"] for i in range(3)),
+        soft_iron=tuple(reg[f"SOFT{i}{j}"] for i in range(3) for j in range(3)))
+
+
+class EngineModel:
+    """The attitude engine in integers, one sample at a time: run-time registers by name
+    (filter coefficients, flagship parameters, calibration), the filter select, a filter
+    reset, and ``sample`` (raw counts in, one result out), exactly as the gateware acts on
+    them. Switching to another filter makes the next sample a first sample (the Kalman filter
+    takes ω₍ₖ₋₁₎ = ωₖ, the flagship starts afresh but keeps the bias); the per-axis filters
+    continue from the angles of whichever filter ran last."""
+
+    def __init__(self, config=None, cal=None, flagship=None, *, filter="flagship",
+                 registers=None):
+        from .flagship_fixed import FlagshipFixedConfig
+        config = KalmanFixedConfig() if config is None else config
+        flagship = FlagshipFixedConfig(dt=config.dt) if flagship is None else flagship
+        self.reg = {**config.registers(), **flagship.registers(),
+                    **calibration_registers(CalibrationFixed() if cal is None else cal),
+                    **(registers or {})}
+        self.filter = FILTERS.index(filter)
+        self.reset()
+
+    def reset(self):
+        """Filter state to its start (angles 0, bias 0, P = P0·I, flagship afresh); the
+        registers keep their values."""
+        from .flagship_fixed import FlagshipFixed
+        self.kf = _KalmanFixed(KalmanFixedConfig(), self.reg)
+        self.kf.reg = self.reg                      # one register dict for every filter
+        self.flagship = FlagshipFixed(self.reg, self.kf.bias)
+
+    def write(self, name, value):
+        self.reg[name] = int(value)
+
+    def select(self, filter):
+        code = FILTERS.index(filter) if isinstance(filter, str) else int(filter)
+        if code != self.filter:
+            self.kf.prev = None                      # next sample is a first one
+            self.flagship.first = True
+        self.filter = code
+
+    def sample(self, g_raw, a_raw, m_raw, mag_valid=True, asa=(128, 128, 128)):
+        """One sample (raw counts; the field in the AK8963's axes): a dict of the result."""
+        from .flagship_fixed import euler_quat_fixed
+        st = Status()
+        g, a, m = _calibrate_one(list(g_raw), list(a_raw), list(m_raw), asa,
+                                 _calibration_of(self.reg), st)
+        kf = self.kf
+        flags = set()
+        if self.filter == 2:
+            quat, kf.theta, flags = self.flagship.step(g, a, m, bool(mag_valid), st)
+            kf.prev = list(g)
+        else:
+            if self.filter == 0:
+                acc_ok, mag_ok = kf.step(g, a, m, mag_valid, st)
+                if acc_ok or mag_ok:
+                    flags.add("bias_updated")
+            else:
+                kf.theta, acc_ok, mag_ok = _complementary_step(kf.theta, g, a, m, mag_valid,
+                                                               self.reg, st)
+                kf.prev = list(g)
+            flags |= {"acc_used"} if acc_ok else set()
+            flags |= {"mag_used"} if mag_ok else set()
+            quat = euler_quat_fixed(kf.theta, st)
+            # the flagship restarts when it is selected again
+            self.flagship.first = True
+        return {"quat": list(quat), "angles": list(kf.theta), "bias": list(kf.bias),
+                **{f: f in flags for f in RESULT_FLAGS}, "saturated": st.saturated,
+                "filter": self.filter}
 
 
 def attitude_fixed(gyr_raw, acc_raw, mag_ak_raw, mag_valid=None, *, asa=(128, 128, 128),
-                   cal=CalibrationFixed(), config=KalmanFixedConfig(), select="kalman",
-                   registers=None, resets=(), writes=None):
-    """The gateware's attitude engine in integers: calibration, then the per-axis Kalman filter
-    or the complementary filter (``select``: a name, or an array of names per sample). Both
-    filters share the angle registers, so switching between them is seamless; the Kalman
-    state (bias, P) is held while the complementary filter runs. ``registers`` overrides
-    register values by name (raw integers, e.g. {"R": 0}); ``resets``: sample indices before
-    which the filter state is reset (angles 0, bias 0, P = P0·I, next sample is a first; the
-    registers keep their values); ``writes``: {sample index: {name: value}}, register writes
-    applied before that sample (after a reset there)."""
+                   cal=CalibrationFixed(), config=KalmanFixedConfig(), flagship=None,
+                   select="kalman", registers=None, resets=(), writes=None):
+    """The gateware's attitude engine in integers over arrays (``EngineModel`` per sample):
+    calibration, then the filter ``select`` names (one name, or an array of names per
+    sample). ``registers`` overrides register values by name (raw integers, e.g. {"R": 0});
+    ``resets``: sample indices before which the filter state is reset; ``writes``:
+    {sample index: {name: value}}, register writes applied before that sample (after a reset
+    there)."""
     n = len(gyr_raw)
     sel = [select] * n if isinstance(select, str) else list(select)
     valid = [True] * n if mag_valid is None else [bool(v) for v in mag_valid]
     resets = set(resets)
-    kf = _KalmanFixed(config, registers)
-    out = AttitudeFixed(np.empty((n, 3), np.int64), np.empty((n, 3), np.int64),
-                        np.zeros(n, bool), np.zeros(n, bool), np.zeros(n, bool))
+    model = EngineModel(config, cal, flagship, filter=sel[0] if n else "kalman",
+                        registers=registers)
+    out = AttitudeFixed(np.empty((n, 4), np.int64), np.empty((n, 3), np.int64),
+                        np.empty((n, 3), np.int64),
+                        *(np.zeros(n, bool) for _ in range(len(RESULT_FLAGS) + 1)),
+                        np.zeros(n, np.int64))
     for k, (g, a, h) in enumerate(zip(*(np.asarray(x, np.int64).tolist()
                                          for x in (gyr_raw, acc_raw, mag_ak_raw)))):
         if k in resets:
-            kf = _KalmanFixed(config, kf.reg)
-        kf.reg.update((writes or {}).get(k, {}))
-        st = Status()
-        g, a, m = _calibrate_one(g, a, h, asa, cal, st)
-        if sel[k] == "kalman":
-            acc_ok, mag_ok = kf.step(g, a, m, valid[k], st)
-        elif sel[k] == "complementary":
-            kf.theta, acc_ok, mag_ok = _complementary_step(kf.theta, g, a, m, valid[k], kf.reg,
-                                                           st)
-            kf.prev = list(g)
-        else:
-            raise ValueError(f"unknown filter {sel[k]!r}")
-        out.angles[k], out.bias[k] = kf.theta, kf.bias
-        out.acc_used[k], out.mag_used[k], out.saturated[k] = acc_ok, mag_ok, st.saturated
+            model.reset()
+        for name, value in (writes or {}).get(k, {}).items():
+            model.write(name, value)
+        model.select(sel[k])
+        r = model.sample(g, a, h, valid[k], asa)
+        for name in ("quat", "angles", "bias", *RESULT_FLAGS, "saturated", "filter"):
+            getattr(out, name)[k] = r[name]
     return out

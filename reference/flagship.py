@@ -35,10 +35,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .frames import filter_inputs, quat_from_accel_mag
+from .frames import filter_inputs
 
 
-__all__ = ["FlagshipParams", "flagship_filter"]
+__all__ = ["FlagshipParams", "flagship_filter", "sample_counts"]
 
 
 @dataclass(frozen=True)
@@ -85,51 +85,49 @@ def _rot(q, v):
             2 * (x * z - w * y) * vx + 2 * (y * z + w * x) * vy + (1 - 2 * (x * x + y * y)) * vz)
 
 
-def _rot_t(q, v):
-    """R(q)ᵀ·v."""
-    return _rot((q[0], -q[1], -q[2], -q[3]), v)
+def sample_counts(params, dt):
+    """The flagship's times as whole sample counts, shared by the float and the fixed-point
+    filter so that both switch at the same sample: (K_REST, K_REF, K_FAST, K_NEW)."""
+    k = lambda seconds: max(1, int(round(seconds / dt)))
+    return k(params.rest_s), k(params.mag_ref_s), k(params.mag_fast_s), k(params.mag_new_s)
 
 
 def flagship_filter(gyr, acc, mag, dt, params=FlagshipParams(), *, mag_valid=None,
                     return_bias=False):
     """gyr rad/s, acc m/s² (any unit: only directions and deviations matter, rest_acc is in the
-    same unit), mag any unit or None (6-axis). Returns quaternions body->ENU (N,4)."""
+    same unit), mag any unit or None (6-axis). Returns quaternions body->ENU (N,4).
+
+    Causal, as the gateware must be: the first sample starts the filter (q_g = q_a = 1, the
+    inclination step then tilts q_a onto that sample's specific force in one go), the heading
+    δ is taken from the first usable field and then follows it. Times are sample counts
+    (``sample_counts``); each countdown is decremented at the start of a sample."""
     p = params
     gyr, acc, magv, valid = filter_inputs(gyr, acc, mag, mag_valid)
     n = len(gyr)
     use_mag = magv is not None
     gyr_l, acc_l = gyr.tolist(), acc.tolist()
     mag_l = magv.tolist() if use_mag else None
+    k_rest, k_ref, k_fast, k_new = sample_counts(p, dt)
 
-    # Start-up alignment: the first 0.1 s of accelerometer (and magnetometer) data.
-    k0 = max(1, min(n, int(round(0.1 / dt))))
-    if use_mag:
-        q0 = tuple(quat_from_accel_mag(acc[:k0].mean(0), magv[:k0].mean(0)))
-    else:
-        a = acc[:k0].mean(0)
-        q0 = tuple(quat_from_accel_mag(a, np.cross(a, [0.0, 1.0, 0.0]) if abs(a[0]) < abs(a[1])
-                                       else np.cross(a, [1.0, 0.0, 0.0])))
-    # Split q0 into a heading part δ and an inclination part q_a; q_g starts at identity.
-    w, x, y, z = q0
-    delta = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
-    qa = _qnorm(_qmul((math.cos(delta / 2), 0.0, 0.0, -math.sin(delta / 2)), q0))
-    qg = (1.0, 0.0, 0.0, 0.0)
-    lp = list(_rot(qg, acc_l[0]))
+    qg = qa = (1.0, 0.0, 0.0, 0.0)
+    delta = None
+    lp, gyr_lp, acc_lp = list(acc_l[0]) if n else None, list(gyr_l[0]) if n else None, \
+        list(acc_l[0]) if n else None
     b = [0.0, 0.0, 0.0]
-
     a_acc = 1 - math.exp(-dt / p.tau_acc)
     a_rest = 1 - math.exp(-dt / p.tau_rest)
     a_det = 1 - math.exp(-dt / 0.5)
-    gyr_lp, acc_lp = list(gyr_l[0]), list(acc_l[0])
-    rest_time = 0.0
-    ref_norm = ref_dip = None
-    ref_acc = []
-    cand = None
+    a_mag, a_mag_fast = 1 - math.exp(-dt / p.tau_mag), 1 - math.exp(-dt / min(p.tau_mag, 0.2))
+    rest_left, fast_left, ref_left, cand_left = k_rest, k_fast, k_ref, 0
+    ref = None                          # (norm, dip)
+    ref_n, ref_norm, ref_dip = 0, 0.0, 0.0
+    cand = None                         # (norm, dip)
     out = np.empty((n, 4))
     biases = np.empty((n, 3))
 
     for k in range(n):
-        t = k * dt
+        fast_left, ref_left, cand_left = (max(0, t - 1) for t in (fast_left, ref_left,
+                                                                   cand_left))
         g = gyr_l[k]
         a = acc_l[k]
         # -- rest detection and bias at rest ---------------------------------------------------
@@ -138,64 +136,65 @@ def flagship_filter(gyr, acc, mag, dt, params=FlagshipParams(), *, mag_valid=Non
             acc_lp[i] += a_det * (a[i] - acc_lp[i])
         dg = math.sqrt(sum((g[i] - b[i]) ** 2 for i in range(3)))
         da = math.sqrt(sum((a[i] - acc_lp[i]) ** 2 for i in range(3)))
-        rest_time = rest_time + dt if (dg < p.rest_gyro and da < p.rest_acc) else 0.0
-        if rest_time >= p.rest_s:           # at rest: the gyro reads its bias
+        still = dg < p.rest_gyro and da < p.rest_acc
+        rest_left = max(0, rest_left - 1) if still else k_rest
+        gb = [g[i] - b[i] for i in range(3)]
+        if rest_left == 0:                  # at rest: the gyro reads its bias
             for i in range(3):
                 b[i] += a_rest * (gyr_lp[i] - b[i])
 
         # -- strapdown ------------------------------------------------------------------------
-        qg = _qnorm(_qmul(qg, _qexp((g[0] - b[0]) * dt, (g[1] - b[1]) * dt,
-                                    (g[2] - b[2]) * dt)))
+        qg = _qnorm(_qmul(qg, _qexp(gb[0] * dt, gb[1] * dt, gb[2] * dt)))
 
         # -- inclination ----------------------------------------------------------------------
-        aI = _rot(qg, a)
-        for i in range(3):
-            lp[i] += a_acc * (aI[i] - lp[i])
-        e = _rot(qa, lp)
-        en = math.sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2])
-        corr_e = (0.0, 0.0, 0.0)
-        if en > 0:
-            ex, ey, ez = e[0] / en, e[1] / en, e[2] / en
-            # rotation taking e to up: axis e × z = (ey, −ex, 0), angle acos(ez)
-            s = math.hypot(ex, ey)
-            if s > 1e-12:
-                angle = math.atan2(s, ez)
-                corr_e = (ey / s * angle, -ex / s * angle, 0.0)
-                qa = _qnorm(_qmul(_qexp(*corr_e), qa))
+        if any(a):
+            aI = _rot(qg, a)
+            for i in range(3):
+                lp[i] += a_acc * (aI[i] - lp[i])
+            e = _rot(qa, lp)
+            s = math.hypot(e[0], e[1])
+            if s > 0:
+                # rotation taking e to up: axis e × z = (ey, −ex, 0)/s, angle atan2(s, ez)
+                angle = math.atan2(s, e[2])
+                qa = _qnorm(_qmul(_qexp(e[1] / s * angle, -e[0] / s * angle, 0.0), qa))
+        qag = _qmul(qa, qg)
 
         # -- heading --------------------------------------------------------------------------
-        corr_h = 0.0
-        if use_mag and valid[k]:
-            m = mag_l[k]
-            mE = _rot(qa, _rot(qg, m))
+        if use_mag and valid[k] and any(mag_l[k]):
+            mE = _rot(qag, mag_l[k])
             mn = math.sqrt(mE[0] * mE[0] + mE[1] * mE[1] + mE[2] * mE[2])
             horiz = math.hypot(mE[0], mE[1])
-            if mn > 0 and horiz > 0:
+            if horiz > 0:
                 dip = math.degrees(math.atan2(-mE[2], horiz))
-                if ref_norm is None:
-                    ref_acc.append((mn, dip))
-                    if t >= p.mag_ref_s:
-                        # the mean (a running sum in hardware) of the first seconds
-                        ref_norm = float(np.mean([r[0] for r in ref_acc]))
-                        ref_dip = float(np.mean([r[1] for r in ref_acc]))
-                good = ref_norm is None or (abs(mn / ref_norm - 1) < p.mag_norm_gate and
-                                           abs(dip - ref_dip) < p.mag_dip_gate)
-                if ref_norm is not None and not good:
-                    if cand is None or abs(mn / cand[0] - 1) > p.mag_norm_gate / 2 or \
-                            abs(dip - cand[1]) > p.mag_dip_gate / 2:
-                        cand = (mn, dip, t)
-                    elif t - cand[2] > p.mag_new_s:
-                        ref_norm, ref_dip, cand = cand[0], cand[1], None
-                elif good:
-                    cand = None
+                good = True
+                if ref is None:
+                    # the running mean of the fields seen while the reference is learnt
+                    ref_n += 1
+                    ref_norm += (mn - ref_norm) / ref_n
+                    ref_dip += (dip - ref_dip) / ref_n
+                    if ref_left == 0:
+                        ref = (ref_norm, ref_dip)
+                else:
+                    good = abs(mn - ref[0]) < ref[0] * p.mag_norm_gate and \
+                        abs(dip - ref[1]) < p.mag_dip_gate
+                    if not good:
+                        if cand is None or abs(mn - cand[0]) > cand[0] * p.mag_norm_gate / 2 \
+                                or abs(dip - cand[1]) > p.mag_dip_gate / 2:
+                            cand, cand_left = (mn, dip), k_new
+                        elif cand_left == 0:
+                            ref, cand = cand, None
+                    else:
+                        cand = None
                 if good:
                     psi = math.atan2(mE[0], mE[1])          # field direction east of North
-                    tau = p.tau_mag if t > p.mag_fast_s else min(p.tau_mag, 0.2)
-                    err = (psi - delta + math.pi) % (2 * math.pi) - math.pi
-                    corr_h = err * (1 - math.exp(-dt / tau))
-                    delta = (delta + corr_h + math.pi) % (2 * math.pi) - math.pi
+                    if delta is None:
+                        delta = psi
+                    else:
+                        err = (psi - delta + math.pi) % (2 * math.pi) - math.pi
+                        gain = a_mag_fast if fast_left else a_mag
+                        delta = (delta + err * gain + math.pi) % (2 * math.pi) - math.pi
 
-        qh = (math.cos(delta / 2), 0.0, 0.0, math.sin(delta / 2))
-        out[k] = _qmul(qh, _qmul(qa, qg))
+        d = 0.0 if delta is None else delta
+        out[k] = _qmul((math.cos(d / 2), 0.0, 0.0, math.sin(d / 2)), qag)
         biases[k] = b
     return (out, biases) if return_bias else out

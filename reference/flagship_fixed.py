@@ -1,69 +1,82 @@
 """The flagship filter in integers: ``reference.flagship`` step by step, in the datapath's
-operations (``reference.fixed_point``: 32-bit registers, 32×32 products rounded once, the
-CORDIC, the divider), so that it can become a microcode sequence of the attitude engine.
+operations (``reference.fixed_point``: 32-bit registers, 32×32 products rounded once with the
+engine's shifts 14/24/29/30, the CORDIC, the divider), as the attitude engine's microcode runs it.
 
 Formats (FIXED_POINT.md, "Flagship filter")
-    quaternions q_g, q_a, the output: Q2.30 (2³⁰ = 1)
+    quaternions q_g, q_a, q_a⊗q_g, the output: Q2.30 (2³⁰ = 1); rotation matrices Q2.30
     heading δ, dip, CORDIC angles: BAM32
     gyro, its low-pass and the bias: Q16.16 gyro counts
     accelerometer low-passes (body and inertial frame), rotated field: Q16.16 counts
+    field norm: Q16.16 counts
     rotation vector per sample v = (ω − b)·T: Q2.30 radians
     low-pass gains 1 − exp(−T/τ): Q0.30
 Inputs: calibrated body-axis counts (gyro, accelerometer, magnetometer), as ``kalman_fixed``.
+
+``FlagshipFixed`` holds the state and does one sample (``step``); ``flagship_fixed`` runs it
+over arrays; ``engine_outputs`` gives what the engine reports for any filter (quaternion and
+angles), so that the per-axis filters' results carry a quaternion too.
 """
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from .fixed_point import (INV_GAIN_Q30, Status, cordic_rotate, cordic_vector, mac, mul, sat32,
-                          tilt_angles, wrap32)
-from .flagship import FlagshipParams
+from .fixed_point import (INV_GAIN_Q30, Status, cordic_rotate, cordic_vector, div_q24, mac, mul,
+                          sat32, tilt_angles, wrap32)
+from .flagship import FlagshipParams, sample_counts
 
 
-__all__ = ["FlagshipFixedConfig", "flagship_fixed", "q30_to_float"]
+__all__ = ["FlagshipFixedConfig", "FlagshipFixed", "flagship_fixed", "q30_to_float",
+           "euler_quat_fixed", "quat_angles_fixed", "FLAGSHIP_CONSTANTS", "ONE", "HALF"]
 
 ONE = 1 << 30
-
-
-def _first_index(seconds, dt, strict=False):
-    """The first sample index k with k·dt ≥ seconds (> with ``strict``), as the float filter
-    decides it."""
-    k = max(0, int(seconds / dt) - 2)
-    while (k * dt <= seconds) if strict else (k * dt < seconds):
-        k += 1
-    return k
+HALF = 1 << 29                 # mul(x, HALF, 30) = x / 2 rounded half up
+# Constants the microcode multiplies or adds with (register-file words no program writes).
+FLAGSHIP_CONSTANTS = {
+    "ONE": ONE,                # also: mul(x, ONE, 14) = x << 16
+    "HALF": HALF,
+    "EIGHTH": 1 << 27,         # mul(x, EIGHTH, 30) = x / 8 rounded
+    "ONE_48": ONE // 48,       # 1/48 in Q0.30
+    "THREE_HALVES": 3 << 29,   # 1.5 in Q2.30
+    "SHR10": 1 << 20,          # mul(x, SHR10, 30) = x / 2¹⁰ rounded
+    "INT1": 1,
+    "INT64": 64,               # div_q24(64, n) = 2³⁰/n: 1/n in Q0.30
+}
 
 
 @dataclass(frozen=True)
 class FlagshipFixedConfig:
     """Run-time registers of the fixed-point flagship, from the float parameters."""
-    dt: float
-    gyro_lsb_per_rad: float
-    accel_lsb_per_ms2: float
+    dt: float = 0.01
+    gyro_lsb_per_rad: float = 16.4 * 180 / math.pi
+    accel_lsb_per_ms2: float = 2048 / 9.80665
     params: FlagshipParams = FlagshipParams()
 
     def registers(self):
         p, dt = self.params, self.dt
         gain = lambda tau: int(round((1 - math.exp(-dt / tau)) * ONE))      # Q0.30
-        rest_gyro = p.rest_gyro * self.gyro_lsb_per_rad * 2 ** 8           # Q.8 counts
-        rest_acc = p.rest_acc * self.accel_lsb_per_ms2 * 2 ** 8
-        return {
-            # v [Q2.30 rad] = (ω·2¹⁶ − b) · K_RAD >> 32
-            "K_RAD": int(round(dt / self.gyro_lsb_per_rad * 2 ** 14 * 2 ** 32)),
+        # rest tests: deviations in Q.6 counts (x / 2¹⁰ of Q16.16), squared and summed with
+        # shift 14: thresholds in counts² / 4
+        rest_gyro = p.rest_gyro * self.gyro_lsb_per_rad
+        rest_acc = p.rest_acc * self.accel_lsb_per_ms2
+        k_rest, k_ref, k_fast, k_new = sample_counts(p, dt)
+        regs = {
+            # v [Q2.30 rad] = mul(ω·2¹⁶ − b, K_RAD, 30): T / LSB_per_rad · 2⁴⁴
+            "K_RAD": int(round(dt / self.gyro_lsb_per_rad * 2 ** 44)),
             "A_DET": gain(0.5), "A_REST": gain(p.tau_rest), "A_ACC": gain(p.tau_acc),
             "A_MAG": gain(p.tau_mag), "A_MAG_FAST": gain(min(p.tau_mag, 0.2)),
-            # squared thresholds in (Q.8 counts)² >> 16
-            "REST_GYRO2": int(round(rest_gyro ** 2 / 2 ** 16)),
-            "REST_ACC2": int(round(rest_acc ** 2 / 2 ** 16)),
+            "REST_GYRO2": int(round(rest_gyro ** 2 / 4)),
+            "REST_ACC2": int(round(rest_acc ** 2 / 4)),
             "GATE_NORM": int(round(p.mag_norm_gate * ONE)),
             "GATE_DIP": int(round(p.mag_dip_gate / 360 * 2 ** 32)),
-            "K_REST": _first_index(p.rest_s, dt), "K_REF": _first_index(p.mag_ref_s, dt),
-            "K_FAST": _first_index(p.mag_fast_s, dt, strict=True),
-            "K_NEW": _first_index(p.mag_new_s, dt, strict=True),
-            "K_ALIGN": max(1, int(round(0.1 / dt))),
+            "K_REST": k_rest, "K_REF": k_ref, "K_FAST": k_fast, "K_NEW": k_new,
         }
+        for name, value in regs.items():
+            if not 0 <= value < 2 ** 31:
+                raise ValueError(f"flagship register {name} = {value} does not fit 31 bits "
+                                 f"(dt {dt} s, {self.gyro_lsb_per_rad:.1f} LSB/rad)")
+        return regs
 
 
 def _qmul(p, q, st):
@@ -79,142 +92,209 @@ def _normalise(q, st):
     """One Newton step towards |q| = 1: q·(3 − |q|²)/2 (q stays within 10⁻⁶ of unit length,
     where this is as good as a division by the norm)."""
     n2 = mac([(c, c) for c in q], 30, st)
-    f = sat32((3 * ONE - n2) >> 1, st)
+    f = sat32(FLAGSHIP_CONSTANTS["THREE_HALVES"] - mul(n2, HALF, 30, st), st)
     return tuple(mul(c, f, 30, st) for c in q)
 
 
 def _matrix(q, st):
-    """R(q) in Q2.30, row-major."""
+    """R(q) in Q2.30, row-major; the doubled products 2·a·b as mul(a, b, 29)."""
     w, x, y, z = q
-    p = lambda a, b: mul(a, b, 29, st)                 # 2·a·b
+    p = lambda a, b: mul(a, b, 29, st)
     xx, yy, zz = p(x, x), p(y, y), p(z, z)
     xy, xz, yz, wx, wy, wz = p(x, y), p(x, z), p(y, z), p(w, x), p(w, y), p(w, z)
-    return (ONE - yy - zz, xy - wz, xz + wy,
-            xy + wz, ONE - xx - zz, yz - wx,
-            xz - wy, yz + wx, ONE - xx - yy)
+    s = lambda a, b: sat32(a - b, st)
+    a = lambda a, b: sat32(a + b, st)
+    return (s(s(ONE, yy), zz), s(xy, wz), a(xz, wy),
+            a(xy, wz), s(s(ONE, xx), zz), s(yz, wx),
+            s(xz, wy), a(yz, wx), s(s(ONE, xx), yy))
 
 
 def _rotate(m, v, st):
     return tuple(mac([(m[3 * i + j], v[j]) for j in range(3)], 30, st) for i in range(3))
 
 
-def _inclination_quat(a, st):
-    """q_a = Ry(pitch)·Rx(roll) putting ``a`` up, from CORDIC half-angle sines and cosines."""
-    roll, pitch = tilt_angles(*a, st)
-    cr, sr = cordic_rotate(roll >> 1)
-    cp, sp = cordic_rotate(pitch >> 1)
-    return (mul(cr, cp, 30, st), mul(sr, cp, 30, st), mul(cr, sp, 30, st),
-            sat32(-mul(sr, sp, 30, st), st))
+def _abs(x, st):
+    return sat32(-x, st) if x < 0 else x
 
 
-def _field(me, st):
-    """(norm, dip BAM32, heading ψ BAM32) of a field vector in the tilt-corrected frame."""
-    psi, hk = cordic_vector(me[1], me[0], st)           # atan2(mE_x, mE_y)
-    horiz = mul(hk, INV_GAIN_Q30, 30, st)
-    dip, nk = cordic_vector(horiz, sat32(-me[2], st), st)
-    return mul(nk, INV_GAIN_Q30, 30, st), dip, psi, horiz
+def euler_quat_fixed(angles, st):
+    """Body->ENU quaternion (Q2.30) of ZYX angles (roll, pitch, yaw BAM32): the per-axis
+    filters' results carry it."""
+    (cr, sr), (cp, sp), (cy, sy) = (cordic_rotate(mul(t, HALF, 30, st)) for t in angles)
+    cc, ss = mul(cy, cp, 30, st), mul(sy, sp, 30, st)
+    cs, sc = mul(cy, sp, 30, st), mul(sy, cp, 30, st)
+    return (mac([(cr, cc), (sr, ss)], 30, st), mac([(sr, cc), (cr, ss, -1)], 30, st),
+            mac([(cr, cs), (sr, sc)], 30, st), mac([(cr, sc), (sr, cs, -1)], 30, st))
 
 
-def flagship_fixed(gyr_counts, acc_counts, mag_counts, config, *, mag_valid=None):
-    """Quaternions body->ENU in Q2.30 (N, 4) int, and the bias in Q16.16 counts (N, 3)."""
-    reg = config.registers()
-    st = Status()
+def quat_angles_fixed(m, delta, st):
+    """ZYX angles (BAM32) of Rz(δ)·R, R a rotation matrix (Q2.30): roll and pitch from R's
+    bottom row (Rz leaves it alone), yaw = δ + atan2(R10, R00)."""
+    roll, pitch = tilt_angles(m[6], m[7], m[8], st)
+    yaw, _ = cordic_vector(m[0], m[3], st)
+    return [roll, pitch, wrap32(delta + yaw)]
+
+
+@dataclass
+class FlagshipFixed:
+    """State of the fixed-point flagship (the engine's registers of the same names) and one
+    step. ``bias`` is shared with the per-axis Kalman filter (the same Q16.16 format)."""
+    reg: dict
+    bias: list = field(default_factory=lambda: [0, 0, 0])
+    first: bool = True
+
+    def start(self, g16, a16):
+        """The first sample after a reset or a switch to this filter (bias kept)."""
+        reg = self.reg
+        self.qg = self.qa = (ONE, 0, 0, 0)
+        self.delta, self.delta_ok = 0, False
+        self.lp, self.acc_lp, self.gyr_lp = list(a16), list(a16), list(g16)
+        self.rest_left, self.fast_left = reg["K_REST"], reg["K_FAST"]
+        self.ref_left, self.cand_left = reg["K_REF"], 0
+        self.ref_ok, self.ref_n, self.ref_norm, self.ref_dip = False, 0, 0, 0
+        self.cand_norm, self.cand_dip = 0, 0                    # norm 0: no candidate
+        self.first = False
+
+    def step(self, g, a, m, mag_valid, st):
+        """One calibrated sample (counts). Returns (quaternion, angles, flags): flags is the set
+        of names among acc_used, mag_used, mag_disturbed, mag_new_ref, at_rest, bias_updated."""
+        reg, b = self.reg, self.bias
+        flags = set()
+        g16 = [mul(x, ONE, 14, st) for x in g]                  # << 16
+        a16 = [mul(x, ONE, 14, st) for x in a]
+        if self.first:
+            self.start(g16, a16)
+        dec = lambda t: t - 1 if t else 0
+        self.fast_left, self.ref_left, self.cand_left = (dec(t) for t in (
+            self.fast_left, self.ref_left, self.cand_left))
+
+        # -- rest detection and bias at rest ------------------------------------------------------
+        for i in range(3):
+            self.gyr_lp[i] = sat32(self.gyr_lp[i] + mul(reg["A_DET"], sat32(
+                g16[i] - self.gyr_lp[i], st), 30, st), st)
+            self.acc_lp[i] = sat32(self.acc_lp[i] + mul(reg["A_DET"], sat32(
+                a16[i] - self.acc_lp[i], st), 30, st), st)
+        u = [sat32(g16[i] - b[i], st) for i in range(3)]         # ω − b, Q16.16
+        dg = [mul(x, FLAGSHIP_CONSTANTS["SHR10"], 30, st) for x in u]            # Q.6 counts
+        da = [mul(sat32(a16[i] - self.acc_lp[i], st), FLAGSHIP_CONSTANTS["SHR10"], 30, st)
+              for i in range(3)]
+        still = (sat32(mac([(d, d) for d in dg], 14, st) - reg["REST_GYRO2"], st) < 0
+                 and sat32(mac([(d, d) for d in da], 14, st) - reg["REST_ACC2"], st) < 0)
+        self.rest_left = dec(self.rest_left) if still else reg["K_REST"]
+        if self.rest_left == 0:
+            flags |= {"at_rest", "bias_updated"}
+            for i in range(3):
+                b[i] = sat32(b[i] + mul(reg["A_REST"], sat32(self.gyr_lp[i] - b[i], st), 30,
+                                        st), st)
+
+        # -- strapdown: q_g ⊗ exp(v), v = (ω − b)·T, exp to second order -------------------------
+        v = [mul(x, reg["K_RAD"], 30, st) for x in u]
+        v2 = mac([(x, x) for x in v], 30, st)
+        c = sat32(ONE - mul(v2, FLAGSHIP_CONSTANTS["EIGHTH"], 30, st), st)       # cos(|v|/2)
+        s = sat32(HALF - mul(v2, FLAGSHIP_CONSTANTS["ONE_48"], 30, st), st)      # sin(|v|/2)/|v|
+        self.qg = _normalise(_qmul(self.qg, (c, *(mul(x, s, 30, st) for x in v)), st), st)
+
+        # -- inclination --------------------------------------------------------------------------
+        if any(a):
+            a_i = _rotate(_matrix(self.qg, st), a16, st)
+            for i in range(3):
+                self.lp[i] = sat32(self.lp[i] + mul(reg["A_ACC"], sat32(a_i[i] - self.lp[i], st),
+                                                    30, st), st)
+            e = _rotate(_matrix(self.qa, st), self.lp, st)
+            phi, sk = cordic_vector(e[0], e[1], st)              # e_xy = s·(cos φ, sin φ)
+            if sk != 0:
+                flags.add("acc_used")
+                s_xy = mul(sk, INV_GAIN_Q30, 30, st)
+                theta, _ = cordic_vector(e[2], s_xy, st)        # angle from up: atan2(s, e_z)
+                cphi, sphi = cordic_rotate(phi)
+                ch, sh = cordic_rotate(mul(theta, HALF, 30, st))
+                # rotation about (sin φ, −cos φ, 0) by θ takes e to up: (ch, sφ·sh, −cφ·sh, 0)
+                cx, cy = mul(sphi, sh, 30, st), sat32(-mul(cphi, sh, 30, st), st)
+                qw, qx, qy, qz = self.qa
+                self.qa = _normalise((mac([(ch, qw), (cx, qx, -1), (cy, qy, -1)], 30, st),
+                                      mac([(ch, qx), (cx, qw), (cy, qz)], 30, st),
+                                      mac([(ch, qy), (cx, qz, -1), (cy, qw)], 30, st),
+                                      mac([(ch, qz), (cx, qy), (cy, qx, -1)], 30, st)), st)
+        qag = _qmul(self.qa, self.qg, st)
+        rag = _matrix(qag, st)
+
+        # -- heading ------------------------------------------------------------------------------
+        if mag_valid and any(m):
+            me = _rotate(rag, [mul(x, ONE, 14, st) for x in m], st)
+            psi, hk = cordic_vector(me[1], me[0], st)           # atan2(mE_x, mE_y)
+            horiz = mul(hk, INV_GAIN_Q30, 30, st)
+            if horiz != 0:
+                dip, nk = cordic_vector(horiz, sat32(-me[2], st), st)
+                mn = mul(nk, INV_GAIN_Q30, 30, st)
+                good = self._gate(mn, dip, flags, st)
+                if good:
+                    flags.add("mag_used")
+                    if not self.delta_ok:
+                        self.delta, self.delta_ok = psi, True
+                    else:
+                        gain = reg["A_MAG_FAST"] if self.fast_left else reg["A_MAG"]
+                        self.delta = wrap32(self.delta + mul(wrap32(psi - self.delta), gain, 30,
+                                                             st))
+
+        # -- output -------------------------------------------------------------------------------
+        ch, sh = cordic_rotate(mul(self.delta, HALF, 30, st))
+        w, x, y, z = qag
+        q = (mac([(ch, w), (sh, z, -1)], 30, st), mac([(ch, x), (sh, y, -1)], 30, st),
+             mac([(ch, y), (sh, x)], 30, st), mac([(ch, z), (sh, w)], 30, st))
+        return q, quat_angles_fixed(rag, self.delta, st), flags
+
+    def _gate(self, mn, dip, flags, st):
+        """The magnetic disturbance gate (norm and dip against the reference); learns the
+        reference first, adopts a steady new field as the reference after K_NEW samples."""
+        reg = self.reg
+        if not self.ref_ok:
+            # running mean: ref += (x − ref)/n, 1/n = div_q24(64, n) in Q0.30
+            self.ref_n = sat32(self.ref_n + 1, st)
+            recip = div_q24(FLAGSHIP_CONSTANTS["INT64"], self.ref_n, st)
+            self.ref_norm = sat32(self.ref_norm + mul(sat32(mn - self.ref_norm, st), recip, 30,
+                                                      st), st)
+            self.ref_dip = sat32(self.ref_dip + mul(sat32(dip - self.ref_dip, st), recip, 30,
+                                                    st), st)
+            if self.ref_left == 0:
+                self.ref_ok = True
+                flags.add("mag_new_ref")
+            return True
+        norm_lim = mul(self.ref_norm, reg["GATE_NORM"], 30, st)
+        good = (sat32(_abs(sat32(mn - self.ref_norm, st), st) - norm_lim, st) < 0 and
+                sat32(_abs(wrap32(dip - self.ref_dip), st) - reg["GATE_DIP"], st) < 0)
+        if good:
+            self.cand_norm = 0
+            return True
+        flags.add("mag_disturbed")
+        half_norm = mul(reg["GATE_NORM"], HALF, 30, st)
+        half_dip = mul(reg["GATE_DIP"], HALF, 30, st)
+        moved = (self.cand_norm == 0
+                 or sat32(mul(self.cand_norm, half_norm, 30, st) - _abs(sat32(
+                     mn - self.cand_norm, st), st), st) < 0
+                 or sat32(half_dip - _abs(wrap32(dip - self.cand_dip), st), st) < 0)
+        if moved:
+            self.cand_norm, self.cand_dip, self.cand_left = mn, dip, reg["K_NEW"]
+        elif self.cand_left == 0:
+            self.ref_norm, self.ref_dip, self.cand_norm = self.cand_norm, self.cand_dip, 0
+            flags.add("mag_new_ref")
+        return False
+
+
+def flagship_fixed(gyr_counts, acc_counts, mag_counts, config=FlagshipFixedConfig(), *,
+                   mag_valid=None):
+    """Quaternions body->ENU in Q2.30 (N, 4) int, and the bias in Q16.16 counts (N, 3), of
+    calibrated body-axis counts (``mag_counts`` None: six axes)."""
+    f = FlagshipFixed(config.registers())
     gyr = np.asarray(gyr_counts, np.int64).tolist()
     acc = np.asarray(acc_counts, np.int64).tolist()
-    mag = None if mag_counts is None else np.asarray(mag_counts, np.int64).tolist()
     n = len(gyr)
-    valid = [True] * n if mag_valid is None else [bool(v) for v in mag_valid]
-
-    # start-up alignment from the sums (directions) of the first 0.1 s
-    k0 = min(n, reg["K_ALIGN"])
-    a_sum = [sat32(sum(acc[k][i] for k in range(k0)) << 8, st) for i in range(3)]
-    qa = _inclination_quat(a_sum, st)
-    delta = 0
-    if mag is not None:
-        m_sum = [sat32(sum(mag[k][i] for k in range(k0)) << 8, st) for i in range(3)]
-        delta = _field(_rotate(_matrix(qa, st), m_sum, st), st)[2]
-    qg = (ONE, 0, 0, 0)
-    lp = [acc[0][i] << 16 for i in range(3)]
-    gyr_lp = [gyr[0][i] << 16 for i in range(3)]
-    acc_lp = [acc[0][i] << 16 for i in range(3)]
-    b = [0, 0, 0]
-    rest = 0
-    ref = None                       # (norm, dip)
-    ref_sum = [0, 0, 0]              # norm, dip, count
-    cand = None                      # (norm, dip, k)
+    mag = [[0, 0, 0]] * n if mag_counts is None else np.asarray(mag_counts, np.int64).tolist()
+    valid = [mag_counts is not None] * n if mag_valid is None else [bool(v) for v in mag_valid]
     out_q = np.empty((n, 4), np.int64)
     out_b = np.empty((n, 3), np.int64)
-
     for k in range(n):
-        g16 = [gyr[k][i] << 16 for i in range(3)]
-        a16 = [acc[k][i] << 16 for i in range(3)]
-        # -- rest detection and bias at rest ---------------------------------------------------
-        for i in range(3):
-            gyr_lp[i] = sat32(gyr_lp[i] + mul(reg["A_DET"], sat32(g16[i] - gyr_lp[i], st), 30,
-                                              st), st)
-            acc_lp[i] = sat32(acc_lp[i] + mul(reg["A_DET"], sat32(a16[i] - acc_lp[i], st), 30,
-                                              st), st)
-        dg = [sat32(g16[i] - b[i], st) >> 8 for i in range(3)]          # Q.8 counts
-        da = [sat32(a16[i] - acc_lp[i], st) >> 8 for i in range(3)]
-        still = (mac([(d, d) for d in dg], 16) < reg["REST_GYRO2"]
-                 and mac([(d, d) for d in da], 16) < reg["REST_ACC2"])
-        rest = rest + 1 if still else 0
-        if rest >= reg["K_REST"]:
-            for i in range(3):
-                b[i] = sat32(b[i] + mul(reg["A_REST"], sat32(gyr_lp[i] - b[i], st), 30, st), st)
-
-        # -- strapdown: q_g ⊗ exp(v), v = (ω − b)·T, exp to second order -----------------------
-        v = [mul(sat32(g16[i] - b[i], st), reg["K_RAD"], 32, st) for i in range(3)]
-        v2 = mac([(x, x) for x in v], 30, st)
-        c = sat32(ONE - (v2 >> 3), st)                                  # cos(|v|/2)
-        s = sat32((ONE >> 1) - mul(v2, ONE // 48, 30, st), st)          # sin(|v|/2)/|v|
-        qg = _normalise(_qmul(qg, (c, mul(v[0], s, 30, st), mul(v[1], s, 30, st),
-                                   mul(v[2], s, 30, st)), st), st)
-        mg = _matrix(qg, st)
-
-        # -- inclination ----------------------------------------------------------------------
-        aI = _rotate(mg, a16, st)
-        for i in range(3):
-            lp[i] = sat32(lp[i] + mul(reg["A_ACC"], sat32(aI[i] - lp[i], st), 30, st), st)
-        e = _rotate(_matrix(qa, st), lp, st)
-        phi, sk = cordic_vector(e[0], e[1], st)             # e_xy = s·(cos φ, sin φ)
-        if sk != 0:
-            s_xy = mul(sk, INV_GAIN_Q30, 30, st)
-            theta, _ = cordic_vector(e[2], s_xy, st)        # angle from up: atan2(s, e_z)
-            cphi, sphi = cordic_rotate(phi)
-            ch, sh = cordic_rotate(theta >> 1)
-            # rotation about (sin φ, −cos φ, 0) = (e_y, −e_x, 0)/s by θ takes e to up
-            corr = (ch, mul(sphi, sh, 30, st), sat32(-mul(cphi, sh, 30, st), st), 0)
-            qa = _normalise(_qmul(corr, qa, st), st)
-
-        # -- heading --------------------------------------------------------------------------
-        if mag is not None and valid[k]:
-            m16 = [mag[k][i] << 16 for i in range(3)]
-            me = _rotate(_matrix(qa, st), _rotate(mg, m16, st), st)
-            mn, dip, psi, horiz = _field(me, st)
-            if mn > 0 and horiz > 0:
-                if ref is None:
-                    ref_sum = [ref_sum[0] + mn, ref_sum[1] + dip, ref_sum[2] + 1]
-                    if k >= reg["K_REF"]:
-                        ref = (int(ref_sum[0] / ref_sum[2]), int(ref_sum[1] / ref_sum[2]))
-                good = ref is None or (
-                    abs(mn - ref[0]) < mul(ref[0], reg["GATE_NORM"], 30)
-                    and abs(wrap32(dip - ref[1])) < reg["GATE_DIP"])
-                if ref is not None and not good:
-                    if cand is None or abs(mn - cand[0]) > mul(cand[0], reg["GATE_NORM"], 31) \
-                            or abs(wrap32(dip - cand[1])) > reg["GATE_DIP"] >> 1:
-                        cand = (mn, dip, k)
-                    elif k - cand[2] >= reg["K_NEW"]:
-                        ref, cand = (cand[0], cand[1]), None
-                elif good:
-                    cand = None
-                if good:
-                    gain = reg["A_MAG"] if k >= reg["K_FAST"] else reg["A_MAG_FAST"]
-                    delta = wrap32(delta + mul(wrap32(psi - delta), gain, 30, st))
-
-        ch, sh = cordic_rotate(delta >> 1)
-        out_q[k] = _qmul((ch, 0, 0, sh), _qmul(qa, qg, st), st)
-        out_b[k] = b
+        out_q[k] = f.step(gyr[k], acc[k], mag[k], valid[k], Status())[0]
+        out_b[k] = f.bias
     return out_q, out_b
 
 

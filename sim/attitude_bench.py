@@ -12,33 +12,50 @@ from dataclasses import dataclass, field
 import numpy as np
 from amaranth.sim import Simulator
 
-from ..hdl.attitude_program import CONTROL_ADDR
+from ..hdl.attitude_program import CONTROL_ADDR, control_word
+from ..reference.fixed_point import RESULT_FLAGS
 from .streams import stream_put
 
 
-__all__ = ["EngineRun", "run_engine", "first_mismatch", "control_word"]
+__all__ = ["EngineRun", "RESULT_FIELDS", "run_engine", "first_mismatch", "control_word"]
+
+# what ``first_mismatch`` compares, in this order: AttitudeFixed's fields of the same names
+RESULT_FIELDS = ("quat", "angles", "bias", *RESULT_FLAGS, "saturated", "filter")
 
 
 @dataclass
 class EngineRun:
+    quat: np.ndarray
     angles: np.ndarray
     bias: np.ndarray
     acc_used: np.ndarray
     mag_used: np.ndarray
+    mag_disturbed: np.ndarray
+    mag_new_ref: np.ndarray
+    at_rest: np.ndarray
+    bias_updated: np.ndarray
     saturated: np.ndarray
-    complementary: np.ndarray
+    filter: np.ndarray
     counter: np.ndarray
     cycles: list = field(default_factory=list)      # sample valid -> result valid, per sample
 
-
-def control_word(complementary=False, reset=False):
-    return int(bool(complementary)) | (int(bool(reset)) << 1)
+    @classmethod
+    def from_results(cls, rows, cycles=()):
+        """From ``Attitude`` payloads (simulator values or decoded dicts)."""
+        get = lambda r, name: r[name] if isinstance(r, dict) else getattr(r, name)
+        vec = lambda name, n: np.array([[get(r, name)[i] for i in range(n)] for r in rows],
+                                       np.int64).reshape(len(rows), n)
+        flag = lambda name: np.array([get(get(r, "flags"), name) for r in rows], np.int64)
+        return cls(quat=vec("quat", 4), angles=vec("angles", 3), bias=vec("bias", 3),
+                   **{name: flag(name).astype(bool) for name in (*RESULT_FLAGS, "saturated")},
+                   filter=flag("filter"), counter=np.array([get(r, "counter") for r in rows]),
+                   cycles=list(cycles))
 
 
 def run_engine(dut, gyro, accel, mag_ak, mag_valid=None, *, asa=(128, 128, 128),
                writes=None, vcd=None, gtkw=None):
     """``writes``: {sample index: [(addr, value), ...]} applied (while idle) before that sample,
-    e.g. ``(CONTROL_ADDR, control_word(complementary=True))``."""
+    e.g. ``(CONTROL_ADDR, control_word("complementary"))``."""
     n = len(gyro)
     valid = np.ones(n, bool) if mag_valid is None else np.asarray(mag_valid, bool)
     writes = writes or {}
@@ -48,6 +65,8 @@ def run_engine(dut, gyro, accel, mag_ak, mag_valid=None, *, asa=(128, 128, 128),
     async def testbench(ctx):
         for i in range(3):
             ctx.set(dut.asa[i], int(asa[i]))
+        # the start-up INIT program begins on the first edge: let it, then wait it out below
+        await ctx.tick()
         for k in range(n):
             for addr, value in writes.get(k, ()):
                 await stream_put(ctx, dut.cfg, {"addr": addr, "data": int(value)})
@@ -81,26 +100,30 @@ def run_engine(dut, gyro, accel, mag_ak, mag_valid=None, *, asa=(128, 128, 128),
     if vcd and gtkw is None:
         gtkw = str(vcd).rsplit(".", 1)[0] + ".gtkw"
     traces = [dut.samples.valid, dut.samples.ready, dut.busy, dut.results.valid,
-              dut.results.payload.angles, dut.results.payload.bias, dut.results.payload.flags]
+              dut.results.payload.quat, dut.results.payload.angles, dut.results.payload.bias,
+              dut.results.payload.flags]
     with sim.write_vcd(vcd, gtkw, traces=traces) if vcd else nullcontext():
         sim.run()
-    return EngineRun(
-        angles=np.array([[r.angles[i] for i in range(3)] for r in rows], np.int64),
-        bias=np.array([[r.bias[i] for i in range(3)] for r in rows], np.int64),
-        acc_used=np.array([r.flags.acc_used for r in rows], bool),
-        mag_used=np.array([r.flags.mag_used for r in rows], bool),
-        saturated=np.array([r.flags.saturated for r in rows], bool),
-        complementary=np.array([r.flags.complementary for r in rows], bool),
-        counter=np.array([r.counter for r in rows]), cycles=cycles)
+    return EngineRun.from_results(rows, cycles)
 
 
 def first_mismatch(run, ref):
-    """Text naming the first sample and field where the engine and the reference differ."""
-    fields = [("angles", 3), ("bias", 3), ("acc_used", 0), ("mag_used", 0), ("saturated", 0)]
-    for k in range(len(ref.angles)):
-        for name, width in fields:
-            got, want = getattr(run, name)[k], getattr(ref, name)[k]
-            if not np.array_equal(got, want):
-                return (f"sample {k}: {name} gateware {np.asarray(got).tolist()} "
-                        f"!= reference {np.asarray(want).tolist()}")
-    return None
+    """Text naming the first sample and field where the engine and the reference differ
+    (``None`` when every field of every sample agrees). A vectorised scan, so that it is quick
+    on whole recordings."""
+    n = len(ref.angles)
+    if len(run.angles) != n:
+        return f"{len(run.angles)} results from the gateware, {n} from the reference"
+    first = None
+    for name in RESULT_FIELDS:
+        got, want = np.asarray(getattr(run, name)), np.asarray(getattr(ref, name))
+        bad = (got != want).reshape(n, -1).any(axis=1)
+        if bad.any():
+            k = int(np.argmax(bad))
+            if first is None or k < first[0]:
+                first = (k, name, got[k], want[k])
+    if first is None:
+        return None
+    k, name, got, want = first
+    return (f"sample {k}: {name} gateware {np.asarray(got).tolist()} "
+            f"!= reference {np.asarray(want).tolist()}")

@@ -1,31 +1,40 @@
 """Instruction-level model of the attitude engine: runs the microcode ROM in Python.
 
-Not a reference (``reference.fixed_point`` is, written independently of the microcode): a fast
-way to check the microcode against the reference on thousands of samples before the slower
-gateware simulation, and to debug a program one instruction at a time (``trace=True``).
-The datapath primitives are the reference's, so only the program's logic is under test here.
+Not a reference (``reference.fixed_point.EngineModel`` is, written independently of the
+microcode): a fast way to check the microcode against the reference on thousands of samples
+before the slower gateware simulation, and to debug a program one instruction at a time
+(``trace=True``). The datapath primitives are the reference's, so only the program's logic is
+under test here.
 """
 
-from ..hdl.attitude_isa import MUL_SHIFTS, Cond, Op
-from ..hdl.attitude_program import LOAD_ORDER, REGS, build_program, config_init, load_words
-from ..reference.fixed_point import (INV_GAIN_Q30, KalmanFixedConfig, Status, cordic_rotate,
-                                     cordic_vector, div_q24, sat, sat16, sat32,
-                                     wrap32)
+from ..hdl.attitude_isa import MUL_SHIFTS, Cond, Flag, Op
+from ..hdl.attitude_program import (CONFIG_REGS, FILTER_CODES, LOAD_ORDER, REGS, build_program,
+                                    config_init, load_words)
+from ..reference.fixed_point import (INV_GAIN_Q30, Status, cordic_rotate, cordic_vector,
+                                     div_q24, sat, sat16, sat32, wrap32)
 
 
 __all__ = ["AttitudeISAModel"]
 
 
 class AttitudeISAModel:
-    def __init__(self, config=KalmanFixedConfig(), cal=None):
+    """``registers``: the register file's reset values by name (``EngineModel(...).reg``)."""
+
+    def __init__(self, registers, filter="flagship"):
         self.program, self.entry = build_program()
-        self.regs = config_init(config, INV_GAIN_Q30, cal)
-        self.complementary = False
+        self.regs = config_init({k: v for k, v in registers.items() if k in CONFIG_REGS},
+                                INV_GAIN_Q30)
+        self.filter = FILTER_CODES[filter]
         self.first = True
         self.run(self.entry["init"])
 
     def write(self, addr, value):
         self.regs[addr] = sat(value, 32)
+
+    def select(self, filter):
+        code = FILTER_CODES[filter]
+        self.first |= code != self.filter
+        self.filter = code
 
     def run(self, pc, mag_valid=True, trace=False):
         """Run from ``pc`` to END; returns (flags set, saturated, instructions executed)."""
@@ -73,13 +82,14 @@ class AttitudeISAModel:
                 put(ins.d, c)
                 put(ins.d + 1, s)
             elif op == Op.BR:
-                cond = {Cond.ALWAYS: True, Cond.A_ZERO: a == 0,
+                cond = {Cond.ALWAYS: True, Cond.A_ZERO: a == 0, Cond.A_NEG: a < 0,
                         Cond.MAG_INVALID: not mag_valid, Cond.FIRST: self.first,
-                        Cond.COMPL: self.complementary}[Cond(ins.cond)]
+                        Cond.COMPL: self.filter == FILTER_CODES["complementary"],
+                        Cond.FLAGSHIP: self.filter == FILTER_CODES["flagship"]}[Cond(ins.cond)]
                 if cond != bool(ins.inv):
                     pc = ins.target
             elif op == Op.SETF:
-                flags.add(ins.sh)
+                flags.add(Flag(ins.sh))
             elif op == Op.END:
                 return flags, st.saturated, steps
 
@@ -92,5 +102,7 @@ class AttitudeISAModel:
         return result
 
     def outputs(self):
+        """(quaternion, angles, bias) as the engine reports them."""
         r = self.regs
-        return ([r[REGS[f"THETA{i}"]] for i in range(3)], [r[REGS[f"BIAS{i}"]] for i in range(3)])
+        return ([r[REGS[f"QOUT{i}"]] for i in range(4)], [r[REGS[f"THETA{i}"]] for i in range(3)],
+                [r[REGS[f"BIAS{i}"]] for i in range(3)])

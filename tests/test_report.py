@@ -29,12 +29,16 @@ def test_report_keys_and_sanity(figures):
     assert figures["datapath"]["multipliers_18x18"] == 4
     assert figures["design"]["multipliers_18x18"] == 4
     assert figures["design"]["logic_elements"] > figures["datapath"]["logic_elements"]
+    from amaranth.lib import data
+    from mpu9250_ahrs.hdl.attitude_isa import REG_COUNT, Instr
     from mpu9250_ahrs.hdl.attitude_program import build_program
-    rom_bits = len(build_program()[0]) * 46
+    rom_bits = len(build_program()[0]) * data.Layout.cast(Instr).size
     # the register file twice (one copy per read port) and the microcode ROM
-    assert figures["datapath"]["memory_bits"] == 2 * 128 * 32 + rom_bits
-    assert set(figures["cycles_per_update"]) == {"kalman", "complementary"}
-    assert figures["cycles_per_update"]["complementary"] < figures["cycles_per_update"]["kalman"]
+    assert figures["datapath"]["memory_bits"] == 2 * REG_COUNT * 32 + rom_bits
+    cycles = figures["cycles_per_update"]
+    assert set(cycles) == {"kalman", "complementary", "flagship"}
+    assert cycles["complementary"] < cycles["kalman"] < cycles["flagship"]
+    assert figures["update_us"]["flagship"] == round(cycles["flagship"] / 50, 2)
 
 
 def test_report_verb_prints_json(monkeypatch, capsys, figures):

@@ -37,7 +37,7 @@ def check(gyro, accel, mag_ak, mag_valid=None, *, config=KalmanFixedConfig(), ca
     reference gets the register-file writes; the filter select and resets are ``select`` and
     ``resets``)."""
     cal = CalibrationFixed() if cal is None else cal
-    dut = AttitudeEngine(config, cal)
+    dut = AttitudeEngine(config, cal, filter=select if isinstance(select, str) else select[0])
     run = run_engine(dut, gyro, accel, mag_ak, mag_valid, asa=asa, writes=writes, vcd=vcd)
     ref_writes = {k: {REG_NAMES[a]: v for a, v in w if a != CONTROL_ADDR}
                   for k, w in (writes or {}).items()}
@@ -179,20 +179,38 @@ def test_heading_across_180_and_complementary_switch():
     gc, ac, mc = SENSOR.counts(traj)
     n = len(gc)
     select = ["kalman"] * (n // 2) + ["complementary"] * (n - n // 2)
-    writes = {n // 2: [(CONTROL_ADDR, control_word(complementary=True))]}
+    writes = {n // 2: [(CONTROL_ADDR, control_word("complementary"))]}
     run, _ = check(gc, ac, body_to_mag(mc), writes=writes, select=select)
     yaw = bam_to_deg(run.angles[:, 2])
     assert yaw.max() > 170 and yaw.min() < -170                  # it did cross the wrap
-    assert not run.complementary[0] and run.complementary[-1]
+    assert run.filter[0] == 0 and run.filter[-1] == 1
 
 
+@pytest.mark.parametrize("filter", ["kalman", "flagship"])
 @pytest.mark.parametrize("euler", [(0, 90, 0), (0, -90, 30), (30, 89.9, 0)])
-def test_pitch_at_90_degrees(euler):
-    gc, ac, mc = SENSOR.counts(static(euler, 0.1))
-    check(gc, ac, body_to_mag(mc))
+def test_pitch_at_90_degrees(euler, filter):
+    gc, ac, mc = SENSOR.counts(static(euler, 0.06))
+    run, _ = check(gc, ac, body_to_mag(mc), select=filter)
+    if filter == "flagship":              # no gimbal lock: the quaternion is the pose
+        from mpu9250_ahrs.reference.flagship_fixed import q30_to_float
+        from mpu9250_ahrs.reference.frames import euler_to_quat, orientation_errors
+        err = orientation_errors(q30_to_float(run.quat[-1]), euler_to_quat(np.radians(euler)))
+        assert np.degrees(err[0]) < 1.5
 
 
-def test_full_scale_zero_vectors_and_invalid_field():
+def test_flagship_static_tilt_and_angles():
+    """The flagship's first results: tilt from the first sample, heading from the first field,
+    the angles derived from its quaternion."""
+    traj = static((35, -12, 20), 0.08)
+    gc, ac, mc = SENSOR.counts(traj)
+    run, _ = check(gc, ac, body_to_mag(mc), select="flagship")
+    assert angle_diff(bam_to_deg(run.angles[-1]), (35, -12, 20)).max() < 1.0
+    assert run.acc_used.all() and run.mag_used.all() and (run.filter == 2).all()
+    assert run.mag_new_ref.sum() == 0 and not run.saturated.any()
+
+
+@pytest.mark.parametrize("filter", ["kalman", "flagship"])
+def test_full_scale_zero_vectors_and_invalid_field(filter):
     n = 8
     g = np.tile([32767, -32768, 32767], (n, 1))
     a = np.tile([-32768, 32767, -32768], (n, 1))
@@ -202,7 +220,7 @@ def test_full_scale_zero_vectors_and_invalid_field():
     valid = np.ones(n, bool)
     valid[6] = False                           # no new magnetometer data
     cal = CalibrationFixed(accel_scale=(32767, 32767, 32767))        # ~2.0: saturates 16 bits
-    run, ref = check(g, a, m, valid, cal=cal, asa=(255, 0, 255))
+    run, ref = check(g, a, m, valid, cal=cal, asa=(255, 0, 255), select=filter)
     assert not run.acc_used[2] and not run.mag_used[4] and not run.mag_used[6]
     assert run.acc_used[3] and run.saturated.any()
 
@@ -217,9 +235,10 @@ def test_coefficient_extremes_and_reset():
     writes = {0: [(CONFIG_REGS["R"], -(2 ** 31))],
               3: [(CONFIG_REGS["R"], 2 << 24), (CONFIG_REGS["Q_ANGLE"], big),
                   (CONFIG_REGS["Q_BIAS"], big)],
-              6: [(CONTROL_ADDR, control_word(reset=True)), (CONFIG_REGS["Q_ANGLE"], 1 << 20),
+              6: [(CONTROL_ADDR, control_word("kalman", reset=True)),
+                  (CONFIG_REGS["Q_ANGLE"], 1 << 20),
                   (CONFIG_REGS["Q_BIAS"], 1 << 20), (CONFIG_REGS["ONE_MINUS_A"], 0)],
-              9: [(CONTROL_ADDR, control_word(complementary=True))],
+              9: [(CONTROL_ADDR, control_word("complementary"))],
               10: [(CONFIG_REGS["ONE_MINUS_A"], 1 << 24)]}
     n = len(gc)
     run, _ = check(gc, ac, mc, writes=writes, select=["kalman"] * 9 + ["complementary"] * (n - 9),
@@ -258,7 +277,7 @@ def test_register_read_back():
         while ctx.get(dut.busy) or ctx.get(dut.cfg.ready) == 0:
             await ctx.tick()
         got["R"] = await read(ctx, CONFIG_REGS["R"])
-        for addr, value in ((CONFIG_REGS["R"], 12345), (CONTROL_ADDR, control_word(True))):
+        for addr, value in ((CONFIG_REGS["R"], 12345), (CONTROL_ADDR, control_word("complementary"))):
             await stream_put(ctx, dut.cfg, {"addr": addr, "data": value})
         got["R2"] = await read(ctx, CONFIG_REGS["R"])
         got["control"] = await read(ctx, CONTROL_ADDR)

@@ -1,38 +1,78 @@
-"""The microcode, run instruction by instruction in Python, against the reference: a fast check
-of the program's logic on many samples (the gateware tests then check the datapath)."""
+"""The microcode, run instruction by instruction in Python, against the reference
+(``EngineModel``): a fast check of the programs' logic on many samples (the gateware tests then
+check the datapath)."""
 
 import numpy as np
 
+from mpu9250_ahrs.hdl.attitude_isa import ROM_DEPTH, Flag
 from mpu9250_ahrs.hdl.attitude_program import build_program
-from mpu9250_ahrs.reference.fixed_point import CalibrationFixed, KalmanFixedConfig, attitude_fixed
+from mpu9250_ahrs.reference.fixed_point import RESULT_FLAGS, CalibrationFixed, EngineModel
+from mpu9250_ahrs.reference.frames import body_to_mag
 from mpu9250_ahrs.sim.attitude_isa_model import AttitudeISAModel
+from mpu9250_ahrs.sim.motion import SensorModel, concat, static, turn
+
+
+def run_both(g, a, m, valid, select, *, asa=(128, 128, 128), **model):
+    """Every sample through the reference and the ISA model; returns the reference's results
+    after checking that every field agrees."""
+    ref = EngineModel(filter=select[0], **model)
+    isa = AttitudeISAModel(ref.reg, filter=select[0])
+    results = []
+    for k in range(len(g)):
+        ref.select(select[k])
+        isa.select(select[k])
+        want = ref.sample(g[k], a[k], m[k], valid[k], asa)
+        flags, saturated, _ = isa.sample(g[k], a[k], m[k], valid[k], asa)
+        quat, angles, bias = isa.outputs()
+        got = {"quat": quat, "angles": angles, "bias": bias, "saturated": saturated,
+               "filter": isa.filter, **{f: Flag[f.upper()] in flags for f in RESULT_FLAGS}}
+        assert got == want, f"sample {k} ({select[k]})"
+        results.append(want)
+    return results
 
 
 def test_microcode_matches_reference_on_random_samples():
+    """Random raw samples and calibration, the three filters taking turns (each switch makes
+    the next sample a first one)."""
     rng = np.random.default_rng(1)
     n = 400
-    g = rng.integers(-3000, 3000, (n, 3))
+    g = rng.integers(-3000, 3000, (n, 3)).tolist()
     a = rng.integers(-32768, 32768, (n, 3))
     m = rng.integers(-2000, 2000, (n, 3))
     a[50:60] = 0
     m[70:80] = 0
-    valid = rng.random(n) > 0.2
+    valid = (rng.random(n) > 0.2).tolist()
     cal = CalibrationFixed(gyro_offset=(3, -5, 7), accel_offset=(100, -50, 20),
                            accel_scale=(16000, 16500, 16384), hard_iron=(30, -40, 50),
                            soft_iron=(16000, 200, -100, 200, 16800, 50, -100, 50, 16300))
-    asa = (170, 180, 160)
-    select = np.where((np.arange(n) // 97) % 2 == 1, "complementary", "kalman")
-    ref = attitude_fixed(g, a, m, valid, asa=asa, cal=cal, select=select)
-    model = AttitudeISAModel(KalmanFixedConfig(), cal)
-    for k in range(n):
-        model.complementary = select[k] == "complementary"
-        flags, saturated, _ = model.sample(g[k], a[k], m[k], valid[k], asa)
-        theta, bias = model.outputs()
-        assert (theta, bias) == (ref.angles[k].tolist(), ref.bias[k].tolist()), f"sample {k}"
-        assert ((0 in flags), (1 in flags), saturated) == \
-            (ref.acc_used[k], ref.mag_used[k], ref.saturated[k]), f"sample {k} flags"
+    names = ("flagship", "kalman", "complementary")
+    select = [names[(k // 47) % 3] for k in range(n)]
+    run_both(g, a.tolist(), m.tolist(), valid, select, asa=(170, 180, 160), cal=cal)
+
+
+def test_flagship_rest_gates_and_new_reference():
+    """Rest (bias learnt), a turn, then a magnet: the field is rejected as disturbed and, once
+    it has stayed steady for K_NEW samples, adopted as the new reference; all bit for bit."""
+    sensor = SensorModel(gyro_noise=np.radians(0.05), accel_noise=0.02, mag_noise=0.3,
+                         gyro_bias=np.radians([0.3, -0.2, 0.1]), seed=4)
+    traj = concat(static((20, -10, 30), 0.6), turn((0, 0, 1), 40, 0.3, start_deg=(20, -10, 30)),
+                  static((20, -10, 70), 1.6))
+    gc, ac, mc = sensor.counts(traj)
+    mc = mc.astype(float)
+    mc[100:] *= 1.35                                  # a magnet from sample 100 on
+    mk = body_to_mag(np.round(mc).astype(int))
+    n = len(gc)
+    short = {"K_REST": 20, "K_REF": 30, "K_FAST": 40, "K_NEW": 60}
+    out = run_both(gc.tolist(), ac.tolist(), mk.tolist(), [True] * n, ["flagship"] * n,
+                   registers=short)
+    seen = {f: [k for k, r in enumerate(out) if r[f]] for f in RESULT_FLAGS}
+    assert seen["at_rest"] and seen["bias_updated"] == seen["at_rest"]
+    assert seen["mag_disturbed"] and seen["mag_disturbed"][0] >= 100
+    new_refs = seen["mag_new_ref"]
+    assert new_refs[0] < 100 and 160 in new_refs, new_refs      # learnt; adopted after K_NEW
+    assert any(k > new_refs[-1] for k in seen["mag_used"])            # used again after
 
 
 def test_program_fits_the_rom_and_has_entries():
     program, entry = build_program()
-    assert len(program) <= 512 and entry["init"] == 0 and entry["sample"] > 0
+    assert len(program) <= ROM_DEPTH and entry["init"] == 0 and entry["sample"] > 0
