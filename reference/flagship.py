@@ -25,9 +25,10 @@ written from the paper's description, simplified:
   tried here made the recordings worse, so motion-time bias estimation is left out for now.)
 There are no Euler angles in it, so it works at any attitude (no gimbal lock at ±90° pitch).
 
-Cost per sample in fixed point (``reference/flagship_fixed.py``, the same steps in the
-datapath's operations): about 57 single multiplies and 114 multiply-accumulate terms, 4
-vectoring and 3 rotation CORDIC runs, no division (normalisation is one Newton step).
+Start-up is causal (the gateware runs this filter sample by sample): the first sample sets the
+inclination, the first usable field the heading. The fixed-point form that the attitude engine
+runs, operation for operation, is ``reference/flagship_fixed.py`` (its cost:
+``reference/FIXED_POINT.md``).
 """
 
 import math
@@ -111,8 +112,8 @@ def flagship_filter(gyr, acc, mag, dt, params=FlagshipParams(), *, mag_valid=Non
 
     qg = qa = (1.0, 0.0, 0.0, 0.0)
     delta = None
-    lp, gyr_lp, acc_lp = list(acc_l[0]) if n else None, list(gyr_l[0]) if n else None, \
-        list(acc_l[0]) if n else None
+    # the low-passes start at the first sample
+    lp, acc_lp, gyr_lp = (list(x[0]) if n else [] for x in (acc_l, acc_l, gyr_l))
     b = [0.0, 0.0, 0.0]
     a_acc = 1 - math.exp(-dt / p.tau_acc)
     a_rest = 1 - math.exp(-dt / p.tau_rest)

@@ -7,7 +7,8 @@ own narrow port), writes a small C++ driver, builds both with Verilator once and
 binary under a key made of the Verilog, the driver and the Verilator version, so a changed
 design rebuilds by itself. ``run`` then replays samples and register writes exactly as
 ``attitude_bench.run_engine`` does in Amaranth's simulator (the same handshakes and cycle
-counts) and returns an ``EngineRun``.
+counts) and returns an ``EngineRun``. ``python -m mpu9250_ahrs.sim.compiled_engine`` measures
+both simulators side by side on one stimulus (``speed_benchmark``).
 
 Cache folder: ``$MPU9250_AHRS_CACHE`` or ``~/.cache/mpu9250-ahrs``. Needs ``verilator`` and a
 C++ compiler (Debian: ``apt-get install verilator g++``); without them ``run`` raises
@@ -39,7 +40,7 @@ from .attitude_bench import EngineRun
 
 
 __all__ = ["EngineHarness", "CompiledEngine", "verilator_available", "configuration_writes",
-           "replay_gateware"]
+           "replay_gateware", "speed_benchmark"]
 
 HINT = "install it with: apt-get install verilator g++"
 _FLAG_NAMES = [name for name, _ in data.Layout.cast(AttitudeFlags)]
@@ -299,3 +300,42 @@ def replay_gateware(filter, gyr_counts, acc_counts, mag_counts, dt, *, mag_valid
     ref = attitude_fixed(gyr_counts, acc_counts, mag_ak, mag_valid, config=kalman,
                          flagship=flagship, select=filter)
     return run, ref, engine
+
+
+def speed_benchmark(samples=150, filter="flagship"):
+    """The same stimulus (static, then random motion; the field valid every third sample)
+    through Amaranth's simulator and the compiled model: cycles/s of each and their ratio,
+    with the results checked equal. A benchmark, not a test: the figures depend on the
+    machine."""
+    from ..hdl.attitude_engine import AttitudeEngine
+    from ..hdl.attitude_program import CONTROL_ADDR, control_word
+    from ..reference.frames import body_to_mag
+    from .attitude_bench import RESULT_FIELDS, run_engine
+    from .motion import SensorModel, concat, random_motion, static
+    traj = concat(static((10, 20, 30), samples / 200), random_motion(samples / 200, seed=1))
+    gc, ac, mc = SensorModel(seed=2).counts(traj)
+    mk = body_to_mag(mc)
+    valid = np.arange(len(gc)) % 3 == 0
+    writes = {0: [(CONTROL_ADDR, control_word(filter, reset=True))]}
+    compiled = CompiledEngine(AttitudeEngine)
+    compiled.build()
+    fast = compiled.run(gc, ac, mk, valid, writes=writes)
+    start = time.perf_counter()
+    slow = run_engine(AttitudeEngine(), gc, ac, mk, valid, writes=writes)
+    pysim_s = time.perf_counter() - start
+    same = all(np.array_equal(np.asarray(getattr(slow, f)), np.asarray(getattr(fast, f)))
+               for f in RESULT_FIELDS + ("cycles",))
+    # both simulate the same cycles (the compiled count includes the reset and INIT)
+    pysim_rate = compiled.last_cycles / pysim_s
+    return {"filter": filter, "samples": len(gc), "cycles": compiled.last_cycles,
+            "identical_results": same, "pysim_s": round(pysim_s, 2),
+            "pysim_cycles_per_s": round(pysim_rate),
+            "compiled_s": round(compiled.last_wall_s, 4),
+            "compiled_cycles_per_s": round(compiled.cycles_per_s),
+            "speed_ratio": round(compiled.cycles_per_s / pysim_rate),
+            "build_s": round(compiled.build_s, 1)}
+
+
+if __name__ == "__main__":
+    import json
+    print(json.dumps(speed_benchmark()))

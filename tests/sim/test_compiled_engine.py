@@ -12,7 +12,9 @@ import numpy as np
 import pytest
 
 from mpu9250_ahrs.hdl.attitude_engine import AttitudeEngine
-from mpu9250_ahrs.hdl.attitude_program import CONFIG_REGS, CONTROL_ADDR, control_word
+from mpu9250_ahrs.hdl.attitude_program import (CONFIG_REGS, CONTROL_ADDR, FILTER_CODES,
+                                               control_word)
+from mpu9250_ahrs.reference.fixed_point import FILTERS, attitude_fixed
 from mpu9250_ahrs.reference.frames import body_to_mag
 from mpu9250_ahrs.sim.attitude_bench import RESULT_FIELDS, first_mismatch, run_engine
 from mpu9250_ahrs.sim.compiled_engine import CompiledEngine, replay_gateware
@@ -46,7 +48,16 @@ def test_compiled_equals_pysim_across_reset_and_switches(compiled):
     for name in RESULT_FIELDS + ("counter", "cycles"):
         assert np.array_equal(np.asarray(getattr(pysim, name)),
                               np.asarray(getattr(fast, name))), name
-    assert list(pysim.filter) == [2] * 6 + [0] * 7 + [1] * 4 + [2] * (len(gc) - 17)
+    select = ["flagship"] * 6 + ["kalman"] * 7 + ["complementary"] * 4
+    select += ["flagship"] * (len(gc) - len(select))
+    ref = attitude_fixed(gc, ac, mk, valid, asa=(150, 120, 200), select=select,
+                         writes={10: {"R": 3 << 24}}, resets={13})
+    assert first_mismatch(fast, ref) is None, first_mismatch(fast, ref)
+    assert list(fast.filter) == [FILTER_CODES[f] for f in select]
+
+
+def test_filter_codes_agree_with_the_reference():
+    assert [FILTER_CODES[name] for name in FILTERS] == list(range(len(FILTERS)))
 
 
 RECORDINGS = sorted(glob.glob("../shared/data/broad/*.hdf5")) or sorted(glob.glob(
