@@ -210,10 +210,8 @@ class AttitudeEngine(wiring.Component):
                 m.d.comb += cond.eq(~mag_valid)
             with m.Case(Cond.FIRST):
                 m.d.comb += cond.eq(first)
-            with m.Case(Cond.COMPL):
-                m.d.comb += cond.eq(filter_sel == FILTER_CODES["complementary"])
-            with m.Case(Cond.FLAGSHIP):
-                m.d.comb += cond.eq(filter_sel == FILTER_CODES["flagship"])
+            with m.Case(Cond.FILTER):
+                m.d.comb += cond.eq(filter_sel == x.sh[:len(filter_sel)])
 
         m.d.comb += [
             cordic.x_in.eq(opa), cordic.y_in.eq(opb), cordic.angle_in.eq(opa),

@@ -27,8 +27,8 @@ END   the sample is done: results out                              1
 
 Conditions: ``ALWAYS``; ``A_ZERO`` (register a is 0); ``A_NEG`` (register a is negative: a
 comparison is a SUB then this); ``MAG_INVALID`` (the sample's ``mag_valid`` flag is 0);
-``FIRST`` (first sample since the filter was reset or another filter selected); ``COMPL`` /
-``FLAGSHIP`` (that filter is selected).
+``FIRST`` (first sample since the filter was reset or another filter selected); ``FILTER``
+(the filter whose code is the instruction's ``sh`` field is selected: the dispatch).
 
 The assembler (``Assembler``) gives registers names, resolves labels and checks ranges; it
 knows nothing about hazards because the engine has none: a result is visible to the very next
@@ -36,13 +36,14 @@ instruction.
 """
 
 import enum
+from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 
 from amaranth.hdl import unsigned
 from amaranth.lib import data
 
 
-__all__ = ["Op", "Cond", "Flag", "MUL_SHIFTS", "REG_COUNT", "REG_BITS", "ROM_DEPTH", "ROM_BITS",
+__all__ = ["Op", "Cond", "Flag", "MUL_SHIFTS", "Q14", "Q24", "DOUBLED", "Q30", "REG_COUNT", "REG_BITS", "ROM_DEPTH", "ROM_BITS",
            "Instr",
            "Instruction", "Assembler"]
 
@@ -55,7 +56,11 @@ ROM_BITS = (ROM_DEPTH - 1).bit_length()
 # covariances, Q1.30 sines, RATE in Q14; 29 for the doubled products 2·a·b of a rotation
 # matrix), and a left shift is a MUL by a power-of-two constant register with shift 14 (the ALU
 # has no shifter).
-MUL_SHIFTS = (14, 24, 29, 30)
+Q14 = 14            # Q2.14 coefficients, ASA, RATE; by a power-of-two register: a left shift
+Q24 = 24            # Q8.24 covariances, gains, T
+DOUBLED = 29        # 2·a·b of Q2.30 values (a rotation matrix's products)
+Q30 = 30            # products of Q1.30 / Q2.30 values, ½x as a MUL by 2²⁹
+MUL_SHIFTS = (Q14, Q24, DOUBLED, Q30)
 
 
 class Op(enum.IntEnum):
@@ -77,9 +82,8 @@ class Cond(enum.IntEnum):
     A_ZERO = 1
     MAG_INVALID = 2
     FIRST = 3
-    COMPL = 4
+    FILTER = 4          # the selected filter's code equals the instruction's ``sh``
     A_NEG = 5
-    FLAGSHIP = 6
 
 
 class Flag(enum.IntEnum):
@@ -141,19 +145,75 @@ class Instruction:
         return word
 
 
+def _reads_writes(ins):
+    """(registers read, registers written) by an instruction."""
+    op = ins.op
+    if op in (Op.ADD, Op.SUB, Op.OR, Op.DIV, Op.VEC, Op.MUL):
+        reads = (ins.a, ins.b)
+    elif op == Op.ROT:
+        reads = (ins.a,)
+    elif op == Op.BR and ins.cond in (Cond.A_ZERO, Cond.A_NEG):
+        reads = (ins.a,)
+    else:
+        reads = ()
+    if op in (Op.VEC, Op.ROT):
+        writes = (ins.d, ins.d + 1)
+    elif op in (Op.ADD, Op.SUB, Op.OR, Op.DIV) or (op == Op.MUL and ins.wb):
+        writes = (ins.d,)
+    else:
+        writes = ()
+    return reads, writes
+
+
 @dataclass
 class Assembler:
     """Collects instructions for one ROM. Registers are given by address (ints); ``mul`` takes
-    its shift in bits and looks up its code."""
+    its shift in bits (``Q14``, ``Q24``, ``DOUBLED``, ``Q30``) and looks up its code.
+
+    ``scratch``: addresses of working registers that routines borrow with ``scratch(n)`` and
+    give back at the end of the ``with`` block. Each instruction is checked as it is emitted: a
+    scratch register it reads must be held by a live scope and written since it was handed out
+    (otherwise it would read what another routine left there), one it writes must be held.
+    The check follows the program text, so a value written on one side of a branch counts as
+    written after the join."""
     code: list = field(default_factory=list)
     labels: dict = field(default_factory=dict)
+    scratch_pool: tuple = ()
+
+    def __post_init__(self):
+        self._free = list(self.scratch_pool)
+        self._written = set()               # held scratch registers written since handed out
 
     def label(self, name):
         if name in self.labels:
             raise ValueError(f"label {name!r} defined twice")
         self.labels[name] = len(self.code)
 
+    @contextmanager
+    def scratch(self, n):
+        """``n`` scratch registers, held for the ``with`` block."""
+        if n > len(self._free):
+            raise ValueError(f"{n} scratch registers asked for, {len(self._free)} free")
+        regs, self._free = self._free[:n], self._free[n:]
+        try:
+            yield regs
+        finally:
+            self._written -= set(regs)
+            self._free = sorted(self._free + regs, key=self.scratch_pool.index)
+
     def _emit(self, ins):
+        reads, writes = _reads_writes(ins)
+        for reg in reads:
+            if reg in self.scratch_pool and reg not in self._written:
+                state = "free" if reg in self._free else "not written since it was handed out"
+                raise ValueError(f"instruction {len(self.code)} ({ins.op.name}) reads scratch "
+                                 f"register {reg:#04x}, {state}")
+        for reg in writes:
+            if reg in self.scratch_pool:
+                if reg in self._free:
+                    raise ValueError(f"instruction {len(self.code)} ({ins.op.name}) writes "
+                                     f"scratch register {reg:#04x}, which is free")
+                self._written.add(reg)
         self.code.append(ins)
 
     @staticmethod
@@ -191,8 +251,9 @@ class Assembler:
     def rot(self, d, angle):
         self._emit(Instruction(Op.ROT, d, angle))
 
-    def br(self, target, cond=Cond.ALWAYS, *, a=0, inv=False):
-        self._emit(Instruction(Op.BR, a=a, cond=cond, inv=inv, target=target))
+    def br(self, target, cond=Cond.ALWAYS, *, a=0, inv=False, code=0):
+        """``code``: the filter code a ``Cond.FILTER`` branch tests for."""
+        self._emit(Instruction(Op.BR, a=a, sh=code, cond=cond, inv=inv, target=target))
 
     def setf(self, flag):
         self._emit(Instruction(Op.SETF, sh=flag))

@@ -51,17 +51,31 @@ constants (``SHL12``, ``SHL15``, ``ONE``, ``HALF`` ...: reset values that no pro
 not write them either); the host need not know them. Reading back works for every word.
 """
 
-from .attitude_isa import REG_COUNT, Assembler, Cond, Flag
+from dataclasses import dataclass
+from typing import Callable
+
+from .attitude_isa import Q14, Q24, Q30, REG_COUNT, Assembler, Cond, Flag
 from .flagship_microcode import FLAGSHIP_REGISTERS, flagship_names, flagship_routine
 
 
-__all__ = ["CONFIG_REGS", "CONTROL_ADDR", "REGS", "FILTER_CODES", "LOAD_BASE", "LOAD_ORDER",
+__all__ = ["CONFIG_REGS", "CONTROL_ADDR", "REGS", "FILTERS", "FILTER_CODES", "FilterRoutine",
+           "LOAD_BASE", "LOAD_ORDER",
            "TEMPS", "CONSTANTS", "build_program", "config_init", "load_words", "control_word"]
 
 CONTROL_ADDR = REG_COUNT - 1
-# filter select codes (CONTROL bits 1:0); the flagship is the reset default
-FILTER_CODES = {"kalman": 0, "complementary": 1, "flagship": 2}
 CONTROL_RESET = 1 << 2
+
+
+@dataclass(frozen=True)
+class FilterRoutine:
+    """One filter of the engine: its ``name`` (``reference.fixed_point.EngineModel`` steps the
+    filter of the same name), its ``code`` (CONTROL bits 1:0 and ``AttitudeFlags.filter``) and
+    ``emit(asm, regs)``, which writes its microcode from the calibrated sample (G, A, M, the
+    zero tests ACC_OK and MAG_OK) to QOUT, THETA and BIAS, ending in END or a branch to the
+    ``angles_out`` tail."""
+    name: str
+    code: int
+    emit: Callable
 
 
 def control_word(filter="flagship", reset=False):
@@ -164,58 +178,58 @@ def _init(asm, r):
 
 
 def _calibrate(asm, r):
-    T = TEMPS
-    for i in range(3):
-        asm.sub(r[f"G{i}"], r[f"GRAW{i}"], r[f"GYRO_OFF{i}"], sat16=True)
-    # the multiplier does not saturate to 16 bits: products go to temporaries, then an ADD
-    # saturates them (sat16 of sat32 is sat16, so the result is the same)
-    for i in range(3):
-        asm.sub(T[i], r[f"ARAW{i}"], r[f"ACC_OFF{i}"])
-    for i in range(3):
-        asm.mul(T[i], T[i], r[f"ACC_SCALE{i}"], 14)
-    for j in range(3):                               # ASA: h·(ASA + 128)/256, AK axes
-        asm.mul(T[3 + j], r[f"MRAW{j}"], r[f"ASA{j}"], 14)       # ASA holds (ASA + 128)·2⁶
-    for i in range(3):
-        asm.add(r[f"A{i}"], T[i], r["ZERO"], sat16=True)
-    # AK8963 -> body axes (x = y_ak, y = x_ak, z = −z_ak), minus the hard-iron offset
-    d = T[9:12]
-    asm.sub(d[0], T[4], r["HARD0"])
-    asm.sub(d[1], T[3], r["HARD1"])
-    asm.sub(d[2], r["ZERO"], T[5])
-    asm.sub(d[2], d[2], r["HARD2"])
-    for i in range(3):
-        asm.mac(T[6 + i], [(r[f"SOFT{i}{j}"], d[j]) for j in range(3)], 14)
-    for i in range(3):
-        asm.add(r[f"M{i}"], T[6 + i], r["ZERO"], sat16=True)
+    with asm.scratch(12) as T:
+        for i in range(3):
+            asm.sub(r[f"G{i}"], r[f"GRAW{i}"], r[f"GYRO_OFF{i}"], sat16=True)
+        # the multiplier does not saturate to 16 bits: products go to temporaries, then an ADD
+        # saturates them (sat16 of sat32 is sat16, so the result is the same)
+        for i in range(3):
+            asm.sub(T[i], r[f"ARAW{i}"], r[f"ACC_OFF{i}"])
+        for i in range(3):
+            asm.mul(T[i], T[i], r[f"ACC_SCALE{i}"], Q14)
+        for j in range(3):                               # ASA: h·(ASA + 128)/256, AK axes
+            asm.mul(T[3 + j], r[f"MRAW{j}"], r[f"ASA{j}"], Q14)       # ASA holds (ASA + 128)·2⁶
+        for i in range(3):
+            asm.add(r[f"A{i}"], T[i], r["ZERO"], sat16=True)
+        # AK8963 -> body axes (x = y_ak, y = x_ak, z = −z_ak), minus the hard-iron offset
+        d = T[9:12]
+        asm.sub(d[0], T[4], r["HARD0"])
+        asm.sub(d[1], T[3], r["HARD1"])
+        asm.sub(d[2], r["ZERO"], T[5])
+        asm.sub(d[2], d[2], r["HARD2"])
+        for i in range(3):
+            asm.mac(T[6 + i], [(r[f"SOFT{i}{j}"], d[j]) for j in range(3)], Q14)
+        for i in range(3):
+            asm.add(r[f"M{i}"], T[6 + i], r["ZERO"], sat16=True)
 
 
 def _tilt(asm, r, roll):
     """roll = atan2(ay, az) into ``roll``, pitch = atan2(−ax, √(ay² + az²)) into ``roll`` + 1,
     inputs scaled by 2⁸. Clobbers ``roll`` + 2 (the vectoring CORDIC writes its magnitude
     beside the angle; the first one's is used for the pitch)."""
-    T = TEMPS
-    for i in range(3):
-        asm.mul(T[i], r[f"A{i}"], r["SHL8"], 14)           # a << 8
-    asm.vec(roll, T[2], T[1])
-    asm.mul(T[3], roll + 1, r["INV_GAIN"], 30)
-    asm.sub(T[0], r["ZERO"], T[0])
-    asm.vec(roll + 1, T[3], T[0])
+    with asm.scratch(4) as T:
+        for i in range(3):
+            asm.mul(T[i], r[f"A{i}"], r["SHL8"], Q14)           # a << 8
+        asm.vec(roll, T[2], T[1])
+        asm.mul(T[3], roll + 1, r["INV_GAIN"], Q30)
+        asm.sub(T[0], r["ZERO"], T[0])
+        asm.vec(roll + 1, T[3], T[0])
 
 
 def _heading(asm, r, roll, pitch, out):
     """Tilt-compensated heading into ``out``; clobbers ``out`` + 1."""
-    T = TEMPS
-    asm.rot(r["CR"], roll)
-    asm.rot(r["CP"], pitch)
-    # (sine · m) >> 18 as (sine · (m << 12)) >> 30: the same bits, one rounding shift fewer
-    ms = T[4:7]
-    for i in range(3):
-        asm.mul(ms[i], r[f"M{i}"], r["SHL12"], 14)
-    asm.mul(T[0], r["SP"], r["SR"], 30)
-    asm.mul(T[1], r["SP"], r["CR"], 30)
-    asm.mac(T[2], [(r["CP"], ms[0]), (T[0], ms[1]), (T[1], ms[2])], 30)      # hx
-    asm.mac(T[3], [(r["CR"], ms[1]), (r["SR"], ms[2], -1)], 30)              # hy
-    asm.vec(out, T[3], T[2])
+    with asm.scratch(7) as T:
+        asm.rot(r["CR"], roll)
+        asm.rot(r["CP"], pitch)
+        # (sine · m) >> 18 as (sine · (m << 12)) >> 30: the same bits, one rounding shift fewer
+        ms = T[4:7]
+        for i in range(3):
+            asm.mul(ms[i], r[f"M{i}"], r["SHL12"], Q14)
+        asm.mul(T[0], r["SP"], r["SR"], Q30)
+        asm.mul(T[1], r["SP"], r["CR"], Q30)
+        asm.mac(T[2], [(r["CP"], ms[0]), (T[0], ms[1]), (T[1], ms[2])], Q30)      # hx
+        asm.mac(T[3], [(r["CR"], ms[1]), (r["SR"], ms[2], -1)], Q30)              # hy
+        asm.vec(out, T[3], T[2])
 
 
 def _zero_tests(asm, r, name):
@@ -230,62 +244,62 @@ def _zero_tests(asm, r, name):
 
 
 def _kalman_update(asm, r, i, z):
-    T = TEMPS
-    th, b = r[f"THETA{i}"], r[f"BIAS{i}"]
-    p00, p01, p10, p11 = (r[f"P{i}_{e}"] for e in ("00", "01", "10", "11"))
-    asm.add(T[4], p00, r["R"])                           # s
-    asm.div(T[5], p00, T[4])                             # k0, Q0.24
-    asm.div(T[6], p10, T[4])                             # k1, Q8.24
-    asm.sub(T[7], z, th, wrap=True)                      # innovation y
-    asm.mul(T[8], T[5], T[7], 24)
-    asm.mul(T[9], T[6], T[7], 24)                        # k1·y, BAM/s
-    asm.add(th, th, T[8], wrap=True)
-    asm.mul(T[9], T[9], r["BIAS_SCALE"], 24)
-    asm.add(b, b, T[9])
-    asm.mul(T[8], T[5], p00, 24)
-    asm.mul(T[9], T[5], p01, 24)
-    asm.mul(T[10], T[6], p00, 24)
-    asm.mul(T[11], T[6], p01, 24)
-    asm.sub(p00, p00, T[8])
-    asm.sub(p01, p01, T[9])
-    asm.sub(p10, p10, T[10])
-    asm.sub(p11, p11, T[11])
+    with asm.scratch(12) as T:
+        th, b = r[f"THETA{i}"], r[f"BIAS{i}"]
+        p00, p01, p10, p11 = (r[f"P{i}_{e}"] for e in ("00", "01", "10", "11"))
+        asm.add(T[4], p00, r["R"])                           # s
+        asm.div(T[5], p00, T[4])                             # k0, Q0.24
+        asm.div(T[6], p10, T[4])                             # k1, Q8.24
+        asm.sub(T[7], z, th, wrap=True)                      # innovation y
+        asm.mul(T[8], T[5], T[7], Q24)
+        asm.mul(T[9], T[6], T[7], Q24)                        # k1·y, BAM/s
+        asm.add(th, th, T[8], wrap=True)
+        asm.mul(T[9], T[9], r["BIAS_SCALE"], Q24)
+        asm.add(b, b, T[9])
+        asm.mul(T[8], T[5], p00, Q24)
+        asm.mul(T[9], T[5], p01, Q24)
+        asm.mul(T[10], T[6], p00, Q24)
+        asm.mul(T[11], T[6], p01, Q24)
+        asm.sub(p00, p00, T[8])
+        asm.sub(p01, p01, T[9])
+        asm.sub(p10, p10, T[10])
+        asm.sub(p11, p11, T[11])
 
 
 def _kalman(asm, r):
-    T = TEMPS
     # the first sample after a reset takes ω₍ₖ₋₁₎ = ωₖ: out of line, so that every other
     # sample falls through (a taken branch costs two bubbles)
     asm.br("k_first", Cond.FIRST)
     asm.label("k_predict")
     # the three axes interleaved, so that products follow products: a MUL followed by a MUL
     # that does not read its result takes one cycle instead of two
-    U, TP, D = T[0:3], T[3:6], T[6:9]
-    P = [[r[f"P{i}_{e}"] for e in ("00", "01", "10", "11")] for i in range(3)]
-    for i in range(3):
-        asm.add(U[i], r[f"PREV{i}"], r[f"G{i}"])
-    for i in range(3):
-        asm.mul(U[i], U[i], r["SHL15"], 14)              # << 15 (exact: |ω| < 2¹⁶)
-    for i in range(3):
-        asm.sub(U[i], U[i], r[f"BIAS{i}"])               # u = avg rate − bias, Q16 counts
-    for i in range(3):
-        asm.mul(U[i], U[i], r["RATE"], 30)
-    for i in range(3):
-        asm.mul(TP[i], r["T"], P[i][3], 24)              # T·P11
-    for i in range(3):
-        asm.add(r[f"THETA{i}"], r[f"THETA{i}"], U[i], wrap=True)
-        asm.add(r[f"PREV{i}"], r[f"G{i}"], r["ZERO"])
-        asm.sub(D[i], TP[i], P[i][2])
-        asm.sub(D[i], D[i], P[i][1])
-    for i in range(3):
-        asm.mul(D[i], r["T"], D[i], 24)
-    for i in range(3):
-        p00, p01, p10, p11 = P[i]
-        asm.add(p00, p00, D[i])
-        asm.add(p00, p00, r["Q_ANGLE"])
-        asm.sub(p01, p01, TP[i])
-        asm.sub(p10, p10, TP[i])
-        asm.add(p11, p11, r["Q_BIAS"])
+    with asm.scratch(9) as T:
+        U, TP, D = T[0:3], T[3:6], T[6:9]
+        P = [[r[f"P{i}_{e}"] for e in ("00", "01", "10", "11")] for i in range(3)]
+        for i in range(3):
+            asm.add(U[i], r[f"PREV{i}"], r[f"G{i}"])
+        for i in range(3):
+            asm.mul(U[i], U[i], r["SHL15"], Q14)              # << 15 (exact: |ω| < 2¹⁶)
+        for i in range(3):
+            asm.sub(U[i], U[i], r[f"BIAS{i}"])               # u = avg rate − bias, Q16 counts
+        for i in range(3):
+            asm.mul(U[i], U[i], r["RATE"], Q30)
+        for i in range(3):
+            asm.mul(TP[i], r["T"], P[i][3], Q24)              # T·P11
+        for i in range(3):
+            asm.add(r[f"THETA{i}"], r[f"THETA{i}"], U[i], wrap=True)
+            asm.add(r[f"PREV{i}"], r[f"G{i}"], r["ZERO"])
+            asm.sub(D[i], TP[i], P[i][2])
+            asm.sub(D[i], D[i], P[i][1])
+        for i in range(3):
+            asm.mul(D[i], r["T"], D[i], Q24)
+        for i in range(3):
+            p00, p01, p10, p11 = P[i]
+            asm.add(p00, p00, D[i])
+            asm.add(p00, p00, r["Q_ANGLE"])
+            asm.sub(p01, p01, TP[i])
+            asm.sub(p10, p10, TP[i])
+            asm.add(p11, p11, r["Q_BIAS"])
     _zero_tests(asm, r, "k")
     asm.br("k_no_tilt", Cond.A_ZERO, a=r["ACC_OK"])
     _tilt(asm, r, r["MEAS0"])
@@ -311,64 +325,76 @@ def _kalman(asm, r):
 
 
 def _complementary(asm, r):
-    T = TEMPS
-    for i in range(3):
-        asm.mul(T[0], r[f"G{i}"], r["RATE"], 14)                   # ω·RATE >> 14
-        asm.add(r[f"PRED{i}"], r[f"THETA{i}"], T[0], wrap=True)
-        asm.add(r[f"PREV{i}"], r[f"G{i}"], r["ZERO"])
-    _zero_tests(asm, r, "c")
-    asm.add(r["MEAS0"], r["PRED0"], r["ZERO"])
-    asm.add(r["MEAS1"], r["PRED1"], r["ZERO"])
-    asm.br("c_no_tilt", Cond.A_ZERO, a=r["ACC_OK"])
-    _tilt(asm, r, r["MEAS0"])
-    asm.setf(Flag.ACC_USED)
-    asm.label("c_no_tilt")
-    asm.add(r["MEAS2"], r["PRED2"], r["ZERO"])
-    asm.br("c_blend", Cond.A_ZERO, a=r["MAG_OK"])
-    _heading(asm, r, r["PRED0"], r["PRED1"], r["MEAS2"])
-    asm.setf(Flag.MAG_USED)
-    asm.label("c_blend")
-    for i in range(3):
-        asm.sub(T[0], r[f"MEAS{i}"], r[f"PRED{i}"], wrap=True)
-        asm.mul(T[0], r["ONE_MINUS_A"], T[0], 24)
-        asm.add(r[f"THETA{i}"], r[f"PRED{i}"], T[0], wrap=True)
+    with asm.scratch(1) as T:
+        for i in range(3):
+            asm.mul(T[0], r[f"G{i}"], r["RATE"], Q14)                   # ω·RATE >> 14
+            asm.add(r[f"PRED{i}"], r[f"THETA{i}"], T[0], wrap=True)
+            asm.add(r[f"PREV{i}"], r[f"G{i}"], r["ZERO"])
+        _zero_tests(asm, r, "c")
+        asm.add(r["MEAS0"], r["PRED0"], r["ZERO"])
+        asm.add(r["MEAS1"], r["PRED1"], r["ZERO"])
+        asm.br("c_no_tilt", Cond.A_ZERO, a=r["ACC_OK"])
+        _tilt(asm, r, r["MEAS0"])
+        asm.setf(Flag.ACC_USED)
+        asm.label("c_no_tilt")
+        asm.add(r["MEAS2"], r["PRED2"], r["ZERO"])
+        asm.br("c_blend", Cond.A_ZERO, a=r["MAG_OK"])
+        _heading(asm, r, r["PRED0"], r["PRED1"], r["MEAS2"])
+        asm.setf(Flag.MAG_USED)
+        asm.label("c_blend")
+        for i in range(3):
+            asm.sub(T[0], r[f"MEAS{i}"], r[f"PRED{i}"], wrap=True)
+            asm.mul(T[0], r["ONE_MINUS_A"], T[0], Q24)
+            asm.add(r[f"THETA{i}"], r[f"PRED{i}"], T[0], wrap=True)
+        asm.br("angles_out")
 
 
 def _angles_out(asm, r):
     """The result quaternion of the per-axis filters' angles (``euler_quat_fixed``), then END."""
-    T = TEMPS
-    for i in range(3):
-        asm.mul(T[i], r[f"THETA{i}"], r["HALF"], 30)
-    for i, pair in enumerate(("CR", "CP", "CY")):
-        asm.rot(r[pair], T[i])
-    cr, sr, cp, sp, cy, sy = (r[n] for n in ("CR", "SR", "CP", "SP", "CY", "SY"))
-    cc, ss, cs, sc = T[0:4]
-    asm.mul(cc, cy, cp, 30)
-    asm.mul(ss, sy, sp, 30)
-    asm.mul(cs, cy, sp, 30)
-    asm.mul(sc, sy, cp, 30)
-    asm.mac(r["QOUT0"], [(cr, cc), (sr, ss)], 30)
-    asm.mac(r["QOUT1"], [(sr, cc), (cr, ss, -1)], 30)
-    asm.mac(r["QOUT2"], [(cr, cs), (sr, sc)], 30)
-    asm.mac(r["QOUT3"], [(cr, sc), (sr, cs, -1)], 30)
-    asm.end()
+    with asm.scratch(4) as T:
+        for i in range(3):
+            asm.mul(T[i], r[f"THETA{i}"], r["HALF"], Q30)
+        for i, pair in enumerate(("CR", "CP", "CY")):
+            asm.rot(r[pair], T[i])
+        cr, sr, cp, sp, cy, sy = (r[n] for n in ("CR", "SR", "CP", "SP", "CY", "SY"))
+        cc, ss, cs, sc = T[0:4]
+        asm.mul(cc, cy, cp, Q30)
+        asm.mul(ss, sy, sp, Q30)
+        asm.mul(cs, cy, sp, Q30)
+        asm.mul(sc, sy, cp, Q30)
+        asm.mac(r["QOUT0"], [(cr, cc), (sr, ss)], Q30)
+        asm.mac(r["QOUT1"], [(sr, cc), (cr, ss, -1)], Q30)
+        asm.mac(r["QOUT2"], [(cr, cs), (sr, sc)], Q30)
+        asm.mac(r["QOUT3"], [(cr, sc), (sr, cs, -1)], Q30)
+        asm.end()
+
+
+def _flagship(asm, r):
+    _zero_tests(asm, r, "f")
+    flagship_routine(asm, r)
+
+
+# The filters, in ROM order: the first one is reached by falling through the dispatch. A new
+# filter is one entry here, its routine, its run-time registers in CONFIG_REGS and its step in
+# ``reference.fixed_point.EngineModel``.
+FILTERS = (FilterRoutine("kalman", 0, _kalman),
+           FilterRoutine("complementary", 1, _complementary),
+           FilterRoutine("flagship", 2, _flagship))
+FILTER_CODES = {f.name: f.code for f in FILTERS}
 
 
 def build_program():
     """(instructions, entry points {"init", "sample"})."""
-    asm, r = Assembler(), REGS
+    asm, r = Assembler(scratch_pool=tuple(TEMPS)), REGS
     asm.label("init")
     _init(asm, r)
     asm.label("sample")
     _calibrate(asm, r)
-    asm.br("flagship", Cond.FLAGSHIP)
-    asm.br("complementary", Cond.COMPL)
-    _kalman(asm, r)
-    asm.label("complementary")
-    _complementary(asm, r)
+    for f in FILTERS[1:]:
+        asm.br(f.name, Cond.FILTER, code=f.code)
+    for f in FILTERS:
+        asm.label(f.name)
+        f.emit(asm, r)
     asm.label("angles_out")
     _angles_out(asm, r)
-    asm.label("flagship")
-    _zero_tests(asm, r, "f")
-    flagship_routine(asm, r, TEMPS)
     return asm.resolve(), {"init": asm.labels["init"], "sample": asm.labels["sample"]}

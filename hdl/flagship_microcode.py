@@ -10,7 +10,7 @@ routine's own (``F_`` names), so no other routine can clobber them between uses.
 Cost: ``python -m mpu9250_ahrs report`` (``cycles_per_update.flagship``).
 """
 
-from .attitude_isa import Cond, Flag
+from .attitude_isa import DOUBLED, Q14, Q30, Cond, Flag
 
 
 __all__ = ["FLAGSHIP_REGISTERS", "flagship_names", "flagship_routine"]
@@ -39,17 +39,15 @@ def flagship_names():
     return names + list(_STATE) + list(_PAIRS) + list(_WORK)
 
 
-def _aliases(r, temps):
+def _aliases(r):
     """Registers that only live within one sample share words with others that are dead by
     then: the field takes the gyro's words, the transformed field the rotated accelerometer's,
-    R(q_g) and R(q_a) one matrix, and the working registers the per-axis filters' ``temps``."""
+    R(q_g) and R(q_a) one matrix, the rotation vector's quaternion the vector itself."""
     r = dict(r)
     for i in range(3):
         r[f"M16{i}"], r[f"ME{i}"] = r[f"G16{i}"], r[f"AI{i}"]
     for i in range(9):
         r[f"RG{i}"] = r[f"RA{i}"] = r[f"RM{i}"]
-        r[f"F_P{i}"] = temps[i]
-    r["F_T0"], r["F_T1"], r["F_T2"] = temps[9:12]
     r["QV0"] = r["F_C"]
     for i in range(3):
         r[f"QV{i + 1}"] = r[f"V{i}"]
@@ -60,47 +58,48 @@ def _qmul(asm, r, out, p, q):
     """out = p ⊗ q (names of four-word quaternions; ``out`` must not be ``p`` or ``q``)."""
     (pw, px, py, pz), (qw, qx, qy, qz) = ([r[f"{x}{i}"] for i in range(4)] for x in (p, q))
     o = [r[f"{out}{i}"] for i in range(4)]
-    asm.mac(o[0], [(pw, qw), (px, qx, -1), (py, qy, -1), (pz, qz, -1)], 30)
-    asm.mac(o[1], [(pw, qx), (px, qw), (py, qz), (pz, qy, -1)], 30)
-    asm.mac(o[2], [(pw, qy), (px, qz, -1), (py, qw), (pz, qx)], 30)
-    asm.mac(o[3], [(pw, qz), (px, qy), (py, qx, -1), (pz, qw)], 30)
+    asm.mac(o[0], [(pw, qw), (px, qx, -1), (py, qy, -1), (pz, qz, -1)], Q30)
+    asm.mac(o[1], [(pw, qx), (px, qw), (py, qz), (pz, qy, -1)], Q30)
+    asm.mac(o[2], [(pw, qy), (px, qz, -1), (py, qw), (pz, qx)], Q30)
+    asm.mac(o[3], [(pw, qz), (px, qy), (py, qx, -1), (pz, qw)], Q30)
 
 
 def _normalise(asm, r, dst, src):
     """dst = src · (3/2 − |src|²/2): one Newton step (``dst`` may be ``src``)."""
     s = [r[f"{src}{i}"] for i in range(4)]
-    asm.mac(r["F_N2"], [(c, c) for c in s], 30)
-    asm.mul(r["F_T0"], r["F_N2"], r["HALF"], 30)
-    asm.sub(r["F_F"], r["THREE_HALVES"], r["F_T0"])
+    asm.mac(r["F_N2"], [(c, c) for c in s], Q30)
+    with asm.scratch(1) as (half,):
+        asm.mul(half, r["F_N2"], r["HALF"], Q30)
+        asm.sub(r["F_F"], r["THREE_HALVES"], half)
     for i in range(4):
-        asm.mul(r[f"{dst}{i}"], s[i], r["F_F"], 30)
+        asm.mul(r[f"{dst}{i}"], s[i], r["F_F"], Q30)
 
 
 def _matrix(asm, r, out, q):
     """out = R(q), row-major, Q2.30; the doubled products 2·a·b as MULs with shift 29."""
     w, x, y, z = (r[f"{q}{i}"] for i in range(4))
     o = [r[f"{out}{i}"] for i in range(9)]
-    xx, yy, zz, xy, xz, yz, wx, wy, wz = (r[f"F_P{i}"] for i in range(9))
-    for d, a, b in ((xx, x, x), (yy, y, y), (zz, z, z), (xy, x, y), (xz, x, z), (yz, y, z),
-                    (wx, w, x), (wy, w, y), (wz, w, z)):
-        asm.mul(d, a, b, 29)
-    asm.sub(o[0], r["ONE"], yy)
-    asm.sub(o[4], r["ONE"], xx)
-    asm.sub(o[8], r["ONE"], xx)
-    asm.sub(o[0], o[0], zz)
-    asm.sub(o[4], o[4], zz)
-    asm.sub(o[8], o[8], yy)
-    asm.sub(o[1], xy, wz)
-    asm.add(o[2], xz, wy)
-    asm.add(o[3], xy, wz)
-    asm.sub(o[5], yz, wx)
-    asm.sub(o[6], xz, wy)
-    asm.add(o[7], yz, wx)
+    with asm.scratch(9) as (xx, yy, zz, xy, xz, yz, wx, wy, wz):
+        for d, a, b in ((xx, x, x), (yy, y, y), (zz, z, z), (xy, x, y), (xz, x, z), (yz, y, z),
+                        (wx, w, x), (wy, w, y), (wz, w, z)):
+            asm.mul(d, a, b, DOUBLED)
+        asm.sub(o[0], r["ONE"], yy)
+        asm.sub(o[4], r["ONE"], xx)
+        asm.sub(o[8], r["ONE"], xx)
+        asm.sub(o[0], o[0], zz)
+        asm.sub(o[4], o[4], zz)
+        asm.sub(o[8], o[8], yy)
+        asm.sub(o[1], xy, wz)
+        asm.add(o[2], xz, wy)
+        asm.add(o[3], xy, wz)
+        asm.sub(o[5], yz, wx)
+        asm.sub(o[6], xz, wy)
+        asm.add(o[7], yz, wx)
 
 
 def _rotate(asm, r, out, m, v):
     for i in range(3):
-        asm.mac(r[f"{out}{i}"], [(r[f"{m}{3 * i + j}"], r[f"{v}{j}"]) for j in range(3)], 30)
+        asm.mac(r[f"{out}{i}"], [(r[f"{m}{3 * i + j}"], r[f"{v}{j}"]) for j in range(3)], Q30)
 
 
 def _abs(asm, r, x, label):
@@ -115,21 +114,21 @@ def _low_pass(asm, r, states, inputs, gain):
     for t, s, x in zip(temps, states, inputs):
         asm.sub(t, x, s)
     for t in temps[:len(states)]:
-        asm.mul(t, r[gain], t, 30)
+        asm.mul(t, r[gain], t, Q30)
     for t, s in zip(temps, states):
         asm.add(s, s, t)
 
 
-def flagship_routine(asm, r, temps):
+def flagship_routine(asm, r):
     """The flagship, from the calibrated sample (G, A, M, ACC_OK, MAG_OK) to QOUT, THETA and
-    BIAS; ends with END. ``temps``: twelve working registers it may clobber."""
-    r = _aliases(r, temps)
+    BIAS; ends with END. Working registers beyond its own come from ``asm.scratch``."""
+    r = _aliases(r)
     v = lambda name: [r[f"{name}{i}"] for i in range(3)]
     ONE, ZERO, INT1 = r["ONE"], r["ZERO"], r["INT1"]
     for i in range(3):
-        asm.mul(r[f"G16{i}"], r[f"G{i}"], ONE, 14)          # << 16
+        asm.mul(r[f"G16{i}"], r[f"G{i}"], ONE, Q14)          # << 16
     for i in range(3):
-        asm.mul(r[f"A16{i}"], r[f"A{i}"], ONE, 14)
+        asm.mul(r[f"A16{i}"], r[f"A{i}"], ONE, Q14)
     asm.br("f_start", Cond.FIRST)
     asm.label("f_started")
     for t in ("FAST_LEFT", "REF_LEFT", "CAND_LEFT"):         # countdowns, stopping at 0
@@ -143,11 +142,11 @@ def flagship_routine(asm, r, temps):
         asm.sub(r[f"U{i}"], r[f"G16{i}"], r[f"BIAS{i}"])     # ω − b, Q16.16
         asm.sub(r[f"DA{i}"], r[f"A16{i}"], r[f"ALP{i}"])
     for i in range(3):
-        asm.mul(r[f"DG{i}"], r[f"U{i}"], r["SHR10"], 30)     # Q.6 counts
+        asm.mul(r[f"DG{i}"], r[f"U{i}"], r["SHR10"], Q30)     # Q.6 counts
     for i in range(3):
-        asm.mul(r[f"DA{i}"], r[f"DA{i}"], r["SHR10"], 30)
-    asm.mac(r["F_SG"], [(d, d) for d in v("DG")], 14)
-    asm.mac(r["F_SA"], [(d, d) for d in v("DA")], 14)
+        asm.mul(r[f"DA{i}"], r[f"DA{i}"], r["SHR10"], Q30)
+    asm.mac(r["F_SG"], [(d, d) for d in v("DG")], Q14)
+    asm.mac(r["F_SA"], [(d, d) for d in v("DA")], Q14)
     asm.sub(r["F_SG"], r["F_SG"], r["REST_GYRO2"])
     asm.sub(r["F_SA"], r["F_SA"], r["REST_ACC2"])
     asm.br("f_moving", Cond.A_NEG, a=r["F_SG"], inv=True)
@@ -166,14 +165,15 @@ def flagship_routine(asm, r, temps):
 
     # -- strapdown: q_g ⊗ exp(v), v = (ω − b)·T ------------------------------------------------
     for i in range(3):
-        asm.mul(r[f"V{i}"], r[f"U{i}"], r["K_RAD"], 30)
-    asm.mac(r["F_V2"], [(x, x) for x in v("V")], 30)
-    asm.mul(r["F_T0"], r["F_V2"], r["EIGHTH"], 30)
-    asm.mul(r["F_T1"], r["F_V2"], r["ONE_48"], 30)
-    asm.sub(r["QV0"], ONE, r["F_T0"])                        # cos(|v|/2)
-    asm.sub(r["F_S"], r["HALF"], r["F_T1"])                  # sin(|v|/2)/|v|
+        asm.mul(r[f"V{i}"], r[f"U{i}"], r["K_RAD"], Q30)
+    asm.mac(r["F_V2"], [(x, x) for x in v("V")], Q30)
+    with asm.scratch(2) as (t0, t1):
+        asm.mul(t0, r["F_V2"], r["EIGHTH"], Q30)
+        asm.mul(t1, r["F_V2"], r["ONE_48"], Q30)
+        asm.sub(r["QV0"], ONE, t0)                           # cos(|v|/2)
+        asm.sub(r["F_S"], r["HALF"], t1)                     # sin(|v|/2)/|v|
     for i in range(3):
-        asm.mul(r[f"QV{i + 1}"], r[f"V{i}"], r["F_S"], 30)        # in place: V is dead now
+        asm.mul(r[f"QV{i + 1}"], r[f"V{i}"], r["F_S"], Q30)        # in place: V is dead now
     _qmul(asm, r, "QT", "QG", "QV")
     _normalise(asm, r, "QG", "QT")
 
@@ -187,21 +187,22 @@ def flagship_routine(asm, r, temps):
     asm.vec(r["F_PHI"], r["E0"], r["E1"])                    # φ, s·K
     asm.br("f_no_acc", Cond.A_ZERO, a=r["F_SK"])
     asm.setf(Flag.ACC_USED)
-    asm.mul(r["F_SXY"], r["F_SK"], r["INV_GAIN"], 30)
+    asm.mul(r["F_SXY"], r["F_SK"], r["INV_GAIN"], Q30)
     asm.vec(r["F_TH"], r["E2"], r["F_SXY"])                  # θ from up
     asm.rot(r["F_CPHI"], r["F_PHI"])
-    asm.mul(r["F_T0"], r["F_TH"], r["HALF"], 30)
-    asm.rot(r["F_CH"], r["F_T0"])
-    asm.mul(r["F_CX"], r["F_SPHI"], r["F_SH"], 30)
-    asm.mul(r["F_T0"], r["F_CPHI"], r["F_SH"], 30)
-    asm.sub(r["F_CY"], ZERO, r["F_T0"])
+    with asm.scratch(1) as (t0,):
+        asm.mul(t0, r["F_TH"], r["HALF"], Q30)
+        asm.rot(r["F_CH"], t0)
+        asm.mul(r["F_CX"], r["F_SPHI"], r["F_SH"], Q30)
+        asm.mul(t0, r["F_CPHI"], r["F_SH"], Q30)
+        asm.sub(r["F_CY"], ZERO, t0)
     ch, cx, cy = r["F_CH"], r["F_CX"], r["F_CY"]
     qw, qx, qy, qz = (r[f"QA{i}"] for i in range(4))
     qt = [r[f"QT{i}"] for i in range(4)]
-    asm.mac(qt[0], [(ch, qw), (cx, qx, -1), (cy, qy, -1)], 30)
-    asm.mac(qt[1], [(ch, qx), (cx, qw), (cy, qz)], 30)
-    asm.mac(qt[2], [(ch, qy), (cx, qz, -1), (cy, qw)], 30)
-    asm.mac(qt[3], [(ch, qz), (cx, qy), (cy, qx, -1)], 30)
+    asm.mac(qt[0], [(ch, qw), (cx, qx, -1), (cy, qy, -1)], Q30)
+    asm.mac(qt[1], [(ch, qx), (cx, qw), (cy, qz)], Q30)
+    asm.mac(qt[2], [(ch, qy), (cx, qz, -1), (cy, qw)], Q30)
+    asm.mac(qt[3], [(ch, qz), (cx, qy), (cy, qx, -1)], Q30)
     _normalise(asm, r, "QA", "QT")
     asm.label("f_no_acc")
     _qmul(asm, r, "QAG", "QA", "QG")
@@ -210,101 +211,103 @@ def flagship_routine(asm, r, temps):
     # -- heading -------------------------------------------------------------------------------
     asm.br("f_no_mag", Cond.A_ZERO, a=r["MAG_OK"])
     for i in range(3):
-        asm.mul(r[f"M16{i}"], r[f"M{i}"], ONE, 14)
+        asm.mul(r[f"M16{i}"], r[f"M{i}"], ONE, Q14)
     _rotate(asm, r, "ME", "RAG", "M16")
     asm.vec(r["F_PSI"], r["ME1"], r["ME0"])                  # ψ = atan2(mE_x, mE_y), h·K
-    asm.mul(r["F_HORIZ"], r["F_HK"], r["INV_GAIN"], 30)
+    asm.mul(r["F_HORIZ"], r["F_HK"], r["INV_GAIN"], Q30)
     asm.br("f_no_mag", Cond.A_ZERO, a=r["F_HORIZ"])
-    asm.sub(r["F_T0"], ZERO, r["ME2"])
-    asm.vec(r["F_DIP"], r["F_HORIZ"], r["F_T0"])
-    asm.mul(r["F_MN"], r["F_NK"], r["INV_GAIN"], 30)
-    mn, dip, t0, t1 = r["F_MN"], r["F_DIP"], r["F_T0"], r["F_T1"]
-    # the gate: learning the reference (a running mean) ...
-    asm.br("f_learnt", Cond.A_ZERO, a=r["REF_OK"], inv=True)
-    asm.add(r["REF_N"], r["REF_N"], INT1)
-    asm.div(r["F_RECIP"], r["INT64"], r["REF_N"])            # 1/n, Q0.30
-    asm.sub(t0, mn, r["REF_NORM"])
-    asm.sub(t1, dip, r["REF_DIP"])
-    asm.mul(t0, t0, r["F_RECIP"], 30)
-    asm.mul(t1, t1, r["F_RECIP"], 30)
-    asm.add(r["REF_NORM"], r["REF_NORM"], t0)
-    asm.add(r["REF_DIP"], r["REF_DIP"], t1)
-    asm.br("f_good", Cond.A_ZERO, a=r["REF_LEFT"], inv=True)
-    asm.add(r["REF_OK"], INT1, ZERO)
-    asm.setf(Flag.MAG_NEW_REF)
-    asm.br("f_good")
-    # ... or testing the field against it
-    asm.label("f_learnt")
-    asm.mul(r["F_LIM"], r["REF_NORM"], r["GATE_NORM"], 30)
-    asm.sub(t0, mn, r["REF_NORM"])
-    _abs(asm, r, t0, "f_abs_norm")
-    asm.sub(t0, t0, r["F_LIM"])
-    asm.br("f_bad", Cond.A_NEG, a=t0, inv=True)
-    asm.sub(t0, dip, r["REF_DIP"], wrap=True)
-    _abs(asm, r, t0, "f_abs_dip")
-    asm.sub(t0, t0, r["GATE_DIP"])
-    asm.br("f_bad", Cond.A_NEG, a=t0, inv=True)
-    asm.add(r["CAND_NORM"], ZERO, ZERO)
-    asm.br("f_good")
-    asm.label("f_bad")
-    asm.setf(Flag.MAG_DISTURBED)
-    asm.mul(r["F_HN"], r["GATE_NORM"], r["HALF"], 30)
-    asm.mul(r["F_HD"], r["GATE_DIP"], r["HALF"], 30)
-    asm.br("f_moved", Cond.A_ZERO, a=r["CAND_NORM"])
-    asm.mul(t1, r["CAND_NORM"], r["F_HN"], 30)
-    asm.sub(t0, mn, r["CAND_NORM"])
-    _abs(asm, r, t0, "f_abs_cnorm")
-    asm.sub(t0, t1, t0)
-    asm.br("f_moved", Cond.A_NEG, a=t0)
-    asm.sub(t0, dip, r["CAND_DIP"], wrap=True)
-    _abs(asm, r, t0, "f_abs_cdip")
-    asm.sub(t0, r["F_HD"], t0)
-    asm.br("f_moved", Cond.A_NEG, a=t0)
-    asm.br("f_no_mag", Cond.A_ZERO, a=r["CAND_LEFT"], inv=True)
-    asm.add(r["REF_NORM"], r["CAND_NORM"], ZERO)             # a steady new field: adopt it
-    asm.add(r["REF_DIP"], r["CAND_DIP"], ZERO)
-    asm.add(r["CAND_NORM"], ZERO, ZERO)
-    asm.setf(Flag.MAG_NEW_REF)
-    asm.br("f_no_mag")
-    asm.label("f_moved")
-    asm.add(r["CAND_NORM"], mn, ZERO)
-    asm.add(r["CAND_DIP"], dip, ZERO)
-    asm.add(r["CAND_LEFT"], r["K_NEW"], ZERO)
-    asm.br("f_no_mag")
-    # the heading follows the field
-    asm.label("f_good")
-    asm.setf(Flag.MAG_USED)
-    asm.br("f_delta_ok", Cond.A_ZERO, a=r["DELTA_OK"], inv=True)
-    asm.add(r["DELTA"], r["F_PSI"], ZERO)
-    asm.add(r["DELTA_OK"], INT1, ZERO)
-    asm.br("f_no_mag")
-    asm.label("f_delta_ok")
-    asm.sub(t0, r["F_PSI"], r["DELTA"], wrap=True)
-    asm.add(r["F_GAIN"], r["A_MAG"], ZERO)
-    asm.br("f_slow", Cond.A_ZERO, a=r["FAST_LEFT"])
-    asm.add(r["F_GAIN"], r["A_MAG_FAST"], ZERO)
-    asm.label("f_slow")
-    asm.mul(t0, t0, r["F_GAIN"], 30)
-    asm.add(r["DELTA"], r["DELTA"], t0, wrap=True)
+    with asm.scratch(2) as (t0, t1):
+        asm.sub(t0, ZERO, r["ME2"])
+        asm.vec(r["F_DIP"], r["F_HORIZ"], t0)
+        asm.mul(r["F_MN"], r["F_NK"], r["INV_GAIN"], Q30)
+        mn, dip = r["F_MN"], r["F_DIP"]
+        # the gate: learning the reference (a running mean) ...
+        asm.br("f_learnt", Cond.A_ZERO, a=r["REF_OK"], inv=True)
+        asm.add(r["REF_N"], r["REF_N"], INT1)
+        asm.div(r["F_RECIP"], r["INT64"], r["REF_N"])            # 1/n, Q0.30
+        asm.sub(t0, mn, r["REF_NORM"])
+        asm.sub(t1, dip, r["REF_DIP"])
+        asm.mul(t0, t0, r["F_RECIP"], Q30)
+        asm.mul(t1, t1, r["F_RECIP"], Q30)
+        asm.add(r["REF_NORM"], r["REF_NORM"], t0)
+        asm.add(r["REF_DIP"], r["REF_DIP"], t1)
+        asm.br("f_good", Cond.A_ZERO, a=r["REF_LEFT"], inv=True)
+        asm.add(r["REF_OK"], INT1, ZERO)
+        asm.setf(Flag.MAG_NEW_REF)
+        asm.br("f_good")
+        # ... or testing the field against it
+        asm.label("f_learnt")
+        asm.mul(r["F_LIM"], r["REF_NORM"], r["GATE_NORM"], Q30)
+        asm.sub(t0, mn, r["REF_NORM"])
+        _abs(asm, r, t0, "f_abs_norm")
+        asm.sub(t0, t0, r["F_LIM"])
+        asm.br("f_bad", Cond.A_NEG, a=t0, inv=True)
+        asm.sub(t0, dip, r["REF_DIP"], wrap=True)
+        _abs(asm, r, t0, "f_abs_dip")
+        asm.sub(t0, t0, r["GATE_DIP"])
+        asm.br("f_bad", Cond.A_NEG, a=t0, inv=True)
+        asm.add(r["CAND_NORM"], ZERO, ZERO)
+        asm.br("f_good")
+        asm.label("f_bad")
+        asm.setf(Flag.MAG_DISTURBED)
+        asm.mul(r["F_HN"], r["GATE_NORM"], r["HALF"], Q30)
+        asm.mul(r["F_HD"], r["GATE_DIP"], r["HALF"], Q30)
+        asm.br("f_moved", Cond.A_ZERO, a=r["CAND_NORM"])
+        asm.mul(t1, r["CAND_NORM"], r["F_HN"], Q30)
+        asm.sub(t0, mn, r["CAND_NORM"])
+        _abs(asm, r, t0, "f_abs_cnorm")
+        asm.sub(t0, t1, t0)
+        asm.br("f_moved", Cond.A_NEG, a=t0)
+        asm.sub(t0, dip, r["CAND_DIP"], wrap=True)
+        _abs(asm, r, t0, "f_abs_cdip")
+        asm.sub(t0, r["F_HD"], t0)
+        asm.br("f_moved", Cond.A_NEG, a=t0)
+        asm.br("f_no_mag", Cond.A_ZERO, a=r["CAND_LEFT"], inv=True)
+        asm.add(r["REF_NORM"], r["CAND_NORM"], ZERO)             # a steady new field: adopt it
+        asm.add(r["REF_DIP"], r["CAND_DIP"], ZERO)
+        asm.add(r["CAND_NORM"], ZERO, ZERO)
+        asm.setf(Flag.MAG_NEW_REF)
+        asm.br("f_no_mag")
+        asm.label("f_moved")
+        asm.add(r["CAND_NORM"], mn, ZERO)
+        asm.add(r["CAND_DIP"], dip, ZERO)
+        asm.add(r["CAND_LEFT"], r["K_NEW"], ZERO)
+        asm.br("f_no_mag")
+        # the heading follows the field
+        asm.label("f_good")
+        asm.setf(Flag.MAG_USED)
+        asm.br("f_delta_ok", Cond.A_ZERO, a=r["DELTA_OK"], inv=True)
+        asm.add(r["DELTA"], r["F_PSI"], ZERO)
+        asm.add(r["DELTA_OK"], INT1, ZERO)
+        asm.br("f_no_mag")
+        asm.label("f_delta_ok")
+        asm.sub(t0, r["F_PSI"], r["DELTA"], wrap=True)
+        asm.add(r["F_GAIN"], r["A_MAG"], ZERO)
+        asm.br("f_slow", Cond.A_ZERO, a=r["FAST_LEFT"])
+        asm.add(r["F_GAIN"], r["A_MAG_FAST"], ZERO)
+        asm.label("f_slow")
+        asm.mul(t0, t0, r["F_GAIN"], Q30)
+        asm.add(r["DELTA"], r["DELTA"], t0, wrap=True)
     asm.label("f_no_mag")
 
     # -- output: q = (cos δ/2, 0, 0, sin δ/2) ⊗ q_a ⊗ q_g, and its angles ---------------------
-    asm.mul(t0, r["DELTA"], r["HALF"], 30)
-    asm.rot(r["F_CD"], t0)
-    cd, sd = r["F_CD"], r["F_SD"]
-    w, x, y, z = (r[f"QAG{i}"] for i in range(4))
-    asm.mac(r["QOUT0"], [(cd, w), (sd, z, -1)], 30)
-    asm.mac(r["QOUT1"], [(cd, x), (sd, y, -1)], 30)
-    asm.mac(r["QOUT2"], [(cd, y), (sd, x)], 30)
-    asm.mac(r["QOUT3"], [(cd, z), (sd, w)], 30)
-    m = [r[f"RAG{i}"] for i in range(9)]
-    # roll and pitch from R's bottom row (the VECs write their magnitudes beside the angle)
-    asm.vec(r["THETA0"], m[8], m[7])
-    asm.mul(t0, r["THETA1"], r["INV_GAIN"], 30)
-    asm.sub(t1, ZERO, m[6])
-    asm.vec(r["THETA1"], t0, t1)
-    asm.vec(r["F_YAW"], m[0], m[3])
-    asm.add(r["THETA2"], r["DELTA"], r["F_YAW"], wrap=True)
+    with asm.scratch(2) as (t0, t1):
+        asm.mul(t0, r["DELTA"], r["HALF"], Q30)
+        asm.rot(r["F_CD"], t0)
+        cd, sd = r["F_CD"], r["F_SD"]
+        w, x, y, z = (r[f"QAG{i}"] for i in range(4))
+        asm.mac(r["QOUT0"], [(cd, w), (sd, z, -1)], Q30)
+        asm.mac(r["QOUT1"], [(cd, x), (sd, y, -1)], Q30)
+        asm.mac(r["QOUT2"], [(cd, y), (sd, x)], Q30)
+        asm.mac(r["QOUT3"], [(cd, z), (sd, w)], Q30)
+        m = [r[f"RAG{i}"] for i in range(9)]
+        # roll and pitch from R's bottom row (the VECs write their magnitudes beside the angle)
+        asm.vec(r["THETA0"], m[8], m[7])
+        asm.mul(t0, r["THETA1"], r["INV_GAIN"], Q30)
+        asm.sub(t1, ZERO, m[6])
+        asm.vec(r["THETA1"], t0, t1)
+        asm.vec(r["F_YAW"], m[0], m[3])
+        asm.add(r["THETA2"], r["DELTA"], r["F_YAW"], wrap=True)
     asm.end()
 
     # -- start-up (first sample after a reset or a filter switch; the bias is kept) -------------

@@ -84,8 +84,7 @@ class AttitudeISAModel:
             elif op == Op.BR:
                 cond = {Cond.ALWAYS: True, Cond.A_ZERO: a == 0, Cond.A_NEG: a < 0,
                         Cond.MAG_INVALID: not mag_valid, Cond.FIRST: self.first,
-                        Cond.COMPL: self.filter == FILTER_CODES["complementary"],
-                        Cond.FLAGSHIP: self.filter == FILTER_CODES["flagship"]}[Cond(ins.cond)]
+                        Cond.FILTER: self.filter == ins.sh}[Cond(ins.cond)]
                 if cond != bool(ins.inv):
                     pc = ins.target
             elif op == Op.SETF:

@@ -1,0 +1,60 @@
+"""The assembler's checks: scoped scratch registers, shifts, labels, field ranges."""
+
+import pytest
+
+from mpu9250_ahrs.hdl.attitude_isa import Q30, Assembler, Cond
+
+
+def asm_with_pool():
+    return Assembler(scratch_pool=(10, 11, 12))
+
+
+def test_scratch_value_read_inside_its_scope():
+    asm = asm_with_pool()
+    with asm.scratch(2) as (t0, t1):
+        asm.add(t0, 1, 2)
+        asm.mul(t1, t0, 3, Q30)
+        asm.br("x", Cond.A_NEG, a=t1)
+        asm.label("x")
+    assert len(asm.code) == 3
+
+
+def test_scratch_read_after_it_was_given_back():
+    asm = asm_with_pool()
+    with asm.scratch(1) as (t,):
+        asm.add(t, 1, 2)
+    with pytest.raises(ValueError, match="reads scratch register 0x0a, free"):
+        asm.add(5, t, 1)
+
+
+def test_scratch_read_of_what_another_scope_left():
+    """Handed out again, a register's old value is someone else's: reading it before writing
+    is the mistake the scopes exist for."""
+    asm = asm_with_pool()
+    with asm.scratch(1) as (t,):
+        asm.add(t, 1, 2)
+    with asm.scratch(1) as (u,):
+        assert u == t
+        with pytest.raises(ValueError, match="not written since it was handed out"):
+            asm.sub(5, 1, u)
+
+
+def test_scratch_write_while_free_and_pool_exhausted():
+    asm = asm_with_pool()
+    with pytest.raises(ValueError, match="which is free"):
+        asm.add(11, 1, 2)
+    with pytest.raises(ValueError, match="4 scratch registers asked for, 3 free"):
+        with asm.scratch(4):
+            pass
+
+
+def test_vectoring_writes_its_pair_and_shifts_are_named():
+    asm = asm_with_pool()
+    with asm.scratch(2) as (t0, t1):
+        asm.vec(t0, 1, 2)                       # writes t0 and t0 + 1
+        asm.add(5, t0, t1)
+    with pytest.raises(ValueError, match="shift 31 not one of"):
+        asm.mul(5, 1, 2, 31)
+    with pytest.raises(ValueError, match="undefined label"):
+        asm.br("nowhere")
+        asm.resolve()
