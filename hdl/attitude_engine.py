@@ -42,9 +42,12 @@ from amaranth.lib.wiring import In, Out
 from ..reference.fixed_point import (INV_GAIN_Q30, CalibrationFixed, KalmanFixedConfig,
                                      calibration_registers)
 from ..reference.flagship_fixed import FlagshipFixedConfig
-from .attitude_isa import MUL_SHIFTS, REG_BITS, REG_COUNT, Cond, Flag, Instr, Op
-from .attitude_program import (CONTROL_ADDR, CONTROL_RESET, FILTER_CODES, LOAD_BASE, LOAD_ORDER,
-                               REGS, build_program, config_init, load_words)
+from .alu import ALU
+from .attitude_isa import REG_BITS, REG_COUNT, Cond, Flag, Instr, Op
+from .attitude_program import (FILTER_CODES, LOAD_BASE, LOAD_ORDER, REGS, build_program,
+                               config_init, load_words)
+from .host_port import HostPort
+from .multiply_accumulate import MultiplyAccumulate
 from .cordic import CORDIC
 from .divider import Divider
 from .memories import MicrocodeROM, RegisterFile
@@ -68,19 +71,6 @@ def default_flagship_config(sensor):
     return FlagshipFixedConfig(dt=1 / sensor.output_data_rate,
                                gyro_lsb_per_rad=32768 / sensor.gyro_fs_dps * 180 / math.pi,
                                accel_lsb_per_ms2=32768 / sensor.accel_fs_g / 9.80665)
-
-
-def _saturate(m, value, bits):
-    """(clamped value, clamped?) of a signed value to a signed ``bits``-bit range. It fits when
-    the bits from ``bits`` − 1 up are all equal (a reduction, cheaper than two comparators)."""
-    top = value[bits - 1:]
-    fits = (top == 0) | (top == (1 << len(top)) - 1)
-    sign = value[-1]
-    out, flag = Signal(signed(bits)), Signal()
-    hi = (1 << (bits - 1)) - 1
-    m.d.comb += [flag.eq(~fits),
-                 out.eq(Mux(fits, value[:bits], Mux(sign, C(hi + 1, bits), C(hi, bits))))]
-    return out, flag
 
 
 class AttitudeEngine(wiring.Component):
@@ -117,9 +107,14 @@ class AttitudeEngine(wiring.Component):
         m = Module()
         m.submodules.cordic = cordic = CORDIC()
         m.submodules.divider = divider = Divider()
-        m.submodules.multiplier = mult = self.multiplier
+        m.submodules.alu = alu = ALU()
+        m.submodules.mac = mac = MultiplyAccumulate(self.multiplier)
+        m.submodules.host = host = HostPort(self.filter_at_reset)
         m.submodules.regfile = rf = self.regfile
         m.submodules.rom = rom = self.rom
+        wiring.connect(m, wiring.flipped(self.cfg), host.cfg)
+        wiring.connect(m, wiring.flipped(self.cfg_read), host.cfg_read)
+        wiring.connect(m, host.cfg_read_data, wiring.flipped(self.cfg_read_data))
 
         # -- sequencer state ------------------------------------------------------------------
         fetch_pc = Signal(range(len(self.program) + 1))
@@ -135,69 +130,31 @@ class AttitudeEngine(wiring.Component):
         branch_to = Signal.like(fetch_pc)
 
         first = Signal(init=1)
-        filter_sel = Signal(2, init=self.filter_at_reset)
         init_pending = Signal(init=1)                     # run the INIT program after reset
         running_init = Signal()
         mag_valid = Signal()
-        flags_set = Signal(len(Flag))                       # SETF flags of this update
+        flags_set = Signal(len(Flag))                     # SETF flags of this update
         flag_sat = Signal()
         out = Signal(Attitude, reset_less=True)
         result_valid = Signal()
 
+        # read port A: the instruction being fetched, or the host's read-back while idle
         m.d.comb += [
             rom.addr.eq(fetch_pc), rom.en.eq(advance),
-            rf.ra_addr.eq(rinstr.a), rf.rb_addr.eq(rinstr.b), rf.r_en.eq(advance),
+            rf.ra_addr.eq(Mux(host.r_en, host.r_addr, rinstr.a)), rf.rb_addr.eq(rinstr.b),
+            rf.r_en.eq(advance | host.r_en), host.r_data.eq(rf.ra_data),
             self.results.valid.eq(result_valid), self.results.payload.eq(out),
         ]
         opa, opb = rf.ra_data, rf.rb_data
+        m.d.comb += [
+            alu.a.eq(opa), alu.b.eq(opb), alu.sub.eq(x.op == Op.SUB), alu.or_.eq(x.op == Op.OR),
+            alu.wrap.eq(x.wrap), alu.sat16.eq(x.sat16),
+            mac.a.eq(opa), mac.b.eq(opb), mac.ins.eq(x),
+            cordic.x_in.eq(opa), cordic.y_in.eq(opb), cordic.angle_in.eq(opa),
+            cordic.mode.eq(x.op == Op.ROT),
+            divider.num.eq(opa), divider.den.eq(opb),
+        ]
 
-        # -- execute: the arithmetic ------------------------------------------------------------
-        # ALU: a ± b, exact at 33 bits, then wrapped or saturated
-        alu_full = Signal(signed(33))
-        is_sub = x.op == Op.SUB
-        m.d.comb += alu_full.eq(opa + Mux(is_sub, ~opb, opb) + is_sub)   # one adder
-
-        # MUL: the product is registered in the instruction's execute cycle; accumulation,
-        # rounding and write-back happen in the next cycle (the "pending" stage), overlapped
-        # with the next instruction when that is a MUL not reading the result (MAC chains,
-        # independent products), otherwise the pipeline waits that one cycle.
-        product = Signal(signed(64), reset_less=True)     # inverted already when ``neg``
-        acc = Signal(signed(66), reset_less=True)
-        acc_next = Signal(signed(66))
-        rounding = Signal(signed(66))
-        pend = Signal()
-        pend_ins = Signal(Instr, reset_less=True)
-        m.d.comb += [mult.a.eq(opa), mult.b.eq(opb)]
-        with m.Switch(pend_ins.sh):
-            for code, s in enumerate(MUL_SHIFTS):
-                with m.Case(code):
-                    m.d.comb += rounding.eq(1 << (s - 1))
-        # ± product with one adder: base + (~product if neg) + neg; the inversion is done before
-        # the product register, so each adder bit has four inputs (one LUT4)
-        m.d.comb += acc_next.eq(Mux(pend_ins.acc, acc, rounding)
-                                + product + pend_ins.neg)
-        # acc >> s saturated to 32 bits, selected per shift (each a slice of the accumulator)
-        mul_v32 = Signal(signed(32))
-        mul_f32 = Signal()
-        with m.Switch(pend_ins.sh):
-            for code, s in enumerate(MUL_SHIFTS):
-                with m.Case(code):
-                    v32, f32 = _saturate(m, acc_next[s:].as_signed(), 32)
-                    m.d.comb += [mul_v32.eq(v32), mul_f32.eq(f32)]
-
-        # ALU results: wrapped, or saturated to 32 or 16 bits
-        alu_wide = Signal(signed(33))
-        m.d.comb += alu_wide.eq(Mux(x.op == Op.OR, opa | opb, alu_full))
-        alu_v32, alu_f32 = _saturate(m, alu_wide, 32)
-        alu_v16, alu_f16 = _saturate(m, alu_v32, 16)
-        alu_sat_v = Mux(x.sat16, alu_v16, alu_v32)
-        alu_sat_f = alu_f32 | (x.sat16 & alu_f16)
-        x_result = Signal(signed(32))
-        x_sat = Signal()
-        m.d.comb += [x_result.eq(Mux(x.wrap, alu_full[:32], alu_sat_v)),
-                     x_sat.eq(~x.wrap & alu_sat_f)]
-
-        # branch condition
         cond = Signal()
         with m.Switch(x.cond):
             with m.Case(Cond.ALWAYS):
@@ -211,17 +168,14 @@ class AttitudeEngine(wiring.Component):
             with m.Case(Cond.FIRST):
                 m.d.comb += cond.eq(first)
             with m.Case(Cond.FILTER):
-                m.d.comb += cond.eq(filter_sel == x.sh[:len(filter_sel)])
+                m.d.comb += cond.eq(host.select == x.sh[:len(host.select)])
 
-        m.d.comb += [
-            cordic.x_in.eq(opa), cordic.y_in.eq(opb), cordic.angle_in.eq(opa),
-            cordic.mode.eq(x.op == Op.ROT),
-            divider.num.eq(opa), divider.den.eq(opb),
-        ]
-
-        # -- the write port: loader, host configuration, or the execute stage -------------------
+        # -- the write port: loader, host, or the execute stage (MAC write-back, then ALU,
+        # DIV, CORDIC: never two in one cycle, the sequencer sees to it) -----------------------
         w_en, w_addr, w_data, w_sat = Signal(), Signal(REG_BITS), Signal(signed(32)), Signal()
         m.d.comb += [rf.w_en.eq(w_en), rf.w_addr.eq(w_addr), rf.w_data.eq(w_data)]
+        with m.If(host.w_en):
+            m.d.comb += [w_en.eq(1), w_addr.eq(host.w_addr), w_data.eq(host.w_data)]
         # the result is snooped from the register writes (no copy at the end of an update)
         snooped = [(out.quat[i], f"QOUT{i}") for i in range(4)]
         snooped += [(out.angles[i], f"THETA{i}") for i in range(3)]
@@ -236,22 +190,19 @@ class AttitudeEngine(wiring.Component):
         def execute():
             """The execute stage for ``x`` (an FSM state body)."""
             m.d.comb += advance.eq(1)                       # overridden below by stalls
-            with m.If(pend):
-                m.d.sync += [acc.eq(acc_next), pend.eq(0)]
-                with m.If(pend_ins.wb):
-                    m.d.comb += [w_en.eq(1), w_addr.eq(pend_ins.d), w_data.eq(mul_v32),
-                                 w_sat.eq(mul_f32)]
+            with m.If(mac.wb_en):
+                m.d.comb += [w_en.eq(1), w_addr.eq(mac.wb_addr), w_data.eq(mac.wb_data),
+                             w_sat.eq(mac.wb_saturated)]
             with m.If(xvalid):
                 with m.Switch(x.op):
                     with m.Case(Op.ADD, Op.SUB, Op.OR):
-                        m.d.comb += [w_en.eq(1), w_addr.eq(x.d), w_data.eq(x_result),
-                                     w_sat.eq(x_sat)]
+                        m.d.comb += [w_en.eq(1), w_addr.eq(x.d), w_data.eq(alu.result),
+                                     w_sat.eq(alu.saturated)]
                     with m.Case(Op.MUL):
                         with m.If(phase == 0):
-                            m.d.sync += [product.eq(mult.p ^ x.neg.replicate(64)), pend_ins.eq(x),
-                                         pend.eq(1)]
-                            # overlap the pending stage with the next instruction if it is a
-                            # MUL (writes nothing now) that does not read this result
+                            m.d.comb += mac.issue.eq(1)
+                            # overlap the write-back with the next instruction if it is a MUL
+                            # (writes nothing in its issue cycle) that does not read the result
                             reads_d = x.wb & ((rinstr.a == x.d) | (rinstr.b == x.d))
                             with m.If(~(rvalid & (rinstr.op == Op.MUL) & ~reads_d)):
                                 m.d.comb += advance.eq(0)
@@ -309,16 +260,12 @@ class AttitudeEngine(wiring.Component):
 
         with m.If(self.results.valid & self.results.ready):
             m.d.sync += result_valid.eq(0)
-
-        # register read-back: the word arrives one cycle after the address
-        read_busy, read_control = Signal(), Signal()
-        read_word = Signal(signed(32), reset_less=True)
-        m.d.comb += self.cfg_read_data.payload.eq(read_word)
-        with m.If(read_busy):
-            m.d.sync += [read_busy.eq(0), self.cfg_read_data.valid.eq(1),
-                         read_word.eq(Mux(read_control, filter_sel, rf.ra_data))]
-        with m.If(self.cfg_read_data.valid & self.cfg_read_data.ready):
-            m.d.sync += self.cfg_read_data.valid.eq(0)
+        # the host's CONTROL writes: another filter starts with its next sample; a reset runs
+        # the INIT program
+        with m.If(host.switched):
+            m.d.sync += first.eq(1)
+        with m.If(host.reset):
+            m.d.sync += init_pending.eq(1)
 
         with m.FSM():
             with m.State("IDLE"):
@@ -331,28 +278,10 @@ class AttitudeEngine(wiring.Component):
                                  flag_sat.eq(0), mag_valid.eq(self.samples.payload.flags.mag_valid),
                                  out.counter.eq(self.samples.payload.counter),
                                  out.flags.overrun.eq(self.samples.payload.flags.overrun),
-                                 out.flags.filter.eq(filter_sel)]
+                                 out.flags.filter.eq(host.select)]
                     m.next = "LOAD"
                 with m.Else():
-                    m.d.comb += self.cfg.ready.eq(1)
-                    with m.If(self.cfg.valid):
-                        with m.If(self.cfg.payload.addr == CONTROL_ADDR):
-                            new_filter = self.cfg.payload.data[:2]
-                            m.d.sync += filter_sel.eq(new_filter)
-                            # another filter: its first sample starts it
-                            with m.If(new_filter != filter_sel):
-                                m.d.sync += first.eq(1)
-                            with m.If(self.cfg.payload.data[CONTROL_RESET.bit_length() - 1]):
-                                m.d.sync += init_pending.eq(1)
-                        with m.Else():
-                            m.d.comb += [w_en.eq(1), w_addr.eq(self.cfg.payload.addr),
-                                         w_data.eq(self.cfg.payload.data)]
-                    # read-back: the register file's first read port is free while idle
-                    m.d.comb += self.cfg_read.ready.eq(~read_busy & ~self.cfg_read_data.valid)
-                    with m.If(self.cfg_read.valid & self.cfg_read.ready):
-                        m.d.comb += [rf.ra_addr.eq(self.cfg_read.payload), rf.r_en.eq(1)]
-                        m.d.sync += [read_busy.eq(1),
-                                     read_control.eq(self.cfg_read.payload == CONTROL_ADDR)]
+                    m.d.comb += host.open.eq(1)
             with m.State("LOAD"):
                 m.d.comb += [self.busy.eq(1), w_en.eq(1), w_addr.eq(LOAD_BASE | load_index),
                              w_data.eq(load_data[load_index])]

@@ -1,7 +1,9 @@
 """Fixed-point divider for the Kalman gains: q = ⌊num·2²⁴ / den⌋, saturated to 32 bits.
 
-Computes exactly ``reference.fixed_point.div_q24``: a restoring divider, two quotient bits per
-cycle, 32 quotient bits. A quotient that does not fit 32 bits saturates (2³¹ − 1, or −2³¹) and a
+Computes exactly ``reference.fixed_point.div_q24``: a restoring divider, ``BITS_PER_CYCLE``
+quotient bits per cycle (one: a second bit per cycle costs another 33-bit subtractor and
+multiplexer, about 130 LEs of the whole design's count, for 16 cycles per division), 32
+quotient bits. A quotient that does not fit 32 bits saturates (2³¹ − 1, or −2³¹) and a
 denominator ≤ 0 gives 0; both set ``saturated``.
 
 Why it is small: there is no negation anywhere. The result rounds towards −∞ (floor), so for a
@@ -15,8 +17,8 @@ quotient, shifted in at the bottom.
 Interface
     ``start`` (in): pulse with ``num``, ``den`` (signed 32) valid; ignored while ``busy``.
     ``done`` (out): one-cycle pulse; ``quotient`` and ``saturated`` hold until the next start.
-Latency: ``done`` 17 cycles after ``start`` (16 with two bits each, then the pulse); throughput
-one division per 18 cycles.
+Latency: ``done`` 32 / ``BITS_PER_CYCLE`` + 1 cycles after ``start`` (33 with one bit per
+cycle); throughput one division per 32 / ``BITS_PER_CYCLE`` + 2 cycles (34).
 """
 
 from amaranth import *
@@ -26,7 +28,7 @@ from amaranth.lib.wiring import In, Out
 
 __all__ = ["Divider"]
 
-BITS_PER_CYCLE = 2
+BITS_PER_CYCLE = 1
 
 
 class Divider(wiring.Component):

@@ -1,0 +1,58 @@
+"""The attitude engine's adder: ADD, SUB or OR of two 32-bit registers, then wrapped (angles),
+or saturated to 32 or 16 bits."""
+
+from amaranth import *
+from amaranth.lib import wiring
+from amaranth.lib.wiring import In, Out
+
+
+__all__ = ["ALU", "saturate"]
+
+
+def saturate(m, value, bits):
+    """(clamped value, clamped?) of a signed value to a signed ``bits``-bit range. It fits when
+    the bits from ``bits`` − 1 up are all equal (a reduction, cheaper than two comparators)."""
+    top = value[bits - 1:]
+    fits = (top == 0) | (top == (1 << len(top)) - 1)
+    sign = value[-1]
+    out, flag = Signal(signed(bits)), Signal()
+    hi = (1 << (bits - 1)) - 1
+    m.d.comb += [flag.eq(~fits),
+                 out.eq(Mux(fits, value[:bits], Mux(sign, C(hi + 1, bits), C(hi, bits))))]
+    return out, flag
+
+
+class ALU(wiring.Component):
+    """One adder for a ± b (exact at 33 bits), or a | b, then the result wrapped to 32 bits or
+    saturated to 32 bits, or to 16 (calibrated sensor values: sat16 of sat32 is sat16).
+
+    Members
+        ``a``, ``b`` (in, signed 32): the operands.
+        ``sub`` (in): a − b instead of a + b; ``or_`` (in): a | b (zero tests).
+        ``wrap`` (in): wrap instead of saturating (angles in BAM32); ``sat16`` (in): saturate
+            to 16 bits.
+        ``result`` (out, signed 32), ``saturated`` (out): a clamp happened (never with wrap).
+    Latency 0 (combinational); the engine writes ``result`` back in the same cycle.
+    """
+    a: In(signed(32))
+    b: In(signed(32))
+    sub: In(1)
+    or_: In(1)
+    wrap: In(1)
+    sat16: In(1)
+    result: Out(signed(32))
+    saturated: Out(1)
+
+    def elaborate(self, platform):
+        m = Module()
+        full = Signal(signed(33))
+        m.d.comb += full.eq(self.a + Mux(self.sub, ~self.b, self.b) + self.sub)   # one adder
+        wide = Signal(signed(33))
+        m.d.comb += wide.eq(Mux(self.or_, self.a | self.b, full))
+        v32, f32 = saturate(m, wide, 32)
+        v16, f16 = saturate(m, v32, 16)
+        m.d.comb += [
+            self.result.eq(Mux(self.wrap, full[:32], Mux(self.sat16, v16, v32))),
+            self.saturated.eq(~self.wrap & (f32 | (self.sat16 & f16))),
+        ]
+        return m

@@ -1,0 +1,75 @@
+"""The attitude engine's host port: register writes, register read-back and the CONTROL
+register (filter select, filter reset)."""
+
+from amaranth import *
+from amaranth.lib import stream, wiring
+from amaranth.lib.wiring import In, Out
+
+from .attitude_isa import REG_BITS
+from .attitude_program import CONTROL_ADDR, CONTROL_RESET
+from .sample import ConfigWrite
+
+
+__all__ = ["HostPort"]
+
+
+class HostPort(wiring.Component):
+    """Takes the host's register writes and reads while the engine lets it (``open``), using
+    the register file's write port and its first read port, and holds the CONTROL register.
+
+    Parameters
+        ``filter_at_reset``: the filter select code after reset.
+    Members
+        ``cfg`` (in, stream of ``ConfigWrite``): a write per transfer, taken in one cycle while
+            ``open``. ``CONTROL_ADDR`` sets ``select`` (bits 1:0) and, with bit 2, pulses
+            ``reset``; another filter than the present one pulses ``switched``. Any other
+            address writes the register file.
+        ``cfg_read`` (in, stream of addresses) / ``cfg_read_data`` (out, stream of signed 32):
+            a read per transfer, taken while ``open`` and no read is outstanding; the word
+            comes one cycle later (``CONTROL_ADDR`` reads ``select``) and is held until taken.
+        ``open`` (in): the engine is idle and will not start anything this cycle.
+        ``w_en``, ``w_addr``, ``w_data`` (out): the register-file write.
+        ``r_en``, ``r_addr`` (out), ``r_data`` (in, signed 32): the read port, word next cycle.
+        ``select`` (out, 2): the filter select; ``reset``, ``switched`` (out): one-cycle pulses.
+    """
+
+    def __init__(self, filter_at_reset=0):
+        self.filter_at_reset = filter_at_reset
+        super().__init__({
+            "cfg": In(stream.Signature(ConfigWrite)),
+            "cfg_read": In(stream.Signature(REG_BITS)),
+            "cfg_read_data": Out(stream.Signature(signed(32))),
+            "open": In(1),
+            "w_en": Out(1), "w_addr": Out(REG_BITS), "w_data": Out(signed(32)),
+            "r_en": Out(1), "r_addr": Out(REG_BITS), "r_data": In(signed(32)),
+            "select": Out(2, init=filter_at_reset), "reset": Out(1), "switched": Out(1),
+        })
+
+    def elaborate(self, platform):
+        m = Module()
+        write = self.cfg.payload
+        m.d.comb += self.cfg.ready.eq(self.open)
+        with m.If(self.cfg.valid & self.open):
+            with m.If(write.addr == CONTROL_ADDR):
+                new = write.data[:2]
+                m.d.sync += self.select.eq(new)
+                m.d.comb += [self.switched.eq(new != self.select),
+                             self.reset.eq(write.data[CONTROL_RESET.bit_length() - 1])]
+            with m.Else():
+                m.d.comb += [self.w_en.eq(1), self.w_addr.eq(write.addr),
+                             self.w_data.eq(write.data)]
+
+        # read-back: the word arrives one cycle after the address
+        busy, control = Signal(), Signal()
+        word = Signal(signed(32), reset_less=True)
+        m.d.comb += [self.cfg_read_data.payload.eq(word),
+                     self.cfg_read.ready.eq(self.open & ~busy & ~self.cfg_read_data.valid)]
+        with m.If(busy):
+            m.d.sync += [busy.eq(0), self.cfg_read_data.valid.eq(1),
+                         word.eq(Mux(control, self.select, self.r_data))]
+        with m.If(self.cfg_read_data.valid & self.cfg_read_data.ready):
+            m.d.sync += self.cfg_read_data.valid.eq(0)
+        with m.If(self.cfg_read.valid & self.cfg_read.ready):
+            m.d.comb += [self.r_addr.eq(self.cfg_read.payload), self.r_en.eq(1)]
+            m.d.sync += [busy.eq(1), control.eq(self.cfg_read.payload == CONTROL_ADDR)]
+        return m

@@ -1,0 +1,79 @@
+"""The attitude engine's multiply-accumulate unit: a 32×32 product into a 66-bit accumulator,
+written back rounded, shifted and saturated."""
+
+from amaranth import *
+from amaranth.lib import wiring
+from amaranth.lib.wiring import In, Out
+
+from .alu import saturate
+from .attitude_isa import MUL_SHIFTS, REG_BITS, Instr
+from .multiplier import Multiplier
+
+
+__all__ = ["MultiplyAccumulate"]
+
+
+class MultiplyAccumulate(wiring.Component):
+    """A MUL instruction in two steps: ``issue`` registers the product a·b (inverted when the
+    instruction subtracts, so that each accumulator bit is one LUT4) and the instruction; the
+    next cycle (``pending``) adds it to the accumulator — or to the rounding constant 2^(s−1)
+    when the instruction starts a sum — and, if the instruction writes back, offers
+    ``acc >> s`` saturated to 32 bits (= rshift_round of the exact sum, then sat32).
+
+    Parameters
+        ``multiplier``: the 32×32 ``Multiplier`` (a blackbox one for ``report``).
+    Members
+        ``a``, ``b`` (in, signed 32): the operands, read in the issue cycle.
+        ``ins`` (in, ``Instr``): the MUL instruction, read in the issue cycle (``sh``: the
+            ``MUL_SHIFTS`` index, ``acc``, ``neg``, ``wb``, ``d``).
+        ``issue`` (in): take a MUL now.
+        ``pending`` (out): a product is being accumulated this cycle.
+        ``wb_en`` (out): ``pending`` and the instruction writes back; ``wb_addr``, ``wb_data``
+            (out, signed 32), ``wb_saturated`` (out): the register write.
+    Latency 1: issue in cycle n, write-back in cycle n + 1. Throughput one MUL per cycle (an
+    issue in the write-back cycle of the previous one overlaps it), unless the next MUL reads
+    the result: the engine then waits that cycle.
+    """
+    a: In(signed(32))
+    b: In(signed(32))
+    ins: In(Instr)
+    issue: In(1)
+    pending: Out(1)
+    wb_en: Out(1)
+    wb_addr: Out(REG_BITS)
+    wb_data: Out(signed(32))
+    wb_saturated: Out(1)
+
+    def __init__(self, multiplier=None):
+        self.multiplier = Multiplier() if multiplier is None else multiplier
+        super().__init__()
+
+    def elaborate(self, platform):
+        m = Module()
+        m.submodules.multiplier = mult = self.multiplier
+        # datapath registers without reset: qualified by ``pending``
+        product = Signal(signed(64), reset_less=True)       # inverted already when ``neg``
+        acc = Signal(signed(66), reset_less=True)
+        acc_next = Signal(signed(66))
+        rounding = Signal(signed(66))
+        ins = Signal(Instr, reset_less=True)
+        m.d.comb += [mult.a.eq(self.a), mult.b.eq(self.b)]
+        with m.Switch(ins.sh):
+            for code, s in enumerate(MUL_SHIFTS):
+                with m.Case(code):
+                    m.d.comb += rounding.eq(1 << (s - 1))
+        # ± product with one adder: base + (~product if neg) + neg
+        m.d.comb += acc_next.eq(Mux(ins.acc, acc, rounding) + product + ins.neg)
+        # acc >> s saturated to 32 bits, selected per shift (each a slice of the accumulator)
+        with m.Switch(ins.sh):
+            for code, s in enumerate(MUL_SHIFTS):
+                with m.Case(code):
+                    v32, f32 = saturate(m, acc_next[s:].as_signed(), 32)
+                    m.d.comb += [self.wb_data.eq(v32), self.wb_saturated.eq(f32)]
+        m.d.comb += [self.wb_en.eq(self.pending & ins.wb), self.wb_addr.eq(ins.d)]
+        with m.If(self.pending):
+            m.d.sync += [acc.eq(acc_next), self.pending.eq(0)]
+        with m.If(self.issue):
+            m.d.sync += [product.eq(mult.p ^ self.ins.neg.replicate(64)), ins.eq(self.ins),
+                         self.pending.eq(1)]
+        return m
