@@ -39,6 +39,8 @@ address  name            meaning, format                                        
 0x79     GATE_DIP        flagship dip gate, BAM32                                   10°
 0x7A-7D  K_REST, K_REF,  flagship times in samples (rest, reference learning, fast  from dt
          K_FAST, K_NEW   heading, new reference)
+0x7E     A_REF           flagship gain of the reference's low-pass while learnt,    from dt
+                         Q0.30 (tau_ref)
 0xFF     CONTROL         (not a register-file word) bits 1:0 filter: 0 = per-axis
                          Kalman, 1 = complementary, 2 = flagship (the reset
                          default); bit 2: write 1 to reset the filter state
@@ -131,7 +133,7 @@ def _allocate():
 # by 2¹⁰ (rounded); the rest are operands of the flagship (``reference.flagship_fixed``).
 CONSTANTS = {"SHL12": 1 << 26, "SHL15": 1 << 29, "ONE": 1 << 30, "HALF": 1 << 29,
              "EIGHTH": 1 << 27, "ONE_48": (1 << 30) // 48, "THREE_HALVES": 3 << 29,
-             "SHR10": 1 << 20, "INT1": 1, "INT64": 64}
+             "SHR10": 1 << 20, "INT1": 1}
 
 
 REGS = _allocate()

@@ -18,17 +18,17 @@ __all__ = ["FLAGSHIP_REGISTERS", "flagship_names", "flagship_routine"]
 # Run-time registers (host-visible, from 0x70): ``FlagshipFixedConfig.registers()`` names.
 FLAGSHIP_REGISTERS = ("K_RAD", "A_DET", "A_REST", "A_ACC", "A_MAG", "A_MAG_FAST", "REST_GYRO2",
                       "REST_ACC2", "GATE_NORM", "GATE_DIP", "K_REST", "K_REF", "K_FAST",
-                      "K_NEW")
+                      "K_NEW", "A_REF")
 
 _VEC3 = ("G16", "A16", "U", "DG", "DA", "V", "AI", "E", "LP", "GLP", "ALP")
 _QUAT = ("QG", "QA", "QAG", "QT")
 _STATE = ("DELTA", "DELTA_OK", "REST_LEFT", "FAST_LEFT", "REF_LEFT", "CAND_LEFT", "REF_OK",
-          "REF_N", "REF_NORM", "REF_DIP", "CAND_NORM", "CAND_DIP")
+          "REF_SEEN", "REF_NORM", "REF_DIP", "CAND_NORM", "CAND_DIP")
 # CORDIC results come in pairs (d, d + 1): each pair is listed together
 _PAIRS = ("F_PHI", "F_SK", "F_TH", "F_THK", "F_CPHI", "F_SPHI", "F_CH", "F_SH", "F_PSI", "F_HK",
           "F_DIP", "F_NK", "F_CD", "F_SD", "F_YAW", "F_YAWK")
 _WORK = ("F_SG", "F_SA", "F_V2", "F_C", "F_S", "F_N2", "F_F", "F_SXY",
-         "F_CX", "F_CY", "F_HORIZ", "F_MN", "F_RECIP", "F_LIM", "F_HN", "F_HD", "F_GAIN")
+         "F_CX", "F_CY", "F_HORIZ", "F_MN", "F_LIM", "F_HN", "F_HD", "F_GAIN")
 
 
 def flagship_names():
@@ -223,18 +223,23 @@ def flagship_routine(asm, r):
         mn, dip = r["F_MN"], r["F_DIP"]
         # the gate: learning the reference (a running mean) ...
         asm.br("f_learnt", Cond.A_ZERO, a=r["REF_OK"], inv=True)
-        asm.add(r["REF_N"], r["REF_N"], INT1)
-        asm.div(r["F_RECIP"], r["INT64"], r["REF_N"])            # 1/n, Q0.30
-        asm.sub(t0, mn, r["REF_NORM"])
+        asm.br("f_ref_first", Cond.A_ZERO, a=r["REF_SEEN"])
+        asm.sub(t0, mn, r["REF_NORM"])                      # ref += A_REF · (x − ref)
         asm.sub(t1, dip, r["REF_DIP"])
-        asm.mul(t0, t0, r["F_RECIP"], Q30)
-        asm.mul(t1, t1, r["F_RECIP"], Q30)
+        asm.mul(t0, t0, r["A_REF"], Q30)
+        asm.mul(t1, t1, r["A_REF"], Q30)
         asm.add(r["REF_NORM"], r["REF_NORM"], t0)
         asm.add(r["REF_DIP"], r["REF_DIP"], t1)
+        asm.label("f_ref_learnt")
         asm.br("f_good", Cond.A_ZERO, a=r["REF_LEFT"], inv=True)
         asm.add(r["REF_OK"], INT1, ZERO)
         asm.setf(Flag.MAG_NEW_REF)
         asm.br("f_good")
+        asm.label("f_ref_first")                            # the first field: taken as it is
+        asm.add(r["REF_NORM"], mn, ZERO)
+        asm.add(r["REF_DIP"], dip, ZERO)
+        asm.add(r["REF_SEEN"], INT1, ZERO)
+        asm.br("f_ref_learnt")
         # ... or testing the field against it
         asm.label("f_learnt")
         asm.mul(r["F_LIM"], r["REF_NORM"], r["GATE_NORM"], Q30)
@@ -323,7 +328,7 @@ def flagship_routine(asm, r):
     for name, value in (("REST_LEFT", "K_REST"), ("FAST_LEFT", "K_FAST"),
                         ("REF_LEFT", "K_REF")):
         asm.add(r[name], r[value], ZERO)
-    for name in ("DELTA", "DELTA_OK", "CAND_LEFT", "REF_OK", "REF_N", "REF_NORM", "REF_DIP",
+    for name in ("DELTA", "DELTA_OK", "CAND_LEFT", "REF_OK", "REF_SEEN", "REF_NORM", "REF_DIP",
                  "CAND_NORM", "CAND_DIP"):
         asm.add(r[name], ZERO, ZERO)
     asm.br("f_started")

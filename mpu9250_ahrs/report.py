@@ -116,9 +116,9 @@ def synthesize(top, name, engine):
 def cycles_per_update(samples=6):
     """Cycles from a sample offered to its result, per filter: the most over a short static
     pose with every update taken (accelerometer and magnetometer valid each sample), leaving
-    out the first sample after a reset (returned apart: it also starts the filter). For the
-    flagship these samples fall in its first seconds, when it still learns the magnetic
-    reference: its longest path (one division more than afterwards)."""
+    out the first sample after a reset (returned apart: it also starts the filter). The
+    flagship's longest path, at rest while its magnetic reference is still learnt, is longer by
+    the bias update (``replay --engine gateware`` prints the most over a recording)."""
     from .hdl.attitude_engine import AttitudeEngine
     from .hdl.attitude_program import CONTROL_ADDR, FILTER_CODES, control_word
     from .reference.frames import body_to_mag

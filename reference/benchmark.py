@@ -77,7 +77,8 @@ def run_trial(path, with_fixed=True):
                 writes={0: configuration_writes(name, *engine_configs(name, rec.dt, **units,
                                                                        **params))})
             quat = q30_to_float(run.quat)
-            extra = {"bit_exact": bool(np.array_equal(quat, fixed.get(name)))}
+            extra = {"bit_exact": bool(np.array_equal(quat, fixed.get(name))),
+                     "cycles_max": max(run.cycles[1:])}
         out[row] = {**score(quat, rec.quat, rec.movement), **extra,
                     "seconds": round(time.perf_counter() - start, 2)}
     for row, fn in external_filters().items():

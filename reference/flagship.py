@@ -16,7 +16,7 @@ written from the paper's description, simplified:
 - Heading (δ, a rotation about the vertical): the field in the tilt-corrected frame,
   m_E = R(q_a ⊗ q_g)·m, must point North: δ follows atan2(m_E,x, m_E,y) with time constant
   ``tau_mag`` (faster in the first ``mag_fast_s`` seconds, for start-up). A field whose norm or
-  dip differs from the reference (learnt over the first ``mag_ref_s`` seconds) by more than
+  dip differs from the reference (low-passed over the first ``mag_ref_s`` seconds) by more than
   ``mag_norm_gate`` (relative) or ``mag_dip_gate`` (degrees) is rejected; one that stays
   different but steady for ``mag_new_s`` seconds becomes the new reference.
 - Gyro bias b: at rest (gyro within ``rest_gyro`` of the bias and accelerometer within
@@ -48,6 +48,7 @@ class FlagshipParams:
     tau_mag: float = 15.0           # s, heading correction
     mag_fast_s: float = 3.0         # s of fast heading convergence at start-up
     mag_ref_s: float = 2.0          # s over which the reference field is learnt
+    tau_ref: float = 0.5            # s, low-pass of the field's norm and dip while it is learnt
     mag_norm_gate: float = 0.1
     mag_dip_gate: float = 10.0      # degrees
     mag_new_s: float = 20.0
@@ -121,7 +122,8 @@ def flagship_filter(gyr, acc, mag, dt, params=FlagshipParams(), *, mag_valid=Non
     a_mag, a_mag_fast = 1 - math.exp(-dt / p.tau_mag), 1 - math.exp(-dt / min(p.tau_mag, 0.2))
     rest_left, fast_left, ref_left, cand_left = k_rest, k_fast, k_ref, 0
     ref = None                          # (norm, dip)
-    ref_n, ref_norm, ref_dip = 0, 0.0, 0.0
+    ref_norm = ref_dip = None           # the reference being learnt
+    a_ref = 1 - math.exp(-dt / p.tau_ref)
     cand = None                         # (norm, dip)
     out = np.empty((n, 4))
     biases = np.empty((n, 3))
@@ -169,10 +171,13 @@ def flagship_filter(gyr, acc, mag, dt, params=FlagshipParams(), *, mag_valid=Non
                 dip = math.degrees(math.atan2(-mE[2], horiz))
                 good = True
                 if ref is None:
-                    # the running mean of the fields seen while the reference is learnt
-                    ref_n += 1
-                    ref_norm += (mn - ref_norm) / ref_n
-                    ref_dip += (dip - ref_dip) / ref_n
+                    # a low-pass of the fields seen while the reference is learnt, from the
+                    # first one on
+                    if ref_norm is None:
+                        ref_norm, ref_dip = mn, dip
+                    else:
+                        ref_norm += a_ref * (mn - ref_norm)
+                        ref_dip += a_ref * (dip - ref_dip)
                     if ref_left == 0:
                         ref = (ref_norm, ref_dip)
                 else:

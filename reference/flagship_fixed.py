@@ -22,8 +22,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .fixed_point import (INV_GAIN_Q30, Status, cordic_rotate, cordic_vector, div_q24, mac, mul,
-                          sat32, tilt_angles, wrap32)
+from .fixed_point import (INV_GAIN_Q30, Status, cordic_rotate, cordic_vector, mac, mul, sat32,
+                          tilt_angles, wrap32)
 from .flagship import FlagshipParams, sample_counts
 
 
@@ -41,7 +41,6 @@ FLAGSHIP_CONSTANTS = {
     "THREE_HALVES": 3 << 29,   # 1.5 in Q2.30
     "SHR10": 1 << 20,          # mul(x, SHR10, 30) = x / 2¹⁰ rounded
     "INT1": 1,
-    "INT64": 64,               # div_q24(64, n) = 2³⁰/n: 1/n in Q0.30
 }
 
 
@@ -66,6 +65,7 @@ class FlagshipFixedConfig:
             "K_RAD": int(round(dt / self.gyro_lsb_per_rad * 2 ** 44)),
             "A_DET": gain(0.5), "A_REST": gain(p.tau_rest), "A_ACC": gain(p.tau_acc),
             "A_MAG": gain(p.tau_mag), "A_MAG_FAST": gain(min(p.tau_mag, 0.2)),
+            "A_REF": gain(p.tau_ref),
             "REST_GYRO2": int(round(rest_gyro ** 2 / 4)),
             "REST_ACC2": int(round(rest_acc ** 2 / 4)),
             "GATE_NORM": int(round(p.mag_norm_gate * ONE)),
@@ -151,7 +151,7 @@ class FlagshipFixed:
         self.lp, self.acc_lp, self.gyr_lp = list(a16), list(a16), list(g16)
         self.rest_left, self.fast_left = reg["K_REST"], reg["K_FAST"]
         self.ref_left, self.cand_left = reg["K_REF"], 0
-        self.ref_ok, self.ref_n, self.ref_norm, self.ref_dip = False, 0, 0, 0
+        self.ref_ok, self.ref_seen, self.ref_norm, self.ref_dip = False, False, 0, 0
         self.cand_norm, self.cand_dip = 0, 0                    # norm 0: no candidate
         self.first = False
 
@@ -248,13 +248,14 @@ class FlagshipFixed:
         reference first, adopts a steady new field as the reference after K_NEW samples."""
         reg = self.reg
         if not self.ref_ok:
-            # running mean: ref += (x − ref)/n, 1/n = div_q24(64, n) in Q0.30
-            self.ref_n = sat32(self.ref_n + 1, st)
-            recip = div_q24(FLAGSHIP_CONSTANTS["INT64"], self.ref_n, st)
-            self.ref_norm = sat32(self.ref_norm + mul(sat32(mn - self.ref_norm, st), recip, 30,
-                                                      st), st)
-            self.ref_dip = sat32(self.ref_dip + mul(sat32(dip - self.ref_dip, st), recip, 30,
-                                                    st), st)
+            # learning: the first field, then ref += mul(A_REF, x − ref, 30)
+            if not self.ref_seen:
+                self.ref_norm, self.ref_dip, self.ref_seen = mn, dip, True
+            else:
+                self.ref_norm = sat32(self.ref_norm + mul(sat32(mn - self.ref_norm, st),
+                                                          reg["A_REF"], 30, st), st)
+                self.ref_dip = sat32(self.ref_dip + mul(sat32(dip - self.ref_dip, st),
+                                                        reg["A_REF"], 30, st), st)
             if self.ref_left == 0:
                 self.ref_ok = True
                 flags.add("mag_new_ref")
