@@ -43,9 +43,8 @@ from amaranth.hdl import unsigned
 from amaranth.lib import data
 
 
-__all__ = ["Op", "Cond", "Flag", "MUL_SHIFTS", "Q14", "Q24", "DOUBLED", "Q30", "REG_COUNT", "REG_BITS", "ROM_DEPTH", "ROM_BITS",
-           "Instr",
-           "Instruction", "Assembler"]
+__all__ = ["Op", "Cond", "Flag", "MUL_SHIFTS", "Q14", "Q24", "DOUBLED", "Q30", "REG_COUNT",
+           "REG_BITS", "ROM_DEPTH", "ROM_BITS", "Instr", "Instruction", "Assembler"]
 
 REG_COUNT = 256
 ROM_DEPTH = 1024
@@ -170,8 +169,8 @@ class Assembler:
     """Collects instructions for one ROM. Registers are given by address (ints); ``mul`` takes
     its shift in bits (``Q14``, ``Q24``, ``DOUBLED``, ``Q30``) and looks up its code.
 
-    ``scratch``: addresses of working registers that routines borrow with ``scratch(n)`` and
-    give back at the end of the ``with`` block. Each instruction is checked as it is emitted: a
+    ``scratch_pool``: addresses of working registers that routines borrow with ``scratch(n)``
+    and give back at the end of the ``with`` block. Each instruction is checked as it is emitted: a
     scratch register it reads must be held by a live scope and written since it was handed out
     (otherwise it would read what another routine left there), one it writes must be held.
     The check follows the program text, so a value written on one side of a branch counts as

@@ -61,8 +61,8 @@ from .flagship_microcode import FLAGSHIP_REGISTERS, flagship_names, flagship_rou
 
 
 __all__ = ["CONFIG_REGS", "CONTROL_ADDR", "REGS", "FILTERS", "FILTER_CODES", "FilterRoutine",
-           "LOAD_BASE", "LOAD_ORDER",
-           "TEMPS", "CONSTANTS", "build_program", "config_init", "load_words", "control_word"]
+           "LOAD_BASE", "LOAD_ORDER", "TEMPS", "CONSTANTS", "build_program", "config_init",
+           "load_words", "control_word"]
 
 CONTROL_ADDR = REG_COUNT - 1
 CONTROL_RESET = 1 << 2

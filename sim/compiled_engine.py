@@ -1,14 +1,14 @@
 """The attitude engine's gateware in a compiled simulator (Verilator), for whole recordings.
 
-Amaranth's simulator runs the engine at about 4×10³ cycles/s, so a 53,000-sample recording
-(about 3×10⁷ cycles) would take hours; Verilator runs the same Verilog about 700× faster.
+Amaranth's simulator runs the engine at a few thousand cycles per second, so a 53,000-sample
+recording (about 3×10⁷ cycles) would take hours; Verilator runs the same Verilog several hundred
+times faster (``python -m mpu9250_ahrs.sim.compiled_engine`` measures both on one stimulus).
 ``CompiledEngine`` exports the engine (inside ``EngineHarness``, which gives every field its
 own narrow port), writes a small C++ driver, builds both with Verilator once and caches the
 binary under a key made of the Verilog, the driver and the Verilator version, so a changed
 design rebuilds by itself. ``run`` then replays samples and register writes exactly as
 ``attitude_bench.run_engine`` does in Amaranth's simulator (the same handshakes and cycle
-counts) and returns an ``EngineRun``. ``python -m mpu9250_ahrs.sim.compiled_engine`` measures
-both simulators side by side on one stimulus (``speed_benchmark``).
+counts) and returns an ``EngineRun``.
 
 Cache folder: ``$MPU9250_AHRS_CACHE`` or ``~/.cache/mpu9250-ahrs``. Needs ``verilator`` and a
 C++ compiler (Debian: ``apt-get install verilator g++``); without them ``run`` raises

@@ -277,7 +277,8 @@ def test_register_read_back():
         while ctx.get(dut.busy) or ctx.get(dut.cfg.ready) == 0:
             await ctx.tick()
         got["R"] = await read(ctx, CONFIG_REGS["R"])
-        for addr, value in ((CONFIG_REGS["R"], 12345), (CONTROL_ADDR, control_word("complementary"))):
+        for addr, value in ((CONFIG_REGS["R"], 12345),
+                            (CONTROL_ADDR, control_word("complementary"))):
             await stream_put(ctx, dut.cfg, {"addr": addr, "data": value})
         got["R2"] = await read(ctx, CONFIG_REGS["R"])
         got["control"] = await read(ctx, CONTROL_ADDR)
