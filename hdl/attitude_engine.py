@@ -10,7 +10,7 @@ Kalman filter and the complementary filter.
 
 Pipeline: fetch (instruction ROM, synchronous) → read (register file, two synchronous read
 ports, transparent to the write port) → execute and write back. A result is visible to the
-next instruction without stalls; multi-cycle operations (MUL 2, DIV 18, VEC/ROT 19 cycles)
+next instruction without stalls; multi-cycle operations (MUL 2, DIV 34, VEC/ROT 19 cycles)
 hold the pipeline; a taken branch costs two bubbles.
 
 Interface
@@ -82,7 +82,7 @@ class AttitudeEngine(wiring.Component):
                  filter="flagship", blackbox_hard_blocks=False):
         self.config = config
         self.cal = CalibrationFixed() if cal is None else cal
-        self.flagship = FlagshipFixedConfig(dt=config.dt) if flagship is None else flagship
+        self.flagship = FlagshipFixedConfig.matching(config) if flagship is None else flagship
         self.filter_at_reset = FILTER_CODES[filter]
         self.program, self.entry = build_program()
         # hard blocks (multiplier, memories) as empty modules: for ``report``'s synthesis

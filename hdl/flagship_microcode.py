@@ -4,8 +4,9 @@ for operation, on the attitude engine (instruction set: ``hdl/attitude_isa.py``)
 Every reference operation that can saturate is one instruction here, under the same conditions,
 so that the result and the sample's ``saturated`` flag agree bit for bit; the order within a
 section is chosen for the MAC's overlap (independent MULs back to back). Register names are
-those of the reference's state (``QG``, ``QA``, ``LP`` ...); working registers are the
-routine's own (``F_`` names), so no other routine can clobber them between uses.
+those of the reference's state (``QG``, ``QA``, ``LP`` ...); values that live across sections
+have registers of the routine's own (``F_`` names), short-lived ones come from the assembler's
+scratch pool (``asm.scratch``).
 
 Cost: ``python -m mpu9250_ahrs report`` (``cycles_per_update.flagship``).
 """
@@ -109,14 +110,15 @@ def _abs(asm, r, x, label):
 
 
 def _low_pass(asm, r, states, inputs, gain):
-    """state += mul(gain, input − state, 30) for each pair (three SUBs, MULs, ADDs)."""
-    temps = [r[f"DG{i}"] for i in range(3)] + [r[f"DA{i}"] for i in range(3)]
-    for t, s, x in zip(temps, states, inputs):
-        asm.sub(t, x, s)
-    for t in temps[:len(states)]:
-        asm.mul(t, r[gain], t, Q30)
-    for t, s in zip(temps, states):
-        asm.add(s, s, t)
+    """state += mul(gain, input − state, 30) for each pair: the SUBs, then the MULs back to
+    back, then the ADDs."""
+    with asm.scratch(len(states)) as temps:
+        for t, s, x in zip(temps, states, inputs):
+            asm.sub(t, x, s)
+        for t in temps:
+            asm.mul(t, r[gain], t, Q30)
+        for t, s in zip(temps, states):
+            asm.add(s, s, t)
 
 
 def flagship_routine(asm, r):
@@ -221,7 +223,7 @@ def flagship_routine(asm, r):
         asm.vec(r["F_DIP"], r["F_HORIZ"], t0)
         asm.mul(r["F_MN"], r["F_NK"], r["INV_GAIN"], Q30)
         mn, dip = r["F_MN"], r["F_DIP"]
-        # the gate: learning the reference (a running mean) ...
+        # the gate: learning the reference (a low-pass from the first field) ...
         asm.br("f_learnt", Cond.A_ZERO, a=r["REF_OK"], inv=True)
         asm.br("f_ref_first", Cond.A_ZERO, a=r["REF_SEEN"])
         asm.sub(t0, mn, r["REF_NORM"])                      # ref += A_REF · (x − ref)

@@ -67,15 +67,9 @@ def run_trial(path, with_fixed=True):
         elif kind == "fixed":
             quat = fixed[name] = run_fixed(name, *counts, rec.dt, **units, **params)
         else:
-            from ..sim.compiled_engine import CompiledEngine, configuration_writes
-            from ..hdl.attitude_engine import AttitudeEngine
-            from .evaluate import engine_configs
+            from ..sim.compiled_engine import run_gateware
             from .flagship_fixed import q30_to_float
-            from .frames import body_to_mag
-            run = CompiledEngine(AttitudeEngine).run(
-                *counts[:2], body_to_mag(counts[2]),
-                writes={0: configuration_writes(name, *engine_configs(name, rec.dt, **units,
-                                                                       **params))})
+            run = run_gateware(name, *counts, rec.dt, **units, **params)[0]
             quat = q30_to_float(run.quat)
             extra = {"bit_exact": bool(np.array_equal(quat, fixed.get(name))),
                      "cycles_max": max(run.cycles[1:])}

@@ -38,6 +38,7 @@ __all__ = ["BAM_BITS", "CORDIC_ITERATIONS", "ATAN_TABLE", "CORDIC_GAIN", "rshift
            "div_q24", "Status", "KalmanFixedConfig", "CalibrationFixed", "calibrate_fixed",
            "kalman_fixed", "complementary_fixed", "attitude_fixed", "AttitudeFixed", "tilt_angles",
            "mul", "mac", "sat32", "sat16", "EngineModel", "FILTERS", "RESULT_FLAGS",
+           "RESULT_FIELDS",
            "calibration_registers"]
 
 BAM_BITS = 32                     # angles: signed 32-bit, 2³² = 360°, 1 LSB = 8.38e-8°
@@ -378,6 +379,10 @@ def complementary_fixed(gyr_counts, acc_counts, mag_counts, *, dt, a, gyro_lsb_p
 FILTERS = ("kalman", "complementary", "flagship")       # the engine's filter select codes 0, 1, 2
 RESULT_FLAGS = ("acc_used", "mag_used", "mag_disturbed", "mag_new_ref", "at_rest",
                 "bias_updated")
+# the fields of a result that the gateware must reproduce, in the order they are compared
+RESULT_FIELDS = ("quat", "angles", "bias", *RESULT_FLAGS, "saturated", "filter")
+_FLAGSHIP = FILTERS.index("flagship")
+_KALMAN = FILTERS.index("kalman")
 
 
 @dataclass
@@ -428,7 +433,7 @@ class EngineModel:
                  registers=None):
         from .flagship_fixed import FlagshipFixedConfig
         config = KalmanFixedConfig() if config is None else config
-        flagship = FlagshipFixedConfig(dt=config.dt) if flagship is None else flagship
+        flagship = FlagshipFixedConfig.matching(config) if flagship is None else flagship
         self.reg = {**config.registers(), **flagship.registers(),
                     **calibration_registers(CalibrationFixed() if cal is None else cal),
                     **(registers or {})}
@@ -461,11 +466,11 @@ class EngineModel:
                                  _calibration_of(self.reg), st)
         kf = self.kf
         flags = set()
-        if self.filter == 2:
+        if self.filter == _FLAGSHIP:
             quat, kf.theta, flags = self.flagship.step(g, a, m, bool(mag_valid), st)
             kf.prev = list(g)
         else:
-            if self.filter == 0:
+            if self.filter == _KALMAN:
                 acc_ok, mag_ok = kf.step(g, a, m, mag_valid, st)
                 if acc_ok or mag_ok:
                     flags.add("bias_updated")
@@ -476,8 +481,6 @@ class EngineModel:
             flags |= {"acc_used"} if acc_ok else set()
             flags |= {"mag_used"} if mag_ok else set()
             quat = euler_quat_fixed(kf.theta, st)
-            # the flagship restarts when it is selected again
-            self.flagship.first = True
         return {"quat": list(quat), "angles": list(kf.theta), "bias": list(kf.bias),
                 **{f: f in flags for f in RESULT_FLAGS}, "saturated": st.saturated,
                 "filter": self.filter}
@@ -510,6 +513,6 @@ def attitude_fixed(gyr_raw, acc_raw, mag_ak_raw, mag_valid=None, *, asa=(128, 12
             model.write(name, value)
         model.select(sel[k])
         r = model.sample(g, a, h, valid[k], asa)
-        for name in ("quat", "angles", "bias", *RESULT_FLAGS, "saturated", "filter"):
+        for name in RESULT_FIELDS:
             getattr(out, name)[k] = r[name]
     return out

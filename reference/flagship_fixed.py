@@ -52,6 +52,12 @@ class FlagshipFixedConfig:
     accel_lsb_per_ms2: float = 2048 / 9.80665
     params: FlagshipParams = FlagshipParams()
 
+    @classmethod
+    def matching(cls, kalman):
+        """The published parameters at a ``KalmanFixedConfig``'s sample period and gyro LSB
+        (the default beside a per-axis configuration)."""
+        return cls(dt=kalman.dt, gyro_lsb_per_rad=kalman.gyro_lsb_per_dps * 180 / math.pi)
+
     def registers(self):
         p, dt = self.params, self.dt
         gain = lambda tau: int(round((1 - math.exp(-dt / tau)) * ONE))      # Q0.30

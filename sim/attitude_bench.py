@@ -13,14 +13,11 @@ import numpy as np
 from amaranth.sim import Simulator
 
 from ..hdl.attitude_program import CONTROL_ADDR, control_word
-from ..reference.fixed_point import RESULT_FLAGS
+from ..reference.fixed_point import RESULT_FIELDS, RESULT_FLAGS
 from .streams import stream_put
 
 
 __all__ = ["EngineRun", "RESULT_FIELDS", "run_engine", "first_mismatch", "control_word"]
-
-# what ``first_mismatch`` compares, in this order: AttitudeFixed's fields of the same names
-RESULT_FIELDS = ("quat", "angles", "bias", *RESULT_FLAGS, "saturated", "filter")
 
 
 @dataclass

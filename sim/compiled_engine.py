@@ -40,7 +40,7 @@ from .attitude_bench import EngineRun
 
 
 __all__ = ["EngineHarness", "CompiledEngine", "verilator_available", "configuration_writes",
-           "replay_gateware", "speed_benchmark"]
+           "run_gateware", "replay_gateware", "speed_benchmark"]
 
 HINT = "install it with: apt-get install verilator g++"
 _FLAG_NAMES = [name for name, _ in data.Layout.cast(AttitudeFlags)]
@@ -284,21 +284,32 @@ def configuration_writes(filter, kalman, flagship, cal=None):
         (CONTROL_ADDR, control_word(filter, reset=True))]
 
 
-def replay_gateware(filter, gyr_counts, acc_counts, mag_counts, dt, *, mag_valid=None,
-                    engine=None, **scales_and_params):
-    """A recording (body-axis counts) through the compiled engine running ``filter``, and the
-    bit-exact model over the same samples: (EngineRun, AttitudeFixed, CompiledEngine)."""
+def run_gateware(filter, gyr_counts, acc_counts, mag_counts, dt, *, mag_valid=None,
+                 engine=None, **scales_and_params):
+    """A recording (body-axis counts) through the compiled engine, set up for ``filter`` by
+    register writes before the first sample: (EngineRun, CompiledEngine, the configurations
+    (KalmanFixedConfig, FlagshipFixedConfig))."""
     from ..hdl.attitude_engine import AttitudeEngine
     from ..reference.evaluate import engine_configs
+    from ..reference.frames import body_to_mag
+    configs = engine_configs(filter, dt, **scales_and_params)
+    engine = CompiledEngine(AttitudeEngine) if engine is None else engine
+    run = engine.run(gyr_counts, acc_counts, body_to_mag(mag_counts), mag_valid,
+                     writes={0: configuration_writes(filter, *configs)})
+    return run, engine, configs
+
+
+def replay_gateware(filter, gyr_counts, acc_counts, mag_counts, dt, *, mag_valid=None,
+                    engine=None, **scales_and_params):
+    """``run_gateware``, and the bit-exact model over the same samples: (EngineRun,
+    AttitudeFixed, CompiledEngine)."""
     from ..reference.fixed_point import attitude_fixed
     from ..reference.frames import body_to_mag
-    kalman, flagship = engine_configs(filter, dt, **scales_and_params)
-    engine = CompiledEngine(AttitudeEngine) if engine is None else engine
-    mag_ak = body_to_mag(mag_counts)
-    run = engine.run(gyr_counts, acc_counts, mag_ak, mag_valid,
-                     writes={0: configuration_writes(filter, kalman, flagship)})
-    ref = attitude_fixed(gyr_counts, acc_counts, mag_ak, mag_valid, config=kalman,
-                         flagship=flagship, select=filter)
+    run, engine, (kalman, flagship) = run_gateware(filter, gyr_counts, acc_counts, mag_counts,
+                                                   dt, mag_valid=mag_valid, engine=engine,
+                                                   **scales_and_params)
+    ref = attitude_fixed(gyr_counts, acc_counts, body_to_mag(mag_counts), mag_valid,
+                         config=kalman, flagship=flagship, select=filter)
     return run, ref, engine
 
 
