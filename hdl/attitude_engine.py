@@ -39,7 +39,7 @@ from amaranth import *
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
-from ..reference.fixed_point import (INV_GAIN_Q30, CalibrationFixed, KalmanFixedConfig,
+from ..reference.fixed_point import (INV_GAIN_Q30, CalibrationFixed, FilterRates, KalmanFixedConfig,
                                      calibration_registers)
 from ..reference.flagship_fixed import FlagshipFixedConfig
 from .alu import ALU
@@ -58,11 +58,19 @@ from .sample import Attitude, ConfigWrite, Sample
 __all__ = ["AttitudeEngine", "default_filter_config", "default_flagship_config"]
 
 
-def default_filter_config(sensor):
-    """The filter registers for an ``MPU9250Config``: T = 1/ODR, the gyro's LSB per °/s from
-    its full scale, and the published Q, R, P₀."""
-    return KalmanFixedConfig(dt=1 / sensor.output_data_rate,
-                             gyro_lsb_per_dps=32768 / sensor.gyro_fs_dps)
+# An upper bound of the cycles of one update (sample taken to result out), whatever the filter
+# and input: the longest measured is the flagship's first update after a reset or a switch
+# (616 cycles; on the shared recordings 583-588). The rate checks of ``build`` and ``report``
+# rely on it; tests/sim/test_compiled_engine.py checks it on whole recordings and resets.
+WORST_UPDATE_CYCLES = 640
+
+
+def default_filter_config(sensor, rates=None):
+    """The per-axis filters' registers for an ``MPU9250Config``: T = 1/ODR, the gyro's LSB per
+    °/s from its full scale, and ``rates`` (``FilterRates``: Q densities, R, P₀, τ; the
+    published preset's by default) converted to per-step values at that rate."""
+    rates = FilterRates() if rates is None else rates
+    return rates.at(1 / sensor.output_data_rate, 32768 / sensor.gyro_fs_dps)
 
 
 def default_flagship_config(sensor):
@@ -76,10 +84,11 @@ def default_flagship_config(sensor):
 class AttitudeEngine(wiring.Component):
     """``config`` (``KalmanFixedConfig``), ``cal`` (``CalibrationFixed``) and ``flagship``
     (``FlagshipFixedConfig``) give the register file's reset values; ``filter`` the filter
-    selected at reset (a ``FILTER_CODES`` name: the flagship unless told)."""
+    selected at reset (a ``FILTER_CODES`` name: the flagship unless told); ``extra_registers``
+    (name: value) more reset values of the register map, e.g. ``TELEMETRY_DIV``."""
 
     def __init__(self, config=KalmanFixedConfig(), cal=None, flagship=None, *,
-                 filter="flagship", blackbox_hard_blocks=False):
+                 filter="flagship", extra_registers=None, blackbox_hard_blocks=False):
         self.config = config
         self.cal = CalibrationFixed() if cal is None else cal
         self.flagship = FlagshipFixedConfig.matching(config) if flagship is None else flagship
@@ -88,7 +97,7 @@ class AttitudeEngine(wiring.Component):
         # hard blocks (multiplier, memories) as empty modules: for ``report``'s synthesis
         self.multiplier = Multiplier(blackbox=blackbox_hard_blocks)
         registers = {**config.registers(), **self.flagship.registers(),
-                     **calibration_registers(self.cal)}
+                     **calibration_registers(self.cal), **(extra_registers or {})}
         self.regfile = RegisterFile(REG_COUNT, config_init(registers, INV_GAIN_Q30),
                                     blackbox=blackbox_hard_blocks)
         self.rom = MicrocodeROM([i.encode() for i in self.program],

@@ -41,6 +41,8 @@ address  name            meaning, format                                        
          K_FAST, K_NEW   heading, new reference)
 0x7E     A_REF           flagship gain of the reference's low-pass while learnt,    from dt
                          Q0.30 (tau_ref)
+0xFE     TELEMETRY_DIV   (read by ``AHRSCore``, not the engine) frame every n-th     from baud
+                         result (1..65535; 0 is taken as 1)
 0xFF     CONTROL         (not a register-file word) bits 1:0 filter: 0 = per-axis
                          Kalman, 1 = complementary, 2 = flagship (the reset
                          default); bit 2: write 1 to reset the filter state
@@ -60,7 +62,7 @@ from .attitude_isa import Q14, Q24, Q30, REG_COUNT, Assembler, Cond, Flag
 from .flagship_microcode import FLAGSHIP_REGISTERS, flagship_names, flagship_routine
 
 
-__all__ = ["CONFIG_REGS", "CONTROL_ADDR", "REGS", "FILTERS", "FILTER_CODES", "FilterRoutine",
+__all__ = ["CONFIG_REGS", "CONTROL_ADDR", "TELEMETRY_DIV_ADDR", "REGS", "FILTERS", "FILTER_CODES", "FilterRoutine",
            "LOAD_BASE", "LOAD_ORDER", "TEMPS", "CONSTANTS", "build_program", "config_init",
            "load_words", "control_word"]
 
@@ -94,7 +96,9 @@ CONFIG_REGS = {
     **{f"HARD{i}": 0x13 + i for i in range(3)},
     **{f"SOFT{i}{j}": 0x16 + 3 * i + j for i in range(3) for j in range(3)},
     **{name: 0x70 + k for k, name in enumerate(FLAGSHIP_REGISTERS)},
+    "TELEMETRY_DIV": 0xFE,
 }
+TELEMETRY_DIV_ADDR = CONFIG_REGS["TELEMETRY_DIV"]
 
 
 def _allocate():

@@ -21,7 +21,8 @@ one well-known drivers use:
     WAIT_FOR_ES | 400 kHz; each AK8963 access is a single SLV4 transfer (SLV4_ADDR/REG/DO/CTRL,
     then poll I2C_MST_STATUS for SLV4_DONE, failing on SLV4_NACK or a time-out): check WIA =
     0x48, CNTL2 = SRST, CNTL1 = fuse ROM, read ASAX/Y/Z, CNTL1 = power-down, wait 100 µs,
-    CNTL1 = 0x16 (continuous 100 Hz, 16-bit); then SLV0 reads 8 bytes from ST1 every sample;
+    CNTL1 = 0x16 (continuous 100 Hz, 16-bit); then SLV0 reads 8 bytes from ST1 every sample
+    (above 1 kHz every n-th sample, without WAIT_FOR_ES: ``MPU9250Config.aux_every``);
     INT_PIN_CFG; INT_ENABLE = RAW_RDY.
 
     I2C wiring: the same without I2C_IF_DIS, and with the AK8963 reached directly at 0x0C
@@ -48,6 +49,7 @@ from amaranth.lib.cdc import FFSynchronizer
 from amaranth.lib.wiring import In, Out
 
 from . import ak8963_regs as A
+from .clocking import cycles
 from . import mpu9250_regs as R
 from .register_port import RegisterPortSignature
 from .sample import DriverStatus, Sample
@@ -85,9 +87,36 @@ class MPU9250Config:
         if self.i2c_address not in (0x68, 0x69):
             raise ValueError("MPU9250Config.i2c_address must be 0x68 or 0x69")
 
+    @classmethod
+    def for_odr(cls, odr_hz, **kwargs):
+        """The configuration for an output rate of ``odr_hz``: 8000 (DLPF_CFG 0: 250 Hz gyro
+        bandwidth, no divider; the accelerometer still updates at 1 kHz, its 4 kHz mode needs
+        ACCEL_FCHOICE_B, which this driver leaves at 0), or 1000 / n for n = 1..256 (internal
+        1 kHz, SMPLRT_DIV = n − 1, gyro and accelerometer DLPF the widest of 184, 92, 41, 20,
+        10, 5 Hz below half the rate)."""
+        if odr_hz == 8000:
+            return cls(dlpf_cfg=0, accel_dlpf_cfg=1, smplrt_div=0, **kwargs)
+        div = 1000 / odr_hz - 1 if odr_hz > 0 else -1
+        if div < 0 or div > 255 or abs(div - round(div)) > 1e-9:
+            raise ValueError(f"the MPU9250 offers 8000 Hz or 1000/n Hz (n = 1..256), not "
+                             f"{odr_hz:g} Hz")
+        bandwidths = {1: 184, 2: 92, 3: 41, 4: 20, 5: 10, 6: 5}
+        dlpf = next((k for k, bw in bandwidths.items() if bw < odr_hz / 2), 6)
+        return cls(dlpf_cfg=dlpf, accel_dlpf_cfg=dlpf, smplrt_div=int(round(div)), **kwargs)
+
     @property
     def output_data_rate(self):
         return R.output_data_rate(self.dlpf_cfg, R.gyro_config(self.gyro_fs_dps), self.smplrt_div)
+
+    @property
+    def aux_every(self):
+        """Samples per read of the AK8963 by the MPU9250's I2C master (SPI wiring). Reading its
+        eight bytes at 400 kHz takes about 0.25 ms: at up to 1 kHz that fits a sample period
+        and happens every sample, with WAIT_FOR_ES; faster, the read is paced to every n-th
+        sample, n = ODR / 1 kHz (I2C_MST_DLY, still ten times the AK8963's 100 Hz), and
+        WAIT_FOR_ES is off so that data-ready is never held back (DELAY_ES_SHADOW keeps the
+        bytes whole instead)."""
+        return max(1, math.ceil(self.output_data_rate / 1000 - 1e-9))
 
     @property
     def int_pin_cfg(self):
@@ -114,22 +143,27 @@ class DriverTiming:
     ``time_scale`` multiplies the power-up and reset waits (simulations use ≪ 1; the sensor
     model's delays must be scaled alike). ``int_timeout_s`` is used as given; ``None`` means
     four output sample periods plus 50 ms for the gyro to wake. It also bounds each SLV4 poll.
-    ``mag_power_down_s`` is the AK8963's power-down wait (not scaled).
+    ``mag_power_down_s`` is the AK8963's power-down wait (not scaled). ``sample_period_s`` is
+    the sensor's sample period the driver measures data-ready intervals against (``None``:
+    1/ODR; simulations that compress the sensor's period give it here).
     """
     power_up_s: float = 0.100
     reset_s: float = 0.100
     int_timeout_s: Optional[float] = None
     time_scale: float = 1.0
     mag_power_down_s: float = 100e-6
+    sample_period_s: Optional[float] = None
+
+    def period_cycles(self, clk_freq, config):
+        period = self.sample_period_s or 1 / config.output_data_rate
+        return cycles(period, clk_freq, minimum=2)
 
     def cycles(self, clk_freq, config):
-        def c(seconds):
-            return max(1, math.ceil(seconds * clk_freq))
         timeout = self.int_timeout_s
         if timeout is None:
             timeout = 4 / config.output_data_rate + 0.050
-        return (c(self.power_up_s * self.time_scale), c(self.reset_s * self.time_scale),
-                c(timeout))
+        return (cycles(self.power_up_s * self.time_scale, clk_freq),
+                cycles(self.reset_s * self.time_scale, clk_freq), cycles(timeout, clk_freq))
 
 
 class Op(enum.Enum, shape=3):
@@ -200,10 +234,10 @@ def bring_up_program(config, power_up_cycles, reset_cycles, mag_wait_cycles):
                 mag.append(Step(op, device=1, reg=reg, fail=Fail.MAG, **kw))
 
         if spi:
+            wait_es = R.I2C_MST_CTRL_WAIT_FOR_ES if config.aux_every == 1 else 0
             mag += [Step(Op.WRITE, reg=R.USER_CTRL,
                          value=R.USER_CTRL_I2C_IF_DIS | R.USER_CTRL_I2C_MST_EN),
-                    Step(Op.WRITE, reg=R.I2C_MST_CTRL,
-                         value=R.I2C_MST_CTRL_WAIT_FOR_ES | R.I2C_MST_CLK_400KHZ)]
+                    Step(Op.WRITE, reg=R.I2C_MST_CTRL, value=wait_es | R.I2C_MST_CLK_400KHZ)]
         else:
             mag += [Step(Op.WRITE, reg=R.USER_CTRL, value=0x00),
                     Step(Op.WRITE, reg=R.INT_PIN_CFG, value=R.INT_PIN_CFG_BYPASS_EN)]
@@ -220,6 +254,11 @@ def bring_up_program(config, power_up_cycles, reset_cycles, mag_wait_cycles):
                     Step(Op.WRITE, reg=R.I2C_SLV_ADDR[0] + 1, value=A.ST1),
                     Step(Op.WRITE, reg=R.I2C_SLV_ADDR[0] + 2,
                          value=R.I2C_SLV_EN | A.SAMPLE_BYTES)]
+            if config.aux_every > 1:
+                mag += [Step(Op.WRITE, reg=R.I2C_SLV4_CTRL, value=config.aux_every - 1),
+                        Step(Op.WRITE, reg=R.I2C_MST_DELAY_CTRL,
+                             value=R.I2C_MST_DELAY_CTRL_DELAY_ES_SHADOW |
+                             R.I2C_MST_DELAY_CTRL_SLV0_DLY_EN)]
         mag.append(Step(Op.MARK))
         steps += mag
 
@@ -240,7 +279,8 @@ class MPU9250Driver(wiring.Component):
         self.timing = timing
         self.power_up_cycles, self.reset_cycles, self.timeout_cycles = \
             timing.cycles(clk_freq, config)
-        self.mag_wait_cycles = max(1, math.ceil(timing.mag_power_down_s * clk_freq))
+        self.mag_wait_cycles = cycles(timing.mag_power_down_s, clk_freq)
+        self.period_cycles = timing.period_cycles(clk_freq, config)
         self.program = bring_up_program(config, self.power_up_cycles, self.reset_cycles,
                                         self.mag_wait_cycles)
         super().__init__({
@@ -298,6 +338,22 @@ class MPU9250Driver(wiring.Component):
         int_pending = Signal()
         with m.If(int_edge):
             m.d.sync += int_pending.eq(1)
+
+        # Sensor samples missed: data-ready edges are one sample period apart; an interval of
+        # n periods (rounded: the phase starts half a period in) means n - 1 samples the sensor
+        # made and the driver never read (e.g. a latched INT still high from the sample before).
+        period = self.period_cycles
+        phase = Signal(range(period))
+        periods = Signal(4)                     # whole periods since the last edge, saturating
+        skipped = Signal(4)                     # for the sample this edge announces
+        seen_edge = Signal()                    # an edge since streaming began
+        with m.If(int_edge):
+            m.d.sync += [phase.eq(period // 2), periods.eq(0), seen_edge.eq(1),
+                         skipped.eq(Mux(seen_edge & (periods > 1), periods - 1, 0))]
+        with m.Elif(phase == period - 1):
+            m.d.sync += [phase.eq(0), periods.eq(Mux(periods == 15, 15, periods + 1))]
+        with m.Else():
+            m.d.sync += phase.eq(phase + 1)
 
         timer = Signal(range(max(self.power_up_cycles, self.reset_cycles, self.mag_wait_cycles,
                                  self.timeout_cycles) + 1))
@@ -361,7 +417,8 @@ class MPU9250Driver(wiring.Component):
                     with m.Case(Op.STREAM):
                         # A latched INT already high would give no edge: treat it as pending.
                         m.d.sync += [status.streaming.eq(1), timer.eq(self.timeout_cycles - 1),
-                                     counter.eq(0), int_pending.eq(int_active)]
+                                     counter.eq(0), int_pending.eq(int_active),
+                                     seen_edge.eq(0), skipped.eq(0)]
                         m.next = "STREAM"
             with m.State("WAIT"):
                 m.d.sync += timer.eq(timer - 1)
@@ -452,7 +509,7 @@ class MPU9250Driver(wiring.Component):
                     mag_new = status.mag_ok & st1[0]
                     hofl = st2[3]
                     m.d.sync += [self.samples.valid.eq(1), overrun.eq(0),
-                                 p.counter.eq(counter),
+                                 p.counter.eq(counter), p.skipped.eq(skipped),
                                  p.flags.data_ready.eq(buf[0][0]),
                                  p.flags.overrun.eq(overrun),
                                  p.flags.mag_new.eq(mag_new),

@@ -14,6 +14,9 @@ mag         3 × signed(16)   AK8963 HX..HZ, 0.15 µT/LSB (16-bit mode), in the 
                              0 while the magnetometer is not up.
 counter     unsigned(16)     number of sensor samples read since bring-up, wrapping; a gap
                              means samples were dropped (see ``flags.overrun``)
+skipped     unsigned(4)      samples the sensor made before this one that were never read
+                             (data-ready edges n > 1 sample periods apart: n − 1; saturating
+                             at 14); 0 normally
 flags       SampleFlags      per-sample status, below
 ==========  ===============  ===================================================================
 
@@ -70,6 +73,7 @@ class Sample(data.Struct):
     mag: Vector3
     counter: 16
     flags: SampleFlags
+    skipped: 4
 
 
 class DriverStatus(data.Struct):

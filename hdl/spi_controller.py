@@ -7,14 +7,18 @@ Interface
     ``o_stream`` (out): one received byte for every byte sent (full duplex), in order.
     ``pins``:           ``sclk``, ``copi``, ``cs_n`` outputs (registered), ``cipo`` input
                         (raw: it goes through an ``FFSynchronizer`` here).
+    ``busy`` (out):     chip select is active.
 
 Timing (``SPITiming``, all in system clock cycles)
     Each SCLK level lasts ``half`` cycles (``slow_half`` or ``fast_half``). Chip select falls
     ``half`` cycles before the first falling SCLK edge (setup) and rises at least ``cs_hold``
     cycles after the last rising edge; it then stays high for ``cs_gap`` cycles.
-    Mode 3: SCLK idles high, COPI changes on the falling edge, CIPO is captured
-    ``capture_delay`` cycles after the rising edge leaves its register: 2 cycles of synchroniser
-    plus ``cipo_delay`` for the round trip through the pins and the device's output delay.
+    Mode 3: SCLK idles high, COPI changes on the falling edge. CIPO's pin is sampled (the
+    synchroniser's first flip-flop) ``cipo_delay`` cycles after the rising edge leaves its
+    register, so ``half + cipo_delay`` cycles after the falling edge the device answers: late
+    enough for its output delay (``SPITiming.for_clock``'s ``sdo_window_s``), early enough that
+    the bit has not yet changed; the bit is shifted in ``capture_delay`` = 2 + ``cipo_delay``
+    cycles after the rising edge.
 
 Throughput: 8 bits take ``16 * half`` cycles, plus ``capture_delay`` cycles between bytes
 (the controller waits for a byte's last bit before shifting the next one, which keeps the
@@ -34,6 +38,9 @@ __all__ = ["SPITiming", "SPIPinsSignature", "SPIByte", "SPIController"]
 
 
 SYNC_STAGES = 2
+# When the MPU9250's next SDO bit reaches the FPGA after a falling SCLK edge: (earliest,
+# latest), seconds. PS-MPU-9250A-01 gives the output delay as at most 100 ns (no minimum).
+SDO_WINDOW_S = (0.0, 100e-9)
 
 
 @dataclass(frozen=True)
@@ -42,7 +49,7 @@ class SPITiming:
     fast_half: int       # cycles per SCLK level, fast rate
     cs_hold: int         # cycles from the last rising SCLK edge to CS rising, at least
     cs_gap: int          # cycles CS stays high between transactions
-    cipo_delay: int = 1  # extra cycles of CIPO round trip beyond the synchroniser
+    cipo_delay: int = 1  # cycles from a rising SCLK edge to the edge that samples CIPO's pin
 
     def __post_init__(self):
         for name in ("slow_half", "fast_half", "cs_hold", "cs_gap"):
@@ -55,20 +62,38 @@ class SPITiming:
     def capture_delay(self):
         return SYNC_STAGES + self.cipo_delay
 
+    def sample_window(self, fast):
+        """(first, last) cycle after a falling SCLK edge leaves its register at which CIPO's
+        pin is sampled for that bit: (sample point, the cycle before the next falling edge)."""
+        half = self.fast_half if fast else self.slow_half
+        return half + self.cipo_delay, 2 * half - 1
+
     @classmethod
     def for_clock(cls, clk_freq, *, slow_hz=1e6, fast_hz=20e6, cs_hold_s=500e-9,
-                  min_half=2, cipo_delay=1):
-        """Derive cycle counts that never exceed the given SCLK rates.
+                  min_half=2, sdo_window_s=SDO_WINDOW_S):
+        """The fastest timing the datasheet and CIPO's timing allow at ``clk_freq``.
 
-        ``min_half`` keeps at least two cycles per SCLK level so that, on hardware, CIPO is
-        sampled well inside its valid window (the MPU9250 changes SDO up to 100 ns after
-        the falling edge).
+        ``sdo_window_s`` = (earliest, latest) time after a falling SCLK edge leaves the FPGA's
+        register at which the sensor's next bit can reach the FPGA's CIPO pin: the MPU9250's
+        output delay (at most 100 ns, no minimum given) plus the board's delays, default
+        (0, 100 ns). The previous bit can therefore change from ``earliest`` after the next
+        falling edge. The pin is sampled on the first clock edge after ``latest`` and it
+        must come before the next falling edge plus ``earliest``: so an SCLK period longer than
+        ``latest - earliest`` is needed, whatever the clock (at most about 9.5 MHz with the
+        defaults). ``fast_half`` is the shortest level (at least ``min_half`` cycles, SCLK at
+        most ``fast_hz``) with such a sampling edge; ``cipo_delay`` places it.
         """
         def half(hz):
-            return max(min_half, math.ceil(clk_freq / (2 * hz)))
-        hold = max(1, math.ceil(cs_hold_s * clk_freq))
-        return cls(slow_half=half(slow_hz), fast_half=half(fast_hz),
-                   cs_hold=hold, cs_gap=max(hold, half(slow_hz)), cipo_delay=cipo_delay)
+            return max(min_half, math.ceil(clk_freq / (2 * hz) - 1e-9))
+        earliest, latest = sdo_window_s
+        first = math.floor(latest * clk_freq + 1e-9) + 1    # first edge strictly after latest
+        fast = half(fast_hz)
+        while first > 2 * fast - 1 + math.floor(earliest * clk_freq + 1e-9):
+            fast += 1
+        slow = max(half(slow_hz), fast)
+        hold = max(1, math.ceil(cs_hold_s * clk_freq - 1e-9))
+        return cls(slow_half=slow, fast_half=fast, cs_hold=hold, cs_gap=max(hold, slow),
+                   cipo_delay=max(0, first - fast))
 
     def sclk_hz(self, clk_freq, fast):
         return clk_freq / (2 * (self.fast_half if fast else self.slow_half))

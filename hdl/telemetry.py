@@ -4,7 +4,7 @@ Frame (all bytes on the wire in this order)
     ``0xA5 0x5A``  sync
     ``type``       frame type: 0x01 = ``SensorFrame`` (sample and driver status),
                    0x02 = ``AttitudeFrame`` (attitude result, the sample it came from, driver
-                   status)
+                   status latched with it, telemetry counters; ``hdl/telemetry_scheduler.py``)
     ``length``     payload length in bytes
     payload        the frame struct packed as its ``lib.data`` layout says, least significant
                    byte first (padded with zeros to whole bytes)
@@ -25,7 +25,8 @@ from amaranth.lib import data, stream, wiring
 from amaranth.lib.crc.catalog import CRC8_SMBUS
 from amaranth.lib.wiring import In, Out
 
-from .sample import Attitude, DriverStatus, Sample
+from .sample import DriverStatus, Sample
+from .telemetry_scheduler import AttitudeFrame
 
 
 __all__ = ["SYNC", "CRC", "SensorFrame", "AttitudeFrame", "FRAME_TYPES", "TelemetryFramer"]
@@ -36,12 +37,6 @@ CRC = CRC8_SMBUS
 
 
 class SensorFrame(data.Struct):
-    sample: Sample
-    status: DriverStatus
-
-
-class AttitudeFrame(data.Struct):
-    attitude: Attitude
     sample: Sample
     status: DriverStatus
 
@@ -60,6 +55,7 @@ class TelemetryFramer(wiring.Component):
         self.length = payload_bytes(layout)
         if self.length > 255:
             raise ValueError("telemetry payload longer than 255 bytes")
+        self.frame_bytes = self.length + 5
         super().__init__({
             "i_stream": In(stream.Signature(layout)),
             "o_stream": Out(stream.Signature(8)),

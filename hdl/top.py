@@ -31,43 +31,110 @@ LED   meaning
 ====  ==================================================
 """
 
+import math
+
 from amaranth import *
 from amaranth.lib import data, io, stream, wiring
+from amaranth.lib.cdc import ResetSynchronizer
 from amaranth.lib.wiring import In, Out, connect, flipped
 
+from .clocking import SYSTEM_CLOCK_HZ, SystemPLL
 from .mpu9250_driver import DriverTiming, MPU9250Config
 from .attitude_isa import REG_BITS
-from .attitude_engine import AttitudeEngine, default_filter_config, default_flagship_config
+from .attitude_program import TELEMETRY_DIV_ADDR
+from .attitude_engine import WORST_UPDATE_CYCLES, AttitudeEngine, default_filter_config, default_flagship_config
 from .sample import ConfigWrite, DriverStatus, Sample
-from .sensor_frontend import SensorFrontEnd
+from .sensor_frontend import SensorFrontEnd, sample_read_cycles
 from .i2c_controller import I2CPinsSignature
 from .spi_controller import SPIPinsSignature
-from .telemetry import AttitudeFrame, TelemetryFramer
+from .telemetry import TelemetryFramer
+from .telemetry_scheduler import AttitudeFrame, TelemetryCounters, TelemetryScheduler
 from .uart_tx import UARTTransmitter
 
 
-__all__ = ["AHRSCore", "BoardTop"]
+__all__ = ["AHRSCore", "BoardTop", "default_telemetry_divider", "rate_budget"]
+
+
+def default_telemetry_divider(sample_rate_hz, baud, frame_bytes):
+    """The smallest divider of the sample rate at which ``frame_bytes``-byte frames (10 bits a
+    byte on the UART) fit the link: every result is sent when it is 1."""
+    frame_s = 10 * frame_bytes / baud
+    return max(1, math.ceil(frame_s * sample_rate_hz - 1e-9))
+
+
+def rate_budget(config, clk_freq, baud=921_600, telemetry_divider=None):
+    """What the design sustains for ``config`` at ``clk_freq`` (a dict): ``read_cycles`` (a
+    sample's read, ``sample_read_cycles``), ``update_cycles`` (the engine's worst update,
+    ``WORST_UPDATE_CYCLES``), ``cycles_per_sample`` (the larger: the driver reads the next
+    sample while the engine works on the last), ``max_sample_rate_hz``, and the telemetry's
+    ``telemetry_divider``, ``frame_bytes``, ``frame_us``, ``frames_per_s``."""
+    from .telemetry import payload_bytes
+    read = sample_read_cycles(config, clk_freq)
+    update = WORST_UPDATE_CYCLES
+    per_sample = max(read, update)
+    rate = config.output_data_rate
+    frame_bytes = payload_bytes(AttitudeFrame) + 5
+    divider = telemetry_divider or default_telemetry_divider(rate, baud, frame_bytes)
+    return {"sample_rate_hz": rate, "read_cycles": read, "update_cycles": update,
+            "cycles_per_sample": per_sample, "max_sample_rate_hz": clk_freq / per_sample,
+            "baud": baud, "telemetry_divider": divider, "frame_bytes": frame_bytes,
+            "frame_us": 10 * frame_bytes / baud * 1e6, "frames_per_s": rate / divider}
 
 
 class AHRSCore(wiring.Component):
-    def __init__(self, *, clk_freq, config=MPU9250Config(), timing=DriverTiming(),
-                 baud=921_600, attitude=True, filter_config=None, calibration=None,
-                 flagship_config=None, filter="flagship", blackbox_hard_blocks=False):
+    """Everything but the pins: sensor front end, attitude engine, telemetry.
+
+    Parameters
+        ``clk_freq``: system clock, Hz (``SYSTEM_CLOCK_HZ`` unless told).
+        ``config`` (``MPU9250Config``), ``timing`` (``DriverTiming``): the sensor and driver.
+        ``baud``: the UART's rate.
+        ``attitude``: with the engine (attitude frames) or without (sensor frames only).
+        ``filter_config``, ``flagship_config``, ``calibration``, ``filter``: the engine's
+            reset values (default: set up for ``config``'s sample rate and full scales).
+        ``telemetry_divider``: frame every n-th result at reset (default: the smallest n at
+            which the frames fit the baud rate, ``telemetry_divider()``); run time: register
+            ``TELEMETRY_DIV_ADDR`` of the ``cfg`` port.
+    Members
+        ``imu``, ``imu_int``: sensor pins (raw; synchronised inside).
+        ``uart_tx``: telemetry out.
+        ``status`` (``DriverStatus``), ``asa``: the driver's, live.
+        ``samples_seen`` (8): samples read, wrapping (a heartbeat for an LED).
+        ``cfg``, ``cfg_read``, ``cfg_read_data``: the engine's register port (with ``attitude``).
+        ``counters`` (``TelemetryCounters``): results filtered, samples lost, results not sent.
+
+    With the engine, every sample the driver reads is filtered: the engine takes a sample as
+    soon as its previous update is done (about 600 cycles) and the ``TelemetryScheduler``
+    takes every result at once, so the UART never holds the filter up.
+    """
+    def __init__(self, *, clk_freq=SYSTEM_CLOCK_HZ, config=MPU9250Config(),
+                 timing=DriverTiming(), baud=921_600, attitude=True, filter_config=None,
+                 calibration=None, flagship_config=None, filter="flagship",
+                 telemetry_divider=None, blackbox_hard_blocks=False):
         self.clk_freq = clk_freq
         self.config = config
         self.attitude = attitude
+        self.baud = baud
         self.frontend = SensorFrontEnd(clk_freq=clk_freq, config=config, timing=timing)
         if attitude:
             if filter_config is None:
                 filter_config = default_filter_config(config)
             if flagship_config is None:
                 flagship_config = default_flagship_config(config)
+            self.framer = TelemetryFramer(AttitudeFrame, 0x02)
+            if telemetry_divider is None:
+                telemetry_divider = default_telemetry_divider(
+                    config.output_data_rate, baud, self.framer.frame_bytes)
+            if not 1 <= telemetry_divider < 1 << 16:
+                raise ValueError(f"telemetry divider {telemetry_divider} is not 1..65535")
+            self.telemetry_divider = telemetry_divider
             self.engine = AttitudeEngine(filter_config, calibration, flagship_config,
                                          filter=filter,
+                                         extra_registers={"TELEMETRY_DIV": telemetry_divider},
                                          blackbox_hard_blocks=blackbox_hard_blocks)
-            self.framer = TelemetryFramer(AttitudeFrame, 0x02)
+            self.scheduler = TelemetryScheduler()
         else:
             self.framer = TelemetryFramer()
+            self.telemetry_divider = 1
         self.uart = UARTTransmitter.for_baud(clk_freq, baud)
         ports = {
             "imu": Out(SPIPinsSignature() if config.wiring == "spi" else I2CPinsSignature()),
@@ -81,6 +148,7 @@ class AHRSCore(wiring.Component):
             ports["cfg"] = In(stream.Signature(ConfigWrite))
             ports["cfg_read"] = In(stream.Signature(REG_BITS))
             ports["cfg_read_data"] = Out(stream.Signature(signed(32)))
+            ports["counters"] = Out(TelemetryCounters)
         super().__init__(ports)
 
     def elaborate(self, platform):
@@ -94,24 +162,31 @@ class AHRSCore(wiring.Component):
                      self.asa.eq(fe.asa), self.uart_tx.eq(uart.tx)]
 
         if self.attitude:
-            # Sample -> engine -> frame (result + the sample it came from + status) -> UART.
-            # The engine takes the next sample only once its result is framed, so one held
-            # copy of the sample is enough.
+            # Sample -> engine -> scheduler (every result taken; every n-th framed) -> UART.
+            # The engine takes a sample only when its previous result is out, and the scheduler
+            # takes results at once, so one held copy of the sample (and of the status read
+            # with it) belongs to the result the scheduler sees.
             m.submodules.engine = engine = self.engine
+            m.submodules.scheduler = sched = self.scheduler
             connect(m, fe.samples, engine.samples)
             connect(m, flipped(self.cfg), engine.cfg)
             connect(m, flipped(self.cfg_read), engine.cfg_read)
             connect(m, engine.cfg_read_data, flipped(self.cfg_read_data))
+            connect(m, engine.results, sched.results)
+            connect(m, sched.frames, framer.i_stream)
             held = Signal(Sample, reset_less=True)
+            held_status = Signal(DriverStatus, reset_less=True)
             with m.If(fe.samples.valid & fe.samples.ready):
-                m.d.sync += held.eq(fe.samples.payload)
+                m.d.sync += [held.eq(fe.samples.payload), held_status.eq(fe.status)]
+            # the divider register: the engine keeps its copy for read-back
+            divider = Signal(16, init=self.telemetry_divider)
+            with m.If(self.cfg.valid & self.cfg.ready &
+                      (self.cfg.payload.addr == TELEMETRY_DIV_ADDR)):
+                m.d.sync += divider.eq(self.cfg.payload.data[:16])
             m.d.comb += [
                 engine.asa.eq(fe.asa),
-                framer.i_stream.valid.eq(engine.results.valid),
-                framer.i_stream.payload.attitude.eq(engine.results.payload),
-                framer.i_stream.payload.sample.eq(held),
-                framer.i_stream.payload.status.eq(fe.status),
-                engine.results.ready.eq(framer.i_stream.ready),
+                sched.sample.eq(held), sched.status.eq(held_status),
+                sched.divider.eq(divider), self.counters.eq(sched.counters),
             ]
         else:
             # Sample stream -> frame (sample + status at the moment it was taken) -> UART.
@@ -128,13 +203,31 @@ class AHRSCore(wiring.Component):
 
 
 class BoardTop(Elaboratable):
-    def __init__(self, **core_kwargs):
+    """``AHRSCore`` on a ``MAX10Platform``: pin buffers, the status LEDs, and the clock.
+
+    The system clock (``clk_freq``, default ``SYSTEM_CLOCK_HZ``) comes from a ``SystemPLL``
+    fed by the board's oscillator; the whole design is held in reset until the PLL locks (a
+    ``ResetSynchronizer`` releases it on the system clock). With ``clk_freq`` equal to the
+    oscillator's frequency there is no PLL and the oscillator clocks the design directly.
+    ``PLL_CONSTRAINTS`` go into ``top.sdc`` (``build`` passes them as ``add_constraints``).
+    """
+    PLL_CONSTRAINTS = "derive_pll_clocks -create_base_clocks\nderive_clock_uncertainty\n"
+
+    def __init__(self, *, clk_freq=SYSTEM_CLOCK_HZ, **core_kwargs):
+        self.clk_freq = clk_freq
         self.core_kwargs = core_kwargs
 
     def elaborate(self, platform):
         m = Module()
-        m.submodules.core = core = AHRSCore(clk_freq=platform.default_clk_frequency,
-                                            **self.core_kwargs)
+        osc_hz = platform.default_clk_frequency
+        if self.clk_freq != osc_hz:
+            osc = platform.request(platform.default_clk, 0, dir="-")
+            m.submodules.osc_buf = osc_buf = io.Buffer("i", osc)
+            m.submodules.pll = pll = SystemPLL(in_hz=osc_hz, out_hz=self.clk_freq)
+            m.domains.sync = ClockDomain("sync")
+            m.d.comb += [pll.clk_in.eq(osc_buf.i), ClockSignal("sync").eq(pll.clk_out)]
+            m.submodules.reset_sync = ResetSynchronizer(~pll.locked, domain="sync")
+        m.submodules.core = core = AHRSCore(clk_freq=self.clk_freq, **self.core_kwargs)
         config = core.config
         uart = platform.request("uart", 0, dir="-")
         m.submodules.uart_tx = uart_tx = io.Buffer("o", uart.tx)

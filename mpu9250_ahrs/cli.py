@@ -27,10 +27,44 @@ def _int(text):
 
 def _config(args):
     from .hdl.mpu9250_driver import MPU9250Config
-    return MPU9250Config(gyro_fs_dps=args.gyro_fs, accel_fs_g=args.accel_fs,
-                         dlpf_cfg=args.dlpf, smplrt_div=args.smplrt_div,
-                         int_latched=not args.int_pulse, wiring=args.wiring,
-                         i2c_address=args.i2c_address, magnetometer=not args.no_mag)
+    common = dict(gyro_fs_dps=args.gyro_fs, accel_fs_g=args.accel_fs,
+                  int_latched=not args.int_pulse, wiring=args.wiring,
+                  i2c_address=args.i2c_address, magnetometer=not args.no_mag)
+    if getattr(args, "odr", None) is not None:
+        if args.dlpf is not None or args.smplrt_div is not None:
+            raise ValueError("--odr sets DLPF_CFG and SMPLRT_DIV itself: leave out --dlpf and "
+                             "--smplrt-div")
+        return MPU9250Config.for_odr(args.odr, **common)
+    return MPU9250Config(dlpf_cfg=1 if args.dlpf is None else args.dlpf,
+                         smplrt_div=0 if args.smplrt_div is None else args.smplrt_div,
+                         **common)
+
+
+def _core_options(args):
+    """``AHRSCore`` arguments from the command line (telemetry rate)."""
+    div = getattr(args, "telemetry_divider", None)
+    return {} if div is None else {"telemetry_divider": div}
+
+
+def check_rates(config, clk_freq, args, *, out=None):
+    """Refuse (ValueError, one line) a sample rate the design cannot filter at ``clk_freq``;
+    warn (one line on ``out``) when the telemetry cannot carry every result."""
+    from .hdl.top import rate_budget
+    budget = rate_budget(config, clk_freq, getattr(args, "baud", 921_600),
+                         _core_options(args).get("telemetry_divider"))
+    if budget["sample_rate_hz"] > budget["max_sample_rate_hz"]:
+        raise ValueError(
+            f"{budget['sample_rate_hz']:g} Hz is more than this design filters at "
+            f"{clk_freq / 1e6:g} MHz with {config.wiring.upper()} wiring: a sample needs "
+            f"{budget['cycles_per_sample']} cycles (read {budget['read_cycles']} + update "
+            f"{budget['update_cycles']}), at most {budget['max_sample_rate_hz']:.0f} Hz")
+    if budget["telemetry_divider"] > 1:
+        print(f"mpu9250-ahrs: warning: telemetry sends every {budget['telemetry_divider']}th "
+              f"result ({budget['frames_per_s']:.0f} of {budget['sample_rate_hz']:g} per "
+              f"second; a {budget['frame_bytes']}-byte frame takes "
+              f"{budget['frame_us']:.0f} us at {budget['baud']} baud); every sample is "
+              f"still filtered", file=out or sys.stderr)
+    return budget
 
 
 def _add_sensor_options(p):
@@ -38,9 +72,18 @@ def _add_sensor_options(p):
                    help="gyro full scale: 250, 500, 1000 or 2000 °/s (default 2000)")
     p.add_argument("--accel-fs", type=int, default=16, metavar="G",
                    help="accelerometer full scale: 2, 4, 8 or 16 g (default 16)")
-    p.add_argument("--dlpf", type=int, default=1, help="CONFIG.DLPF_CFG 0..7 (default 1)")
-    p.add_argument("--smplrt-div", type=int, default=0,
+    p.add_argument("--odr", type=float, default=None, metavar="HZ",
+                   help="output data rate: 8000, or 1000/n for n = 1..256; sets DLPF_CFG and "
+                        "SMPLRT_DIV (default 1000)")
+    p.add_argument("--dlpf", type=int, default=None, help="CONFIG.DLPF_CFG 0..7 (default 1)")
+    p.add_argument("--smplrt-div", type=int, default=None,
                    help="SMPLRT_DIV: rate = 1 kHz / (1 + div) (default 0)")
+    p.add_argument("--clk-freq", type=float, default=None, metavar="HZ",
+                   help="system clock (default 48e6: the board's PLL output)")
+    p.add_argument("--baud", type=int, default=921_600, help="telemetry UART (921600)")
+    p.add_argument("--telemetry-divider", type=int, default=None, metavar="N",
+                   help="frame every N-th result (default: the smallest N the baud rate "
+                        "carries); every sample is filtered either way")
     p.add_argument("--int-pulse", action="store_true",
                    help="50 µs INT pulses instead of a latched INT")
     p.add_argument("--wiring", choices=("spi", "i2c"), default="spi",
@@ -52,67 +95,117 @@ def _add_sensor_options(p):
                    help="leave the AK8963 magnetometer alone (six-axis samples)")
 
 
+def _clock(args):
+    from .hdl.clocking import SYSTEM_CLOCK_HZ
+    return args.clk_freq or SYSTEM_CLOCK_HZ
+
+
 def cmd_build(args):
     from amaranth.back import verilog
     from .hdl.platform import MAX10Platform
     from .hdl.top import AHRSCore, BoardTop
 
     out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    config = _config(args)
+    clk_freq = _clock(args)
+    check_rates(config, clk_freq, args)
     pinout = dict(p.split("=", 1) for p in args.pin)
     platform = MAX10Platform(pinout=pinout)
+    out.mkdir(parents=True, exist_ok=True)
     if args.verilog_only:
-        core = AHRSCore(clk_freq=args.clk_freq or platform.default_clk_frequency,
-                        config=_config(args))
+        core = AHRSCore(clk_freq=clk_freq, config=config, baud=args.baud,
+                        **_core_options(args))
         path = out / "mpu9250_ahrs_core.v"
         path.write_text(verilog.convert(core, name="mpu9250_ahrs_core"))
-        print(f"wrote {path}")
+        print(f"wrote {path} (system clock {clk_freq / 1e6:g} MHz)")
         return 0
-    plan = platform.build(BoardTop(config=_config(args)), name="top", do_build=False)
+    plan = platform.build(BoardTop(clk_freq=clk_freq, config=config, baud=args.baud,
+                                   **_core_options(args)),
+                          name="top", do_build=False,
+                          add_constraints=BoardTop.PLL_CONSTRAINTS)
     plan.extract(str(out))
     print(f"wrote the Quartus project for {platform.device_name} to {out}/ "
-          f"(top.qsf, top.sdc, top.v, build_top.sh); see build/README.md")
+          f"(top.qsf, top.sdc, top.v, build_top.sh; system clock {clk_freq / 1e6:g} MHz from "
+          f"the {platform.default_clk_frequency / 1e6:g} MHz oscillator); see build/README.md")
     return 0
 
 
 def cmd_simulate(args):
-    from .sim.cosim import SimSetup, run_frontend
+    from .sim.cosim import SimSetup, run_core, run_frontend
 
     config = _config(args)
-    # I2C at 400 kHz needs ~0.66 ms per nine-axis read: keep the real sample period there.
+    clk_freq = _clock(args)
+    budget = check_rates(config, clk_freq, args)
+    # I2C at 400 kHz needs ~0.66 ms per nine-axis read: keep the real sample period there;
+    # at 8 kHz the period is already short.
     odr_scale = args.odr_scale if args.odr_scale is not None else \
-        (0.2 if config.wiring == "spi" else 1.0)
-    setup = SimSetup(clk_freq=args.clk_freq or 12e6, config=config,
-                     delay_scale=args.delay_scale, odr_scale=odr_scale)
+        (0.2 if config.wiring == "spi" and config.output_data_rate <= 1000 else 1.0)
+    setup = SimSetup(clk_freq=clk_freq, config=config, delay_scale=args.delay_scale,
+                     odr_scale=odr_scale)
     sources = _pose_sources(args.pose, args.samples, config, setup) if args.pose else {}
     model = setup.model(who_am_i=args.who_am_i, magnetometer=not args.no_mag, **sources)
-    result = run_frontend(setup, n_samples=args.samples, model=model, vcd=args.vcd)
-    for s in result.samples:
-        print(json.dumps({"counter": s["counter"], "accel": s["accel"], "temp": s["temp"],
-                          "gyro": s["gyro"], "mag": s["mag"], "flags": s["flags"]}))
-    if args.attitude and result.samples:
-        print_attitude(result, config, args.filter)
-    read = sample_read_time(result, setup)
-    violations = [str(v) for who in (model, result.bus, *model.aux_devices.values())
-                  if who is not None for v in who.violations]
-    summary = {
-        "wiring": config.wiring,
-        "samples": len(result.samples),
-        "sample_read_us": read,
-        "cycles": result.cycles,
-        "bring_up_cycles": result.bring_up_cycles,
-        "bring_up_us": result.bring_up_cycles and result.bring_up_cycles / setup.clk_freq * 1e6,
-        "wall_s": round(result.wall_s, 3),
-        "cycles_per_s": round(result.cycles_per_s),
-        "status": result.status,
-        "asa": result.asa,
-        "violations": violations,
-        "time_scale": {"delays": setup.delay_scale, "sample_period": setup.odr_scale},
-    }
+    summary = {"wiring": config.wiring, "clock_hz": clk_freq,
+               "odr_hz": config.output_data_rate, "dlpf_cfg": config.dlpf_cfg,
+               "smplrt_div": config.smplrt_div}
+    if args.attitude:
+        run = run_core(setup, n_results=args.samples, model=model, baud=args.baud,
+                       core_kwargs={"filter": args.filter, **_core_options(args)},
+                       vcd=args.vcd)
+        for r in run.results:
+            print(json.dumps(attitude_json(r, args.filter)))
+        latency = run.latencies_us(clk_freq)
+        summary.update({
+            "samples_filtered": run.counters["filtered"],
+            "samples_lost": run.counters["lost"],
+            "saturated_results": sum(r["flags"]["saturated"] for r in run.results),
+            "results_not_sent": run.counters["not_sent"],
+            "frames_received": len(run.frames),
+            "telemetry_divider": budget["telemetry_divider"],
+            "latency_us": {"drdy_to_attitude": round(max(latency), 2) if latency else None},
+            "cycles": run.cycles, "wall_s": round(run.wall_s, 3),
+            "cycles_per_s": round(run.cycles / run.wall_s) if run.wall_s else None,
+            "status": run.status, "asa": run.asa})
+        violations = [str(v) for who in (model, *model.aux_devices.values())
+                      for v in who.violations]
+    else:
+        result = run_frontend(setup, n_samples=args.samples, model=model, vcd=args.vcd)
+        for s in result.samples:
+            print(json.dumps({"counter": s["counter"], "accel": s["accel"], "temp": s["temp"],
+                              "gyro": s["gyro"], "mag": s["mag"], "flags": s["flags"],
+                              "skipped": s["skipped"]}))
+        read = sample_read_time(result, setup)
+        violations = [str(v) for who in (model, result.bus, *model.aux_devices.values())
+                      if who is not None for v in who.violations]
+        counters = [s["counter"] for s in result.samples]
+        lost = sum(s["skipped"] for s in result.samples) + \
+            sum((b - a - 1) % 65536 for a, b in zip(counters, counters[1:]))
+        summary.update({
+            "samples": len(result.samples), "samples_filtered": None, "samples_lost": lost,
+            "saturated_results": None, "sample_read_us": read, "cycles": result.cycles,
+            "bring_up_cycles": result.bring_up_cycles,
+            "bring_up_us": result.bring_up_cycles and
+            result.bring_up_cycles / setup.clk_freq * 1e6,
+            "wall_s": round(result.wall_s, 3), "cycles_per_s": round(result.cycles_per_s),
+            "status": result.status, "asa": result.asa})
+    summary.update({"violations": violations,
+                    "time_scale": {"delays": setup.delay_scale,
+                                   "sample_period": setup.odr_scale}})
     print(json.dumps(summary), file=sys.stderr if args.quiet_summary else sys.stdout)
     if args.vcd:
         print(f"wrote {args.vcd} and {str(args.vcd).rsplit('.', 1)[0]}.gtkw")
     return 1 if violations else 0
+
+
+def attitude_json(result, filter):
+    """One engine result (an ``Attitude`` as dicts) for printing: quaternion, roll/pitch/yaw
+    in degrees, bias in gyro counts, flags."""
+    from .reference.fixed_point import bam_to_deg
+    from .reference.flagship_fixed import q30_to_float
+    return {"counter": result["counter"], "filter": filter,
+            "quat": [round(float(v), 6) for v in q30_to_float(result["quat"])],
+            "roll_pitch_yaw_deg": [round(float(v), 4) for v in bam_to_deg(result["angles"])],
+            "bias_counts": [round(v / 65536, 4) for v in result["bias"]],
+            **{k: bool(v) for k, v in result["flags"].items() if k != "filter"}}
 
 
 def _pose_sources(pose, samples, config, setup):
@@ -132,31 +225,6 @@ def _pose_sources(pose, samples, config, setup):
     if config.magnetometer:
         out["aux_devices"] = {A.I2C_ADDRESS: setup.ak8963(source=mag_source(mc))}
     return out
-
-
-def print_attitude(result, config, filter="flagship"):
-    """Feed the co-simulated samples through the attitude engine (its own simulation) and print
-    each result: quaternion, angles in degrees, bias, flags."""
-    from .hdl.attitude_engine import (AttitudeEngine, default_filter_config,
-                                      default_flagship_config)
-    from .reference.fixed_point import RESULT_FLAGS, bam_to_deg
-    from .reference.flagship_fixed import q30_to_float
-    from .sim.attitude_bench import run_engine
-
-    s = result.samples
-    engine = AttitudeEngine(default_filter_config(config), None, default_flagship_config(config),
-                            filter=filter)
-    run = run_engine(engine, [x["gyro"] for x in s], [x["accel"] for x in s],
-                     [x["mag"] for x in s], [x["flags"]["mag_valid"] for x in s],
-                     asa=result.asa or (128, 128, 128))
-    for k in range(len(s)):
-        print(json.dumps({"counter": int(run.counter[k]), "filter": filter,
-                          "quat": [round(float(v), 6) for v in q30_to_float(run.quat[k])],
-                          "roll_pitch_yaw_deg": [round(float(v), 4)
-                                                 for v in bam_to_deg(run.angles[k])],
-                          "bias_counts": [round(float(v) / 65536, 4) for v in run.bias[k]],
-                          **{f: bool(getattr(run, f)[k]) for f in RESULT_FLAGS},
-                          "saturated": bool(run.saturated[k]), "cycles": run.cycles[k]}))
 
 
 def sample_read_time(result, setup):
@@ -215,7 +283,7 @@ def cmd_replay(args):
 
 def cmd_report(args):
     from .report import report
-    print(json.dumps(report(clk_freq=args.clk_freq or 50e6, config=_config(args)), indent=1))
+    print(json.dumps(report(clk_freq=_clock(args), config=_config(args)), indent=1))
     return 0
 
 
@@ -233,8 +301,6 @@ def build_parser():
                    help="write only the core (no pin buffers) as mpu9250_ahrs_core.v")
     p.add_argument("--pin", action="append", default=[], metavar="NAME=PIN",
                    help="override a pin of the default pinout, e.g. imu_sclk=J1 (repeatable)")
-    p.add_argument("--clk-freq", type=float, default=None,
-                   help="system clock in Hz for --verilog-only (default: the board's 12 MHz)")
     _add_sensor_options(p)
     p.set_defaults(func=cmd_build)
 
@@ -245,7 +311,6 @@ def build_parser():
     p.add_argument("--vcd", default=None, help="write a VCD (and a GTKWave .gtkw beside it)")
     p.add_argument("--who-am-i", type=_int, default=0x71,
                    help="WHO_AM_I of the modelled part (default 0x71; 0x73 is an MPU9255)")
-    p.add_argument("--clk-freq", type=float, default=None, help="system clock, Hz (12e6)")
     p.add_argument("--delay-scale", type=float, default=1e-3,
                    help="scale of start-up and reset delays (default 1e-3)")
     p.add_argument("--odr-scale", type=float, default=None,
@@ -290,9 +355,9 @@ def build_parser():
                                    "apt-get install yosys) and simulate a few updates; print "
                                    "JSON: {design, datapath} each with logic_elements, "
                                    "registers, memory_bits, multipliers_18x18, logic_levels; "
-                                   "cycles_per_update per filter. About a minute.")
-    p.add_argument("--clk-freq", type=float, default=None,
-                   help="system clock of the whole design, Hz (default 50e6)")
+                                   "cycles_per_update per filter; clock_hz, "
+                                   "latency_us.drdy_to_attitude (co-simulated), "
+                                   "max_sample_rate_hz. About a minute.")
     _add_sensor_options(p)
     p.set_defaults(func=cmd_report)
     return parser

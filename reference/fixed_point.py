@@ -27,6 +27,7 @@ Stages (inputs are raw sensor counts)
     the gateware's attitude engine outputs.
 """
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -36,7 +37,7 @@ import numpy as np
 __all__ = ["BAM_BITS", "CORDIC_ITERATIONS", "ATAN_TABLE", "CORDIC_GAIN", "rshift_round", "sat",
            "wrap32", "div_floor", "cordic_vector", "cordic_rotate", "bam_to_deg", "deg_to_bam",
            "div_q24", "Status", "KalmanFixedConfig", "CalibrationFixed", "calibrate_fixed",
-           "kalman_fixed", "complementary_fixed", "attitude_fixed", "AttitudeFixed", "tilt_angles",
+           "kalman_fixed", "complementary_fixed", "attitude_fixed", "AttitudeFixed", "FilterRates", "tilt_angles",
            "mul", "mac", "sat32", "sat16", "EngineModel", "FILTERS", "RESULT_FLAGS",
            "RESULT_FIELDS",
            "calibration_registers"]
@@ -254,6 +255,42 @@ class KalmanFixedConfig:
         return regs
 
 
+@dataclass(frozen=True)
+class FilterRates:
+    """The per-axis filters' coefficients in physical units, valid at any sample rate.
+
+    ``q_angle`` (deg²/s) and ``q_bias`` ((°/s)²/s) are the process-noise densities of the
+    Kalman filter's angle and gyro-bias states: per step they are multiplied by the sample
+    period. ``r`` (deg²) is the variance of one accelerometer angle measurement and ``p0``
+    (deg², (°/s)²) the initial covariance: both per measurement, whatever the rate. ``tau``
+    (s) is the complementary filter's time constant: a = τ / (τ + dt).
+
+    The defaults are the published per-step preset (Q angle 0.2 deg², Q bias 0.1 (°/s)²,
+    R 2 deg², a = 0.98) at the rate it was published for, 100 Hz: ``at(0.01, ...)`` gives its
+    registers exactly.
+    """
+    q_angle: float = 20.0
+    q_bias: float = 10.0
+    r: float = 2.0
+    p0: float = 1.0
+    tau: float = 0.49
+
+    def at(self, dt, gyro_lsb_per_dps=16.4):
+        """The ``KalmanFixedConfig`` (per-step values) for sample period ``dt``."""
+        if dt <= 0 or self.tau <= 0:
+            raise ValueError("FilterRates.at: dt and tau must be positive")
+        return KalmanFixedConfig(dt=dt, gyro_lsb_per_dps=gyro_lsb_per_dps,
+                                 q_angle=self.q_angle * dt, q_bias=self.q_bias * dt, r=self.r,
+                                 p0=self.p0, a=self.tau / (self.tau + dt))
+
+    @classmethod
+    def from_step(cls, config):
+        """The physical values a per-step ``KalmanFixedConfig`` stands for at its own dt."""
+        dt = config.dt
+        return cls(q_angle=config.q_angle / dt, q_bias=config.q_bias / dt, r=config.r,
+                   p0=config.p0, tau=config.a * dt / (1 - config.a))
+
+
 def tilt_angles(x, y, z, st=None):
     """(roll, pitch) BAM32 of a specific-force vector in any scale: atan2(y, z),
     atan2(−x, √(y² + z²))."""
@@ -399,6 +436,11 @@ class AttitudeFixed:
     bias_updated: np.ndarray     # the bias estimate changed
     saturated: np.ndarray        # some result of this sample's update saturated
     filter: np.ndarray           # filter select code (FILTERS)
+
+    def take(self, indices):
+        """The results of the samples at ``indices`` (e.g. those the telemetry sent)."""
+        return AttitudeFixed(*(np.asarray(getattr(self, f.name))[list(indices)]
+                               for f in dataclasses.fields(self)))
 
 
 def calibration_registers(cal):

@@ -1,9 +1,8 @@
 """Co-simulation: the gateware in Amaranth's simulator talking to the Python sensor models.
 
-``attach_mpu9250`` adds a simulator process that plays an ``MPU9250Model`` on the SPI pins: each
-system clock it samples CS_n, SCLK and COPI as flip-flops would, hands edges to the model with
-time stamps ``cycle / clk_freq``, and drives CIPO and INT from the model. The model therefore
-answers one clock after it sees an edge, like a real part with its output delay.
+``attach_mpu9250`` adds a simulator process that plays an ``MPU9250Model`` on the SPI pins: it
+samples CS_n, SCLK and COPI as flip-flops would, hands edges to the model with time stamps
+``cycle / clk_freq``, and drives CIPO (with the model's real output delay) and INT.
 
 ``run_frontend`` brings a ``SensorFrontEnd`` up against a model and collects samples; it is what
 the tests and ``python -m mpu9250_ahrs simulate`` use.
@@ -17,6 +16,7 @@ from typing import List, Optional
 from amaranth import Elaboratable, Module, Signal
 from amaranth.sim import Simulator
 
+from ..hdl.clocking import SYSTEM_CLOCK_HZ
 from ..hdl.mpu9250_driver import DriverTiming, MPU9250Config
 from ..hdl.sensor_frontend import SensorFrontEnd
 from .i2c_bus import I2CBusModel
@@ -27,7 +27,8 @@ from .sources import counting_field, counting_source
 from .telemetry import to_python
 
 
-__all__ = ["CosimHarness", "attach_models", "attach_mpu9250", "attach_stuck_miso", "SimSetup", "CosimResult", "run_frontend",
+__all__ = ["CosimHarness", "attach_models", "attach_mpu9250", "attach_stuck_miso", "SimSetup",
+           "CosimResult", "run_frontend", "CoreRun", "run_core",
            "sample_matches", "expected_mag", "sample_read_cycles"]
 
 
@@ -35,9 +36,10 @@ class CosimHarness(Elaboratable):
     """Wraps a design for co-simulation with simulation-only helpers.
 
     ``cycle`` counts clock edges: the time base of the models. The model process drives
-    ``cipo_model`` (SPI), ``scl_model_low``/``sda_model_low`` (I2C) and ``int_model``; each
-    reaches the design one clock later (the device's output delay), so the process can run right
-    after the edge it reacts to. The I2C lines ``scl``/``sda`` are the wired AND of the design's
+    ``cipo_model`` (SPI) straight onto the design's CIPO pin, with the level SDO has at the next
+    clock edge (the model delays each bit by its output delay, ``MPU9250Timing.sdo_delay_s``, in
+    simulated time); ``scl_model_low``/``sda_model_low`` (I2C) and ``int_model`` reach the
+    design one clock later, so the process can run right after the edge it reacts to. The I2C lines ``scl``/``sda`` are the wired AND of the design's
     and the devices' drivers. ``wake_at`` is the cycle at which the models next want to run with
     no pin change; ``wake`` is high in it.
     """
@@ -59,7 +61,8 @@ class CosimHarness(Elaboratable):
         m.d.sync += self.cycle.eq(self.cycle + 1)
         m.d.comb += self.wake.eq(self.cycle == self.wake_at)
         if self.spi is not None:
-            m.d.sync += self.spi.cipo.eq(self.cipo_model)
+            # the pin itself: the model process drives the level it has at the next clock edge
+            m.d.comb += self.spi.cipo.eq(self.cipo_model)
         if self.int_pin is not None:
             m.d.sync += self.int_pin.eq(self.int_model)
         if self.i2c is not None:
@@ -120,7 +123,8 @@ def attach_models(sim, harness, clk_freq, *, mpu, bus=None):
                     mpu.cs_edge(t, cs_n)
                 cs_prev, sclk_prev = cs_n, sclk
                 mpu.advance(t)
-                drive(harness.cipo_model, mpu.miso)
+                # the level SDO has when the design's first CIPO flip-flop next samples it
+                drive(harness.cipo_model, mpu.sdo_at(t + 1 / clk_freq))
             if bus is not None:
                 bus.lines(t, changed["a"], changed["b"])
                 drive(harness.scl_model_low, int(bus.scl_low))
@@ -128,6 +132,9 @@ def attach_models(sim, harness, clk_freq, *, mpu, bus=None):
             if mpu is not None:
                 drive(harness.int_model, mpu.int_level)
             events = [e for e in (mpu and mpu.next_event, bus and bus.next_event) if e]
+            change = mpu.sdo_change_at if spi is not None else None
+            if change is not None:          # wake the cycle before the edge that will see it
+                events.append(change - 1 / clk_freq)
             wake = NEVER if not events else \
                 max(cycle + 1, math.ceil(min(events) * clk_freq - 1e-6))
             if wake != wake_prev:
@@ -156,7 +163,7 @@ class SimSetup:
     model; the sample period and INT pulse by ``odr_scale`` in the model (the driver's
     interrupt timeout follows).
     """
-    clk_freq: float = 12e6
+    clk_freq: float = SYSTEM_CLOCK_HZ
     config: MPU9250Config = field(default_factory=MPU9250Config)
     delay_scale: float = 1e-3
     odr_scale: float = 0.2
@@ -168,7 +175,8 @@ class SimSetup:
 
     def driver_timing(self):
         return DriverTiming(time_scale=self.delay_scale, mag_power_down_s=self.mag_power_down_s,
-                            int_timeout_s=4 * self.sample_period_s + 0.05 * self.delay_scale)
+                            int_timeout_s=4 * self.sample_period_s + 0.05 * self.delay_scale,
+                            sample_period_s=self.sample_period_s)
 
     def model_timing(self):
         return MPU9250Timing().scaled(delays=self.delay_scale, odr=self.odr_scale)
@@ -354,3 +362,89 @@ def sample_read_cycles(result, setup):
                     end = nxt[1]
                 spans.append(end - start)
     return round(statistics.median(spans) * f) if spans else None
+
+
+@dataclass
+class CoreRun:
+    """What ``run_core`` saw: every engine result (``Attitude`` dicts, in order), the cycle of
+    each, the data-ready (INT) edge before each, the frames the UART carried (decoded), the
+    core's counters and driver status at the end, and the model."""
+    results: List[dict]
+    result_cycles: List[int]
+    int_cycles: List[int]
+    frames: List[dict]
+    counters: dict
+    status: dict
+    cycles: int
+    wall_s: float
+    model: Optional[MPU9250Model]
+    asa: List[int] = field(default_factory=list)
+
+    def latencies_us(self, clk_freq):
+        """Data-ready edge (INT at the pin) to the result leaving the engine, per result."""
+        return [(r - i) / clk_freq * 1e6 for r, i in zip(self.result_cycles, self.int_cycles)]
+
+
+def run_core(setup=None, *, n_results, model=None, max_cycles=None, baud=921_600,
+             core_kwargs=None, vcd=None):
+    """The whole ``AHRSCore`` (driver, engine, telemetry) against the models until the engine
+    has produced ``n_results`` results. Each result is recorded as it leaves the engine (the
+    telemetry scheduler takes every one) with the cycle of the INT edge that announced its
+    sample, so ``CoreRun.latencies_us`` is the data-ready-to-attitude latency."""
+    from ..hdl.top import AHRSCore
+    from .telemetry import decode_frames
+    from .uart import attach_uart_receiver
+    setup = setup or SimSetup()
+    core = AHRSCore(clk_freq=setup.clk_freq, config=setup.config, timing=setup.driver_timing(),
+                    baud=baud, **(core_kwargs or {}))
+    model = model or setup.model(magnetometer=setup.config.magnetometer)
+    if max_cycles is None:
+        period = setup.sample_period_s * setup.clk_freq
+        fe = core.frontend.driver
+        max_cycles = int(3 * (fe.power_up_cycles + fe.reset_cycles) + 40 * period + 40_000 +
+                         (n_results + 3) * period * 1.5)
+    harness = CosimHarness(core, spi=core.imu, int_pin=core.imu_int)
+    sim = Simulator(harness)
+    sim.add_clock(1 / setup.clk_freq)
+    attach_mpu9250(sim, model, harness, setup.clk_freq)
+    received = bytearray()
+    attach_uart_receiver(sim, core.uart_tx, core.uart.divisor, received)
+    out = {"results": [], "cycles": [], "ints": [], "end": None}
+    results = core.engine.results
+
+    async def testbench(ctx):
+        last_int = None
+        level = 0
+        period = 1 / setup.clk_freq
+        while len(out["results"]) < n_results:
+            cycle = ctx.get(harness.cycle)
+            if cycle >= max_cycles:
+                raise TimeoutError(f"{len(out['results'])} of {n_results} results after "
+                                   f"{cycle} cycles; status {to_python(ctx.get(core.status))}")
+            pin = ctx.get(core.imu_int)
+            if pin and not level:
+                last_int = cycle
+            level = pin
+            if ctx.get(results.valid):
+                out["results"].append(to_python(ctx.get(results.payload)))
+                out["cycles"].append(cycle)
+                out["ints"].append(last_int)
+                await ctx.tick()
+                continue
+            await ctx.changed(results.valid, core.imu_int).delay((max_cycles - cycle) * period)
+        out["end"] = (ctx.get(harness.cycle), to_python(ctx.get(core.counters)),
+                      to_python(ctx.get(core.status)), to_python(ctx.get(core.asa)))
+    sim.add_testbench(testbench)
+    start = time.perf_counter()
+    if vcd:
+        with sim.write_vcd(str(vcd), str(vcd).rsplit(".", 1)[0] + ".gtkw",
+                           traces=[core.imu.cs_n, core.imu.sclk, core.imu.cipo, core.imu_int,
+                                   results.valid, core.uart_tx]):
+            sim.run()
+    else:
+        sim.run()
+    wall = time.perf_counter() - start
+    cycles, counters, status, asa = out["end"]
+    frames = [f for _, f in decode_frames(bytes(received))]
+    return CoreRun(out["results"], out["cycles"], out["ints"], frames, counters, status, cycles,
+                   wall, model, asa)

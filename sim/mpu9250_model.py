@@ -67,6 +67,9 @@ class MPU9250Timing:
     int_pulse_s: float = 50e-6  # INT pulse width with LATCH_INT_EN = 0
     odr_scale: float = 1.0      # sample period (and aux I2C transfer time) multiplier: < 1
                                 # speeds simulations up
+    sdo_delay_s: float = 100e-9  # SDO shows the next bit this long after a falling SCLK edge
+                                # (the datasheet's maximum output delay); the previous bit
+                                # stays until then
 
     def scaled(self, delays=1.0, odr=1.0):
         """Start-up and reset delays times ``delays``; sample period and pulse times ``odr``."""
@@ -132,7 +135,8 @@ class MPU9250Model:
         self._next_event = self._busy_until
 
         self.sclk = 1
-        self.miso = 0
+        self._sdo_old = self._sdo_new = 0
+        self.sdo_change_at = None       # when SDO takes ``_sdo_new`` (None: it already has)
         self.selected = False
 
     # -- time -------------------------------------------------------------------------------------
@@ -357,7 +361,9 @@ class MPU9250Model:
         if addr == R.INT_STATUS or self.regs[R.INT_PIN_CFG] & R.INT_PIN_CFG_ANYRD_2CLEAR:
             self.regs[R.INT_STATUS] = 0
         if addr == R.I2C_MST_STATUS:
-            self.regs[R.I2C_MST_STATUS] = 0         # clears on read
+            # clears on read: the bits the read returned (the burst's snapshot); a bit set since
+            # the burst began (an SLV4 transfer ending) stays for the next read
+            self.regs[R.I2C_MST_STATUS] &= ~value & 0xFF
         return value
 
     def write_reg(self, addr, value):
@@ -379,6 +385,24 @@ class MPU9250Model:
             self._reschedule(self.now)
 
     # -- SPI pins ---------------------------------------------------------------------------------
+    def sdo_at(self, t):
+        """The level of SDO at time ``t`` (the new bit only once its output delay has passed,
+        strictly: a bit arriving exactly on a clock edge counts as too late for it)."""
+        if self.sdo_change_at is not None and t - self.sdo_change_at > _EPS:
+            self._sdo_old, self.sdo_change_at = self._sdo_new, None
+        return self._sdo_old if self.sdo_change_at is not None else self._sdo_new
+
+    @property
+    def miso(self):
+        return self.sdo_at(self.now)
+
+    def _drive_sdo(self, t, bit, delay):
+        self._sdo_old = self.sdo_at(t)
+        self._sdo_new = bit
+        self.sdo_change_at = t + delay if bit != self._sdo_old else None
+        if delay == 0:
+            self._sdo_old, self.sdo_change_at = bit, None
+
     def cs_edge(self, t, cs_n):
         """Chip select changed to ``cs_n`` at time ``t``."""
         self.advance(t)
@@ -408,7 +432,7 @@ class MPU9250Model:
             if self._last_rise is not None and t - self._last_rise + _EPS < self.CS_HOLD_S:
                 self._violation("CS hold", self._addr,
                                 f"{(t - self._last_rise) * 1e9:.1f} ns < 500 ns")
-            self.miso = 0
+            self._drive_sdo(t, 0, 0)
 
     def sclk_edge(self, t, level, mosi):
         """SCLK changed to ``level`` at time ``t``; ``mosi`` is the level of SDI then."""
@@ -428,7 +452,8 @@ class MPU9250Model:
             if self._reading and self._bits % 8 == 0:
                 self._out = 0 if self._ignored else self.read_reg(self._addr)
                 self._addr = (self._addr + 1) & 0x7F
-            self.miso = (self._out >> (7 - self._bits % 8)) & 1 if self._reading else 0
+            self._drive_sdo(t, (self._out >> (7 - self._bits % 8)) & 1 if self._reading else 0,
+                            self.timing.sdo_delay_s)
         else:
             if self._last_rise is not None:
                 timing[0] = min(timing[0], t - self._last_rise)

@@ -51,7 +51,27 @@ def test_build_writes_quartus_project(tmp_path, capsys):
     assert 'set_location_assignment -to "imu_spi_0__clk__io" PIN_M1' in qsf
     assert "3.3-V LVTTL" in qsf
     sdc = (tmp_path / "top.sdc").read_text()
-    assert "create_clock" in sdc and "83.33" in sdc           # 12 MHz
+    assert "create_clock" in sdc and "83.33" in sdc           # the 12 MHz oscillator
+    assert "derive_pll_clocks" in sdc                          # its PLL's 48 MHz output
+    top = (tmp_path / "top.v").read_text()
+    assert "altpll" in top and ".clk0_multiply_by(32'd4)" in top
+    assert "system clock 48 MHz" in capsys.readouterr().out
+
+
+def test_build_without_pll_at_the_oscillator_clock(tmp_path):
+    assert main(["build", "--out", str(tmp_path), "--clk-freq", "12e6"]) == 0
+    assert "altpll" not in (tmp_path / "top.v").read_text()
+
+
+def test_build_refuses_a_rate_the_design_cannot_filter(tmp_path, capsys):
+    """I2C at 400 kHz reads a nine-axis sample in about 0.67 ms: 8 kHz is refused, with the
+    reason in one line; 1 kHz with a slow UART is built, with a warning."""
+    assert main(["build", "--out", str(tmp_path), "--wiring", "i2c", "--odr", "8000"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "8000 Hz is more than this design filters" in err[0]
+    assert main(["build", "--verilog-only", "--out", str(tmp_path), "--baud", "115200"]) == 0
+    err = capsys.readouterr().err
+    assert "warning: telemetry sends every 8th result" in err
 
 
 def test_build_i2c_wiring(tmp_path):

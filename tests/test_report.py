@@ -38,7 +38,12 @@ def test_report_keys_and_sanity(figures):
     cycles = figures["cycles_per_update"]
     assert set(cycles) == {"kalman", "complementary", "flagship"}
     assert cycles["complementary"] < cycles["kalman"] < cycles["flagship"]
-    assert figures["update_us"]["flagship"] == round(cycles["flagship"] / 50, 2)
+    assert figures["clock_hz"] == 48e6
+    assert figures["update_us"]["flagship"] == round(cycles["flagship"] / 48, 2)
+    # the whole core co-simulated: the SPI burst plus the flagship's update, at 48 MHz
+    latency = figures["latency_us"]["drdy_to_attitude"]
+    assert cycles["flagship"] / 48 < latency < 60
+    assert figures["max_sample_rate_hz"] >= 8000
 
 
 def test_report_verb_prints_json(monkeypatch, capsys, figures):

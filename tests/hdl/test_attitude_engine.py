@@ -294,8 +294,12 @@ def test_simulate_verb_with_pose_and_attitude(capsys):
     import json
     from mpu9250_ahrs.cli import main
     assert main(["simulate", "--samples", "12", "--pose", "30,-10,45", "--attitude"]) == 0
-    rows = [json.loads(line) for line in capsys.readouterr().out.splitlines()
-            if "roll_pitch_yaw_deg" in line]
+    lines = capsys.readouterr().out.splitlines()
+    rows = [json.loads(line) for line in lines if "roll_pitch_yaw_deg" in line]
     assert len(rows) == 12 and not any(r["saturated"] for r in rows)
     roll, pitch, _ = rows[-1]["roll_pitch_yaw_deg"]
     assert abs(roll - 30) < 1.5 and abs(pitch + 10) < 1.5
+    summary = json.loads(lines[-1])
+    assert summary["samples_filtered"] == 12 and summary["samples_lost"] == 0
+    assert summary["saturated_results"] == 0 and summary["clock_hz"] == 48e6
+    assert 10 < summary["latency_us"]["drdy_to_attitude"] < 60

@@ -213,3 +213,19 @@ def test_config_validation():
         MPU9250Config(smplrt_div=256)
     with pytest.raises(ValueError, match="wiring"):
         MPU9250Config(wiring="uart")
+
+
+@pytest.mark.parametrize("ratio,skipped", [(1, 0), (2, 1), (3, 2)])
+def test_skipped_counts_data_ready_intervals(ratio, skipped):
+    """The driver measures the time between data-ready edges against the sample period: a
+    sensor that made ``ratio`` periods' worth of samples between two reads (here: the driver
+    told a period ``ratio`` times shorter than the model's) reports ``ratio - 1`` skipped
+    samples with the next one. The first two samples after bring-up report none (the first
+    comes from an INT already high when streaming began, the second from the first edge, which
+    has no edge before it to be measured from)."""
+    from dataclasses import replace
+    setup = SimSetup(clk_freq=12e6, config=MPU9250Config(magnetometer=False))
+    base = setup.driver_timing()
+    setup.driver_timing = lambda: replace(base, sample_period_s=setup.sample_period_s / ratio)
+    result = run_frontend(setup, n_samples=5)
+    assert [s["skipped"] for s in result.samples] == [0, 0] + [skipped] * 3

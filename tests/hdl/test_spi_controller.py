@@ -160,3 +160,28 @@ def test_timing_for_clock_meets_datasheet(clk_freq):
 def test_timing_rejects_zero():
     with pytest.raises(ValueError, match="fast_half"):
         SPITiming(slow_half=2, fast_half=0, cs_hold=1, cs_gap=1)
+
+
+@pytest.mark.parametrize("sdo_delay_ns,reads_right", [(0, True), (100, True), (115, False)])
+def test_cipo_sampling_point_against_the_output_delay(sdo_delay_ns, reads_right):
+    """Co-simulation at the default 48 MHz, the model driving each SDO bit ``sdo_delay_ns``
+    after the falling edge: anywhere in the datasheet's 0-100 ns the fast sample burst reads
+    right; beyond the window (115 ns: the bit arrives after the sampling edge at 104 ns) it
+    does not, so the sampling point is where the timing analysis says."""
+    from dataclasses import replace
+    from mpu9250_ahrs.hdl.clocking import SYSTEM_CLOCK_HZ
+    from mpu9250_ahrs.hdl.mpu9250_driver import MPU9250Config
+    from mpu9250_ahrs.sim.cosim import SimSetup, run_frontend, sample_matches
+    from mpu9250_ahrs.sim.mpu9250_model import MPU9250Model
+    from mpu9250_ahrs.sim.sources import counting_source
+    setup = SimSetup(config=MPU9250Config(magnetometer=False), odr_scale=0.1)
+    assert setup.clk_freq == SYSTEM_CLOCK_HZ
+    timing = SPITiming.for_clock(setup.clk_freq)
+    assert timing.sample_window(fast=True) == (5, 5) and timing.sclk_hz(48e6, True) == 8e6
+    model = MPU9250Model(timing=replace(setup.model_timing(), sdo_delay_s=sdo_delay_ns * 1e-9),
+                         source=counting_source())
+    result = run_frontend(setup, n_samples=2, model=model)
+    assert model.violations == []
+    matches = [sample_matches(s, model.samples[k])
+               for s, k in zip(result.samples, model.sample_reads)]
+    assert all(matches) if reads_right else not any(matches)

@@ -98,17 +98,13 @@ def test_decoder_resynchronises_and_rejects_bad_crc():
         assert [f for piece in pieces for _, f in decoder.feed(piece)] == [frame, frame]
 
 
-def test_core_end_to_end_over_uart(vcd):
-    """Model -> SPI -> driver -> attitude engine (flagship, the reset default) -> framer ->
-    UART -> host decoder, bit for bit: the samples equal the model's, the attitude (quaternion,
-    angles, bias, every flag) equals the fixed-point reference's. The UART runs at 6 Mbaud so
-    that a 73-byte frame and an update fit the compressed sample period (the engine waits for
-    the framer: issue #11)."""
-    setup = SimSetup()
+def run_core(setup, n_frames, *, baud, max_cycles, vcd=None, **core_kw):
+    """Model -> core -> UART -> decoder until ``n_frames`` frames came; (core, model, frames,
+    asa)."""
     core = AHRSCore(clk_freq=setup.clk_freq, config=setup.config,
-                    timing=setup.driver_timing(), baud=6_000_000)
+                    timing=setup.driver_timing(), baud=baud, **core_kw)
     harness = CosimHarness(core, spi=core.imu, int_pin=core.imu_int)
-    model = setup.model()
+    model = setup.model(magnetometer=setup.config.magnetometer)
     sim = Simulator(harness)
     sim.add_clock(1 / setup.clk_freq)
     attach_mpu9250(sim, model, harness, setup.clk_freq)
@@ -118,32 +114,80 @@ def test_core_end_to_end_over_uart(vcd):
     asa = []
 
     async def tb(ctx):
-        while len(frames) < 6:
+        while len(frames) < n_frames:
             await ctx.tick().repeat(1000)
             frames[:] = [f for _, f in decode_frames(received)]
-            assert ctx.get(harness.cycle) < 80_000, f"only {len(frames)} frames"
+            assert ctx.get(harness.cycle) < max_cycles, f"only {len(frames)} frames"
         asa[:] = [ctx.get(core.asa[i]) for i in range(3)]
     sim.add_testbench(tb)
-    path = vcd()
+    path = vcd and vcd()
     if path:
         with sim.write_vcd(path, path.replace(".vcd", ".gtkw"),
                            traces=[core.imu.cs_n, core.imu.sclk, core.imu_int, core.uart_tx]):
             sim.run()
     else:
         sim.run()
-
     assert model.violations == []
-    for i, frame in enumerate(frames):
+    return core, model, frames, asa
+
+
+def model_reference(core, model, n, asa, select):
+    """The fixed-point engine over the first ``n`` samples the model was read for (the AK8963's
+    bytes from the same bursts), whether or not their results were sent."""
+    from mpu9250_ahrs.sim.cosim import expected_mag
+    reads = [model.samples[k] for k in model.sample_reads[:n]]
+    mags = [expected_mag(model.ext_reads[i], core.config.magnetometer) for i in range(n)]
+    return attitude_fixed([s.gyro for s in reads], [s.accel for s in reads],
+                          [m for m, _ in mags], [f["mag_valid"] for _, f in mags],
+                          asa=asa or (128, 128, 128), config=core.engine.config,
+                          flagship=core.engine.flagship, select=select), reads
+
+
+def test_core_end_to_end_over_uart(vcd):
+    """Model -> SPI -> driver -> attitude engine (flagship, the reset default) -> scheduler ->
+    framer -> UART -> host decoder, bit for bit: each frame's sample equals the model's, its
+    attitude (quaternion, angles, bias, every flag) the fixed-point reference's for that sample,
+    over every sample read, sent or not; the counters add up (the first two samples come closer
+    than a frame lasts, so one result is not sent)."""
+    setup = SimSetup(clk_freq=12e6)
+    core, model, frames, asa = run_core(setup, 6, baud=6_000_000, max_cycles=80_000, vcd=vcd)
+    assert core.telemetry_divider == 1
+    n = frames[-1]["sample"]["counter"] + 1
+    ref, reads = model_reference(core, model, n, asa, "flagship")
+    for k, frame in enumerate(frames):
         s = frame["sample"]
-        assert s["counter"] == i and s["flags"]["overrun"] == 0
-        assert sample_matches(s, model.samples[model.sample_reads[i]])
+        i = s["counter"]
+        assert s["flags"]["overrun"] == 0 and s["skipped"] == 0
+        assert sample_matches(s, reads[i])
         assert frame["status"]["streaming"] == 1 and frame["status"]["who_am_i"] == 0x71
-    samples = [f["sample"] for f in frames]
-    ref = attitude_fixed([s["gyro"] for s in samples], [s["accel"] for s in samples],
-                         [s["mag"] for s in samples],
-                         [s["flags"]["mag_valid"] for s in samples], asa=asa,
-                         config=core.engine.config, flagship=core.engine.flagship,
-                         select="flagship")
+        c = frame["counters"]
+        assert c["filtered"] == i + 1 and c["lost"] == 0
+        assert c["not_sent"] + k + 1 == c["filtered"]
     run = EngineRun.from_results([f["attitude"] for f in frames])
-    assert first_mismatch(run, ref) is None, first_mismatch(run, ref)
-    assert list(run.counter) == list(range(len(frames)))
+    sent = [f["sample"]["counter"] for f in frames]
+    assert first_mismatch(run, ref.take(sent)) is None, first_mismatch(run, ref.take(sent))
+    assert list(run.counter) == sent and frames[-1]["counters"]["not_sent"] <= 1
+
+
+def test_engine_never_waits_for_a_slow_uart():
+    """A UART far too slow for the sample rate (921,600 baud, one 86-byte frame every ~0.9 ms,
+    samples every 0.1 ms compressed) with the divider forced to 1: every sample is still
+    filtered (``filtered`` = the sample counter + 1, nothing ``lost``), the results the UART had
+    no time for are counted in ``not_sent``, and each frame that goes out is the engine's
+    result for exactly its sample (six-axis, so the reference sees every sample's input)."""
+    from mpu9250_ahrs.hdl.mpu9250_driver import MPU9250Config
+    setup = SimSetup(clk_freq=12e6, config=MPU9250Config(magnetometer=False), odr_scale=0.1)
+    core, model, frames, _ = run_core(setup, 3, baud=921_600, max_cycles=200_000,
+                                      telemetry_divider=1, filter="complementary")
+    counters = [f["counters"] for f in frames]
+    for frame, c in zip(frames, counters):
+        assert c["filtered"] == frame["sample"]["counter"] + 1 and c["lost"] == 0
+    assert counters[-1]["not_sent"] > 0
+    # sent + not sent = all results that were due (every one, divider 1) before the last frame
+    assert counters[-1]["not_sent"] + len(frames) == counters[-1]["filtered"]
+    n = frames[-1]["sample"]["counter"] + 1
+    ref, reads = model_reference(core, model, n, None, "complementary")
+    for frame in frames:
+        k = frame["sample"]["counter"]
+        assert sample_matches(frame["sample"], reads[k])
+        assert frame["attitude"]["quat"] == [int(v) for v in ref.quat[k]], k

@@ -11,7 +11,7 @@ import pathlib
 import numpy as np
 import pytest
 
-from mpu9250_ahrs.hdl.attitude_engine import AttitudeEngine
+from mpu9250_ahrs.hdl.attitude_engine import WORST_UPDATE_CYCLES, AttitudeEngine
 from mpu9250_ahrs.hdl.attitude_program import (CONFIG_REGS, CONTROL_ADDR, FILTER_CODES,
                                                control_word)
 from mpu9250_ahrs.reference.fixed_point import FILTERS, attitude_fixed
@@ -48,6 +48,7 @@ def test_compiled_equals_pysim_across_reset_and_switches(compiled):
     for name in RESULT_FIELDS + ("counter", "cycles"):
         assert np.array_equal(np.asarray(getattr(pysim, name)),
                               np.asarray(getattr(fast, name))), name
+    assert max(fast.cycles) <= WORST_UPDATE_CYCLES      # first updates after resets included
     select = ["flagship"] * 6 + ["kalman"] * 7 + ["complementary"] * 4
     select += ["flagship"] * (len(gc) - len(select))
     ref = attitude_fixed(gc, ac, mk, valid, asa=(150, 120, 200), select=select,
@@ -79,6 +80,8 @@ def test_whole_recording_bit_exact(compiled, filter):
     assert len(run.angles) == len(rec.gyr) > 40_000
     mismatch = first_mismatch(run, ref)
     assert mismatch is None, mismatch
+    # the bound ``build``'s rate check and ``report``'s max_sample_rate_hz rely on
+    assert max(run.cycles) <= WORST_UPDATE_CYCLES
     if filter == "flagship":
         for flag in ("at_rest", "mag_disturbed", "mag_new_ref", "acc_used", "mag_used"):
             assert getattr(run, flag).any(), flag

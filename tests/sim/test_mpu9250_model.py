@@ -33,7 +33,8 @@ class Host:
             self.t += half
             if bit == 0:
                 rx.append(0)
-            rx[-1] = (rx[-1] << 1) | m.miso
+            # sampled just before the next falling edge: the bit shows 100 ns after its own
+            rx[-1] = (rx[-1] << 1) | m.sdo_at(self.t + 0.99 * half)
             m.sclk_edge(self.t, 1, mosi)
             self.t += half
         self.t += hold - half
@@ -48,7 +49,7 @@ class Host:
         self.transfer(bytes([addr, *values]), **kw)
 
 
-FAST = dict(half=0.05e-6)        # 10 MHz
+FAST = dict(half=0.0625e-6)      # 8 MHz: a period longer than the 100 ns output delay
 
 
 def ready_model(**kw):

@@ -1,0 +1,89 @@
+"""The system clock: one default, the conversion of times to cycles, and the MAX10 PLL.
+
+``SYSTEM_CLOCK_HZ`` is the clock every part of the design, ``build``, ``simulate`` and
+``report`` use unless told otherwise (``--clk-freq``). On the board it comes from
+``SystemPLL``: the 12 MHz oscillator (``OSCILLATOR_HZ``) multiplied by 4 in a MAX10 PLL.
+48 MHz gives the SPI controller a 12 MHz or 8 MHz sensor-read clock from whole cycles (see
+``SPITiming.for_clock``) and the attitude engine's longest update (under 620 cycles) about
+13 µs; it is a clock Quartus' timing analysis still has to confirm for this design (there is no
+Quartus here, so no figure in this repository says it closes).
+"""
+
+import math
+from fractions import Fraction
+
+from amaranth import *
+from amaranth.lib import wiring
+from amaranth.lib.wiring import In, Out
+
+
+__all__ = ["OSCILLATOR_HZ", "SYSTEM_CLOCK_HZ", "cycles", "SystemPLL"]
+
+
+OSCILLATOR_HZ = 12e6
+SYSTEM_CLOCK_HZ = 48e6
+
+
+def cycles(seconds, clk_freq, *, minimum=1):
+    """Whole clock cycles that last at least ``seconds`` at ``clk_freq`` (never fewer than
+    ``minimum``). The 1e-9 forgives float noise in exact products such as 100 µs × 12 MHz."""
+    return max(minimum, math.ceil(seconds * clk_freq - 1e-9))
+
+
+class SystemPLL(wiring.Component):
+    """A MAX10 PLL (Quartus ``altpll``) making the system clock from the oscillator.
+
+    Parameters
+    ----------
+    in_hz : float
+        Frequency of ``clk_in`` (the board's oscillator).
+    out_hz : float
+        Frequency wanted on ``clk_out``; it must be ``in_hz`` times a ratio of small integers
+        (multiply and divide at most 512), e.g. 12 MHz × 4 = 48 MHz.
+
+    Members
+    -------
+    clk_in : In(1)
+        Oscillator clock.
+    clk_out : Out(1)
+        System clock (PLL output c0).
+    locked : Out(1)
+        The PLL is locked. It is asynchronous to ``clk_out``: ``BoardTop`` holds the design in
+        reset through a ``ResetSynchronizer`` until it rises.
+
+    Only Quartus can elaborate the instance; simulations drive the system clock directly.
+    """
+    def __init__(self, *, in_hz=OSCILLATOR_HZ, out_hz=SYSTEM_CLOCK_HZ):
+        ratio = Fraction(out_hz / in_hz).limit_denominator(512)
+        if abs(float(ratio) * in_hz - out_hz) > 1 or ratio.numerator > 512:
+            raise ValueError(f"a PLL cannot make {out_hz / 1e6:g} MHz from "
+                             f"{in_hz / 1e6:g} MHz with multiply/divide factors up to 512")
+        self.in_hz, self.out_hz = in_hz, out_hz
+        self.multiply, self.divide = ratio.numerator, ratio.denominator
+        super().__init__({"clk_in": In(1), "clk_out": Out(1), "locked": Out(1)})
+
+    def elaborate(self, platform):
+        m = Module()
+        clk = Signal(5)
+        m.submodules.pll = Instance(
+            "altpll",
+            p_intended_device_family="MAX 10",
+            p_lpm_type="altpll",
+            p_operation_mode="NORMAL",
+            p_pll_type="AUTO",
+            p_width_clock=5,
+            p_inclk0_input_frequency=int(round(1e12 / self.in_hz)),    # period in ps
+            p_clk0_multiply_by=self.multiply,
+            p_clk0_divide_by=self.divide,
+            p_clk0_duty_cycle=50,
+            p_clk0_phase_shift="0",
+            p_port_clk0="PORT_USED",
+            p_port_locked="PORT_USED",
+            p_port_inclk0="PORT_USED",
+            p_port_areset="PORT_UNUSED",
+            i_inclk=Cat(self.clk_in, C(0, 1)),
+            o_clk=clk,
+            o_locked=self.locked,
+        )
+        m.d.comb += self.clk_out.eq(clk[0])
+        return m
