@@ -265,7 +265,8 @@ class AttitudeEngine(wiring.Component):
                           for v in load_words([sample.gyro[i] for i in range(3)],
                                               [sample.accel[i] for i in range(3)],
                                               [sample.mag[i] for i in range(3)],
-                                              [self.asa[i] for i in range(3)]))
+                                              [self.asa[i] for i in range(3)],
+                                              sample.skipped))
 
         with m.If(self.results.valid & self.results.ready):
             m.d.sync += result_valid.eq(0)

@@ -107,7 +107,11 @@ def _allocate():
     # first, at 0x20, so that the loader's address is its counter with 0b010 above it
     names += [f"GRAW{i}" for i in range(3)] + [f"ARAW{i}" for i in range(3)]
     names += [f"MRAW{i}" for i in range(3)] + [f"ASA{i}" for i in range(3)]
+    # sample periods since the previous sample (1 + Sample.skipped), and STEP_N: the filter's
+    # per-period rotation coefficient (RATE or K_RAD) times that
+    names += ["NPER"]
     names += [f"THETA{i}" for i in range(3)] + [f"BIAS{i}" for i in range(3)]
+    names += ["STEP_N"]
     names += [f"P{i}_{e}" for i in range(3) for e in ("00", "01", "10", "11")]
     names += [f"PREV{i}" for i in range(3)]
     # calibrated body-axis sensor values
@@ -137,25 +141,35 @@ def _allocate():
 # by 2¹⁰ (rounded); the rest are operands of the flagship (``reference.flagship_fixed``).
 CONSTANTS = {"SHL12": 1 << 26, "SHL15": 1 << 29, "ONE": 1 << 30, "HALF": 1 << 29,
              "EIGHTH": 1 << 27, "ONE_48": (1 << 30) // 48, "THREE_HALVES": 3 << 29,
-             "SHR10": 1 << 20, "INT1": 1}
+             "SHR10": 1 << 20, "INT1": 1, "SHL14": 1 << 28}
 
 
 REGS = _allocate()
 # Loader order: the sample's fields are written to these registers before the program runs.
 TEMPS = [REGS[f"T{i}"] for i in range(12)]
 LOAD_ORDER = ([f"GRAW{i}" for i in range(3)] + [f"ARAW{i}" for i in range(3)]
-              + [f"MRAW{i}" for i in range(3)] + [f"ASA{i}" for i in range(3)])
+              + [f"MRAW{i}" for i in range(3)] + [f"ASA{i}" for i in range(3)] + ["NPER"])
 LOAD_BASE = 0x20
 assert [REGS[n] for n in LOAD_ORDER] == list(range(LOAD_BASE, LOAD_BASE + len(LOAD_ORDER)))
 
 
-def load_words(gyro, accel, mag_ak, asa):
+def load_words(gyro, accel, mag_ak, asa, skipped=0):
     """The words the loader writes, in ``LOAD_ORDER``, from a sample's fields and the ASA
-    bytes: the fields as they are and (ASA + 128)·2⁶, so that the ASA product h·(ASA + 128)/2⁸
-    rounds with a MUL_SHIFTS shift (14). Every word fits 16 bits, so the engine multiplexes 16
-    bits and sign-extends. Works on integers (the models) and on Amaranth values (the engine:
-    an unsigned 8-bit ASA plus 128 is wiring, no adder)."""
-    return [*gyro, *accel, *mag_ak, *((a + 128) << 6 for a in asa)]
+    bytes: the fields as they are, (ASA + 128)·2⁶, so that the ASA product h·(ASA + 128)/2⁸
+    rounds with a MUL_SHIFTS shift (14), and the periods since the previous sample, 1 +
+    ``skipped``. Every word fits 16 bits, so the engine multiplexes 16 bits and sign-extends.
+    Works on integers (the models) and on Amaranth values (the engine: an unsigned 8-bit ASA
+    plus 128 is wiring, no adder)."""
+    return [*gyro, *accel, *mag_ak, *((a + 128) << 6 for a in asa), skipped + 1]
+
+
+def _step_n(asm, r, coefficient):
+    """STEP_N = ``coefficient`` · NPER: the rotation of this update covers every period since
+    the previous sample (a sample the sensor made but nobody read is integrated, not lost).
+    Exact: NPER << 14 by a MUL with SHL14, then a MUL with shift 14; saturates (and flags)
+    only for a coefficient times 16 beyond 32 bits."""
+    asm.mul(r["STEP_N"], r["NPER"], r["SHL14"], Q14)
+    asm.mul(r["STEP_N"], r[coefficient], r["STEP_N"], Q14)
 
 
 def config_init(registers, inv_gain_q30):
@@ -277,6 +291,7 @@ def _kalman(asm, r):
     # sample falls through (a taken branch costs two bubbles)
     asm.br("k_first", Cond.FIRST)
     asm.label("k_predict")
+    _step_n(asm, r, "RATE")
     # the three axes interleaved, so that products follow products: a MUL followed by a MUL
     # that does not read its result takes one cycle instead of two
     with asm.scratch(9) as T:
@@ -289,7 +304,7 @@ def _kalman(asm, r):
         for i in range(3):
             asm.sub(U[i], U[i], r[f"BIAS{i}"])               # u = avg rate − bias, Q16 counts
         for i in range(3):
-            asm.mul(U[i], U[i], r["RATE"], Q30)
+            asm.mul(U[i], U[i], r["STEP_N"], Q30)
         for i in range(3):
             asm.mul(TP[i], r["T"], P[i][3], Q24)              # T·P11
         for i in range(3):
@@ -331,9 +346,10 @@ def _kalman(asm, r):
 
 
 def _complementary(asm, r):
+    _step_n(asm, r, "RATE")
     with asm.scratch(1) as T:
         for i in range(3):
-            asm.mul(T[0], r[f"G{i}"], r["RATE"], Q14)                   # ω·RATE >> 14
+            asm.mul(T[0], r[f"G{i}"], r["STEP_N"], Q14)                 # ω·RATE·n >> 14
             asm.add(r[f"PRED{i}"], r[f"THETA{i}"], T[0], wrap=True)
             asm.add(r[f"PREV{i}"], r[f"G{i}"], r["ZERO"])
         _zero_tests(asm, r, "c")
@@ -377,6 +393,7 @@ def _angles_out(asm, r):
 
 def _flagship(asm, r):
     _zero_tests(asm, r, "f")
+    _step_n(asm, r, "K_RAD")                # the routine's strapdown step uses STEP_N
     flagship_routine(asm, r)
 
 

@@ -167,7 +167,7 @@ def flagship_routine(asm, r):
 
     # -- strapdown: q_g ⊗ exp(v), v = (ω − b)·T ------------------------------------------------
     for i in range(3):
-        asm.mul(r[f"V{i}"], r[f"U{i}"], r["K_RAD"], Q30)
+        asm.mul(r[f"V{i}"], r[f"U{i}"], r["STEP_N"], Q30)    # STEP_N = K_RAD · NPER
     asm.mac(r["F_V2"], [(x, x) for x in v("V")], Q30)
     with asm.scratch(2) as (t0, t1):
         asm.mul(t0, r["F_V2"], r["EIGHTH"], Q30)

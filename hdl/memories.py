@@ -20,7 +20,7 @@ from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
 
-__all__ = ["RegisterFile", "MicrocodeROM", "blackbox_stub"]
+__all__ = ["RegisterFile", "MicrocodeROM", "FrameRAM", "blackbox_stub"]
 
 
 class RegisterFile(wiring.Component):
@@ -94,6 +94,44 @@ class MicrocodeROM(wiring.Component):
                                         init=self.words)
         rp = mem.read_port()
         m.d.comb += [rp.addr.eq(self.addr), rp.en.eq(self.en), self.data.eq(rp.data)]
+        return m
+
+
+class FrameRAM(wiring.Component):
+    """``depth`` bytes, one write port and one synchronous read port with enable (the read
+    data holds while ``r_en`` is low; a read of the address being written returns the old
+    byte). One M9K on a MAX10: the telemetry framer's copy of a frame."""
+    def __init__(self, depth, *, blackbox=False):
+        self.depth = depth
+        self.blackbox = blackbox
+        self.abits = max(1, (depth - 1).bit_length())
+        super().__init__({"w_en": In(1), "w_addr": In(self.abits), "w_data": In(8),
+                          "r_en": In(1), "r_addr": In(self.abits), "r_data": Out(8)})
+
+    @property
+    def bits(self):
+        return self.depth * 8
+
+    def stub(self):
+        """Verilog declaring the blackbox module (``report``)."""
+        a = self.abits
+        return (f"(* blackbox *) module mpu9250_ahrs_ram{self.depth}x8(input clk, input w_en, "
+                f"input [{a - 1}:0] w_addr, input [7:0] w_data, input r_en, input [{a - 1}:0] "
+                f"r_addr, output [7:0] r_data);\nendmodule\n")
+
+    def elaborate(self, platform):
+        m = Module()
+        if self.blackbox:
+            m.submodules.ram = Instance(
+                f"mpu9250_ahrs_ram{self.depth}x8", i_clk=ClockSignal(), i_w_en=self.w_en,
+                i_w_addr=self.w_addr, i_w_data=self.w_data, i_r_en=self.r_en,
+                i_r_addr=self.r_addr, o_r_data=self.r_data)
+            return m
+        m.submodules.mem = mem = Memory(shape=8, depth=self.depth, init=[])
+        wp = mem.write_port()
+        rp = mem.read_port()
+        m.d.comb += [wp.en.eq(self.w_en), wp.addr.eq(self.w_addr), wp.data.eq(self.w_data),
+                     rp.en.eq(self.r_en), rp.addr.eq(self.r_addr), self.r_data.eq(rp.data)]
         return m
 
 

@@ -6,7 +6,9 @@ Interface
     ``int_pin`` (in): the sensor's INT pin, raw; synchronised here.
     ``samples`` (out, ``Sample`` stream): one per data-ready interrupt. If the consumer has not
         taken the previous sample when the next is read, the new one is dropped and the following
-        sample carries ``flags.overrun`` (valid never waits on ready).
+        sample carries ``flags.overrun`` (valid never waits on ready). ``skipped`` counts the
+        samples before this one that never came out: dropped so, or made by the sensor and
+        never read (data-ready edges more than one sample period apart).
     ``status`` (out, ``DriverStatus``) and ``asa`` (out, 3 × 8 bits: the AK8963's fuse-ROM
         sensitivity adjustment values, valid once ``status.mag_ok``). See ``hdl/sample.py``.
 
@@ -347,6 +349,7 @@ class MPU9250Driver(wiring.Component):
         periods = Signal(4)                     # whole periods since the last edge, saturating
         skipped = Signal(4)                     # for the sample this edge announces
         seen_edge = Signal()                    # an edge since streaming began
+        dropped = Signal(4)                     # read but not taken (the consumer was busy)
         with m.If(int_edge):
             m.d.sync += [phase.eq(period // 2), periods.eq(0), seen_edge.eq(1),
                          skipped.eq(Mux(seen_edge & (periods > 1), periods - 1, 0))]
@@ -502,14 +505,17 @@ class MPU9250Driver(wiring.Component):
                 m.d.sync += [counter.eq(counter + 1), timer.eq(self.timeout_cycles - 1),
                              status.int_timeout.eq(0)]
                 with m.If(self.samples.valid):
-                    m.d.sync += overrun.eq(1)
+                    m.d.sync += [overrun.eq(1),
+                                 dropped.eq(Mux(dropped == 15, 15, dropped + 1))]
                 with m.Else():
                     p = self.samples.payload
                     st1, st2 = buf[_MPU_BYTES], buf[_MPU_BYTES + 7]
                     mag_new = status.mag_ok & st1[0]
                     hofl = st2[3]
                     m.d.sync += [self.samples.valid.eq(1), overrun.eq(0),
-                                 p.counter.eq(counter), p.skipped.eq(skipped),
+                                 p.counter.eq(counter), dropped.eq(0),
+                                 p.skipped.eq(Mux(skipped + dropped > 15, 15,
+                                                  skipped + dropped)),
                                  p.flags.data_ready.eq(buf[0][0]),
                                  p.flags.overrun.eq(overrun),
                                  p.flags.mag_new.eq(mag_new),

@@ -14,9 +14,10 @@ mag         3 × signed(16)   AK8963 HX..HZ, 0.15 µT/LSB (16-bit mode), in the 
                              0 while the magnetometer is not up.
 counter     unsigned(16)     number of sensor samples read since bring-up, wrapping; a gap
                              means samples were dropped (see ``flags.overrun``)
-skipped     unsigned(4)      samples the sensor made before this one that were never read
-                             (data-ready edges n > 1 sample periods apart: n − 1; saturating
-                             at 14); 0 normally
+skipped     unsigned(4)      samples since the previous one that never came out: made by the
+                             sensor but never read (data-ready edges n > 1 sample periods
+                             apart: n − 1) or read and dropped (``flags.overrun``); saturating
+                             at 15; 0 normally. The engine integrates 1 + skipped periods.
 flags       SampleFlags      per-sample status, below
 ==========  ===============  ===================================================================
 

@@ -18,6 +18,7 @@ Interface
         byte by byte while it is sent and acknowledged (``ready``) with the last byte.
     ``o_stream`` (out, byte stream): to a UART transmitter.
 Throughput: ``length + 5`` bytes per frame, one byte per ``o_stream`` handshake.
+``TelemetryFramer`` below has the details (and a buffered mode: the attitude frames).
 """
 
 from amaranth import *
@@ -25,6 +26,7 @@ from amaranth.lib import data, stream, wiring
 from amaranth.lib.crc.catalog import CRC8_SMBUS
 from amaranth.lib.wiring import In, Out
 
+from .memories import FrameRAM
 from .sample import DriverStatus, Sample
 from .telemetry_scheduler import AttitudeFrame
 
@@ -49,16 +51,36 @@ def payload_bytes(layout):
 
 
 class TelemetryFramer(wiring.Component):
-    def __init__(self, layout=SensorFrame, frame_type=0x01):
+    """Frames a struct: sync, type, length, payload, CRC, one byte per ``o_stream`` transfer.
+
+    Parameters
+        ``layout``, ``frame_type``: the payload struct and its type byte.
+        ``buffered``: False: the payload is read byte by byte while it is sent, so the producer
+            holds it (``valid``, payload still) for the whole frame, and ``ready`` comes with
+            the last byte. True: the payload is first copied into a ``FrameRAM`` (one M9K), a
+            byte per cycle, and acknowledged when the copy ends (``length`` cycles after
+            ``valid``, if ``idle``); the frame is then sent from the copy, so the producer is
+            free to change the payload after ``length`` cycles, whatever the UART's rate.
+        ``blackbox``: the RAM as an empty module (``report``'s synthesis).
+    Members
+        ``i_stream`` (in, stream of ``layout``); ``o_stream`` (out, byte stream, to a UART).
+        ``idle`` (out): buffered: no frame is being copied or sent (a frame offered now is
+            copied at once). Unbuffered: no frame is being sent.
+    Throughput: ``length + 5`` bytes per frame.
+    """
+    def __init__(self, layout=SensorFrame, frame_type=0x01, *, buffered=False, blackbox=False):
         self.layout = layout
         self.frame_type = frame_type
+        self.buffered = buffered
         self.length = payload_bytes(layout)
         if self.length > 255:
             raise ValueError("telemetry payload longer than 255 bytes")
         self.frame_bytes = self.length + 5
+        self.ram = FrameRAM(self.length, blackbox=blackbox) if buffered else None
         super().__init__({
             "i_stream": In(stream.Signature(layout)),
             "o_stream": Out(stream.Signature(8)),
+            "idle": Out(1),
         })
 
     def elaborate(self, platform):
@@ -67,12 +89,37 @@ class TelemetryFramer(wiring.Component):
         index = Signal(range(n + 5))
         m.submodules.crc = crc = CRC(data_width=8).create()
 
-        # Bytes straight from the payload through a byte multiplexer: the stream keeps the
-        # payload stable until ``ready``, which comes with the last byte, so no copy of the
-        # frame is needed (a copy would cost a register per payload bit).
         value = self.i_stream.payload.as_value()
         bits = Cat(value, C(0, 8 * n - len(value)))
         payload_bytes = Array(bits[8 * i:8 * i + 8] for i in range(n))
+        sent = self.o_stream.valid & self.o_stream.ready
+        last = sent & (index == n + 4)
+
+        if self.buffered:
+            m.submodules.ram = ram = self.ram
+            sending = Signal()
+            copy_index = Signal(range(n))
+            # copy: the payload's bytes into the RAM, one per cycle, through one multiplexer
+            with m.If(self.i_stream.valid & ~sending):
+                m.d.comb += [ram.w_en.eq(1), ram.w_addr.eq(copy_index),
+                             ram.w_data.eq(payload_bytes[copy_index])]
+                m.d.sync += copy_index.eq(copy_index + 1)
+                with m.If(copy_index == n - 1):
+                    m.d.comb += self.i_stream.ready.eq(1)
+                    m.d.sync += [copy_index.eq(0), sending.eq(1)]
+            with m.If(last):
+                m.d.sync += sending.eq(0)
+            # send: each handshake reads the next payload byte (the read data holds between)
+            m.d.comb += [self.o_stream.valid.eq(sending), ram.r_en.eq(sent),
+                         ram.r_addr.eq(index - 3),
+                         self.idle.eq(~sending & (copy_index == 0))]
+            payload_byte = ram.r_data
+        else:
+            m.d.comb += [self.o_stream.valid.eq(self.i_stream.valid),
+                         self.i_stream.ready.eq(last), self.idle.eq(index == 0)]
+            # straight from the payload: the stream keeps it still until ``ready``
+            payload_byte = payload_bytes[index - 4]
+
         byte = Signal(8)
         with m.Switch(index):
             with m.Case(0):
@@ -86,16 +133,13 @@ class TelemetryFramer(wiring.Component):
             with m.Case(n + 4):
                 m.d.comb += byte.eq(crc.crc)
             with m.Default():
-                m.d.comb += byte.eq(payload_bytes[index - 4])
+                m.d.comb += byte.eq(payload_byte)
 
-        sent = self.o_stream.valid & self.o_stream.ready
         m.d.comb += [
-            self.o_stream.valid.eq(self.i_stream.valid),
             self.o_stream.payload.eq(byte),
             crc.data.eq(byte),
             crc.start.eq(sent & (index == 0)),
             crc.valid.eq(sent & (index >= 2) & (index < n + 4)),
-            self.i_stream.ready.eq(sent & (index == n + 4)),
         ]
         with m.If(sent):
             m.d.sync += index.eq(Mux(index == n + 4, 0, index + 1))

@@ -1,5 +1,6 @@
-"""Telemetry scheduler: every result of the attitude engine is taken at once; every
-``divider``-th one is framed if the UART is free, and counters say what happened to the rest.
+"""Telemetry scheduler: every result of the attitude engine is taken (at once, or after the
+framer's copy of it); every ``divider``-th one is framed if the UART is free, and counters say
+what happened to the rest.
 
 The engine therefore never waits for the UART: at any sample rate it filters every sample,
 while the telemetry carries the latest result at the rate the link allows.
@@ -19,10 +20,10 @@ class TelemetryCounters(data.Struct):
     """Counters carried in every attitude frame (all since reset, wrapping at 2³²).
 
     - ``filtered``: results the engine produced, this frame's included.
-    - ``lost``: sensor samples that were never filtered: gaps in the driver's sample counter
-      (the driver dropped a sample because the engine was still busy) plus the samples the
-      driver saw the sensor produce but could not read (``Sample.skipped``). A restart of the
-      driver's counter at 0 (a new bring-up) is not counted.
+    - ``lost``: sensor samples that were never filtered: the sum of ``Sample.skipped`` (made
+      by the sensor but never read, or read and dropped because the engine was busy). The
+      engine integrates the time they cover, so the attitude stays right; only their
+      measurements are missing.
     - ``not_sent``: results that were due for telemetry (every ``divider``-th) while the
       previous frame was still being sent.
     """
@@ -41,20 +42,24 @@ class AttitudeFrame(data.Struct):
 
 
 class TelemetryScheduler(wiring.Component):
-    """Takes every engine result and offers every ``divider``-th to the framer.
+    """Takes every engine result and offers every ``divider``-th to a buffered framer.
 
     Members
-        ``results`` (in, stream of ``Attitude``): always ready (taken in the cycle it is valid).
+        ``results`` (in, stream of ``Attitude``): a result that is not framed is taken in the
+            cycle it is valid; one that is framed is taken when the framer has copied it
+            (``TelemetryFramer(buffered=True)``: about 80 cycles), never later.
         ``sample`` (in, ``Sample``) and ``status`` (in, ``DriverStatus``): the sample the
-            present result came from and the driver status latched with it; read in the cycle
-            a result is taken.
+            present result came from and the driver status latched with it; they hold while
+            the result is valid (the engine takes no new sample before its result is taken).
         ``divider`` (in, 16): frame every ``divider``-th result (0 is taken as 1).
-        ``frames`` (out, stream of ``AttitudeFrame``): the payload is a copy made when the
-            result was taken and holds still until the framer takes it (with its last byte).
+        ``framer_idle`` (in): the framer would copy a frame at once. A due result that finds
+            it busy (still sending the last frame) is not framed, and counted.
+        ``frames`` (out, stream of ``AttitudeFrame``): the result, its sample and status and
+            the counters including it; valid only while the result is, payload still.
         ``counters`` (out, ``TelemetryCounters``): the live counters.
 
-    Latency: a due result is valid on ``frames`` one cycle after it was taken. Throughput:
-    one result per cycle in; frames as fast as the framer takes them.
+    Latency: none (combinational) from a due result to ``frames.valid``. Throughput: one
+    result per cycle when none is framed.
     """
 
     def __init__(self):
@@ -63,6 +68,7 @@ class TelemetryScheduler(wiring.Component):
             "sample": In(Sample),
             "status": In(DriverStatus),
             "divider": In(16),
+            "framer_idle": In(1),
             "frames": Out(stream.Signature(AttitudeFrame)),
             "counters": Out(TelemetryCounters),
         })
@@ -71,29 +77,27 @@ class TelemetryScheduler(wiring.Component):
         m = Module()
         c = self.counters
         phase = Signal(16)                   # results since the last due one
-        prev_counter = Signal(16)
-        m.d.comb += self.results.ready.eq(1)
-
-        with m.If(self.frames.valid & self.frames.ready):
-            m.d.sync += self.frames.valid.eq(0)
-
-        sample = self.sample
-        # samples between the previous result's and this one's that were never filtered
-        gap = Signal(16)
-        m.d.comb += gap.eq(Mux(sample.counter == 0, 0, sample.counter - prev_counter - 1))
-        filtered = c.filtered + 1
-        lost = c.lost + gap + sample.skipped
+        offering = Signal()                  # the present result is with the framer
         due = phase == 0
-        with m.If(self.results.valid):
-            m.d.sync += [c.filtered.eq(filtered), c.lost.eq(lost),
-                         prev_counter.eq(sample.counter),
+        start = self.results.valid & ~offering & due & self.framer_idle
+        done = self.frames.valid & self.frames.ready
+        take_now = self.results.valid & ~offering & ~start
+        m.d.comb += [self.frames.valid.eq(offering | start),
+                     self.results.ready.eq(take_now | done)]
+        with m.If(start & ~self.frames.ready):
+            m.d.sync += offering.eq(1)
+        with m.If(done):
+            m.d.sync += offering.eq(0)
+
+        p = self.frames.payload
+        m.d.comb += [p.attitude.eq(self.results.payload), p.sample.eq(self.sample),
+                     p.status.eq(self.status),
+                     p.counters.filtered.eq(c.filtered + 1),
+                     p.counters.lost.eq(c.lost + self.sample.skipped),
+                     p.counters.not_sent.eq(c.not_sent)]
+        with m.If(self.results.valid & self.results.ready):
+            m.d.sync += [c.filtered.eq(p.counters.filtered), c.lost.eq(p.counters.lost),
                          phase.eq(Mux(phase + 1 >= self.divider, 0, phase + 1))]
-            with m.If(due & self.frames.valid):
+            with m.If(due & take_now):
                 m.d.sync += c.not_sent.eq(c.not_sent + 1)
-            with m.If(due & ~self.frames.valid):
-                p = self.frames.payload
-                m.d.sync += [self.frames.valid.eq(1), p.attitude.eq(self.results.payload),
-                             p.sample.eq(sample), p.status.eq(self.status),
-                             p.counters.filtered.eq(filtered), p.counters.lost.eq(lost),
-                             p.counters.not_sent.eq(c.not_sent)]
         return m

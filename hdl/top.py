@@ -104,7 +104,8 @@ class AHRSCore(wiring.Component):
 
     With the engine, every sample the driver reads is filtered: the engine takes a sample as
     soon as its previous update is done (about 600 cycles) and the ``TelemetryScheduler``
-    takes every result at once, so the UART never holds the filter up.
+    takes every result at once, or after the framer's ~80-cycle copy of a result it frames;
+    the UART never holds the filter up.
     """
     def __init__(self, *, clk_freq=SYSTEM_CLOCK_HZ, config=MPU9250Config(),
                  timing=DriverTiming(), baud=921_600, attitude=True, filter_config=None,
@@ -120,7 +121,8 @@ class AHRSCore(wiring.Component):
                 filter_config = default_filter_config(config)
             if flagship_config is None:
                 flagship_config = default_flagship_config(config)
-            self.framer = TelemetryFramer(AttitudeFrame, 0x02)
+            self.framer = TelemetryFramer(AttitudeFrame, 0x02, buffered=True,
+                                          blackbox=blackbox_hard_blocks)
             if telemetry_divider is None:
                 telemetry_divider = default_telemetry_divider(
                     config.output_data_rate, baud, self.framer.frame_bytes)
@@ -187,6 +189,7 @@ class AHRSCore(wiring.Component):
                 engine.asa.eq(fe.asa),
                 sched.sample.eq(held), sched.status.eq(held_status),
                 sched.divider.eq(divider), self.counters.eq(sched.counters),
+                sched.framer_idle.eq(framer.idle),
             ]
         else:
             # Sample stream -> frame (sample + status at the moment it was taken) -> UART.

@@ -10,7 +10,8 @@ their sizes:
   have no adders), so those adders are in ``logic_elements``; any other non-constant ``$mul``
   in the netlist is counted as ⌈a/18⌉·⌈b/18⌉ blocks.
 - ``memory_bits``: the register file (twice: one copy per read port, as Quartus builds a RAM
-  with two read addresses) and the microcode ROM. Small constant tables Yosys turns into ROMs
+  with two read addresses), the microcode ROM and (whole design) the telemetry framer's frame
+  buffer. Small constant tables Yosys turns into ROMs
   (the CORDIC's arctangents) stay in logic here: ``rom_bits_in_logic``.
 - ``logic_elements``: ``fiftyfivenm_lcell_comb`` cells, or registers where those are more (a
   MAX10 LE holds one LUT and one register). Yosys 0.23 maps adders without the LE's carry chain,
@@ -40,10 +41,11 @@ DEVICE = {"name": "10M08SCU169C8G", "logic_elements": 8064, "multipliers_18x18":
 YOSYS_HINT = "install it with: apt-get install yosys (Debian's 0.23 has synth_intel)"
 
 
-def _stubs(engine):
+def _stubs(engine, rams):
     from .hdl.memories import blackbox_stub
     from .hdl.multiplier import BLACKBOX_STUB
-    return blackbox_stub(engine.regfile, engine.rom) + BLACKBOX_STUB
+    return blackbox_stub(engine.regfile, engine.rom) + BLACKBOX_STUB + \
+        "".join(ram.stub() for ram in rams)
 
 
 def _yosys(script, cwd):
@@ -62,15 +64,15 @@ def _count(stat_text, cell):
     return int(found.group(1)) if found else 0
 
 
-def synthesize(top, name, engine):
+def synthesize(top, name, engine, rams=()):
     """Figures for one elaboratable (``engine``: the AttitudeEngine inside it, elaborated with
-    ``blackbox_hard_blocks=True``)."""
+    ``blackbox_hard_blocks=True``; ``rams``: other ``FrameRAM``s in it, blackboxed too)."""
     from .hdl.multiplier import BLACKBOX_NAME
     with tempfile.TemporaryDirectory() as tmp:
         with open(os.path.join(tmp, "design.v"), "w") as f:
             f.write(verilog.convert(top, name=name))
         with open(os.path.join(tmp, "stubs.v"), "w") as f:
-            f.write(_stubs(engine))
+            f.write(_stubs(engine, rams))
         read = "read_verilog stubs.v; read_verilog design.v"
         # netlist before mapping: multiplies and memories Yosys found itself
         _yosys(f"{read}; hierarchy -top {name}; proc; flatten; opt; memory -nomap; opt; "
@@ -103,10 +105,11 @@ def synthesize(top, name, engine):
         "logic_elements": max(luts, ffs),
         "logic_elements_carry_chain": max(_count(ice40, "SB_LUT4"), ice_ffs),
         "registers": ffs,
-        "memory_bits": engine.regfile.bits + engine.rom.bits,
+        "memory_bits": engine.regfile.bits + engine.rom.bits + sum(r.bits for r in rams),
         "rom_bits_in_logic": rom_bits,
         "m9k_blocks": 2 * math.ceil(engine.regfile.depth * 32 / 9216)
-        + math.ceil(engine.rom.width / 36) * math.ceil(len(engine.rom.words) / 256),
+        + math.ceil(engine.rom.width / 36) * math.ceil(len(engine.rom.words) / 256)
+        + len(rams),
         "multipliers_18x18": multipliers,
         "other_multiplies": other_muls,
         "logic_levels": int(levels.group(1)) if levels else None,
@@ -161,7 +164,7 @@ def report(*, clk_freq=None, config=None, latency=True):
     engine = AttitudeEngine(blackbox_hard_blocks=True)
     datapath = synthesize(engine, "attitude_engine", engine)
     core = AHRSCore(clk_freq=clk_freq, config=config, blackbox_hard_blocks=True)
-    design = synthesize(core, "mpu9250_ahrs_core", core.engine)
+    design = synthesize(core, "mpu9250_ahrs_core", core.engine, rams=[core.framer.ram])
     cycles, first = cycles_per_update()
     mhz = clk_freq / 1e6
     budget = rate_budget(config, clk_freq)

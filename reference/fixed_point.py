@@ -113,6 +113,13 @@ def mul(a, b, shift, status=None):
     return sat32(rshift_round(a * b, shift), status)
 
 
+def step_n(coefficient, periods, status=None):
+    """A per-period rotation coefficient (RATE, K_RAD) times the sample periods since the
+    previous sample (1 + ``Sample.skipped``): the engine's two MULs, (n·2²⁸ >> 14), then
+    (c · n·2¹⁴ >> 14), exact unless the product leaves 32 bits (then saturated)."""
+    return mul(coefficient, mul(periods, 1 << 28, 14, status), 14, status)
+
+
 def mac(terms, shift, status=None):
     """sat32(rshift_round(Σ ±aᵢ·bᵢ, shift)): products summed exactly in the accumulator, one
     rounding at the end. ``terms``: (a, b) or (a, b, -1) for a subtracted product."""
@@ -328,8 +335,10 @@ class _KalmanFixed:
         self.P = [[self.reg["P0"], 0, 0, self.reg["P0"]] for _ in range(3)]
         self.prev = None
 
-    def predict(self, g, st):
+    def predict(self, g, st, periods=1):
         RATE, T, QA, QB = (self.reg[k] for k in ("RATE", "T", "Q_ANGLE", "Q_BIAS"))
+        # the rotation covers every period since the last sample; the covariance one period
+        RATE = step_n(RATE, periods, st)
         prev = g if self.prev is None else self.prev
         for i in range(3):
             # u = (ω_{k−1} + ω_k)/2 − b in Q16 counts; θ += u·RATE >> 30
@@ -354,8 +363,8 @@ class _KalmanFixed:
         self.P[i] = [sat32(p00 - mul(k0, p00, 24, st), st), sat32(p01 - mul(k0, p01, 24, st), st),
                      sat32(p10 - mul(k1, p00, 24, st), st), sat32(p11 - mul(k1, p01, 24, st), st)]
 
-    def step(self, g, a, m, mag_ok, st):
-        self.predict(g, st)
+    def step(self, g, a, m, mag_ok, st, periods=1):
+        self.predict(g, st, periods)
         acc_ok = any(a)
         mag_ok = bool(mag_ok) and any(m)
         # measurements after all three predicts: yaw is compensated with the predicted tilt
@@ -367,9 +376,10 @@ class _KalmanFixed:
         return acc_ok, mag_ok
 
 
-def _complementary_step(theta, g, a, m, mag_ok, reg, st):
+def _complementary_step(theta, g, a, m, mag_ok, reg, st, periods=1):
     """One complementary step on the shared angle registers; returns (θ, acc_ok, mag_ok)."""
-    pred = [wrap32(theta[i] + mul(g[i], reg["RATE"], 14, st)) for i in range(3)]
+    rate = step_n(reg["RATE"], periods, st)
+    pred = [wrap32(theta[i] + mul(g[i], rate, 14, st)) for i in range(3)]
     acc_ok = any(a)
     mag_ok = bool(mag_ok) and any(m)
     roll_m, pitch_m = _tilt(*a, st) if acc_ok else (pred[0], pred[1])
@@ -500,8 +510,11 @@ class EngineModel:
             self.flagship.first = True
         self.filter = code
 
-    def sample(self, g_raw, a_raw, m_raw, mag_valid=True, asa=(128, 128, 128)):
-        """One sample (raw counts; the field in the AK8963's axes): a dict of the result."""
+    def sample(self, g_raw, a_raw, m_raw, mag_valid=True, asa=(128, 128, 128), skipped=0):
+        """One sample (raw counts; the field in the AK8963's axes; ``skipped`` samples the
+        sensor made since the previous one, integrated as elapsed time): a dict of the
+        result."""
+        periods = 1 + skipped
         from .flagship_fixed import euler_quat_fixed
         st = Status()
         g, a, m = _calibrate_one(list(g_raw), list(a_raw), list(m_raw), asa,
@@ -509,16 +522,16 @@ class EngineModel:
         kf = self.kf
         flags = set()
         if self.filter == _FLAGSHIP:
-            quat, kf.theta, flags = self.flagship.step(g, a, m, bool(mag_valid), st)
+            quat, kf.theta, flags = self.flagship.step(g, a, m, bool(mag_valid), st, periods)
             kf.prev = list(g)
         else:
             if self.filter == _KALMAN:
-                acc_ok, mag_ok = kf.step(g, a, m, mag_valid, st)
+                acc_ok, mag_ok = kf.step(g, a, m, mag_valid, st, periods)
                 if acc_ok or mag_ok:
                     flags.add("bias_updated")
             else:
                 kf.theta, acc_ok, mag_ok = _complementary_step(kf.theta, g, a, m, mag_valid,
-                                                               self.reg, st)
+                                                               self.reg, st, periods)
                 kf.prev = list(g)
             flags |= {"acc_used"} if acc_ok else set()
             flags |= {"mag_used"} if mag_ok else set()
@@ -530,13 +543,13 @@ class EngineModel:
 
 def attitude_fixed(gyr_raw, acc_raw, mag_ak_raw, mag_valid=None, *, asa=(128, 128, 128),
                    cal=CalibrationFixed(), config=KalmanFixedConfig(), flagship=None,
-                   select="kalman", registers=None, resets=(), writes=None):
+                   select="kalman", registers=None, resets=(), writes=None, skipped=None):
     """The gateware's attitude engine in integers over arrays (``EngineModel`` per sample):
     calibration, then the filter ``select`` names (one name, or an array of names per
     sample). ``registers`` overrides register values by name (raw integers, e.g. {"R": 0});
     ``resets``: sample indices before which the filter state is reset; ``writes``:
     {sample index: {name: value}}, register writes applied before that sample (after a reset
-    there)."""
+    there); ``skipped``: per sample, the sensor samples missed before it (0 if None)."""
     n = len(gyr_raw)
     sel = [select] * n if isinstance(select, str) else list(select)
     valid = [True] * n if mag_valid is None else [bool(v) for v in mag_valid]
@@ -554,7 +567,7 @@ def attitude_fixed(gyr_raw, acc_raw, mag_ak_raw, mag_valid=None, *, asa=(128, 12
         for name, value in (writes or {}).get(k, {}).items():
             model.write(name, value)
         model.select(sel[k])
-        r = model.sample(g, a, h, valid[k], asa)
+        r = model.sample(g, a, h, valid[k], asa, 0 if skipped is None else int(skipped[k]))
         for name in RESULT_FIELDS:
             getattr(out, name)[k] = r[name]
     return out

@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .fixed_point import (INV_GAIN_Q30, Status, cordic_rotate, cordic_vector, mac, mul, sat32,
-                          tilt_angles, wrap32)
+                          step_n, tilt_angles, wrap32)
 from .flagship import FlagshipParams, sample_counts
 
 
@@ -161,10 +161,14 @@ class FlagshipFixed:
         self.cand_norm, self.cand_dip = 0, 0                    # norm 0: no candidate
         self.first = False
 
-    def step(self, g, a, m, mag_valid, st):
-        """One calibrated sample (counts). Returns (quaternion, angles, flags): flags is the set
-        of names among acc_used, mag_used, mag_disturbed, mag_new_ref, at_rest, bias_updated."""
+    def step(self, g, a, m, mag_valid, st, periods=1):
+        """One calibrated sample (counts) ``periods`` sample periods after the previous one.
+        Returns (quaternion, angles, flags): flags is the set of names among acc_used,
+        mag_used, mag_disturbed, mag_new_ref, at_rest, bias_updated."""
         reg, b = self.reg, self.bias
+        # the strapdown step rotates by every period since the last sample (computed first,
+        # as the microcode does, so that a saturation flags alike on every path)
+        k_rad = step_n(reg["K_RAD"], periods, st)
         flags = set()
         g16 = [mul(x, ONE, 14, st) for x in g]                  # << 16
         a16 = [mul(x, ONE, 14, st) for x in a]
@@ -194,7 +198,7 @@ class FlagshipFixed:
                                         st), st)
 
         # -- strapdown: q_g ⊗ exp(v), v = (ω − b)·T, exp to second order -------------------------
-        v = [mul(x, reg["K_RAD"], 30, st) for x in u]
+        v = [mul(x, k_rad, 30, st) for x in u]
         v2 = mac([(x, x) for x in v], 30, st)
         c = sat32(ONE - mul(v2, FLAGSHIP_CONSTANTS["EIGHTH"], 30, st), st)       # cos(|v|/2)
         s = sat32(HALF - mul(v2, FLAGSHIP_CONSTANTS["ONE_48"], 30, st), st)      # sin(|v|/2)/|v|

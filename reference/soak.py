@@ -30,8 +30,9 @@ ACCEL_LSB_PER_G = 2048.0            # ±16 g
 MAG_UT_PER_LSB = 0.15
 
 
-def synthetic_motion(n, rate, seed=0):
-    """(gyro counts, accel counts, mag counts (body axes), mag_valid) for ``n`` samples."""
+def synthetic_motion(n, rate, seed=0, *, with_up=False):
+    """(gyro counts, accel counts, mag counts (body axes), mag_valid) for ``n`` samples; with
+    ``with_up`` also the true "up" direction in body axes per sample (N, 3), unit vectors."""
     rng = np.random.default_rng(seed)
     t = np.arange(n) / rate
     # Euler angles as sums of slow sinusoids with random phases
@@ -65,6 +66,8 @@ def synthetic_motion(n, rate, seed=0):
     mc = np.clip(np.round(mag / MAG_UT_PER_LSB), -32768, 32767).astype(np.int64)
     every = max(1, int(round(rate / 100)))
     mag_valid = (np.arange(n) % every) == 0
+    if with_up:
+        return gc, ac, mc, mag_valid, np.stack([-sp, sr * cp, cr * cp], 1)
     return gc, ac, mc, mag_valid
 
 

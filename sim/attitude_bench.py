@@ -50,10 +50,12 @@ class EngineRun:
 
 
 def run_engine(dut, gyro, accel, mag_ak, mag_valid=None, *, asa=(128, 128, 128),
-               writes=None, vcd=None, gtkw=None):
+               writes=None, skipped=None, vcd=None, gtkw=None):
     """``writes``: {sample index: [(addr, value), ...]} applied (while idle) before that sample,
-    e.g. ``(CONTROL_ADDR, control_word("complementary"))``."""
+    e.g. ``(CONTROL_ADDR, control_word("complementary"))``; ``skipped``: per sample, the
+    samples the sensor made before it that were never read (``Sample.skipped``; 0 if None)."""
     n = len(gyro)
+    skipped = np.zeros(n, int) if skipped is None else np.asarray(skipped, int)
     valid = np.ones(n, bool) if mag_valid is None else np.asarray(mag_valid, bool)
     writes = writes or {}
     rows = []
@@ -70,6 +72,7 @@ def run_engine(dut, gyro, accel, mag_ak, mag_valid=None, *, asa=(128, 128, 128),
             ctx.set(dut.samples.payload, {
                 "gyro": [int(v) for v in gyro[k]], "accel": [int(v) for v in accel[k]],
                 "mag": [int(v) for v in mag_ak[k]], "temp": 0, "counter": k % 65536,
+                "skipped": int(skipped[k]),
                 "flags": {"mag_valid": int(valid[k]), "data_ready": 1}})
             ctx.set(dut.samples.valid, 1)
             # wait out a filter reset (or start-up) still running before counting

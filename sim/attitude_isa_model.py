@@ -92,8 +92,9 @@ class AttitudeISAModel:
             elif op == Op.END:
                 return flags, st.saturated, steps
 
-    def sample(self, gyro, accel, mag_ak, mag_valid=True, asa=(128, 128, 128)):
-        values = load_words(*([int(v) for v in x] for x in (gyro, accel, mag_ak, asa)))
+    def sample(self, gyro, accel, mag_ak, mag_valid=True, asa=(128, 128, 128), skipped=0):
+        values = load_words(*([int(v) for v in x] for x in (gyro, accel, mag_ak, asa)),
+                            int(skipped))
         for name, value in zip(LOAD_ORDER, values):
             self.regs[REGS[name]] = int(value)
         result = self.run(self.entry["sample"], mag_valid)

@@ -426,8 +426,12 @@ def run_core(setup=None, *, n_results, model=None, max_cycles=None, baud=921_600
                 last_int = cycle
             level = pin
             if ctx.get(results.valid):
-                out["results"].append(to_python(ctx.get(results.payload)))
-                out["cycles"].append(cycle)
+                # the result as it leaves the engine; recorded once, when it is taken
+                payload, first_cycle = to_python(ctx.get(results.payload)), cycle
+                while not ctx.get(results.ready):
+                    await ctx.tick()
+                out["results"].append(payload)
+                out["cycles"].append(first_cycle)
                 out["ints"].append(last_int)
                 await ctx.tick()
                 continue
