@@ -39,8 +39,8 @@ from amaranth import *
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
-from ..reference.fixed_point import (INV_GAIN_Q30, CalibrationFixed, FilterRates, KalmanFixedConfig,
-                                     calibration_registers)
+from ..reference.fixed_point import (INV_GAIN_Q30, CalibrationFixed, FilterRates,
+                                     KalmanFixedConfig, calibration_registers)
 from ..reference.flagship_fixed import FlagshipFixedConfig
 from .alu import ALU
 from .attitude_isa import REG_BITS, REG_COUNT, Cond, Flag, Instr, Op

@@ -62,7 +62,8 @@ from .attitude_isa import Q14, Q24, Q30, REG_COUNT, Assembler, Cond, Flag
 from .flagship_microcode import FLAGSHIP_REGISTERS, flagship_names, flagship_routine
 
 
-__all__ = ["CONFIG_REGS", "CONTROL_ADDR", "TELEMETRY_DIV_ADDR", "REGS", "FILTERS", "FILTER_CODES", "FilterRoutine",
+__all__ = ["CONFIG_REGS", "CONTROL_ADDR", "TELEMETRY_DIV_ADDR", "REGS", "FILTERS",
+           "FILTER_CODES", "FilterRoutine",
            "LOAD_BASE", "LOAD_ORDER", "TEMPS", "CONSTANTS", "build_program", "config_init",
            "load_words", "control_word"]
 

@@ -8,10 +8,13 @@
 engine ``cfg`` (register writes to the engine; tie ``valid`` low to keep the reset values)
 and ``cfg_read`` / ``cfg_read_data`` (read-back).
 
-Telemetry: with the engine, one ``AttitudeFrame`` (type 0x02: the result, the raw sample it
-came from and the driver status) per sample; without it, one ``SensorFrame`` (0x01). The
-engine's filters are set up for the sensor configuration: T = 1/ODR, gyro LSB per °/s from
-the full scale, the published Q, R, P₀.
+Telemetry: with the engine, an ``AttitudeFrame`` (type 0x02: the result, the raw sample it
+came from, the driver status latched with it, the counters) for every ``TELEMETRY_DIV``-th
+result, while every sample is filtered; without it, one ``SensorFrame`` (0x01) per sample.
+The engine's filters are set up for the sensor configuration: T = 1/ODR, gyro LSB per °/s
+from the full scale, the published Q, R, P₀ converted from physical units at that rate
+(``FilterRates``). ``rate_budget`` says what the design sustains at a clock; ``build`` and
+``simulate`` check a configuration with it.
 
 On an I2C-wired board the MPU9250's SCL/SDA are the pins SCLK/SDI use with SPI; ``BoardTop``
 then holds NCS high (I2C mode) and drives AD0 (SDO) to select 0x68 or 0x69.
@@ -42,7 +45,8 @@ from .clocking import SYSTEM_CLOCK_HZ, SystemPLL
 from .mpu9250_driver import DriverTiming, MPU9250Config
 from .attitude_isa import REG_BITS
 from .attitude_program import TELEMETRY_DIV_ADDR
-from .attitude_engine import WORST_UPDATE_CYCLES, AttitudeEngine, default_filter_config, default_flagship_config
+from .attitude_engine import (WORST_UPDATE_CYCLES, AttitudeEngine, default_filter_config,
+                              default_flagship_config)
 from .sample import ConfigWrite, DriverStatus, Sample
 from .sensor_frontend import SensorFrontEnd, sample_read_cycles
 from .i2c_controller import I2CPinsSignature

@@ -11,13 +11,16 @@ VERBS_HELP = """verbs:
   build      write the Quartus project for the 10M08SCU169 (top.v, top.qsf, top.sdc, build
              scripts) without running Quartus; --verilog-only writes the core as plain Verilog
   simulate   cycle-accurate co-simulation: the gateware brings an MPU9250 model up over SPI
-             and reads samples; prints them, the bring-up time and the simulator's speed
+             and reads samples; prints them, the bring-up time and the simulator's speed;
+             with --attitude the whole core (driver, engine, telemetry): every result,
+             samples filtered / lost, saturated results, data-ready-to-attitude latency
   replay     run a filter on a recording (BROAD HDF5 format), quantised to MPU9250/AK8963
              counts: the float reference, the bit-exact model (--engine fixed) or the gateware
              in a compiled simulation (--engine gateware); print its errors against the optical
              truth as JSON
   report     resources of the attitude datapath and of the whole design from Yosys (MAX10
-             mapping), and cycles per filter update, as JSON
+             mapping), cycles per filter update, the clock, the co-simulated latency and the
+             highest sample rate the design sustains, as JSON
 """
 
 

@@ -39,8 +39,8 @@ class CosimHarness(Elaboratable):
     ``cipo_model`` (SPI) straight onto the design's CIPO pin, with the level SDO has at the next
     clock edge (the model delays each bit by its output delay, ``MPU9250Timing.sdo_delay_s``, in
     simulated time); ``scl_model_low``/``sda_model_low`` (I2C) and ``int_model`` reach the
-    design one clock later, so the process can run right after the edge it reacts to. The I2C lines ``scl``/``sda`` are the wired AND of the design's
-    and the devices' drivers. ``wake_at`` is the cycle at which the models next want to run with
+    design one clock later, so the process can run right after the edge it reacts to. The I2C
+    lines ``scl``/``sda`` are the wired AND of the design's and the devices' drivers. ``wake_at`` is the cycle at which the models next want to run with
     no pin change; ``wake`` is high in it.
     """
     def __init__(self, dut, *, spi=None, i2c=None, int_pin=None):
