@@ -41,6 +41,9 @@ address  name            meaning, format                                        
          K_FAST, K_NEW   heading, new reference)
 0x7E     A_REF           flagship gain of the reference's low-pass while learnt,    from dt
                          Q0.30 (tau_ref)
+0x7F     EULER_RATES     per-axis filters: 0 = body rates (the published form),    0
+                         else Euler-angle rates (reference.fixed_point.
+                         euler_rates_fixed; right at any attitude but ±90° pitch)
 0xFE     TELEMETRY_DIV   (read by ``AHRSCore``, not the engine) frame every n-th     from baud
                          result (1..65535; 0 is taken as 1)
 0xFF     CONTROL         (not a register-file word) bits 1:0 filter: 0 = per-axis
@@ -97,6 +100,7 @@ CONFIG_REGS = {
     **{f"HARD{i}": 0x13 + i for i in range(3)},
     **{f"SOFT{i}{j}": 0x16 + 3 * i + j for i in range(3) for j in range(3)},
     **{name: 0x70 + k for k, name in enumerate(FLAGSHIP_REGISTERS)},
+    "EULER_RATES": 0x7F,
     "TELEMETRY_DIV": 0xFE,
 }
 TELEMETRY_DIV_ADDR = CONFIG_REGS["TELEMETRY_DIV"]
@@ -142,7 +146,7 @@ def _allocate():
 # by 2¹⁰ (rounded); the rest are operands of the flagship (``reference.flagship_fixed``).
 CONSTANTS = {"SHL12": 1 << 26, "SHL15": 1 << 29, "ONE": 1 << 30, "HALF": 1 << 29,
              "EIGHTH": 1 << 27, "ONE_48": (1 << 30) // 48, "THREE_HALVES": 3 << 29,
-             "SHR10": 1 << 20, "INT1": 1, "SHL14": 1 << 28}
+             "SHR10": 1 << 20, "INT1": 1, "SHL14": 1 << 28, "COS_PITCH_MIN": 1 << 23}
 
 
 REGS = _allocate()
@@ -162,6 +166,26 @@ def load_words(gyro, accel, mag_ak, asa, skipped=0):
     Works on integers (the models) and on Amaranth values (the engine: an unsigned 8-bit ASA
     plus 128 is wiring, no adder)."""
     return [*gyro, *accel, *mag_ak, *((a + 128) << 6 for a in asa), skipped + 1]
+
+
+def _euler_rates(asm, r, U, name):
+    """``U`` (three registers, body rates in any one format) -> Euler-angle rates of THETA, in
+    place (``reference.fixed_point.euler_rates_fixed``)."""
+    asm.rot(r["CR"], r["THETA0"])                       # CR, SR = cos, sin of roll
+    asm.rot(r["CP"], r["THETA1"])                       # CP, SP = cos, sin of pitch
+    with asm.scratch(4) as (t, tp, sec, w):
+        asm.sub(t, r["CP"], r["COS_PITCH_MIN"])
+        asm.br(f"{name}_cp_ok", Cond.A_NEG, a=t, inv=True)
+        asm.add(r["CP"], r["COS_PITCH_MIN"], r["ZERO"])
+        asm.label(f"{name}_cp_ok")
+        asm.div(tp, r["SP"], r["CP"])                   # tan θ, Q8.24
+        asm.div(sec, r["ONE"], r["CP"])                 # 1 / cos θ, Q8.24
+        asm.mac(w, [(r["SR"], U[1]), (r["CR"], U[2])], Q30)
+        asm.mac(t, [(r["CR"], U[1]), (r["SR"], U[2], -1)], Q30)
+        asm.mul(U[2], w, sec, Q24)
+        asm.mul(w, w, tp, Q24)
+        asm.add(U[1], t, r["ZERO"])
+        asm.add(U[0], U[0], w)
 
 
 def _step_n(asm, r, coefficient):
@@ -295,33 +319,38 @@ def _kalman(asm, r):
     _step_n(asm, r, "RATE")
     # the three axes interleaved, so that products follow products: a MUL followed by a MUL
     # that does not read its result takes one cycle instead of two
-    with asm.scratch(9) as T:
-        U, TP, D = T[0:3], T[3:6], T[6:9]
-        P = [[r[f"P{i}_{e}"] for e in ("00", "01", "10", "11")] for i in range(3)]
+    P = [[r[f"P{i}_{e}"] for e in ("00", "01", "10", "11")] for i in range(3)]
+    # U first: the Euler-rate transform takes four more scratch registers before TP and D live
+    with asm.scratch(3) as U:
         for i in range(3):
             asm.add(U[i], r[f"PREV{i}"], r[f"G{i}"])
         for i in range(3):
             asm.mul(U[i], U[i], r["SHL15"], Q14)              # << 15 (exact: |ω| < 2¹⁶)
-        for i in range(3):
-            asm.sub(U[i], U[i], r[f"BIAS{i}"])               # u = avg rate − bias, Q16 counts
-        for i in range(3):
-            asm.mul(U[i], U[i], r["STEP_N"], Q30)
-        for i in range(3):
-            asm.mul(TP[i], r["T"], P[i][3], Q24)              # T·P11
-        for i in range(3):
-            asm.add(r[f"THETA{i}"], r[f"THETA{i}"], U[i], wrap=True)
-            asm.add(r[f"PREV{i}"], r[f"G{i}"], r["ZERO"])
-            asm.sub(D[i], TP[i], P[i][2])
-            asm.sub(D[i], D[i], P[i][1])
-        for i in range(3):
-            asm.mul(D[i], r["T"], D[i], Q24)
-        for i in range(3):
-            p00, p01, p10, p11 = P[i]
-            asm.add(p00, p00, D[i])
-            asm.add(p00, p00, r["Q_ANGLE"])
-            asm.sub(p01, p01, TP[i])
-            asm.sub(p10, p10, TP[i])
-            asm.add(p11, p11, r["Q_BIAS"])
+        asm.br("k_body_rates", Cond.A_ZERO, a=r["EULER_RATES"])
+        _euler_rates(asm, r, U, "k")
+        asm.label("k_body_rates")
+        with asm.scratch(6) as T:
+            TP, D = T[0:3], T[3:6]
+            for i in range(3):
+                asm.sub(U[i], U[i], r[f"BIAS{i}"])           # u = avg rate − bias, Q16 counts
+            for i in range(3):
+                asm.mul(U[i], U[i], r["STEP_N"], Q30)
+            for i in range(3):
+                asm.mul(TP[i], r["T"], P[i][3], Q24)              # T·P11
+            for i in range(3):
+                asm.add(r[f"THETA{i}"], r[f"THETA{i}"], U[i], wrap=True)
+                asm.add(r[f"PREV{i}"], r[f"G{i}"], r["ZERO"])
+                asm.sub(D[i], TP[i], P[i][2])
+                asm.sub(D[i], D[i], P[i][1])
+            for i in range(3):
+                asm.mul(D[i], r["T"], D[i], Q24)
+            for i in range(3):
+                p00, p01, p10, p11 = P[i]
+                asm.add(p00, p00, D[i])
+                asm.add(p00, p00, r["Q_ANGLE"])
+                asm.sub(p01, p01, TP[i])
+                asm.sub(p10, p10, TP[i])
+                asm.add(p11, p11, r["Q_BIAS"])
     _zero_tests(asm, r, "k")
     asm.br("k_no_tilt", Cond.A_ZERO, a=r["ACC_OK"])
     _tilt(asm, r, r["MEAS0"])
@@ -348,11 +377,13 @@ def _kalman(asm, r):
 
 def _complementary(asm, r):
     _step_n(asm, r, "RATE")
+    asm.br("c_euler", Cond.A_ZERO, a=r["EULER_RATES"], inv=True)
     with asm.scratch(1) as T:
         for i in range(3):
             asm.mul(T[0], r[f"G{i}"], r["STEP_N"], Q14)                 # ω·RATE·n >> 14
             asm.add(r[f"PRED{i}"], r[f"THETA{i}"], T[0], wrap=True)
             asm.add(r[f"PREV{i}"], r[f"G{i}"], r["ZERO"])
+        asm.label("c_predicted")
         _zero_tests(asm, r, "c")
         asm.add(r["MEAS0"], r["PRED0"], r["ZERO"])
         asm.add(r["MEAS1"], r["PRED1"], r["ZERO"])
@@ -370,6 +401,17 @@ def _complementary(asm, r):
             asm.mul(T[0], r["ONE_MINUS_A"], T[0], Q24)
             asm.add(r[f"THETA{i}"], r[f"PRED{i}"], T[0], wrap=True)
         asm.br("angles_out")
+    # out of line: the prediction with Euler-angle rates, in Q16 counts
+    asm.label("c_euler")
+    with asm.scratch(3) as U:
+        for i in range(3):
+            asm.mul(U[i], r[f"G{i}"], r["ONE"], Q14)                    # << 16
+        _euler_rates(asm, r, U, "c")
+        for i in range(3):
+            asm.mul(U[i], U[i], r["STEP_N"], Q30)
+            asm.add(r[f"PRED{i}"], r[f"THETA{i}"], U[i], wrap=True)
+            asm.add(r[f"PREV{i}"], r[f"G{i}"], r["ZERO"])
+    asm.br("c_predicted")
 
 
 def _angles_out(asm, r):

@@ -44,9 +44,16 @@ def _config(args):
 
 
 def _core_options(args):
-    """``AHRSCore`` arguments from the command line (telemetry rate)."""
-    div = getattr(args, "telemetry_divider", None)
-    return {} if div is None else {"telemetry_divider": div}
+    """``AHRSCore`` arguments from the command line (telemetry rate, Euler-rate prediction)."""
+    out = {}
+    if getattr(args, "telemetry_divider", None) is not None:
+        out["telemetry_divider"] = args.telemetry_divider
+    if getattr(args, "euler_rates", False):
+        from .hdl.attitude_engine import default_filter_config
+        from .reference.fixed_point import FilterRates
+        out["filter_config"] = default_filter_config(_config(args),
+                                                     FilterRates(euler_rates=True))
+    return out
 
 
 def check_rates(config, clk_freq, args, *, out=None):
@@ -84,6 +91,9 @@ def _add_sensor_options(p):
     p.add_argument("--clk-freq", type=float, default=None, metavar="HZ",
                    help="system clock (default 48e6: the board's PLL output)")
     p.add_argument("--baud", type=int, default=921_600, help="telemetry UART (921600)")
+    p.add_argument("--euler-rates", action="store_true",
+                   help="the per-axis filters predict with Euler-angle rates (register "
+                        "EULER_RATES) instead of the published body rates")
     p.add_argument("--telemetry-divider", type=int, default=None, metavar="N",
                    help="frame every N-th result (default: the smallest N the baud rate "
                         "carries); every sample is filtered either way")

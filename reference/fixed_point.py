@@ -37,7 +37,8 @@ import numpy as np
 __all__ = ["BAM_BITS", "CORDIC_ITERATIONS", "ATAN_TABLE", "CORDIC_GAIN", "rshift_round", "sat",
            "wrap32", "div_floor", "cordic_vector", "cordic_rotate", "bam_to_deg", "deg_to_bam",
            "div_q24", "Status", "KalmanFixedConfig", "CalibrationFixed", "calibrate_fixed",
-           "kalman_fixed", "complementary_fixed", "attitude_fixed", "AttitudeFixed", "FilterRates", "tilt_angles",
+           "kalman_fixed", "complementary_fixed", "attitude_fixed", "AttitudeFixed", "FilterRates",
+           "euler_rates_fixed", "step_n", "COS_PITCH_MIN", "tilt_angles",
            "mul", "mac", "sat32", "sat16", "EngineModel", "FILTERS", "RESULT_FLAGS",
            "RESULT_FIELDS",
            "calibration_registers"]
@@ -111,6 +112,26 @@ def sat16(x, status=None):
 def mul(a, b, shift, status=None):
     """sat32(rshift_round(a·b, shift)): one multiply of the datapath."""
     return sat32(rshift_round(a * b, shift), status)
+
+
+# Euler-angle rates (``KalmanFixedConfig.euler_rates``): cos(pitch) is held at least this
+# (Q1.30, cos 89.55°), so that tan(pitch) and 1/cos(pitch) stay inside Q8.24
+COS_PITCH_MIN = 1 << 23
+
+
+def euler_rates_fixed(u, theta, st=None):
+    """Body rates ``u`` (three words of any one format) -> the Euler-angle rates of the ZYX
+    angles ``theta`` (BAM32), in the same format: φ̇ = p + w·tan θ, θ̇ = q·cos φ − r·sin φ,
+    ψ̇ = w / cos θ, w = q·sin φ + r·cos φ. The engine's steps: two rotations, cos θ held at
+    ``COS_PITCH_MIN`` or above, two divisions (Q8.24), two MACs, two MULs and an ADD."""
+    cr, sr = cordic_rotate(theta[0])
+    cp, sp = cordic_rotate(theta[1])
+    if sat32(cp - COS_PITCH_MIN, st) < 0:
+        cp = COS_PITCH_MIN
+    tp, sec = div_q24(sp, cp, st), div_q24(1 << 30, cp, st)
+    w = mac([(sr, u[1]), (cr, u[2])], 30, st)
+    pitch_rate = mac([(cr, u[1]), (sr, u[2], -1)], 30, st)
+    return [sat32(u[0] + mul(w, tp, 24, st), st), pitch_rate, mul(w, sec, 24, st)]
 
 
 def step_n(coefficient, periods, status=None):
@@ -241,6 +262,7 @@ class KalmanFixedConfig:
     r: float = 2.0               # deg²
     p0: float = 1.0
     a: float = 0.98              # complementary filter coefficient
+    euler_rates: bool = False    # propagate with Euler-angle rates, not body rates (the preset)
 
     def registers(self):
         q24 = 1 << 24
@@ -255,6 +277,7 @@ class KalmanFixedConfig:
             # Δb [Q16 counts] = (t [BAM/s] · BIAS_SCALE) >> 24: 360/2³² deg/BAM · LSB · 2¹⁶
             "BIAS_SCALE": int(round(360.0 * self.gyro_lsb_per_dps / 2 ** 16 * q24)),
             "ONE_MINUS_A": int(round((1 - self.a) * q24)),          # Q0.24
+            "EULER_RATES": int(bool(self.euler_rates)),
         }
         if not 0 < regs["RATE"] < 2 ** 31:
             raise ValueError(f"RATE {regs['RATE']} does not fit 31 bits: dt "
@@ -274,13 +297,16 @@ class FilterRates:
 
     The defaults are the published per-step preset (Q angle 0.2 deg², Q bias 0.1 (°/s)²,
     R 2 deg², a = 0.98) at the rate it was published for, 100 Hz: ``at(0.01, ...)`` gives its
-    registers exactly.
+    registers exactly. ``euler_rates``: the per-axis filters propagate their angles with
+    Euler-angle rates (right at any attitude short of ±90° pitch) instead of the published
+    body rates.
     """
     q_angle: float = 20.0
     q_bias: float = 10.0
     r: float = 2.0
     p0: float = 1.0
     tau: float = 0.49
+    euler_rates: bool = False
 
     def at(self, dt, gyro_lsb_per_dps=16.4):
         """The ``KalmanFixedConfig`` (per-step values) for sample period ``dt``."""
@@ -288,14 +314,16 @@ class FilterRates:
             raise ValueError("FilterRates.at: dt and tau must be positive")
         return KalmanFixedConfig(dt=dt, gyro_lsb_per_dps=gyro_lsb_per_dps,
                                  q_angle=self.q_angle * dt, q_bias=self.q_bias * dt, r=self.r,
-                                 p0=self.p0, a=self.tau / (self.tau + dt))
+                                 p0=self.p0, a=self.tau / (self.tau + dt),
+                                 euler_rates=self.euler_rates)
 
     @classmethod
     def from_step(cls, config):
         """The physical values a per-step ``KalmanFixedConfig`` stands for at its own dt."""
         dt = config.dt
         return cls(q_angle=config.q_angle / dt, q_bias=config.q_bias / dt, r=config.r,
-                   p0=config.p0, tau=config.a * dt / (1 - config.a))
+                   p0=config.p0, tau=config.a * dt / (1 - config.a),
+                   euler_rates=config.euler_rates)
 
 
 def tilt_angles(x, y, z, st=None):
@@ -340,9 +368,13 @@ class _KalmanFixed:
         # the rotation covers every period since the last sample; the covariance one period
         RATE = step_n(RATE, periods, st)
         prev = g if self.prev is None else self.prev
+        # the mean rate (ω_{k−1} + ω_k)/2 in Q16 counts, as Euler-angle rates if asked
+        mean = [sat32((prev[i] + g[i]) << 15, st) for i in range(3)]
+        if self.reg["EULER_RATES"]:
+            mean = euler_rates_fixed(mean, self.theta, st)
         for i in range(3):
-            # u = (ω_{k−1} + ω_k)/2 − b in Q16 counts; θ += u·RATE >> 30
-            u = sat32(((prev[i] + g[i]) << 15) - self.bias[i], st)
+            # u = mean − b; θ += u·RATE >> 30
+            u = sat32(mean[i] - self.bias[i], st)
             self.theta[i] = wrap32(self.theta[i] + mul(u, RATE, 30, st))
             p00, p01, p10, p11 = self.P[i]
             tp11 = mul(T, p11, 24, st)
@@ -379,7 +411,12 @@ class _KalmanFixed:
 def _complementary_step(theta, g, a, m, mag_ok, reg, st, periods=1):
     """One complementary step on the shared angle registers; returns (θ, acc_ok, mag_ok)."""
     rate = step_n(reg["RATE"], periods, st)
-    pred = [wrap32(theta[i] + mul(g[i], rate, 14, st)) for i in range(3)]
+    if reg["EULER_RATES"]:
+        # in Q16 counts, so that the transform keeps the gyro's fractions
+        u = euler_rates_fixed([mul(x, 1 << 30, 14, st) for x in g], theta, st)
+        pred = [wrap32(theta[i] + mul(u[i], rate, 30, st)) for i in range(3)]
+    else:
+        pred = [wrap32(theta[i] + mul(g[i], rate, 14, st)) for i in range(3)]
     acc_ok = any(a)
     mag_ok = bool(mag_ok) and any(m)
     roll_m, pitch_m = _tilt(*a, st) if acc_ok else (pred[0], pred[1])
