@@ -17,7 +17,7 @@ from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
 
-__all__ = ["OSCILLATOR_HZ", "SYSTEM_CLOCK_HZ", "cycles", "SystemPLL"]
+__all__ = ["OSCILLATOR_HZ", "SYSTEM_CLOCK_HZ", "cycles", "pll_ratio", "SystemPLL"]
 
 
 OSCILLATOR_HZ = 12e6
@@ -28,6 +28,16 @@ def cycles(seconds, clk_freq, *, minimum=1):
     """Whole clock cycles that last at least ``seconds`` at ``clk_freq`` (never fewer than
     ``minimum``). The 1e-9 forgives float noise in exact products such as 100 µs × 12 MHz."""
     return max(minimum, math.ceil(seconds * clk_freq - 1e-9))
+
+
+def pll_ratio(in_hz, out_hz):
+    """(multiply, divide) making ``out_hz`` from ``in_hz``, both at most 512; a ValueError
+    when no such ratio gives the frequency to within 1 Hz."""
+    ratio = Fraction(out_hz / in_hz).limit_denominator(512)
+    if abs(float(ratio) * in_hz - out_hz) > 1 or ratio.numerator > 512:
+        raise ValueError(f"a PLL cannot make {out_hz / 1e6:g} MHz from {in_hz / 1e6:g} MHz "
+                         f"with multiply/divide factors up to 512")
+    return ratio.numerator, ratio.denominator
 
 
 class SystemPLL(wiring.Component):
@@ -54,12 +64,8 @@ class SystemPLL(wiring.Component):
     Only Quartus can elaborate the instance; simulations drive the system clock directly.
     """
     def __init__(self, *, in_hz=OSCILLATOR_HZ, out_hz=SYSTEM_CLOCK_HZ):
-        ratio = Fraction(out_hz / in_hz).limit_denominator(512)
-        if abs(float(ratio) * in_hz - out_hz) > 1 or ratio.numerator > 512:
-            raise ValueError(f"a PLL cannot make {out_hz / 1e6:g} MHz from "
-                             f"{in_hz / 1e6:g} MHz with multiply/divide factors up to 512")
+        self.multiply, self.divide = pll_ratio(in_hz, out_hz)
         self.in_hz, self.out_hz = in_hz, out_hz
-        self.multiply, self.divide = ratio.numerator, ratio.denominator
         super().__init__({"clk_in": In(1), "clk_out": Out(1), "locked": Out(1)})
 
     def elaborate(self, platform):
