@@ -98,36 +98,41 @@ class MicrocodeROM(wiring.Component):
 
 
 class FrameRAM(wiring.Component):
-    """``depth`` bytes, one write port and one synchronous read port with enable (the read
-    data holds while ``r_en`` is low; a read of the address being written returns the old
-    byte). One M9K on a MAX10: the telemetry framer's copy of a frame."""
-    def __init__(self, depth, *, blackbox=False):
+    """``depth`` words of ``width`` bits, one write port and one synchronous read port with
+    enable (the read data holds while ``r_en`` is low; a read of the address being written
+    returns the old word). One M9K on a MAX10: the telemetry framer's copy of a frame."""
+    def __init__(self, depth, width=8, *, blackbox=False):
         self.depth = depth
+        self.width = width
         self.blackbox = blackbox
         self.abits = max(1, (depth - 1).bit_length())
-        super().__init__({"w_en": In(1), "w_addr": In(self.abits), "w_data": In(8),
-                          "r_en": In(1), "r_addr": In(self.abits), "r_data": Out(8)})
+        super().__init__({"w_en": In(1), "w_addr": In(self.abits), "w_data": In(width),
+                          "r_en": In(1), "r_addr": In(self.abits), "r_data": Out(width)})
+
+    @property
+    def name(self):
+        return f"mpu9250_ahrs_ram{self.depth}x{self.width}"
 
     @property
     def bits(self):
-        return self.depth * 8
+        return self.depth * self.width
 
     def stub(self):
         """Verilog declaring the blackbox module (``report``)."""
-        a = self.abits
-        return (f"(* blackbox *) module mpu9250_ahrs_ram{self.depth}x8(input clk, input w_en, "
-                f"input [{a - 1}:0] w_addr, input [7:0] w_data, input r_en, input [{a - 1}:0] "
-                f"r_addr, output [7:0] r_data);\nendmodule\n")
+        a, w = self.abits, self.width
+        return (f"(* blackbox *) module {self.name}(input clk, input w_en, "
+                f"input [{a - 1}:0] w_addr, input [{w - 1}:0] w_data, input r_en, "
+                f"input [{a - 1}:0] r_addr, output [{w - 1}:0] r_data);\nendmodule\n")
 
     def elaborate(self, platform):
         m = Module()
         if self.blackbox:
             m.submodules.ram = Instance(
-                f"mpu9250_ahrs_ram{self.depth}x8", i_clk=ClockSignal(), i_w_en=self.w_en,
+                self.name, i_clk=ClockSignal(), i_w_en=self.w_en,
                 i_w_addr=self.w_addr, i_w_data=self.w_data, i_r_en=self.r_en,
                 i_r_addr=self.r_addr, o_r_data=self.r_data)
             return m
-        m.submodules.mem = mem = Memory(shape=8, depth=self.depth, init=[])
+        m.submodules.mem = mem = Memory(shape=self.width, depth=self.depth, init=[])
         wp = mem.write_port()
         rp = mem.read_port()
         m.d.comb += [wp.en.eq(self.w_en), wp.addr.eq(self.w_addr), wp.data.eq(self.w_data),

@@ -108,7 +108,7 @@ class AHRSCore(wiring.Component):
 
     With the engine, every sample the driver reads is filtered: the engine takes a sample as
     soon as its previous update is done (about 600 cycles) and the ``TelemetryScheduler``
-    takes every result at once, or after the framer's ~80-cycle copy of a result it frames;
+    takes every result at once, or after the framer's 21-cycle copy of a result it frames;
     the UART never holds the filter up.
     """
     def __init__(self, *, clk_freq=SYSTEM_CLOCK_HZ, config=MPU9250Config(),

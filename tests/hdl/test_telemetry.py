@@ -92,7 +92,7 @@ def test_framer_against_decoder(buffered):
     decoded = [fields for _, fields in decode_frames(out, strict=True)]
     assert decoded == frames
     if buffered:
-        assert copy_cycles and set(copy_cycles) == {dut.length}
+        assert copy_cycles and set(copy_cycles) == {dut.words}
 
 
 def test_decoder_resynchronises_and_rejects_bad_crc():
@@ -117,9 +117,9 @@ def test_decoder_resynchronises_and_rejects_bad_crc():
         assert [f for piece in pieces for _, f in decoder.feed(piece)] == [frame, frame]
 
 
-def run_core(setup, n_frames, *, baud, max_cycles, vcd=None, **core_kw):
+def run_core(setup, n_frames, *, baud, max_cycles, vcd=None, writes=(), **core_kw):
     """Model -> core -> UART -> decoder until ``n_frames`` frames came; (core, model, frames,
-    asa)."""
+    asa). ``writes``: (address, value) register writes through ``cfg`` at the start."""
     core = AHRSCore(clk_freq=setup.clk_freq, config=setup.config,
                     timing=setup.driver_timing(), baud=baud, **core_kw)
     harness = CosimHarness(core, spi=core.imu, int_pin=core.imu_int)
@@ -133,6 +133,8 @@ def run_core(setup, n_frames, *, baud, max_cycles, vcd=None, **core_kw):
     asa = []
 
     async def tb(ctx):
+        for addr, value in writes:
+            await stream_put(ctx, core.cfg, {"addr": addr, "data": value})
         while len(frames) < n_frames:
             await ctx.tick().repeat(1000)
             frames[:] = [f for _, f in decode_frames(received)]
@@ -210,3 +212,16 @@ def test_engine_never_waits_for_a_slow_uart():
         k = frame["sample"]["counter"]
         assert sample_matches(frame["sample"], reads[k])
         assert frame["attitude"]["quat"] == [int(v) for v in ref.quat[k]], k
+
+
+def test_telemetry_divider_is_a_run_time_register():
+    """``TELEMETRY_DIV`` (0xFE) written through ``cfg``: every third result is framed from
+    then on (the counters in consecutive frames step by 3)."""
+    from mpu9250_ahrs.hdl.attitude_program import TELEMETRY_DIV_ADDR
+    from mpu9250_ahrs.hdl.mpu9250_driver import MPU9250Config
+    setup = SimSetup(clk_freq=12e6, config=MPU9250Config(magnetometer=False))
+    core, _, frames, _ = run_core(setup, 4, baud=6_000_000, max_cycles=120_000,
+                                  writes=[(TELEMETRY_DIV_ADDR, 3)])
+    filtered = [f["counters"]["filtered"] for f in frames]
+    assert [b - a for a, b in zip(filtered, filtered[1:])] == [3] * (len(frames) - 1)
+    assert all(f["counters"]["not_sent"] == 0 for f in frames)
