@@ -3,10 +3,9 @@
 ``SYSTEM_CLOCK_HZ`` is the clock every part of the design, ``build``, ``simulate`` and
 ``report`` use unless told otherwise (``--clk-freq``). On the board it comes from
 ``SystemPLL``: the 12 MHz oscillator (``OSCILLATOR_HZ``) multiplied by 4 in a MAX10 PLL.
-48 MHz gives the SPI controller a 12 MHz or 8 MHz sensor-read clock from whole cycles (see
-``SPITiming.for_clock``) and the attitude engine's longest update (under 620 cycles) about
-13 µs; it is a clock Quartus' timing analysis still has to confirm for this design (there is no
-Quartus here, so no figure in this repository says it closes).
+The SPI read clock and the update time at this clock are what ``SPITiming.for_clock`` and
+``python -m mpu9250_ahrs report`` give; whether the design closes timing at 48 MHz is for
+Quartus' timing analysis to say (there is no Quartus here).
 """
 
 import math

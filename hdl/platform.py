@@ -29,6 +29,8 @@ An I2C-wired MPU9250 board uses the same header: SCL on ``imu_sclk``, SDA on ``i
 from amaranth.build import Attrs, Clock, Pins, PinsN, Resource, Subsignal
 from amaranth.vendor import AlteraPlatform
 
+from .clocking import OSCILLATOR_HZ
+
 
 __all__ = ["DEFAULT_PINOUT", "MAX10Platform"]
 
@@ -52,7 +54,7 @@ class MAX10Platform(AlteraPlatform):
     speed = "C8"
     suffix = "G"
     default_clk = "clk12"
-    clk_freq = 12e6
+    clk_freq = OSCILLATOR_HZ
     resources = []      # filled per instance from the pinout
     connectors = []
 

@@ -33,6 +33,8 @@ from amaranth.lib import data, stream, wiring
 from amaranth.lib.cdc import FFSynchronizer
 from amaranth.lib.wiring import In, Out
 
+from .clocking import cycles
+
 
 __all__ = ["SPITiming", "SPIPinsSignature", "SPIByte", "SPIController"]
 
@@ -84,14 +86,14 @@ class SPITiming:
         most ``fast_hz``) with such a sampling edge; ``cipo_delay`` places it.
         """
         def half(hz):
-            return max(min_half, math.ceil(clk_freq / (2 * hz) - 1e-9))
+            return cycles(1 / (2 * hz), clk_freq, minimum=min_half)
         earliest, latest = sdo_window_s
         first = math.floor(latest * clk_freq + 1e-9) + 1    # first edge strictly after latest
         fast = half(fast_hz)
         while first > 2 * fast - 1 + math.floor(earliest * clk_freq + 1e-9):
             fast += 1
         slow = max(half(slow_hz), fast)
-        hold = max(1, math.ceil(cs_hold_s * clk_freq - 1e-9))
+        hold = cycles(cs_hold_s, clk_freq)
         return cls(slow_half=slow, fast_half=fast, cs_hold=hold, cs_gap=max(hold, slow),
                    cipo_delay=max(0, first - fast))
 

@@ -50,6 +50,11 @@ def payload_bytes(layout):
     return (data.Layout.cast(layout).size + 7) // 8
 
 
+def frame_bytes(layout):
+    """Bytes on the wire for a frame of ``layout``: sync (2), type, length, payload, CRC."""
+    return payload_bytes(layout) + 5
+
+
 class TelemetryFramer(wiring.Component):
     """Frames a struct: sync, type, length, payload, CRC, one byte per ``o_stream`` transfer.
 
@@ -76,7 +81,7 @@ class TelemetryFramer(wiring.Component):
         self.length = payload_bytes(layout)
         if self.length > 255:
             raise ValueError("telemetry payload longer than 255 bytes")
-        self.frame_bytes = self.length + 5
+        self.frame_bytes = frame_bytes(layout)
         # the copy goes a 32-bit word per cycle: a 21-way multiplexer of words costs fewer
         # LUTs than an 81-way one of bytes
         self.words = (self.length + 3) // 4

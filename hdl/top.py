@@ -51,19 +51,23 @@ from .sample import ConfigWrite, DriverStatus, Sample
 from .sensor_frontend import SensorFrontEnd, sample_read_cycles
 from .i2c_controller import I2CPinsSignature
 from .spi_controller import SPIPinsSignature
-from .telemetry import TelemetryFramer
+from .telemetry import TelemetryFramer, frame_bytes
 from .telemetry_scheduler import AttitudeFrame, TelemetryCounters, TelemetryScheduler
 from .uart_tx import UARTTransmitter
 
 
-__all__ = ["AHRSCore", "BoardTop", "default_telemetry_divider", "rate_budget"]
+__all__ = ["AHRSCore", "BoardTop", "telemetry_divider_for", "rate_budget"]
 
 
-def default_telemetry_divider(sample_rate_hz, baud, frame_bytes):
-    """The smallest divider of the sample rate at which ``frame_bytes``-byte frames (10 bits a
-    byte on the UART) fit the link: every result is sent when it is 1."""
-    frame_s = 10 * frame_bytes / baud
-    return max(1, math.ceil(frame_s * sample_rate_hz - 1e-9))
+def telemetry_divider_for(config, baud, divider=None):
+    """``divider`` checked (1..65535), or when None the smallest divider of the sample rate at
+    which attitude frames (10 bits a byte on the UART) fit the link: 1 sends every result."""
+    if divider is None:
+        frame_s = 10 * frame_bytes(AttitudeFrame) / baud
+        divider = max(1, math.ceil(frame_s * config.output_data_rate - 1e-9))
+    if not 1 <= divider < 1 << 16:
+        raise ValueError(f"telemetry divider {divider} is not 1..65535")
+    return divider
 
 
 def rate_budget(config, clk_freq, baud=921_600, telemetry_divider=None):
@@ -72,17 +76,16 @@ def rate_budget(config, clk_freq, baud=921_600, telemetry_divider=None):
     ``WORST_UPDATE_CYCLES``), ``cycles_per_sample`` (the larger: the driver reads the next
     sample while the engine works on the last), ``max_sample_rate_hz``, and the telemetry's
     ``telemetry_divider``, ``frame_bytes``, ``frame_us``, ``frames_per_s``."""
-    from .telemetry import payload_bytes
     read = sample_read_cycles(config, clk_freq)
     update = WORST_UPDATE_CYCLES
     per_sample = max(read, update)
     rate = config.output_data_rate
-    frame_bytes = payload_bytes(AttitudeFrame) + 5
-    divider = telemetry_divider or default_telemetry_divider(rate, baud, frame_bytes)
+    size = frame_bytes(AttitudeFrame)
+    divider = telemetry_divider_for(config, baud, telemetry_divider)
     return {"sample_rate_hz": rate, "read_cycles": read, "update_cycles": update,
             "cycles_per_sample": per_sample, "max_sample_rate_hz": clk_freq / per_sample,
-            "baud": baud, "telemetry_divider": divider, "frame_bytes": frame_bytes,
-            "frame_us": 10 * frame_bytes / baud * 1e6, "frames_per_s": rate / divider}
+            "baud": baud, "telemetry_divider": divider, "frame_bytes": size,
+            "frame_us": 10 * size / baud * 1e6, "frames_per_s": rate / divider}
 
 
 class AHRSCore(wiring.Component):
@@ -96,7 +99,7 @@ class AHRSCore(wiring.Component):
         ``filter_config``, ``flagship_config``, ``calibration``, ``filter``: the engine's
             reset values (default: set up for ``config``'s sample rate and full scales).
         ``telemetry_divider``: frame every n-th result at reset (default: the smallest n at
-            which the frames fit the baud rate, ``telemetry_divider()``); run time: register
+            which the frames fit the baud rate, ``telemetry_divider_for``); run time: register
             ``TELEMETRY_DIV_ADDR`` of the ``cfg`` port.
     Members
         ``imu``, ``imu_int``: sensor pins (raw; synchronised inside).
@@ -107,9 +110,9 @@ class AHRSCore(wiring.Component):
         ``counters`` (``TelemetryCounters``): results filtered, samples lost, results not sent.
 
     With the engine, every sample the driver reads is filtered: the engine takes a sample as
-    soon as its previous update is done (about 600 cycles) and the ``TelemetryScheduler``
-    takes every result at once, or after the framer's 21-cycle copy of a result it frames;
-    the UART never holds the filter up.
+    soon as its previous update is done (``WORST_UPDATE_CYCLES`` at most) and the
+    ``TelemetryScheduler`` takes every result at once, or after the framer's 21-cycle copy of
+    a result it frames; the UART never holds the filter up.
     """
     def __init__(self, *, clk_freq=SYSTEM_CLOCK_HZ, config=MPU9250Config(),
                  timing=DriverTiming(), baud=921_600, attitude=True, filter_config=None,
@@ -119,6 +122,9 @@ class AHRSCore(wiring.Component):
         self.config = config
         self.attitude = attitude
         self.baud = baud
+        # checked before any component exists, so that a bad value is one clear error
+        if attitude:
+            telemetry_divider = telemetry_divider_for(config, baud, telemetry_divider)
         self.frontend = SensorFrontEnd(clk_freq=clk_freq, config=config, timing=timing)
         if attitude:
             if filter_config is None:
@@ -127,11 +133,6 @@ class AHRSCore(wiring.Component):
                 flagship_config = default_flagship_config(config)
             self.framer = TelemetryFramer(AttitudeFrame, 0x02, buffered=True,
                                           blackbox=blackbox_hard_blocks)
-            if telemetry_divider is None:
-                telemetry_divider = default_telemetry_divider(
-                    config.output_data_rate, baud, self.framer.frame_bytes)
-            if not 1 <= telemetry_divider < 1 << 16:
-                raise ValueError(f"telemetry divider {telemetry_divider} is not 1..65535")
             self.telemetry_divider = telemetry_divider
             self.engine = AttitudeEngine(filter_config, calibration, flagship_config,
                                          filter=filter,

@@ -110,11 +110,14 @@ def _add_sensor_options(p):
 
 def _clock(args):
     from .hdl.clocking import SYSTEM_CLOCK_HZ
+    if args.clk_freq is not None and args.clk_freq <= 0:
+        raise ValueError(f"--clk-freq must be positive, not {args.clk_freq:g}")
     return args.clk_freq or SYSTEM_CLOCK_HZ
 
 
 def cmd_build(args):
     from amaranth.back import verilog
+    from .hdl.clocking import pll_ratio
     from .hdl.platform import MAX10Platform
     from .hdl.top import AHRSCore, BoardTop
 
@@ -124,6 +127,8 @@ def cmd_build(args):
     check_rates(config, clk_freq, args)
     pinout = dict(p.split("=", 1) for p in args.pin)
     platform = MAX10Platform(pinout=pinout)
+    if not args.verilog_only and clk_freq != platform.default_clk_frequency:
+        pll_ratio(platform.default_clk_frequency, clk_freq)     # a clear error, before the build
     out.mkdir(parents=True, exist_ok=True)
     if args.verilog_only:
         core = AHRSCore(clk_freq=clk_freq, config=config, baud=args.baud,
@@ -149,10 +154,8 @@ def cmd_simulate(args):
     config = _config(args)
     clk_freq = _clock(args)
     budget = check_rates(config, clk_freq, args)
-    # I2C at 400 kHz needs ~0.66 ms per nine-axis read: keep the real sample period there;
-    # at 8 kHz the period is already short.
     odr_scale = args.odr_scale if args.odr_scale is not None else \
-        (0.2 if config.wiring == "spi" and config.output_data_rate <= 1000 else 1.0)
+        SimSetup.default_odr_scale(config)
     setup = SimSetup(clk_freq=clk_freq, config=config, delay_scale=args.delay_scale,
                      odr_scale=odr_scale)
     sources = _pose_sources(args.pose, args.samples, config, setup) if args.pose else {}
@@ -326,7 +329,7 @@ def build_parser():
     p.add_argument("--delay-scale", type=float, default=1e-3,
                    help="scale of start-up and reset delays (default 1e-3)")
     p.add_argument("--odr-scale", type=float, default=None,
-                   help="scale of the sample period (default 0.2 with SPI, 1 with I2C)")
+                   help="scale of the sample period (default 0.2 with SPI up to 1 kHz, else 1)")
     p.add_argument("--quiet-summary", action="store_true", help="summary to stderr")
     p.add_argument("--pose", default=None, metavar="ROLL,PITCH,YAW",
                    help="the models read a board held still at this attitude (degrees, with "

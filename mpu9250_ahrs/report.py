@@ -147,8 +147,8 @@ def drdy_to_attitude_us(clk_freq, config, results=4):
     the first. Real bus and engine timing; only the waits of bring-up and the sample period
     are compressed, which the latency does not depend on."""
     from .sim.cosim import SimSetup, run_core
-    odr_scale = 0.2 if config.output_data_rate <= 1000 else 1.0
-    setup = SimSetup(clk_freq=clk_freq, config=config, odr_scale=odr_scale)
+    setup = SimSetup(clk_freq=clk_freq, config=config,
+                     odr_scale=SimSetup.default_odr_scale(config))
     run = run_core(setup, n_results=results + 1)
     return round(max(run.latencies_us(clk_freq)[1:]), 2)
 

@@ -40,7 +40,8 @@ class CosimHarness(Elaboratable):
     clock edge (the model delays each bit by its output delay, ``MPU9250Timing.sdo_delay_s``, in
     simulated time); ``scl_model_low``/``sda_model_low`` (I2C) and ``int_model`` reach the
     design one clock later, so the process can run right after the edge it reacts to. The I2C
-    lines ``scl``/``sda`` are the wired AND of the design's and the devices' drivers. ``wake_at`` is the cycle at which the models next want to run with
+    lines ``scl``/``sda`` are the wired AND of the design's and the devices' drivers.
+    ``wake_at`` is the cycle at which the models next want to run with
     no pin change; ``wake`` is high in it.
     """
     def __init__(self, dut, *, spi=None, i2c=None, int_pin=None):
@@ -168,6 +169,13 @@ class SimSetup:
     delay_scale: float = 1e-3
     odr_scale: float = 0.2
     mag_power_down_s: float = 100e-6       # the driver's AK8963 power-down wait
+
+    @staticmethod
+    def default_odr_scale(config):
+        """The sample-period scale ``simulate`` and ``report`` use for ``config``: 0.2 with SPI
+        up to 1 kHz; 1 (real time) with I2C, whose 400 kHz bus needs ~0.66 ms per nine-axis
+        read, and at rates above 1 kHz, whose periods are short already."""
+        return 0.2 if config.wiring == "spi" and config.output_data_rate <= 1000 else 1.0
 
     @property
     def sample_period_s(self):
@@ -368,7 +376,7 @@ def sample_read_cycles(result, setup):
 class CoreRun:
     """What ``run_core`` saw: every engine result (``Attitude`` dicts, in order), the cycle of
     each, the data-ready (INT) edge before each, the frames the UART carried (decoded), the
-    core's counters and driver status at the end, and the model."""
+    core's counters and driver status at the end, the model and the core."""
     results: List[dict]
     result_cycles: List[int]
     int_cycles: List[int]
@@ -379,21 +387,27 @@ class CoreRun:
     wall_s: float
     model: Optional[MPU9250Model]
     asa: List[int] = field(default_factory=list)
+    core: Optional[Elaboratable] = None
 
     def latencies_us(self, clk_freq):
         """Data-ready edge (INT at the pin) to the result leaving the engine, per result."""
         return [(r - i) / clk_freq * 1e6 for r, i in zip(self.result_cycles, self.int_cycles)]
 
 
-def run_core(setup=None, *, n_results, model=None, max_cycles=None, baud=921_600,
-             core_kwargs=None, vcd=None):
+def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycles=None,
+             baud=921_600, core_kwargs=None, writes=(), vcd=None):
     """The whole ``AHRSCore`` (driver, engine, telemetry) against the models until the engine
-    has produced ``n_results`` results. Each result is recorded as it leaves the engine (the
-    telemetry scheduler takes every one) with the cycle of the INT edge that announced its
-    sample, so ``CoreRun.latencies_us`` is the data-ready-to-attitude latency."""
+    has produced ``n_results`` results and the UART has carried ``n_frames`` frames (either
+    may be None). Each result is recorded as it leaves the engine (the telemetry scheduler
+    takes every one) with the cycle of the INT edge that announced its sample, so
+    ``CoreRun.latencies_us`` is the data-ready-to-attitude latency. ``writes``: (address,
+    value) register writes through the ``cfg`` port at the start."""
     from ..hdl.top import AHRSCore
-    from .telemetry import decode_frames
+    from .streams import stream_put
+    from .telemetry import FrameDecoder
     from .uart import attach_uart_receiver
+    if n_results is None and n_frames is None:
+        raise ValueError("run_core needs n_results or n_frames")
     setup = setup or SimSetup()
     core = AHRSCore(clk_freq=setup.clk_freq, config=setup.config, timing=setup.driver_timing(),
                     baud=baud, **(core_kwargs or {}))
@@ -401,26 +415,38 @@ def run_core(setup=None, *, n_results, model=None, max_cycles=None, baud=921_600
     if max_cycles is None:
         period = setup.sample_period_s * setup.clk_freq
         fe = core.frontend.driver
+        frame_s = 10 * core.framer.frame_bytes / baud * core.telemetry_divider
+        samples = max(n_results or 0, (n_frames or 0) * max(1, frame_s / setup.sample_period_s))
         max_cycles = int(3 * (fe.power_up_cycles + fe.reset_cycles) + 40 * period + 40_000 +
-                         (n_results + 3) * period * 1.5)
+                         (samples + 3) * period * 1.5)
     harness = CosimHarness(core, spi=core.imu, int_pin=core.imu_int)
     sim = Simulator(harness)
     sim.add_clock(1 / setup.clk_freq)
     attach_mpu9250(sim, model, harness, setup.clk_freq)
     received = bytearray()
     attach_uart_receiver(sim, core.uart_tx, core.uart.divisor, received)
-    out = {"results": [], "cycles": [], "ints": [], "end": None}
+    out = {"results": [], "cycles": [], "ints": [], "frames": [], "end": None}
     results = core.engine.results
+    decoder = FrameDecoder()
+
+    def more_wanted():
+        out["frames"] += [f for _, f in decoder.feed(received)]
+        received.clear()
+        return (len(out["results"]) < (n_results or 0) or
+                len(out["frames"]) < (n_frames or 0))
 
     async def testbench(ctx):
+        for addr, value in writes:
+            await stream_put(ctx, core.cfg, {"addr": addr, "data": value})
         last_int = None
         level = 0
         period = 1 / setup.clk_freq
-        while len(out["results"]) < n_results:
+        while more_wanted():
             cycle = ctx.get(harness.cycle)
             if cycle >= max_cycles:
-                raise TimeoutError(f"{len(out['results'])} of {n_results} results after "
-                                   f"{cycle} cycles; status {to_python(ctx.get(core.status))}")
+                raise TimeoutError(f"{len(out['results'])} results, {len(out['frames'])} "
+                                   f"frames after {cycle} cycles; status "
+                                   f"{to_python(ctx.get(core.status))}")
             pin = ctx.get(core.imu_int)
             if pin and not level:
                 last_int = cycle
@@ -448,7 +474,7 @@ def run_core(setup=None, *, n_results, model=None, max_cycles=None, baud=921_600
     else:
         sim.run()
     wall = time.perf_counter() - start
+    more_wanted()                       # the bytes that came after the last look
     cycles, counters, status, asa = out["end"]
-    frames = [f for _, f in decode_frames(bytes(received))]
-    return CoreRun(out["results"], out["cycles"], out["ints"], frames, counters, status, cycles,
-                   wall, model, asa)
+    return CoreRun(out["results"], out["cycles"], out["ints"], out["frames"], counters, status,
+                   cycles, wall, model, asa, core)

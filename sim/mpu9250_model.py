@@ -392,16 +392,14 @@ class MPU9250Model:
             self._sdo_old, self.sdo_change_at = self._sdo_new, None
         return self._sdo_old if self.sdo_change_at is not None else self._sdo_new
 
-    @property
-    def miso(self):
-        return self.sdo_at(self.now)
-
     def _drive_sdo(self, t, bit, delay):
-        self._sdo_old = self.sdo_at(t)
+        """SDO shows ``bit`` ``delay`` after ``t``; until then, what it showed at ``t``."""
+        old = self.sdo_at(t)
         self._sdo_new = bit
-        self.sdo_change_at = t + delay if bit != self._sdo_old else None
-        if delay == 0:
+        if delay == 0 or bit == old:
             self._sdo_old, self.sdo_change_at = bit, None
+        else:
+            self._sdo_old, self.sdo_change_at = old, t + delay
 
     def cs_edge(self, t, cs_n):
         """Chip select changed to ``cs_n`` at time ``t``."""

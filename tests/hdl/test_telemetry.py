@@ -7,11 +7,11 @@ from amaranth.lib import data
 from amaranth.sim import Simulator
 
 from mpu9250_ahrs.hdl.telemetry import CRC, SYNC, SensorFrame, TelemetryFramer
-from mpu9250_ahrs.hdl.top import AHRSCore
 from mpu9250_ahrs.hdl.uart_tx import UARTTransmitter
 from mpu9250_ahrs.reference.fixed_point import attitude_fixed
 from mpu9250_ahrs.sim.attitude_bench import EngineRun, first_mismatch
-from mpu9250_ahrs.sim.cosim import CosimHarness, SimSetup, attach_mpu9250, sample_matches
+from mpu9250_ahrs.sim.cosim import SimSetup, sample_matches
+from mpu9250_ahrs.sim.cosim import run_core as cosim_run_core
 from mpu9250_ahrs.sim.streams import stream_put
 from mpu9250_ahrs.sim.telemetry import FrameDecoder, FrameError, decode_frames, unpack
 from mpu9250_ahrs.sim.uart import attach_uart_receiver
@@ -118,38 +118,12 @@ def test_decoder_resynchronises_and_rejects_bad_crc():
 
 
 def run_core(setup, n_frames, *, baud, max_cycles, vcd=None, writes=(), **core_kw):
-    """Model -> core -> UART -> decoder until ``n_frames`` frames came; (core, model, frames,
-    asa). ``writes``: (address, value) register writes through ``cfg`` at the start."""
-    core = AHRSCore(clk_freq=setup.clk_freq, config=setup.config,
-                    timing=setup.driver_timing(), baud=baud, **core_kw)
-    harness = CosimHarness(core, spi=core.imu, int_pin=core.imu_int)
-    model = setup.model(magnetometer=setup.config.magnetometer)
-    sim = Simulator(harness)
-    sim.add_clock(1 / setup.clk_freq)
-    attach_mpu9250(sim, model, harness, setup.clk_freq)
-    received = bytearray()
-    attach_uart_receiver(sim, core.uart_tx, core.uart.divisor, received)
-    frames = []
-    asa = []
-
-    async def tb(ctx):
-        for addr, value in writes:
-            await stream_put(ctx, core.cfg, {"addr": addr, "data": value})
-        while len(frames) < n_frames:
-            await ctx.tick().repeat(1000)
-            frames[:] = [f for _, f in decode_frames(received)]
-            assert ctx.get(harness.cycle) < max_cycles, f"only {len(frames)} frames"
-        asa[:] = [ctx.get(core.asa[i]) for i in range(3)]
-    sim.add_testbench(tb)
-    path = vcd and vcd()
-    if path:
-        with sim.write_vcd(path, path.replace(".vcd", ".gtkw"),
-                           traces=[core.imu.cs_n, core.imu.sclk, core.imu_int, core.uart_tx]):
-            sim.run()
-    else:
-        sim.run()
-    assert model.violations == []
-    return core, model, frames, asa
+    """Model -> core -> UART -> decoder until ``n_frames`` frames came (``sim.cosim.run_core``)
+    and no protocol violation; (core, model, frames, asa)."""
+    run = cosim_run_core(setup, n_frames=n_frames, baud=baud, max_cycles=max_cycles,
+                         core_kwargs=core_kw, writes=writes, vcd=vcd and vcd())
+    assert run.model.violations == []
+    return run.core, run.model, run.frames, run.asa
 
 
 def model_reference(core, model, n, asa, select):
