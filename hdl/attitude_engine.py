@@ -19,7 +19,9 @@ Interface
         it is loaded (12 cycles), then acknowledged.
     ``asa`` (in, 3 × 8 bits): the AK8963's fuse-ROM sensitivity bytes (from the driver).
     ``cfg`` (in, stream of ``ConfigWrite``): register writes (``attitude_program`` has the
-        map); accepted while the engine is idle. ``CONTROL_ADDR`` (0xFF) is the control
+        map); accepted while the engine is idle. Only ``HOST_WRITABLE`` addresses are written:
+        a write to a constant or to the filter state is taken, ignored and counted in
+        ``cfg_refused`` (out, 16, saturating). ``CONTROL_ADDR`` (0xFF) is the control
         register: bits 1:0 select the filter (0 Kalman, 1 complementary, 2 flagship), bit 2
         resets the filter state; selecting another filter makes the next sample a first one.
     ``cfg_read`` (in, stream of 8-bit addresses) / ``cfg_read_data`` (out, stream of signed
@@ -44,8 +46,8 @@ from ..reference.fixed_point import (INV_GAIN_Q30, CalibrationFixed, FilterRates
 from ..reference.flagship_fixed import FlagshipFixedConfig
 from .alu import ALU
 from .attitude_isa import REG_BITS, REG_COUNT, Cond, Flag, Instr, Op
-from .attitude_program import (FILTER_CODES, LOAD_BASE, LOAD_ORDER, REGS, build_program,
-                               config_init, load_words)
+from .attitude_program import (FILTER_CODES, HOST_WRITABLE, LOAD_BASE, LOAD_ORDER, REGS,
+                               build_program, config_init, load_words)
 from .host_port import HostPort
 from .multiply_accumulate import MultiplyAccumulate
 from .cordic import CORDIC
@@ -111,6 +113,7 @@ class AttitudeEngine(wiring.Component):
             "cfg_read_data": Out(stream.Signature(signed(32))),
             "results": Out(stream.Signature(Attitude)),
             "busy": Out(1),
+            "cfg_refused": Out(16),
         })
 
     def elaborate(self, platform):
@@ -119,12 +122,13 @@ class AttitudeEngine(wiring.Component):
         m.submodules.divider = divider = Divider()
         m.submodules.alu = alu = ALU()
         m.submodules.mac = mac = MultiplyAccumulate(self.multiplier)
-        m.submodules.host = host = HostPort(self.filter_at_reset)
+        m.submodules.host = host = HostPort(self.filter_at_reset, writable=HOST_WRITABLE)
         m.submodules.regfile = rf = self.regfile
         m.submodules.rom = rom = self.rom
         wiring.connect(m, wiring.flipped(self.cfg), host.cfg)
         wiring.connect(m, wiring.flipped(self.cfg_read), host.cfg_read)
         wiring.connect(m, host.cfg_read_data, wiring.flipped(self.cfg_read_data))
+        m.d.comb += self.cfg_refused.eq(host.refused)
 
         # -- sequencer state ------------------------------------------------------------------
         fetch_pc = Signal(range(len(self.program) + 1))
@@ -280,7 +284,9 @@ class AttitudeEngine(wiring.Component):
 
         with m.FSM():
             with m.State("IDLE"):
-                with m.If(init_pending):
+                # a reset waits until the last result is taken: the result is snooped from the
+                # state registers the reset writes, and must hold still while it is valid
+                with m.If(init_pending & ~result_valid):
                     start(self.entry["init"])
                     m.d.sync += [init_pending.eq(0), running_init.eq(1)]
                     m.next = "RUN"

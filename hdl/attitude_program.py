@@ -12,7 +12,7 @@ Register map (32-bit words; the host writes the run-time registers through the e
 =======  ==============  =========================================================  ===========
 address  name            meaning, format                                            reset value
 =======  ==============  =========================================================  ===========
-0x00     ZERO            constant 0 (do not write)                                  0
+0x00     ZERO            constant 0 (read-only to the host)                         0
 0x01     RATE            BAM per gyro count per period, Q14 (see FIXED_POINT.md)    from dt
 0x02     T               sample period, Q0.24 s                                     from dt
 0x03     Q_ANGLE         Kalman Q angle, Q8.24 deg²                                 0.2
@@ -21,14 +21,14 @@ address  name            meaning, format                                        
 0x06     P0              initial covariance diagonal, Q8.24                         1.0
 0x07     BIAS_SCALE      360·LSB_per_dps/2¹⁶, Q8.24                                 from LSB
 0x08     ONE_MINUS_A     complementary filter 1 − a, Q0.24                          0.02
-0x09     INV_GAIN        1/K of the CORDIC, Q1.30 (do not write)                    0.607…
+0x09     INV_GAIN        1/K of the CORDIC, Q1.30 (read-only to the host)           0.607…
 0x0A-0C  GYRO_OFF x,y,z  gyro offset, counts                                        0
 0x0D-0F  ACC_OFF x,y,z   accelerometer offset, counts                               0
 0x10-12  ACC_SCALE       accelerometer scale, Q2.14                                 1.0
 0x13-15  HARD x,y,z      hard-iron offset, counts, body axes, after ASA             0
 0x16-1E  SOFT            soft-iron matrix, row-major, Q2.14                         identity
 0x1F     SHL8            2²²: a MUL by it with shift 14 is a left shift by 8        2²²
-                         (do not write)
+                         (read-only to the host)
 0x70     K_RAD           flagship: T / LSB_per_rad · 2⁴⁴ (v = (ω−b)·K_RAD >> 30)    from dt
 0x71-75  A_DET, A_REST,  flagship low-pass gains 1 − exp(−T/τ), Q0.30 (τ = 0.5 s,   from dt
          A_ACC, A_MAG,   tau_rest, tau_acc, tau_mag, min(tau_mag, 0.2 s))
@@ -54,8 +54,10 @@ address  name            meaning, format                                        
 =======  ==============  =========================================================  ===========
 
 From 0x20 (``REGS``): the loader's inputs, the filters' state, working registers and more
-constants (``SHL12``, ``SHL15``, ``ONE``, ``HALF`` ...: reset values that no program writes; do
-not write them either); the host need not know them. Reading back works for every word.
+constants (``SHL12``, ``SHL15``, ``ONE``, ``HALF`` ...: reset values that no program writes); the
+host need not know them. Reading back works for every word; writing works for the run-time
+registers above and CONTROL only (``HOST_WRITABLE``): a write anywhere else is refused and
+counted (the engine's ``cfg_refused``, carried in attitude frames).
 """
 
 from dataclasses import dataclass
@@ -65,7 +67,7 @@ from .attitude_isa import Q14, Q24, Q30, REG_COUNT, Assembler, Cond, Flag
 from .flagship_microcode import FLAGSHIP_REGISTERS, flagship_names, flagship_routine
 
 
-__all__ = ["CONFIG_REGS", "CONTROL_ADDR", "TELEMETRY_DIV_ADDR", "REGS", "FILTERS",
+__all__ = ["CONFIG_REGS", "CONTROL_ADDR", "TELEMETRY_DIV_ADDR", "HOST_WRITABLE", "HOST_READ_ONLY", "REGS", "FILTERS",
            "FILTER_CODES", "FilterRoutine",
            "LOAD_BASE", "LOAD_ORDER", "TEMPS", "CONSTANTS", "build_program", "config_init",
            "load_words", "control_word"]
@@ -104,6 +106,12 @@ CONFIG_REGS = {
     "TELEMETRY_DIV": 0xFE,
 }
 TELEMETRY_DIV_ADDR = CONFIG_REGS["TELEMETRY_DIV"]
+# What the host may write: the run-time registers and CONTROL. The constants in the map (ZERO,
+# INV_GAIN, SHL8) and everything from 0x20 (inputs, filter state, working registers, more
+# constants) are read-only to the host: a write there would silently break the arithmetic.
+HOST_READ_ONLY = ("ZERO", "INV_GAIN", "SHL8")
+HOST_WRITABLE = frozenset({a for name, a in CONFIG_REGS.items() if name not in HOST_READ_ONLY} |
+                          {CONTROL_ADDR})
 
 
 def _allocate():

@@ -19,11 +19,15 @@ class HostPort(wiring.Component):
 
     Parameters
         ``filter_at_reset``: the filter select code after reset.
+        ``writable``: the addresses a host may write (``CONTROL_ADDR`` among them), or None for
+            every address. The others (constants, filter state, working registers) are read
+            only to the host: a write to one is taken, changes nothing, and is counted.
     Members
         ``cfg`` (in, stream of ``ConfigWrite``): a write per transfer, taken in one cycle while
             ``open``. ``CONTROL_ADDR`` sets ``select`` (bits 1:0) and, with bit 2, pulses
             ``reset``; another filter than the present one pulses ``switched``. Any other
-            address writes the register file.
+            writable address writes the register file.
+        ``refused`` (out, 16): writes refused since reset (saturating at 65535).
         ``cfg_read`` (in, stream of addresses) / ``cfg_read_data`` (out, stream of signed 32):
             a read per transfer, taken while ``open`` and no read is outstanding; the word
             comes one cycle later (``CONTROL_ADDR`` reads ``select``) and is held until taken.
@@ -33,8 +37,9 @@ class HostPort(wiring.Component):
         ``select`` (out, 2): the filter select; ``reset``, ``switched`` (out): one-cycle pulses.
     """
 
-    def __init__(self, filter_at_reset=0):
+    def __init__(self, filter_at_reset=0, writable=None):
         self.filter_at_reset = filter_at_reset
+        self.writable = None if writable is None else frozenset(writable)
         super().__init__({
             "cfg": In(stream.Signature(ConfigWrite)),
             "cfg_read": In(stream.Signature(REG_BITS)),
@@ -43,13 +48,22 @@ class HostPort(wiring.Component):
             "w_en": Out(1), "w_addr": Out(REG_BITS), "w_data": Out(signed(32)),
             "r_en": Out(1), "r_addr": Out(REG_BITS), "r_data": In(signed(32)),
             "select": Out(2, init=filter_at_reset), "reset": Out(1), "switched": Out(1),
+            "refused": Out(16),
         })
 
     def elaborate(self, platform):
         m = Module()
         write = self.cfg.payload
         m.d.comb += self.cfg.ready.eq(self.open)
-        with m.If(self.cfg.valid & self.open):
+        allowed = Signal(init=1)
+        if self.writable is not None:
+            # a 256-entry decode of the address (one LUT tree), not a comparator per address
+            m.d.comb += allowed.eq(Const(sum(1 << a for a in self.writable), 256)
+                                   .bit_select(write.addr, 1))
+        with m.If(self.cfg.valid & self.open & ~allowed):
+            with m.If(self.refused != 0xFFFF):
+                m.d.sync += self.refused.eq(self.refused + 1)
+        with m.Elif(self.cfg.valid & self.open):
             with m.If(write.addr == CONTROL_ADDR):
                 new = write.data[:2]
                 m.d.sync += self.select.eq(new)

@@ -7,10 +7,13 @@ Interface
         (WRITE: the device acknowledged), ``error`` (the operation failed: see below).
     ``pins``: ``scl_oe``/``sda_oe`` (1 = pull the line low; never driven high), ``scl_i``/``sda_i``
         (line levels, raw: synchronised here).
-    ``status``: ``timeout``, ``bus_stuck``, ``arbitration`` (sticky since reset) and
-        ``recoveries`` (stuck-bus recoveries done, saturating).
+    ``status``: ``timeout``, ``bus_stuck``, ``arbitration``: the last failure, set by the
+        operation that failed and cleared by the next START that gets the bus; ``recoveries``
+        (stuck-bus recoveries done since reset, saturating at 15).
 
-Errors (the controller then releases both lines and forgets the bus)
+Errors (the controller then releases both lines and forgets the bus; before its next START it
+waits for SCL to be released, at most ``timeout``, and sends a START and a STOP, which puts a
+device cut off mid-transfer back to idle)
     - time-out: SCL held low by a device (clock stretching) longer than ``timeout``;
     - stuck bus: SDA low before a START and still low after nine recovery clocks;
     - arbitration: SDA read low while the controller sent a 1 (another driver on the bus).
@@ -120,9 +123,12 @@ class I2CController(wiring.Component):
                          res.payload.data.eq(rx)]
             m.next = "IDLE"
 
+        aborted = Signal()          # the last transfer was cut off: devices may be mid-byte
+        reset_first = Signal()      # a START-STOP goes before the next START
+
         def abort(flag):
             m.d.sync += [self.pins.scl_oe.eq(0), self.pins.sda_oe.eq(0), held.eq(0),
-                         flag.eq(1)]
+                         flag.eq(1), aborted.eq(1)]
             respond(error=1)
 
         def wait(cycles):
@@ -164,11 +170,9 @@ class I2CController(wiring.Component):
                                 m.d.sync += self.pins.sda_oe.eq(0)
                                 wait(t.low)
                                 m.next = "RS_LOW"
-                            with m.Elif(~sda):
-                                m.d.sync += recover.eq(0)
-                                m.next = "REC"
                             with m.Else():
-                                m.next = "START_A"
+                                m.d.sync += timer.eq(t.timeout - 1)
+                                m.next = "START_IDLE"
                         with m.Case(I2COp.STOP):
                             with m.If(held):
                                 wait(t.low // 2)
@@ -187,13 +191,35 @@ class I2CController(wiring.Component):
                             m.next = "BIT_HOLD"
 
             # -- START on an idle bus: SDA falls while SCL is high ------------------------------
+            with m.State("START_IDLE"):
+                # A device may still hold SCL low (stretching past a time-out that aborted the
+                # last transfer): wait for it, as long as a time-out. After an abort a device
+                # may be mid-transfer: a START and a STOP first put every device back to idle.
+                m.d.sync += timer.eq(timer - 1)
+                with m.If(scl & ~sda):
+                    m.d.sync += recover.eq(0)
+                    m.next = "REC"
+                with m.Elif(scl):
+                    with m.If(aborted):
+                        m.d.sync += [aborted.eq(0), reset_first.eq(1)]
+                    m.next = "START_A"
+                with m.Elif(timer == 0):
+                    abort(self.status.timeout)
             with m.State("START_A"):
                 m.d.sync += self.pins.sda_oe.eq(1)
                 wait(t.high)
                 m.next = "START_B"
             with timed("START_B"):
                 m.d.sync += [self.pins.scl_oe.eq(1), held.eq(1)]
-                respond()
+                with m.If(reset_first):
+                    # the START of a START-STOP that resets the devices; then the real START
+                    m.d.sync += [reset_first.eq(0), then_start.eq(1)]
+                    wait(t.low // 2)
+                    m.next = "STOP_HOLD"
+                with m.Else():
+                    m.d.sync += [self.status.timeout.eq(0), self.status.bus_stuck.eq(0),
+                                 self.status.arbitration.eq(0)]
+                    respond()
 
             # -- repeated START: SCL up with SDA released, set-up time, then a START ------------
             clock_up("RS", "RS_SETUP", t.low)

@@ -30,15 +30,24 @@ one well-known drivers use:
     I2C wiring: the same without I2C_IF_DIS, and with the AK8963 reached directly at 0x0C
     after INT_PIN_CFG.BYPASS_EN (I2C master off).
 
-Failures: a wrong WHO_AM_I or an MPU9250 that does not acknowledge (I2C) sets a flag and
-restarts from the power-up wait (the retry delay); no interrupt within ``int_timeout_s`` does
-the same. A magnetometer failure (NACK, wrong WIA, SLV4 time-out) sets its flag and skips the
-rest of the magnetometer set-up: accel/gyro samples flow on with ``mag_valid`` = 0.
+Failures (the whole catalogue, with detection times: ``hdl/FAULTS.md``): a wrong WHO_AM_I or
+an MPU9250 that does not acknowledge (I2C) sets a flag and restarts from the power-up wait (the
+retry delay); so do no interrupt within the time-out and ``BAD_BURST_LIMIT`` sample bursts in a
+row that fail their checks (a stuck data line, a read that fails on the bus). A magnetometer
+failure (NACK, wrong WIA, SLV4 time-out) sets its flag and skips the rest of the magnetometer
+set-up: accel/gyro samples flow on with ``mag_valid`` = 0. While streaming, a magnetometer that
+gives no new field for ``mag_timeout_s`` is flagged stale and set up again between samples.
 
 Streaming: on each rising edge of the active INT level, read INT_STATUS through GYRO_ZOUT_L and
 the eight AK8963 bytes (ST1..ST2): one fast SPI burst of 23 bytes from INT_STATUS (SPI wiring:
 they sit in EXT_SENS_DATA_00..07), or two I2C reads (I2C wiring). Reading INT_STATUS clears a
 latched interrupt; reading ST2 releases the AK8963's data registers.
+
+Two blocks share the register port: the bring-up sequencer (``hdl/bring_up_sequencer.py``: the
+program, one step at a time) and the sample reader (``hdl/sample_reader.py``: a burst per
+data-ready edge, its checks, the sample). The reader asks the sequencer for a restart (no
+data-ready, bad bursts) or for the magnetometer's part again (no new field); the sequencer runs
+that beside the samples, a command at a time, so the accel/gyro samples never stop for it.
 """
 
 import math
@@ -46,19 +55,22 @@ from dataclasses import dataclass
 from typing import Optional, Tuple
 
 from amaranth import *
-from amaranth.lib import data, enum, stream, wiring
-from amaranth.lib.cdc import FFSynchronizer
-from amaranth.lib.wiring import In, Out
+from amaranth.lib import data, stream, wiring
+from amaranth.lib.wiring import In, Out, connect, flipped
 
-from . import ak8963_regs as A
-from .clocking import cycles
 from . import mpu9250_regs as R
+from .bring_up_sequencer import (BringUpSequencer, Fail, Op, Step, bring_up_program,
+                                 mag_setup_start)
+from .clocking import cycles
 from .register_port import RegisterPortSignature
+from .register_port_arbiter import RegisterPortArbiter
 from .sample import DriverStatus, Sample
+from .sample_reader import (BAD_BURST_LIMIT, MPU_BYTES, SAMPLE_BYTES, SampleReader,
+                            burst_is_plausible)
 
 
 __all__ = ["MPU9250Config", "DriverTiming", "Op", "Fail", "Step", "bring_up_program",
-           "MPU9250Driver"]
+           "MPU9250Driver", "BAD_BURST_LIMIT", "burst_is_plausible", "SAMPLE_BYTES", "MPU_BYTES"]
 
 
 @dataclass(frozen=True)
@@ -147,7 +159,10 @@ class DriverTiming:
     four output sample periods plus 50 ms for the gyro to wake. It also bounds each SLV4 poll.
     ``mag_power_down_s`` is the AK8963's power-down wait (not scaled). ``sample_period_s`` is
     the sensor's sample period the driver measures data-ready intervals against (``None``:
-    1/ODR; simulations that compress the sensor's period give it here).
+    1/ODR; simulations that compress the sensor's period give it here). Once samples flow, the
+    interrupt time-out is ``stream_timeout_periods`` sample periods. ``mag_timeout_s`` is how
+    long the magnetometer may go without a new field before it is flagged stale and set up
+    again (three periods of the AK8963's 100 Hz; simulations scale it with the period).
     """
     power_up_s: float = 0.100
     reset_s: float = 0.100
@@ -155,6 +170,8 @@ class DriverTiming:
     time_scale: float = 1.0
     mag_power_down_s: float = 100e-6
     sample_period_s: Optional[float] = None
+    stream_timeout_periods: int = 4
+    mag_timeout_s: float = 0.030
 
     def period_cycles(self, clk_freq, config):
         period = self.sample_period_s or 1 / config.output_data_rate
@@ -167,114 +184,27 @@ class DriverTiming:
         return (cycles(self.power_up_s * self.time_scale, clk_freq),
                 cycles(self.reset_s * self.time_scale, clk_freq), cycles(timeout, clk_freq))
 
-
-class Op(enum.Enum, shape=3):
-    WAIT   = 0      # arg cycles
-    WRITE  = 1      # reg <- value
-    CHECK  = 2      # read reg; must be one of the check's values
-    STORE  = 3      # read reg into asa[value]
-    POLL   = 4      # read reg until (byte & value) != 0; fails on (byte & mask) or time-out
-    MARK   = 5      # status.mag_ok <- 1
-    STREAM = 6
-
-
-class Fail(enum.Enum, shape=1):
-    RESTART = 0     # MPU9250 problem: flag it and run the program again from the start
-    MAG     = 1     # magnetometer problem: flag it and jump to the end of the magnetometer part
-
-
-@dataclass(frozen=True)
-class Step:
-    op: Op
-    device: int = 0             # 0 = MPU9250, 1 = AK8963 directly (I2C wiring)
-    reg: int = 0
-    value: int = 0
-    mask: int = 0
-    wait: int = 0
-    fail: Fail = Fail.RESTART
-    check: str = ""             # "who_am_i" or "wia"
-
-
-def bring_up_program(config, power_up_cycles, reset_cycles, mag_wait_cycles):
-    """The bring-up sequence for ``config.wiring``, as a list of ``Step`` (the driver's ROM)."""
-    spi = config.wiring == "spi"
-    steps = [Step(Op.WAIT, wait=power_up_cycles)]
-    if spi:
-        steps.append(Step(Op.WRITE, reg=R.USER_CTRL, value=R.USER_CTRL_I2C_IF_DIS))
-    steps += [Step(Op.WRITE, reg=R.PWR_MGMT_1, value=R.PWR_MGMT_1_H_RESET),
-              Step(Op.WAIT, wait=reset_cycles)]
-    if spi:
-        steps.append(Step(Op.WRITE, reg=R.USER_CTRL, value=R.USER_CTRL_I2C_IF_DIS))
-    steps += [Step(Op.WRITE, reg=R.PWR_MGMT_1, value=R.PWR_MGMT_1_CLKSEL_AUTO),
-              Step(Op.CHECK, reg=R.WHO_AM_I, check="who_am_i")]
-    steps += [Step(Op.WRITE, reg=reg, value=value) for reg, value in config.sensor_writes()]
-
-    if config.magnetometer:
-        mag = []
-
-        def mag_write(reg, value):
-            if spi:
-                mag.extend([Step(Op.WRITE, reg=R.I2C_SLV4_ADDR, value=A.I2C_ADDRESS),
-                            Step(Op.WRITE, reg=R.I2C_SLV4_REG, value=reg),
-                            Step(Op.WRITE, reg=R.I2C_SLV4_DO, value=value),
-                            Step(Op.WRITE, reg=R.I2C_SLV4_CTRL, value=R.I2C_SLV_EN),
-                            Step(Op.POLL, reg=R.I2C_MST_STATUS, value=R.I2C_MST_STATUS_SLV4_DONE,
-                                 mask=R.I2C_MST_STATUS_SLV4_NACK, fail=Fail.MAG)])
-            else:
-                mag.append(Step(Op.WRITE, device=1, reg=reg, value=value, fail=Fail.MAG))
-
-        def mag_read(op, reg, **kw):
-            if spi:
-                mag.extend([Step(Op.WRITE, reg=R.I2C_SLV4_ADDR,
-                                 value=R.I2C_SLV_RNW | A.I2C_ADDRESS),
-                            Step(Op.WRITE, reg=R.I2C_SLV4_REG, value=reg),
-                            Step(Op.WRITE, reg=R.I2C_SLV4_CTRL, value=R.I2C_SLV_EN),
-                            Step(Op.POLL, reg=R.I2C_MST_STATUS, value=R.I2C_MST_STATUS_SLV4_DONE,
-                                 mask=R.I2C_MST_STATUS_SLV4_NACK, fail=Fail.MAG),
-                            Step(op, reg=R.I2C_SLV4_DI, fail=Fail.MAG, **kw)])
-            else:
-                mag.append(Step(op, device=1, reg=reg, fail=Fail.MAG, **kw))
-
-        if spi:
-            wait_es = R.I2C_MST_CTRL_WAIT_FOR_ES if config.aux_every == 1 else 0
-            mag += [Step(Op.WRITE, reg=R.USER_CTRL,
-                         value=R.USER_CTRL_I2C_IF_DIS | R.USER_CTRL_I2C_MST_EN),
-                    Step(Op.WRITE, reg=R.I2C_MST_CTRL, value=wait_es | R.I2C_MST_CLK_400KHZ)]
-        else:
-            mag += [Step(Op.WRITE, reg=R.USER_CTRL, value=0x00),
-                    Step(Op.WRITE, reg=R.INT_PIN_CFG, value=R.INT_PIN_CFG_BYPASS_EN)]
-        mag_read(Op.CHECK, A.WIA, check="wia")
-        mag_write(A.CNTL2, A.CNTL2_SRST)
-        mag_write(A.CNTL1, A.MODE_FUSE_ROM)
-        for axis in range(3):
-            mag_read(Op.STORE, A.ASAX + axis, value=axis)
-        mag_write(A.CNTL1, A.MODE_POWER_DOWN)
-        mag.append(Step(Op.WAIT, wait=mag_wait_cycles))
-        mag_write(A.CNTL1, A.CNTL1_BIT_16 | A.MODE_CONT_100HZ)
-        if spi:
-            mag += [Step(Op.WRITE, reg=R.I2C_SLV_ADDR[0], value=R.I2C_SLV_RNW | A.I2C_ADDRESS),
-                    Step(Op.WRITE, reg=R.I2C_SLV_ADDR[0] + 1, value=A.ST1),
-                    Step(Op.WRITE, reg=R.I2C_SLV_ADDR[0] + 2,
-                         value=R.I2C_SLV_EN | A.SAMPLE_BYTES)]
-            if config.aux_every > 1:
-                mag += [Step(Op.WRITE, reg=R.I2C_SLV4_CTRL, value=config.aux_every - 1),
-                        Step(Op.WRITE, reg=R.I2C_MST_DELAY_CTRL,
-                             value=R.I2C_MST_DELAY_CTRL_DELAY_ES_SHADOW |
-                             R.I2C_MST_DELAY_CTRL_SLV0_DLY_EN)]
-        mag.append(Step(Op.MARK))
-        steps += mag
-
-    steps += [Step(Op.WRITE, reg=R.INT_PIN_CFG, value=config.int_pin_cfg),
-              Step(Op.WRITE, reg=R.INT_ENABLE, value=R.INT_ENABLE_RAW_RDY),
-              Step(Op.STREAM)]
-    return steps
-
-
-SAMPLE_BYTES = 1 + R.SENSOR_BYTES + A.SAMPLE_BYTES   # INT_STATUS, accel/temp/gyro, ST1..ST2
-_MPU_BYTES = 1 + R.SENSOR_BYTES
+    def mag_timeout_periods(self, config):
+        """``mag_timeout_s`` in whole sample periods (at least two)."""
+        period = self.sample_period_s or 1 / config.output_data_rate
+        return max(2, math.ceil(self.mag_timeout_s / period - 1e-9))
 
 
 class MPU9250Driver(wiring.Component):
+    """See the module docstring. Parameters: ``clk_freq``, ``config`` (``MPU9250Config``),
+    ``timing`` (``DriverTiming``). Members: ``port``, ``int_pin``, ``samples``, ``status``,
+    ``asa``; and at elaboration time ``program`` (the bring-up steps), ``power_up_cycles``,
+    ``reset_cycles``, ``timeout_cycles``, ``stream_timeout_cycles``, ``period_cycles``,
+    ``mag_timeout_periods``.
+
+    Inside: a ``BringUpSequencer`` and a ``SampleReader`` share the register port through a
+    ``RegisterPortArbiter`` (the reader first, a command at a time).
+
+    Latency: a sample leaves the driver a few cycles after its burst ends
+    (``sensor_frontend.sample_read_cycles`` bounds data-ready to sample); while the magnetometer
+    is set up again, one sequencer command (at most a slow two-byte transaction) may come first.
+    Throughput: one sample per data-ready interrupt; the stream never waits on ``ready``.
+    """
     def __init__(self, *, clk_freq, config=MPU9250Config(), timing=DriverTiming()):
         self.clk_freq = clk_freq
         self.config = config
@@ -283,6 +213,8 @@ class MPU9250Driver(wiring.Component):
             timing.cycles(clk_freq, config)
         self.mag_wait_cycles = cycles(timing.mag_power_down_s, clk_freq)
         self.period_cycles = timing.period_cycles(clk_freq, config)
+        self.stream_timeout_cycles = timing.stream_timeout_periods * self.period_cycles
+        self.mag_timeout_periods = timing.mag_timeout_periods(config)
         self.program = bring_up_program(config, self.power_up_cycles, self.reset_cycles,
                                         self.mag_wait_cycles)
         super().__init__({
@@ -296,238 +228,35 @@ class MPU9250Driver(wiring.Component):
     def elaborate(self, platform):
         m = Module()
         cfg = self.config
-        program = self.program
-        skip_mag = next((i for i, s in enumerate(program) if s.op == Op.MARK), 0) + 1
-
-        # -- program ROM --------------------------------------------------------------------------
-        pc = Signal(range(len(program)))
-        step_layout = data.StructLayout({
-            "op": Op, "device": 1, "reg": 8, "value": 8, "mask": 8, "fail": Fail,
-            "check_wia": 1, "wait": range(max(s.wait for s in program) + 1)})
-        step = Signal(step_layout)
-        with m.Switch(pc):
-            for index, s in enumerate(program):
-                with m.Case(index):
-                    m.d.comb += step.eq(step_layout.const({
-                        "op": s.op, "device": s.device, "reg": s.reg, "value": s.value,
-                        "mask": s.mask, "fail": s.fail, "check_wia": s.check == "wia",
-                        "wait": s.wait}))
-
-        # -- register commands --------------------------------------------------------------------
-        port = self.port
-        # reset-less: a sample is only read once all its bytes are in
-        buf = Array(Signal(8, name=f"rx{i}", reset_less=True) for i in range(SAMPLE_BYTES))
-        rx_index = Signal(range(SAMPLE_BYTES + 1))
-        m.d.comb += [port.rx.ready.eq(1), port.rsp.ready.eq(1)]
-        with m.If(port.rx.valid & (rx_index < SAMPLE_BYTES)):
-            m.d.sync += [buf[rx_index].eq(port.rx.payload), rx_index.eq(rx_index + 1)]
-
-        def command(device, reg, *, write=0, value=0, length=1, fast=0):
-            p = port.cmd.payload
-            m.d.comb += [port.cmd.valid.eq(1), p.device.eq(device), p.reg.eq(reg),
-                         p.write.eq(write), p.data.eq(value), p.length.eq(length),
-                         p.fast.eq(fast)]
-
-        # -- interrupt ----------------------------------------------------------------------------
-        int_sync = Signal()
-        m.submodules.int_sync = FFSynchronizer(self.int_pin, int_sync)
-        int_active = Signal()
-        int_prev = Signal()
-        int_edge = Signal()
-        m.d.comb += int_active.eq(int_sync ^ int(cfg.int_active_low))
-        m.d.sync += int_prev.eq(int_active)
-        m.d.comb += int_edge.eq(int_active & ~int_prev)
-        int_pending = Signal()
-        with m.If(int_edge):
-            m.d.sync += int_pending.eq(1)
-
-        # Sensor samples missed: data-ready edges are one sample period apart; an interval of
-        # n periods (rounded: the phase starts half a period in) means n - 1 samples the sensor
-        # made and the driver never read (e.g. a latched INT still high from the sample before).
-        period = self.period_cycles
-        phase = Signal(range(period))
-        periods = Signal(4)                     # whole periods since the last edge, saturating
-        skipped = Signal(4)                     # for the sample this edge announces
-        seen_edge = Signal()                    # an edge since streaming began
-        dropped = Signal(4)                     # read but not taken (the consumer was busy)
-        with m.If(int_edge):
-            m.d.sync += [phase.eq(period // 2), periods.eq(0), seen_edge.eq(1),
-                         skipped.eq(Mux(seen_edge & (periods > 1), periods - 1, 0))]
-        with m.Elif(phase == period - 1):
-            m.d.sync += [phase.eq(0), periods.eq(Mux(periods == 15, 15, periods + 1))]
-        with m.Else():
-            m.d.sync += phase.eq(phase + 1)
-
-        timer = Signal(range(max(self.power_up_cycles, self.reset_cycles, self.mag_wait_cycles,
-                                 self.timeout_cycles) + 1))
+        mag_start = mag_setup_start(cfg)
+        assert not cfg.magnetometer or (self.program[mag_start].reg == R.USER_CTRL)
+        m.submodules.sequencer = seq = BringUpSequencer(
+            self.program, accepted_who_am_i=cfg.accepted_who_am_i, mag_start=mag_start,
+            poll_cycles=self.timeout_cycles)
+        m.submodules.reader = reader = SampleReader(
+            wiring=cfg.wiring, int_active_low=cfg.int_active_low,
+            magnetometer=cfg.magnetometer, period_cycles=self.period_cycles,
+            first_timeout_cycles=self.timeout_cycles, timeout_cycles=self.stream_timeout_cycles,
+            mag_timeout_periods=self.mag_timeout_periods)
+        m.submodules.arbiter = arbiter = RegisterPortArbiter()
+        connect(m, reader.port, arbiter.first)
+        connect(m, seq.port, arbiter.second)
+        connect(m, arbiter.port, flipped(self.port))
+        connect(m, reader.samples, flipped(self.samples))
         status = self.status
-        counter = Signal(16)
-        overrun = Signal()
-        last = buf[0]
-
-        with m.If(self.samples.valid & self.samples.ready):
-            m.d.sync += self.samples.valid.eq(0)
-
-        def restart():
-            m.d.sync += [pc.eq(0), status.streaming.eq(0), status.mag_ok.eq(0),
-                         int_pending.eq(0)]
-            with m.If(status.retries != 15):
-                m.d.sync += status.retries.eq(status.retries + 1)
-            m.next = "FETCH"
-
-        def fail(absent):
-            """The current step failed: ``absent`` = no acknowledge / time-out, else a bad value."""
-            with m.If(step.fail == Fail.MAG):
-                m.d.sync += [pc.eq(skip_mag), status.mag_absent.eq(absent),
-                             status.mag_wia_error.eq(~absent)]
-                m.next = "FETCH"
-            with m.Else():
-                with m.If(absent):
-                    m.d.sync += [status.no_response.eq(1), status.whoami_error.eq(0)]
-                restart()
-
-        def next_step():
-            m.d.sync += pc.eq(pc + 1)
-            m.next = "FETCH"
-
-        def be16(k):
-            return Cat(buf[k + 1], buf[k]).as_signed()
-
-        def le16(k):
-            return Cat(buf[k], buf[k + 1]).as_signed()
-
-        with m.FSM():
-            with m.State("FETCH"):
-                m.d.sync += rx_index.eq(0)
-                with m.Switch(step.op):
-                    with m.Case(Op.WAIT):
-                        m.d.sync += timer.eq(step.wait - 1)
-                        m.next = "WAIT"
-                    with m.Case(Op.WRITE):
-                        command(step.device, step.reg, write=1, value=step.value)
-                        with m.If(port.cmd.ready):
-                            m.next = "ACCESS"
-                    with m.Case(Op.CHECK, Op.STORE):
-                        command(step.device, step.reg)
-                        with m.If(port.cmd.ready):
-                            m.next = "ACCESS"
-                    with m.Case(Op.POLL):
-                        m.d.sync += timer.eq(self.timeout_cycles - 1)
-                        m.next = "POLL"
-                    with m.Case(Op.MARK):
-                        m.d.sync += status.mag_ok.eq(1)
-                        next_step()
-                    with m.Case(Op.STREAM):
-                        # A latched INT already high would give no edge: treat it as pending.
-                        m.d.sync += [status.streaming.eq(1), timer.eq(self.timeout_cycles - 1),
-                                     counter.eq(0), int_pending.eq(int_active),
-                                     seen_edge.eq(0), skipped.eq(0)]
-                        m.next = "STREAM"
-            with m.State("WAIT"):
-                m.d.sync += timer.eq(timer - 1)
-                with m.If(timer == 0):
-                    next_step()
-            with m.State("ACCESS"):
-                with m.If(port.rsp.valid):
-                    with m.If(port.rsp.payload.error):
-                        fail(absent=1)
-                    with m.Elif(step.op == Op.CHECK):
-                        with m.If(step.check_wia):
-                            with m.If(last == A.WIA_VALUE):
-                                next_step()
-                            with m.Else():
-                                fail(absent=0)
-                        with m.Else():
-                            good = Cat(last == v for v in cfg.accepted_who_am_i).any()
-                            m.d.sync += [status.who_am_i.eq(last),
-                                         status.whoami_error.eq(~good),
-                                         status.no_response.eq((last == 0x00) | (last == 0xFF))]
-                            with m.If(good):
-                                next_step()
-                            with m.Else():
-                                restart()
-                    with m.Elif(step.op == Op.STORE):
-                        m.d.sync += self.asa[step.value[:2]].eq(last)
-                        next_step()
-                    with m.Else():
-                        next_step()
-            with m.State("POLL"):
-                m.d.sync += rx_index.eq(0)
-                with m.If(timer != 0):
-                    m.d.sync += timer.eq(timer - 1)
-                command(step.device, step.reg)
-                with m.If(port.cmd.ready):
-                    m.next = "POLL_WAIT"
-            with m.State("POLL_WAIT"):
-                with m.If(timer != 0):
-                    m.d.sync += timer.eq(timer - 1)
-                with m.If(port.rsp.valid):
-                    with m.If(port.rsp.payload.error | (last & step.mask).any()):
-                        fail(absent=1)
-                    with m.Elif((last & step.value).any()):
-                        next_step()
-                    with m.Elif(timer == 0):
-                        fail(absent=1)
-                    with m.Else():
-                        m.next = "POLL"
-            with m.State("STREAM"):
-                m.d.sync += [timer.eq(timer - 1), rx_index.eq(0)]
-                with m.If(int_pending):
-                    command(0, R.INT_STATUS, fast=1,
-                            length=SAMPLE_BYTES if cfg.wiring == "spi" else _MPU_BYTES)
-                    with m.If(port.cmd.ready):
-                        m.d.sync += int_pending.eq(int_edge)
-                        m.next = "READ_MPU"
-                with m.Elif(timer == 0):
-                    m.d.sync += status.int_timeout.eq(1)
-                    restart()
-            with m.State("READ_MPU"):
-                with m.If(port.rsp.valid):
-                    with m.If(port.rsp.payload.error):
-                        m.d.sync += status.no_response.eq(1)
-                        restart()
-                    with m.Else():
-                        m.next = "EMIT"
-                        if cfg.wiring == "i2c":     # the AK8963 is a second read on this bus
-                            with m.If(status.mag_ok):
-                                m.next = "MAG_CMD"
-            with m.State("MAG_CMD"):
-                command(1, A.ST1, length=A.SAMPLE_BYTES)
-                with m.If(port.cmd.ready):
-                    m.next = "READ_MAG"
-            with m.State("READ_MAG"):
-                with m.If(port.rsp.valid):
-                    # A lost magnetometer read leaves its bytes stale: flag, don't stop.
-                    m.next = "EMIT"
-                    with m.If(port.rsp.payload.error):
-                        m.d.sync += status.mag_absent.eq(1)
-            with m.State("EMIT"):
-                m.d.sync += [counter.eq(counter + 1), timer.eq(self.timeout_cycles - 1),
-                             status.int_timeout.eq(0)]
-                with m.If(self.samples.valid):
-                    m.d.sync += [overrun.eq(1),
-                                 dropped.eq(Mux(dropped == 15, 15, dropped + 1))]
-                with m.Else():
-                    p = self.samples.payload
-                    st1, st2 = buf[_MPU_BYTES], buf[_MPU_BYTES + 7]
-                    mag_new = status.mag_ok & st1[0]
-                    hofl = st2[3]
-                    m.d.sync += [self.samples.valid.eq(1), overrun.eq(0),
-                                 p.counter.eq(counter), dropped.eq(0),
-                                 p.skipped.eq(Mux(skipped + dropped > 15, 15,
-                                                  skipped + dropped)),
-                                 p.flags.data_ready.eq(buf[0][0]),
-                                 p.flags.overrun.eq(overrun),
-                                 p.flags.mag_new.eq(mag_new),
-                                 p.flags.mag_dor.eq(status.mag_ok & st1[1]),
-                                 p.flags.mag_overflow.eq(status.mag_ok & hofl),
-                                 p.flags.mag_valid.eq(mag_new & ~hofl),
-                                 p.temp.eq(be16(1 + 6))]
-                    for axis in range(3):
-                        m.d.sync += [p.accel[axis].eq(be16(1 + 2 * axis)),
-                                     p.gyro[axis].eq(be16(1 + 8 + 2 * axis)),
-                                     p.mag[axis].eq(Mux(status.mag_ok,
-                                                        le16(_MPU_BYTES + 1 + 2 * axis), 0))]
-                m.next = "STREAM"
-
+        m.d.comb += [
+            reader.int_pin.eq(self.int_pin),
+            reader.enable.eq(seq.streaming), reader.start.eq(seq.started),
+            reader.restarted.eq(seq.restarted), reader.mag_ok.eq(seq.mag_ok),
+            reader.mag_setup.eq(seq.mag_setup),
+            seq.restart.eq(reader.restart), seq.mag_lost.eq(reader.mag_lost),
+            seq.mag_nack.eq(reader.mag_nack),
+            self.asa.eq(seq.asa),
+            status.streaming.eq(seq.streaming), status.whoami_error.eq(seq.whoami_error),
+            status.no_response.eq(seq.no_response | reader.read_error),
+            status.int_timeout.eq(reader.int_timeout), status.restarts.eq(seq.restarts),
+            status.who_am_i.eq(seq.who_am_i), status.mag_ok.eq(seq.mag_ok),
+            status.mag_absent.eq(seq.mag_absent), status.mag_wia_error.eq(seq.mag_wia_error),
+            status.mag_stale.eq(reader.mag_stale), status.bad_burst.eq(reader.bad_burst),
+        ]
         return m

@@ -26,13 +26,15 @@ An I2C-wired MPU9250 board uses the same header: SCL on ``imu_sclk``, SDA on ``i
 ``imu_cs_n``. The ``imu_i2c`` resource names them so; ``build --wiring i2c`` requests it.
 """
 
+import re
+
 from amaranth.build import Attrs, Clock, Pins, PinsN, Resource, Subsignal
 from amaranth.vendor import AlteraPlatform
 
 from .clocking import OSCILLATOR_HZ
 
 
-__all__ = ["DEFAULT_PINOUT", "MAX10Platform"]
+__all__ = ["DEFAULT_PINOUT", "MAX10Platform", "check_pinout"]
 
 
 DEFAULT_PINOUT = {
@@ -48,6 +50,29 @@ DEFAULT_PINOUT = {
 }
 
 
+# Balls of the 169-ball UBGA: rows A..N without I, columns 1..13. (Which of them are user I/O
+# rather than power, ground or configuration balls is in Intel's pin-out file for the 10M08SC,
+# not here: Quartus's fitter refuses those.)
+_BALL = re.compile(r"[A-HJ-N](1[0-3]|[1-9])")
+
+
+def check_pinout(pinout):
+    """A pinout (name: ball) checked: known names, balls that exist on the U169 package, no
+    ball used twice. Raises ValueError with one line."""
+    unknown = set(pinout) - set(DEFAULT_PINOUT)
+    if unknown:
+        raise ValueError(f"unknown pin names {sorted(unknown)}; known: {sorted(DEFAULT_PINOUT)}")
+    for name, ball in pinout.items():
+        if not isinstance(ball, str) or not _BALL.fullmatch(ball):
+            raise ValueError(f"pin {name}={ball}: not a ball of the 169-ball UBGA (rows A-N "
+                             f"without I, columns 1-13, e.g. J1)")
+    seen = {}
+    for name, ball in pinout.items():
+        if ball in seen:
+            raise ValueError(f"pins {seen[ball]} and {name} are both on ball {ball}")
+        seen[ball] = name
+
+
 class MAX10Platform(AlteraPlatform):
     device = "10M08SC"
     package = "U169"
@@ -60,9 +85,7 @@ class MAX10Platform(AlteraPlatform):
 
     def __init__(self, *, pinout=None, toolchain="Quartus"):
         pinout = {**DEFAULT_PINOUT, **(pinout or {})}
-        unknown = set(pinout) - set(DEFAULT_PINOUT)
-        if unknown:
-            raise ValueError(f"unknown pin names {sorted(unknown)}; known: {sorted(DEFAULT_PINOUT)}")
+        check_pinout(pinout)
         self.pinout = pinout
         io = Attrs(io_standard="3.3-V LVTTL")
         self.resources = [

@@ -8,7 +8,8 @@ Interface
     ``pins``: ``SPIPinsSignature`` (SCLK, COPI, CS_n out; CIPO in, raw) or ``I2CPinsSignature``
         (SCL/SDA pull-down enables out; line levels in, raw).
     ``int_pin`` (in): sensor INT, raw.
-    ``samples`` (out, ``Sample`` stream) and ``status`` (out, ``DriverStatus``): from the driver.
+    ``samples`` (out, ``Sample`` stream) and ``status`` (out, ``DriverStatus``): from the driver;
+        with I2C wiring ``status.bus_*`` come from the I2C controller.
 
 This is the unit the simulations drive and the one ``build --verilog-only`` exports; the board
 top level adds I/O buffers around it.
@@ -35,7 +36,7 @@ def sample_read_cycles(config, clk_freq, bus_timing=None):
     setup, hold and gap), or on I2C the MPU9250 read and the AK8963 read (9 SCL periods a byte
     plus START, repeated START, STOP). ``simulate``'s measured ``sample_read_us`` stays below it
     (a test checks)."""
-    from .mpu9250_driver import SAMPLE_BYTES, _MPU_BYTES
+    from .mpu9250_driver import MPU_BYTES as _MPU_BYTES, SAMPLE_BYTES
     overhead = 16
     if config.wiring == "spi":
         t = bus_timing or SPITiming.for_clock(clk_freq)
@@ -88,4 +89,9 @@ class SensorFrontEnd(wiring.Component):
         connect(m, driver.samples, flipped(self.samples))
         m.d.comb += [driver.int_pin.eq(self.int_pin), self.status.eq(driver.status),
                      self.asa.eq(driver.asa)]
+        if self.config.wiring == "i2c":
+            # the controller's own view of a failure, which the driver sees only as an error
+            m.d.comb += [self.status.bus_timeout.eq(bus.status.timeout),
+                         self.status.bus_stuck.eq(bus.status.bus_stuck),
+                         self.status.bus_arbitration.eq(bus.status.arbitration)]
         return m

@@ -7,13 +7,14 @@ while the telemetry carries the latest result at the rate the link allows.
 """
 
 from amaranth import *
+from amaranth.hdl import signed
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
-from .sample import Attitude, DriverStatus, Sample
+from .sample import Attitude, AttitudeFlags, DriverStatus, Sample
 
 
-__all__ = ["TelemetryCounters", "AttitudeFrame", "TelemetryScheduler"]
+__all__ = ["TelemetryCounters", "FramedAttitude", "AttitudeFrame", "TelemetryScheduler"]
 
 
 class TelemetryCounters(data.Struct):
@@ -32,13 +33,24 @@ class TelemetryCounters(data.Struct):
     not_sent: 32
 
 
+class FramedAttitude(data.Struct):
+    """An ``Attitude`` without its counter, which is the sample's (framed beside it)."""
+    quat: data.ArrayLayout(signed(32), 4)
+    angles: data.ArrayLayout(signed(32), 3)
+    bias: data.ArrayLayout(signed(32), 3)
+    flags: AttitudeFlags
+
+
 class AttitudeFrame(data.Struct):
-    """Frame type 0x02: an attitude result, the sample it came from, the driver status latched
-    with that sample, and the telemetry counters at the time the result was taken."""
-    attitude: Attitude
+    """Frame type 0x02: an attitude result (its counter is the sample's), the sample it came
+    from, the driver status latched with that sample, the telemetry counters at the time the
+    result was taken, and the host writes the engine refused so far (``cfg_refused``: to
+    read-only or state registers)."""
+    attitude: FramedAttitude
     sample: Sample
     status: DriverStatus
     counters: TelemetryCounters
+    cfg_refused: 16
 
 
 class TelemetryScheduler(wiring.Component):
@@ -52,6 +64,7 @@ class TelemetryScheduler(wiring.Component):
             present result came from and the driver status latched with it; they hold while
             the result is valid (the engine takes no new sample before its result is taken).
         ``divider`` (in, 16): frame every ``divider``-th result (0 is taken as 1).
+        ``cfg_refused`` (in, 16): the engine's count of refused host writes, framed as is.
         ``framer_idle`` (in): the framer would copy a frame at once. A due result that finds
             it busy (still sending the last frame) is not framed, and counted.
         ``frames`` (out, stream of ``AttitudeFrame``): the result, its sample and status and
@@ -68,6 +81,7 @@ class TelemetryScheduler(wiring.Component):
             "sample": In(Sample),
             "status": In(DriverStatus),
             "divider": In(16),
+            "cfg_refused": In(16),
             "framer_idle": In(1),
             "frames": Out(stream.Signature(AttitudeFrame)),
             "counters": Out(TelemetryCounters),
@@ -90,8 +104,11 @@ class TelemetryScheduler(wiring.Component):
             m.d.sync += offering.eq(0)
 
         p = self.frames.payload
-        m.d.comb += [p.attitude.eq(self.results.payload), p.sample.eq(self.sample),
-                     p.status.eq(self.status),
+        result = self.results.payload
+        m.d.comb += [*(p.attitude[name].eq(result[name])
+                       for name in ("quat", "angles", "bias", "flags")),
+                     p.sample.eq(self.sample),
+                     p.status.eq(self.status), p.cfg_refused.eq(self.cfg_refused),
                      p.counters.filtered.eq(c.filtered + 1),
                      p.counters.lost.eq(c.lost + self.sample.skipped),
                      p.counters.not_sent.eq(c.not_sent)]

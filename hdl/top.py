@@ -30,7 +30,7 @@ LED   meaning
 2     no response (WHO_AM_I read 0x00 or 0xFF)
 3     data-ready interrupt timed out
 4     heartbeat: toggles every 256 samples
-5-7   bring-up retries (low three bits)
+5-7   bring-up restarts (low three bits)
 ====  ==================================================
 """
 
@@ -108,6 +108,7 @@ class AHRSCore(wiring.Component):
         ``samples_seen`` (8): samples read, wrapping (a heartbeat for an LED).
         ``cfg``, ``cfg_read``, ``cfg_read_data``: the engine's register port (with ``attitude``).
         ``counters`` (``TelemetryCounters``): results filtered, samples lost, results not sent.
+        ``cfg_refused`` (16): host writes the engine refused (read-only or state registers).
 
     With the engine, every sample the driver reads is filtered: the engine takes a sample as
     soon as its previous update is done (``WORST_UPDATE_CYCLES`` at most) and the
@@ -156,6 +157,7 @@ class AHRSCore(wiring.Component):
             ports["cfg_read"] = In(stream.Signature(REG_BITS))
             ports["cfg_read_data"] = Out(stream.Signature(signed(32)))
             ports["counters"] = Out(TelemetryCounters)
+            ports["cfg_refused"] = Out(16)
         super().__init__(ports)
 
     def elaborate(self, platform):
@@ -194,6 +196,7 @@ class AHRSCore(wiring.Component):
                 engine.asa.eq(fe.asa),
                 sched.sample.eq(held), sched.status.eq(held_status),
                 sched.divider.eq(divider), self.counters.eq(sched.counters),
+                sched.cfg_refused.eq(engine.cfg_refused), self.cfg_refused.eq(engine.cfg_refused),
                 sched.framer_idle.eq(framer.idle),
             ]
         else:
@@ -273,7 +276,7 @@ class BoardTop(Elaboratable):
 
         status = core.status
         leds = [status.streaming, status.whoami_error, status.no_response, status.int_timeout,
-                core.samples_seen[7], *status.retries[:3]]
+                core.samples_seen[7], *status.restarts[:3]]
         for i, value in enumerate(leds):
             led = io.Buffer("o", platform.request("led", i, dir="-"))
             m.submodules[f"led{i}"] = led

@@ -28,6 +28,36 @@ def _int(text):
     return int(text, 0)
 
 
+def _number(kind, *, low=None, above=None, integer=False):
+    """An argparse type: a finite number (an integer if ``integer``) at least ``low`` or
+    greater than ``above``; anything else is one clear usage error."""
+    def parse(text):
+        try:
+            value = int(text, 0) if integer else float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not {kind}") from None
+        if value != value or value in (float("inf"), float("-inf")):
+            raise argparse.ArgumentTypeError(f"{text!r} is not a finite number")
+        if low is not None and value < low:
+            raise argparse.ArgumentTypeError(f"{text} is less than {low}")
+        if above is not None and value <= above:
+            raise argparse.ArgumentTypeError(f"{text} must be more than {above}")
+        return value
+    parse.__name__ = kind
+    return parse
+
+
+_positive = _number("a number", above=0)
+_count = _number("an integer", low=1, integer=True)
+
+
+def _pin(text):
+    if "=" not in text:
+        raise argparse.ArgumentTypeError(f"{text!r}: give NAME=BALL, e.g. imu_sclk=J1")
+    name, ball = text.split("=", 1)
+    return name.strip(), ball.strip().upper()
+
+
 def _config(args):
     from .hdl.mpu9250_driver import MPU9250Config
     common = dict(gyro_fs_dps=args.gyro_fs, accel_fs_g=args.accel_fs,
@@ -69,8 +99,9 @@ def check_rates(config, clk_freq, args, *, out=None):
             f"{budget['cycles_per_sample']} cycles (read {budget['read_cycles']} + update "
             f"{budget['update_cycles']}), at most {budget['max_sample_rate_hz']:.0f} Hz")
     if budget["telemetry_divider"] > 1:
-        print(f"mpu9250-ahrs: warning: telemetry sends every {budget['telemetry_divider']}th "
-              f"result ({budget['frames_per_s']:.0f} of {budget['sample_rate_hz']:g} per "
+        print(f"mpu9250-ahrs: warning: telemetry sends one result in "
+              f"{budget['telemetry_divider']} ({budget['frames_per_s']:.0f} of "
+              f"{budget['sample_rate_hz']:g} per "
               f"second; a {budget['frame_bytes']}-byte frame takes "
               f"{budget['frame_us']:.0f} us at {budget['baud']} baud); every sample is "
               f"still filtered", file=out or sys.stderr)
@@ -82,19 +113,19 @@ def _add_sensor_options(p):
                    help="gyro full scale: 250, 500, 1000 or 2000 °/s (default 2000)")
     p.add_argument("--accel-fs", type=int, default=16, metavar="G",
                    help="accelerometer full scale: 2, 4, 8 or 16 g (default 16)")
-    p.add_argument("--odr", type=float, default=None, metavar="HZ",
+    p.add_argument("--odr", type=_positive, default=None, metavar="HZ",
                    help="output data rate: 8000, or 1000/n for n = 1..256; sets DLPF_CFG and "
                         "SMPLRT_DIV (default 1000)")
     p.add_argument("--dlpf", type=int, default=None, help="CONFIG.DLPF_CFG 0..7 (default 1)")
     p.add_argument("--smplrt-div", type=int, default=None,
                    help="SMPLRT_DIV: rate = 1 kHz / (1 + div) (default 0)")
-    p.add_argument("--clk-freq", type=float, default=None, metavar="HZ",
+    p.add_argument("--clk-freq", type=_positive, default=None, metavar="HZ",
                    help="system clock (default 48e6: the board's PLL output)")
-    p.add_argument("--baud", type=int, default=921_600, help="telemetry UART (921600)")
+    p.add_argument("--baud", type=_count, default=921_600, help="telemetry UART (921600)")
     p.add_argument("--euler-rates", action="store_true",
                    help="the per-axis filters predict with Euler-angle rates (register "
                         "EULER_RATES) instead of the published body rates")
-    p.add_argument("--telemetry-divider", type=int, default=None, metavar="N",
+    p.add_argument("--telemetry-divider", type=_count, default=None, metavar="N",
                    help="frame every N-th result (default: the smallest N the baud rate "
                         "carries); every sample is filtered either way")
     p.add_argument("--int-pulse", action="store_true",
@@ -125,7 +156,7 @@ def cmd_build(args):
     config = _config(args)
     clk_freq = _clock(args)
     check_rates(config, clk_freq, args)
-    pinout = dict(p.split("=", 1) for p in args.pin)
+    pinout = dict(args.pin)
     platform = MAX10Platform(pinout=pinout)
     if not args.verilog_only and clk_freq != platform.default_clk_frequency:
         pll_ratio(platform.default_clk_frequency, clk_freq)     # a clear error, before the build
@@ -151,6 +182,11 @@ def cmd_build(args):
 def cmd_simulate(args):
     from .sim.cosim import SimSetup, run_core, run_frontend
 
+    if args.fault == "list":
+        from .sim.faults import FAULTS
+        for name, fault in FAULTS.items():
+            print(f"{name:24s} {'/'.join(fault.wirings):8s} {fault.description}")
+        return 0
     config = _config(args)
     clk_freq = _clock(args)
     budget = check_rates(config, clk_freq, args)
@@ -158,6 +194,8 @@ def cmd_simulate(args):
         SimSetup.default_odr_scale(config)
     setup = SimSetup(clk_freq=clk_freq, config=config, delay_scale=args.delay_scale,
                      odr_scale=odr_scale)
+    if args.fault is not None:
+        return _simulate_fault(args, setup)
     sources = _pose_sources(args.pose, args.samples, config, setup) if args.pose else {}
     model = setup.model(who_am_i=args.who_am_i, magnetometer=not args.no_mag, **sources)
     summary = {"wiring": config.wiring, "clock_hz": clk_freq,
@@ -211,6 +249,20 @@ def cmd_simulate(args):
     return 1 if violations else 0
 
 
+def _simulate_fault(args, setup):
+    """``simulate --fault NAME``: the front end with one fault of the catalogue."""
+    from .sim.faults import run_fault
+    if args.attitude or args.pose:
+        raise ValueError("--fault runs the sensor front end with its test pattern: leave out "
+                         "--attitude and --pose")
+    summary = run_fault(args.fault, setup, at=args.fault_at, vcd=args.vcd)
+    summary["time_scale"] = {"delays": setup.delay_scale, "sample_period": setup.odr_scale}
+    print(json.dumps(summary), file=sys.stderr if args.quiet_summary else sys.stdout)
+    ok = summary["detected_after_samples"] is not None and summary["recovered"] and \
+        summary["stale_valid_samples"] == 0
+    return 0 if ok else 1
+
+
 def attitude_json(result, filter):
     """One engine result (an ``Attitude`` as dicts) for printing: quaternion, roll/pitch/yaw
     in degrees, bias in gyro counts, flags."""
@@ -260,7 +312,13 @@ def cmd_replay(args):
     if engine != "float" and args.filter not in FIXED_FILTERS:
         raise ValueError(f"--engine {engine} runs {', '.join(FIXED_FILTERS)}, not "
                          f"{args.filter}")
+    from .hdl import mpu9250_regs as R
+    R.gyro_config(args.gyro_fs)             # the full scales the part has, as simulate checks
+    R.accel_config(args.accel_fs)
     rec = load_broad(args.file)
+    if rec.held:
+        print(f"mpu9250-ahrs replay: warning: {rec.held} samples with NaN or infinite sensor "
+              f"values were held at the previous sample's values", file=sys.stderr)
     scales = Scales(gyro_fs_dps=args.gyro_fs, accel_fs_g=args.accel_fs)
     counts = quantise(rec.gyr, rec.acc, rec.mag, scales)
     params = {"beta": args.beta} if args.beta is not None else {}
@@ -288,11 +346,12 @@ def cmd_replay(args):
     elapsed = time.perf_counter() - start
     result = {"file": rec.name, "filter": args.filter, "engine": engine,
               "fixed": engine != "float", **score(quat, rec.quat, rec.movement),
-              "filter_s": round(elapsed, 3), "samples_total": len(quat), **extra}
+              "filter_s": round(elapsed, 3), "samples_total": len(quat),
+              "samples_held": rec.held, **extra}
     if args.out:
         np.savetxt(args.out, np.column_stack([np.arange(len(quat)) * rec.dt, quat]),
                    delimiter=",", header="t_s,w,x,y,z", comments="", fmt="%.9g")
-    print(json.dumps(result))
+    print(json.dumps(result, allow_nan=False))
     return 0 if extra.get("bit_exact", True) else 1
 
 
@@ -314,7 +373,7 @@ def build_parser():
     p.add_argument("--out", default="out/quartus", help="output folder (default out/quartus)")
     p.add_argument("--verilog-only", action="store_true",
                    help="write only the core (no pin buffers) as mpu9250_ahrs_core.v")
-    p.add_argument("--pin", action="append", default=[], metavar="NAME=PIN",
+    p.add_argument("--pin", action="append", default=[], metavar="NAME=PIN", type=_pin,
                    help="override a pin of the default pinout, e.g. imu_sclk=J1 (repeatable)")
     _add_sensor_options(p)
     p.set_defaults(func=cmd_build)
@@ -322,13 +381,13 @@ def build_parser():
     p = sub.add_parser("simulate", help="co-simulate the gateware with the MPU9250 model",
                        description="Bring-up plus N samples in Amaranth's simulator, with real "
                                    "time scaled down (delays and sample period) to save cycles.")
-    p.add_argument("--samples", type=int, default=20, help="samples to read (default 20)")
+    p.add_argument("--samples", type=_count, default=20, help="samples to read (default 20)")
     p.add_argument("--vcd", default=None, help="write a VCD (and a GTKWave .gtkw beside it)")
-    p.add_argument("--who-am-i", type=_int, default=0x71,
+    p.add_argument("--who-am-i", type=_number("a byte", low=0, integer=True), default=0x71,
                    help="WHO_AM_I of the modelled part (default 0x71; 0x73 is an MPU9255)")
-    p.add_argument("--delay-scale", type=float, default=1e-3,
+    p.add_argument("--delay-scale", type=_positive, default=1e-3,
                    help="scale of start-up and reset delays (default 1e-3)")
-    p.add_argument("--odr-scale", type=float, default=None,
+    p.add_argument("--odr-scale", type=_positive, default=None,
                    help="scale of the sample period (default 0.2 with SPI up to 1 kHz, else 1)")
     p.add_argument("--quiet-summary", action="store_true", help="summary to stderr")
     p.add_argument("--pose", default=None, metavar="ROLL,PITCH,YAW",
@@ -339,6 +398,13 @@ def build_parser():
                         "per sample (quaternion, roll/pitch/yaw, bias, flags)")
     p.add_argument("--filter", choices=("flagship", "kalman", "complementary"),
                    default="flagship", help="the engine's filter with --attitude (flagship)")
+    p.add_argument("--fault", default=None, metavar="NAME",
+                   help="inject a fault of the catalogue (hdl/FAULTS.md) into the models and "
+                        "report what the design did: detected_after_samples, flags, recovered, "
+                        "stale_valid_samples (exit 1 unless detected, recovered, none stale); "
+                        "--fault list prints the names")
+    p.add_argument("--fault-at", type=_count, default=20, metavar="N",
+                   help="a mid-run fault starts after the design has read N samples (20)")
     _add_sensor_options(p)
     p.set_defaults(func=cmd_simulate)
 
@@ -359,9 +425,11 @@ def build_parser():
                         "mismatch). fixed and gateware: kalman, complementary, flagship")
     p.add_argument("--fixed", action="store_true", help="the same as --engine fixed")
     p.add_argument("--out", help="write the estimated quaternions (t, w, x, y, z) as CSV")
-    p.add_argument("--beta", type=float, default=None, help="Madgwick gain (default 0.1)")
-    p.add_argument("--gyro-fs", type=int, default=2000, help="gyro full scale, °/s (2000)")
-    p.add_argument("--accel-fs", type=int, default=16, help="accelerometer full scale, g (16)")
+    p.add_argument("--beta", type=_positive, default=None, help="Madgwick gain (default 0.1)")
+    p.add_argument("--gyro-fs", type=int, default=2000,
+                   help="gyro full scale: 250, 500, 1000 or 2000 °/s (2000)")
+    p.add_argument("--accel-fs", type=int, default=16,
+                   help="accelerometer full scale: 2, 4, 8 or 16 g (16)")
     p.set_defaults(func=cmd_replay)
 
     p = sub.add_parser("report", help="resources (Yosys) and cycles per update, as JSON",

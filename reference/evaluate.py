@@ -71,6 +71,10 @@ def run_fixed(name, gyr_counts, acc_counts, mag_counts, dt, *, gyro_lsb_per_dps=
 def score(quat, truth, movement):
     """RMS errors in degrees over the movement samples where the truth is known."""
     mask = np.asarray(movement, bool) & np.all(np.isfinite(truth), axis=1)
+    if not mask.any():
+        # no error to average: null (JSON has no NaN) and the reason
+        return {"total_rmse_deg": None, "heading_rmse_deg": None, "inclination_rmse_deg": None,
+                "samples": 0, "rmse_note": "no movement sample with a known truth"}
     e = orientation_errors(quat[mask], truth[mask])
     rms = np.degrees(np.sqrt(np.mean(e ** 2, axis=0)))
     return {"total_rmse_deg": float(rms[0]), "heading_rmse_deg": float(rms[1]),

@@ -17,7 +17,8 @@ from ..reference.fixed_point import RESULT_FIELDS, RESULT_FLAGS
 from .streams import stream_put
 
 
-__all__ = ["EngineRun", "RESULT_FIELDS", "run_engine", "first_mismatch", "control_word"]
+__all__ = ["EngineRun", "RESULT_FIELDS", "run_engine", "first_mismatch", "control_word",
+           "random_inputs"]
 
 
 @dataclass
@@ -71,7 +72,7 @@ def run_engine(dut, gyro, accel, mag_ak, mag_valid=None, *, asa=(128, 128, 128),
                 await stream_put(ctx, dut.cfg, {"addr": addr, "data": int(value)})
             ctx.set(dut.samples.payload, {
                 "gyro": [int(v) for v in gyro[k]], "accel": [int(v) for v in accel[k]],
-                "mag": [int(v) for v in mag_ak[k]], "temp": 0, "counter": k % 65536,
+                "mag": [int(v) for v in mag_ak[k]], "temp": 0, "counter": k % (1 << 32),
                 "skipped": int(skipped[k]),
                 "flags": {"mag_valid": int(valid[k]), "data_ready": 1}})
             ctx.set(dut.samples.valid, 1)
@@ -127,3 +128,24 @@ def first_mismatch(run, ref):
     k, name, got, want = first
     return (f"sample {k}: {name} gateware {np.asarray(got).tolist()} "
             f"!= reference {np.asarray(want).tolist()}")
+
+
+def random_inputs(seed, n):
+    """``n`` random raw samples for the engine's tests, with the corner cases a recording
+    rarely has: any gyro and accelerometer count, zero accelerometer and field vectors (a
+    fifth each), missing fields (``mag_valid`` 0 for about 30 %), and a random calibration and
+    ASA. Returns (gyro, accel, mag_ak, mag_valid, CalibrationFixed, asa)."""
+    from ..reference.fixed_point import CalibrationFixed
+    rng = np.random.default_rng(seed)
+    g = rng.integers(-32768, 32768, (n, 3))
+    a = rng.integers(-32768, 32768, (n, 3))
+    m = rng.integers(-4000, 4000, (n, 3))
+    a[rng.random(n) < 0.2] = 0
+    m[rng.random(n) < 0.2] = 0
+    valid = rng.random(n) > 0.3
+    cal = CalibrationFixed(gyro_offset=tuple(rng.integers(-300, 300, 3).tolist()),
+                           accel_offset=tuple(rng.integers(-2000, 2000, 3).tolist()),
+                           accel_scale=tuple(rng.integers(12000, 20000, 3).tolist()),
+                           hard_iron=tuple(rng.integers(-500, 500, 3).tolist()),
+                           soft_iron=tuple(rng.integers(-3000, 20000, 9).tolist()))
+    return g, a, m, valid, cal, tuple(rng.integers(0, 256, 3).tolist())

@@ -53,11 +53,11 @@ class EngineHarness(wiring.Component):
 
     def __init__(self, engine):
         self.engine = engine
-        ports = {"s_valid": In(1), "s_ready": Out(1), "s_counter": In(16),
+        ports = {"s_valid": In(1), "s_ready": Out(1), "s_counter": In(32),
                  "s_mag_valid": In(1), "s_overrun": In(1),
                  "cfg_valid": In(1), "cfg_ready": Out(1), "cfg_addr": In(REG_BITS),
                  "cfg_data": In(signed(32)), "busy": Out(1),
-                 "r_valid": Out(1), "r_ready": In(1), "r_counter": Out(16),
+                 "r_valid": Out(1), "r_ready": In(1), "r_counter": Out(32),
                  "r_flags": Out(data.Layout.cast(AttitudeFlags).size)}
         for v in ("gyro", "accel", "mag"):
             ports.update({f"s_{v}{i}": In(signed(16)) for i in range(3)})
@@ -235,7 +235,7 @@ class CompiledEngine:
         binary = self.build()
         n = len(gyro)
         valid = np.ones(n, bool) if mag_valid is None else np.asarray(mag_valid, bool)
-        counter = np.arange(n) % 65536 if counter is None else np.asarray(counter)
+        counter = np.arange(n) % (1 << 32) if counter is None else np.asarray(counter)
         overrun = np.zeros(n, bool) if overrun is None else np.asarray(overrun, bool)
         writes = writes or {}
         per_sample = np.column_stack([np.asarray(gyro, np.int64), np.asarray(accel, np.int64),
@@ -264,7 +264,7 @@ class CompiledEngine:
         return EngineRun(quat=rows[:, 0:4], angles=rows[:, 4:7], bias=rows[:, 7:10],
                          **{name: unpack(name).astype(bool) for name in _FLAG_NAMES
                             if name not in ("filter", "overrun")},
-                         filter=unpack("filter"), counter=rows[:, 10] & 0xFFFF,
+                         filter=unpack("filter"), counter=rows[:, 10] & 0xFFFFFFFF,
                          cycles=rows[:, 12].tolist())
 
     @property

@@ -78,10 +78,13 @@ class CosimHarness(Elaboratable):
 NEVER = (1 << 40) - 1
 
 
-def attach_models(sim, harness, clk_freq, *, mpu, bus=None):
+def attach_models(sim, harness, clk_freq, *, mpu, bus=None, injector=None):
     """Play ``mpu`` (an ``MPU9250Model``) on the harness's SPI pins, or ``bus`` (an
     ``I2CBusModel`` holding the MPU9250 and what its bypass exposes) on its I2C lines, plus the
-    INT pin. The process wakes only on pin changes and on the models' own events."""
+    INT pin. The process wakes only on pin changes and on the models' own events.
+    ``injector`` (``sim.faults.FaultInjector``): a fault switched on and off in time, with its
+    pin overrides (CIPO, INT) and an MPU9250 that is not there (SPI: it sees no pin changes,
+    CIPO floats high, INT low)."""
     spi = harness.spi
     watched = [harness.wake]
     sampled = [harness.cycle]
@@ -112,9 +115,15 @@ def attach_models(sim, harness, clk_freq, *, mpu, bus=None):
             changed = dict(zip(("wake", "a", "b"), values[:len(watched)]))
             cycle = values[len(watched)]
             t = cycle / clk_freq
+            if injector is not None:
+                injector.advance(t)
+            absent = injector is not None and injector.mpu_absent
             if mpu is not None:
                 mpu.advance(t)
-            if spi is not None:
+            if spi is not None and absent:
+                cs_prev, sclk_prev = changed["a"], changed["b"]
+                drive(harness.cipo_model, 1)
+            elif spi is not None:
                 cs_n, sclk, copi = changed["a"], changed["b"], values[len(watched) + 1]
                 if cs_n != cs_prev and not cs_n:
                     mpu.cs_edge(t, cs_n)
@@ -125,15 +134,22 @@ def attach_models(sim, harness, clk_freq, *, mpu, bus=None):
                 cs_prev, sclk_prev = cs_n, sclk
                 mpu.advance(t)
                 # the level SDO has when the design's first CIPO flip-flop next samples it
-                drive(harness.cipo_model, mpu.sdo_at(t + 1 / clk_freq))
+                level = mpu.sdo_at(t + 1 / clk_freq)
+                if injector is not None and injector.cipo is not None:
+                    level = injector.cipo
+                drive(harness.cipo_model, level)
             if bus is not None:
                 bus.lines(t, changed["a"], changed["b"])
                 drive(harness.scl_model_low, int(bus.scl_low))
                 drive(harness.sda_model_low, int(bus.sda_low))
             if mpu is not None:
-                drive(harness.int_model, mpu.int_level)
-            events = [e for e in (mpu and mpu.next_event, bus and bus.next_event) if e]
-            change = mpu.sdo_change_at if spi is not None else None
+                level = 0 if absent else mpu.int_level
+                if injector is not None and injector.int_level is not None:
+                    level = injector.int_level
+                drive(harness.int_model, level)
+            events = [e for e in (mpu and mpu.next_event, bus and bus.next_event,
+                                  injector and injector.next_event) if e is not None]
+            change = mpu.sdo_change_at if spi is not None and not absent else None
             if change is not None:          # wake the cycle before the edge that will see it
                 events.append(change - 1 / clk_freq)
             wake = NEVER if not events else \
@@ -169,6 +185,10 @@ class SimSetup:
     delay_scale: float = 1e-3
     odr_scale: float = 0.2
     mag_power_down_s: float = 100e-6       # the driver's AK8963 power-down wait
+    # The AK8963 runs on its own oscillator: a period this much longer than nominal keeps its
+    # measurements from locking to an exact multiple of the sample period (in which a
+    # measurement can land in every read's data protection and be skipped, for ever).
+    ak_clock_error: float = 0.0
 
     @staticmethod
     def default_odr_scale(config):
@@ -184,7 +204,9 @@ class SimSetup:
     def driver_timing(self):
         return DriverTiming(time_scale=self.delay_scale, mag_power_down_s=self.mag_power_down_s,
                             int_timeout_s=4 * self.sample_period_s + 0.05 * self.delay_scale,
-                            sample_period_s=self.sample_period_s)
+                            sample_period_s=self.sample_period_s,
+                            # the AK8963's period is scaled like the MPU9250's
+                            mag_timeout_s=DriverTiming.mag_timeout_s * self.odr_scale)
 
     def model_timing(self):
         return MPU9250Timing().scaled(delays=self.delay_scale, odr=self.odr_scale)
@@ -195,7 +217,8 @@ class SimSetup:
 
     def ak8963(self, **kwargs):
         kwargs.setdefault("source", counting_field())
-        return AK8963Model(timing=AK8963Timing().scaled(odr=self.odr_scale), **kwargs)
+        return AK8963Model(timing=AK8963Timing().scaled(
+            odr=self.odr_scale * (1 + self.ak_clock_error)), **kwargs)
 
     def model(self, *, magnetometer=True, **kwargs):
         """An MPU9250 model (counting sensor values) with an AK8963 on its auxiliary bus
@@ -217,6 +240,7 @@ class CosimResult:
     bus: Optional[I2CBusModel] = None                       # I2C wiring
     status_log: List[tuple] = field(default_factory=list)   # (cycle, status dict) on change
     asa: List[int] = field(default_factory=list)            # the driver's asa port at the end
+    sample_cycles: List[int] = field(default_factory=list)  # when each sample was taken
 
     @property
     def cycles_per_s(self):
@@ -230,23 +254,30 @@ def sample_matches(design_sample, model_sample):
             tuple(design_sample["gyro"]) == model_sample.gyro)
 
 
-def expected_mag(ak_bytes, mag_ok=True):
+def expected_mag(ak_bytes, mag_ok=True, previous=None):
     """Magnetometer fields and flags a sample must carry, from the AK8963 bytes ST1..ST2 the
-    sensor read returned (independent of the gateware's own parsing)."""
+    sensor read returned and those of the read before (``previous``: None if there was none),
+    independent of the gateware's own parsing: new needs ST1.DRDY, and either no DRDY in the
+    previous read or field bytes (HX..HZ, ST2) other than its."""
     if not mag_ok:
         return [0, 0, 0], {"mag_valid": 0, "mag_overflow": 0, "mag_new": 0, "mag_dor": 0}
     st1, st2 = ak_bytes[0], ak_bytes[7]
     mag = [int.from_bytes(ak_bytes[1 + 2 * i:3 + 2 * i], "little", signed=True)
            for i in range(3)]
-    new, hofl = st1 & A.ST1_DRDY, bool(st2 & A.ST2_HOFL)
-    return mag, {"mag_valid": int(bool(new) and not hofl), "mag_overflow": int(hofl),
-                 "mag_new": int(bool(new)), "mag_dor": int(bool(st1 & A.ST1_DOR))}
+    repeated = previous is not None and bool(previous[0] & A.ST1_DRDY) and \
+        bytes(previous[1:8]) == bytes(ak_bytes[1:8])
+    new = bool(st1 & A.ST1_DRDY) and not repeated
+    hofl = bool(st2 & A.ST2_HOFL)
+    return mag, {"mag_valid": int(new and not hofl), "mag_overflow": int(new and hofl),
+                 "mag_new": int(new), "mag_dor": int(new and bool(st1 & A.ST1_DOR))}
 
 
 def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cycles=None,
-                 until=None, vcd=None, ready=None, bus_kw=None):
-    """Simulate until ``n_samples`` samples came out, ``until(status_dict)`` is true, or
-    ``max_cycles`` (an error unless ``until`` was given and is merely never met).
+                 until=None, vcd=None, ready=None, bus_kw=None, injector=None, stop=None):
+    """Simulate until ``n_samples`` samples came out, ``until(status_dict)`` is true,
+    ``stop(cycle, status_dict, sample_cycles, samples)`` is true, or ``max_cycles`` (an error
+    unless ``until`` was given and is merely never met). ``injector``: a fault
+    (``sim.faults.FaultInjector``), handed the models.
 
     The wiring follows ``setup.config.wiring``. ``stuck_miso`` (0 or 1) simulates an unplugged
     sensor: SPI: CIPO stuck at that level; I2C: nothing on the bus acknowledges. ``bus_kw``: extra
@@ -273,17 +304,22 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
     else:
         harness = CosimHarness(dut, i2c=dut.pins, int_pin=dut.int_pin)
         address = setup.config.i2c_address
-        lookup = ((lambda a: model.primary_bus_device(a, address)) if model is not None
-                  else (lambda a: None))
+        def lookup(a):
+            if model is None or (injector is not None and injector.mpu_absent):
+                return None
+            return model.primary_bus_device(a, address)
         bus = I2CBusModel(lookup, **(bus_kw or {}))
+    if injector is not None:
+        injector.mpu, injector.bus = model, bus
     sim = Simulator(harness)
     sim.add_clock(1 / setup.clk_freq)
     if model is not None or bus is not None:
-        attach_models(sim, harness, setup.clk_freq, mpu=model, bus=bus)
+        attach_models(sim, harness, setup.clk_freq, mpu=model, bus=bus, injector=injector)
     else:
         attach_stuck_miso(sim, harness, stuck_miso)
 
-    out = {"samples": [], "status": None, "cycles": 0, "bring_up": None, "log": [], "asa": []}
+    out = {"samples": [], "status": None, "cycles": 0, "bring_up": None, "log": [], "asa": [],
+           "sample_cycles": []}
 
     class Done(Exception):
         pass
@@ -299,10 +335,12 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
             out["bring_up"] = cycle
         if taken:
             out["samples"].append(to_python(payload))
-        done = (n_samples and len(out["samples"]) >= n_samples) or (until and until(st))
+            out["sample_cycles"].append(cycle)
+        done = (n_samples and len(out["samples"]) >= n_samples) or (until and until(st)) or \
+            (stop and stop(cycle, st, out["sample_cycles"], out["samples"]))
         if done or cycle >= max_cycles:
             out["status"], out["cycles"] = st, cycle
-            if not done and until is None:
+            if not done and until is None and stop is None:
                 raise TimeoutError(
                     f"{len(out['samples'])} of {n_samples} samples after {cycle} cycles; "
                     f"status {st}" + (f"; model violations: {model.violations[:3]}"
@@ -346,7 +384,7 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
         sim.run()
     wall = time.perf_counter() - start
     return CosimResult(out["samples"], out["status"], out["cycles"], out["bring_up"], wall,
-                       model, bus, out["log"], out["asa"])
+                       model, bus, out["log"], out["asa"], out["sample_cycles"])
 
 
 def sample_read_cycles(result, setup):

@@ -14,6 +14,11 @@ What it can do to the controller:
 - ``stuck_clocks``: start with SDA held low, as a device interrupted mid-read holds it, until
   that many SCL clocks have gone by.
 
+Faults to inject mid-run (``sim.faults``): ``hold_sda(clocks)`` holds SDA low from now on for that
+many SCL clocks (a device that lost its place; ``release_sda`` ends it), ``nack_next`` NACKs the
+next that-many register-pointer bytes (to ``nack_address``, or any device if None): a NACK in
+the middle of a transfer.
+
 What it checks (``violations``), against the I2C-bus specification's fast mode by default
 (``standard_mode=True`` for 100 kHz): SCL low ≥ 1.3 µs and high ≥ 0.6 µs, START hold ≥ 0.6 µs,
 repeated-START setup ≥ 0.6 µs, STOP setup ≥ 0.6 µs, bus free between STOP and START ≥ 1.3 µs,
@@ -51,6 +56,8 @@ class I2CBusModel:
         self.scl_low = False        # what the devices drive
         self.sda_low = stuck_clocks > 0
         self._stuck = stuck_clocks
+        self.nack_next = 0
+        self.nack_address = None
         self._stretch_until = None
         self._state = "idle"
         self._t_scl = {0: -math.inf, 1: -math.inf}   # last time SCL went to that level
@@ -78,6 +85,13 @@ class I2CBusModel:
         if self._stretch_until is not None and t + _EPS >= self._stretch_until:
             self._stretch_until = None
             self.scl_low = False
+
+    def hold_sda(self, clocks):
+        """From now on, hold SDA low for ``clocks`` SCL clocks (a device out of step)."""
+        self._stuck, self.sda_low = clocks, True
+
+    def release_sda(self):
+        self._stuck, self.sda_low = 0, False
 
     # -- lines ------------------------------------------------------------------------------------
     def lines(self, t, scl, sda):
@@ -201,9 +215,14 @@ class I2CBusModel:
             return True
         dev = self._device
         if not self._pointer_set:
+            self.log.append((self.now, self._address, "w", byte, bytearray()))
+            if self.nack_next and self.nack_address in (None, self._address):
+                self.nack_next -= 1
+                self._state = "ignore"
+                self._byte_open = False
+                return False
             dev.pointer = byte
             self._pointer_set = True
-            self.log.append((self.now, self._address, "w", byte, bytearray()))
         else:
             dev.advance(self.now)
             accepted = dev.write_reg(dev.pointer, byte) is not False    # False: NACK it

@@ -30,24 +30,67 @@ class Recording:
     mag: np.ndarray      # µT
     quat: np.ndarray     # truth, sensor->ENU (w, x, y, z); NaN rows where unknown
     movement: np.ndarray
+    held: int = 0        # samples whose sensor values were NaN or infinite: held (see below)
 
     @property
     def dt(self):
         return 1.0 / self.rate
 
 
+def _hold_bad_rows(*arrays):
+    """Rows where any sensor value is NaN or infinite take the values of the last good row
+    (the first good row for those before it), as a sensor read that failed would be held.
+    Returns the arrays and how many rows were held."""
+    bad = np.zeros(len(arrays[0]), bool)
+    for a in arrays:
+        bad |= ~np.all(np.isfinite(a), axis=1)
+    if bad.all():
+        raise ValueError("no sample has finite gyro, accel and mag values")
+    if not bad.any():
+        return arrays, 0
+    good = np.flatnonzero(~bad)
+    source = good[np.clip(np.searchsorted(good, np.arange(len(bad)), side="right") - 1, 0, None)]
+    return tuple(a[source] for a in arrays), int(bad.sum())
+
+
 def load_broad(path):
+    """A BROAD-format HDF5 file, checked: the datasets and the ``sampling_rate`` attribute
+    there, N × 3 sensor arrays, N × 4 truth and N movement flags with N ≥ 2, a finite
+    positive rate. NaN or infinite sensor values are held (``Recording.held`` counts them;
+    ``replay`` says so). Anything else is a ValueError with one line."""
     import h5py
     from pathlib import Path
-    with h5py.File(path, "r") as f:
+    try:
+        f = h5py.File(path, "r")
+    except OSError as e:
+        raise ValueError(f"{path}: cannot be read as HDF5 ({e})") from None
+    with f:
         missing = sorted({"imu_gyr", "imu_acc", "imu_mag", "opt_quat", "movement"} - set(f))
         if "sampling_rate" not in f.attrs:
             missing.append("attribute sampling_rate")
         if missing:
             raise ValueError(f"{path}: not a BROAD-format file (missing {', '.join(missing)})")
-        return Recording(Path(path).stem, float(f.attrs["sampling_rate"]),
-                         f["imu_gyr"][:], f["imu_acc"][:], f["imu_mag"][:], f["opt_quat"][:],
-                         f["movement"][:].astype(bool))
+        try:
+            rate = float(np.asarray(f.attrs["sampling_rate"]).reshape(-1)[0])
+            arrays = {k: np.asarray(f[k][()], float) for k in
+                      ("imu_gyr", "imu_acc", "imu_mag", "opt_quat")}
+            movement = np.asarray(f["movement"][()]).astype(bool)
+        except (TypeError, ValueError, IndexError) as e:
+            raise ValueError(f"{path}: unreadable BROAD data ({e})") from None
+    if not np.isfinite(rate) or rate <= 0:
+        raise ValueError(f"{path}: sampling_rate {rate:g} is not a positive rate")
+    n = len(movement.reshape(-1))
+    for name, width in (("imu_gyr", 3), ("imu_acc", 3), ("imu_mag", 3), ("opt_quat", 4)):
+        a = arrays[name]
+        if a.ndim != 2 or a.shape[1] != width or a.shape[0] != n:
+            raise ValueError(f"{path}: {name} has shape {a.shape}, expected ({n}, {width}) "
+                             f"like movement")
+    if n < 2:
+        raise ValueError(f"{path}: {n} samples; a recording needs at least 2")
+    (gyr, acc, mag), held = _hold_bad_rows(arrays["imu_gyr"], arrays["imu_acc"],
+                                           arrays["imu_mag"])
+    return Recording(Path(path).stem, rate, gyr, acc, mag, arrays["opt_quat"],
+                     movement.reshape(-1), held)
 
 
 @dataclass(frozen=True)

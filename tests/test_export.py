@@ -71,7 +71,7 @@ def test_build_refuses_a_rate_the_design_cannot_filter(tmp_path, capsys):
     assert len(err) == 1 and "8000 Hz is more than this design filters" in err[0]
     assert main(["build", "--verilog-only", "--out", str(tmp_path), "--baud", "115200"]) == 0
     err = capsys.readouterr().err
-    assert "warning: telemetry sends every 8th result" in err
+    assert "warning: telemetry sends one result in 8 " in err
 
 
 def test_build_i2c_wiring(tmp_path):

@@ -22,7 +22,8 @@ from mpu9250_ahrs.reference.fixed_point import (CalibrationFixed, KalmanFixedCon
                                                 cordic_vector, div_q24, Status)
 from mpu9250_ahrs.reference.frames import body_to_mag
 from mpu9250_ahrs.reference.kalman import KalmanParams, kalman_filter
-from mpu9250_ahrs.sim.attitude_bench import control_word, first_mismatch, run_engine
+from mpu9250_ahrs.sim.attitude_bench import (control_word, first_mismatch, random_inputs,
+                                             run_engine)
 from mpu9250_ahrs.sim.motion import SensorModel, concat, static, turntable
 from mpu9250_ahrs.sim.recording import load_broad, quantise
 from mpu9250_ahrs.sim.streams import stream_put
@@ -145,20 +146,9 @@ def test_multiplier_from_18x18_blocks(pairs):
 @settings(max_examples=4, deadline=None)
 @given(st.integers(0, 2 ** 32 - 1))
 def test_random_inputs_and_calibration(seed):
-    rng = np.random.default_rng(seed)
-    n = 6
-    g = rng.integers(-32768, 32768, (n, 3))
-    a = rng.integers(-32768, 32768, (n, 3))
-    m = rng.integers(-4000, 4000, (n, 3))
-    a[rng.random(n) < 0.2] = 0
-    m[rng.random(n) < 0.2] = 0
-    valid = rng.random(n) > 0.3
-    cal = CalibrationFixed(gyro_offset=tuple(rng.integers(-300, 300, 3).tolist()),
-                           accel_offset=tuple(rng.integers(-2000, 2000, 3).tolist()),
-                           accel_scale=tuple(rng.integers(12000, 20000, 3).tolist()),
-                           hard_iron=tuple(rng.integers(-500, 500, 3).tolist()),
-                           soft_iron=tuple(rng.integers(-3000, 20000, 9).tolist()))
-    asa = tuple(rng.integers(0, 256, 3).tolist())
+    """Amaranth's simulator against the reference on random inputs (a few; the compiled
+    engine's test of the same kind runs a thousand samples a run)."""
+    g, a, m, valid, cal, asa = random_inputs(seed, 6)
     check(g, a, m, valid, cal=cal, asa=asa)
 
 
@@ -286,6 +276,37 @@ def test_register_read_back():
     _run_unit(dut, testbench)
     assert got == {"R": KalmanFixedConfig().registers()["R"], "R2": 12345, "control": 1,
                    "p00": KalmanFixedConfig().registers()["P0"]}
+
+
+def test_result_holds_still_through_a_reset_and_state_writes():
+    """A result that is valid and not taken keeps its payload while the host resets the filter
+    (the reset waits until the result is taken) and writes filter state (refused, counted)."""
+    dut = AttitudeEngine()
+    seen = {}
+
+    async def testbench(ctx):
+        sample = {"gyro": [100, -50, 20], "accel": [0, 0, 2048], "mag": [300, 0, -400],
+                  "counter": 7, "flags": {"mag_valid": 1}}
+        await stream_put(ctx, dut.samples, sample)
+        while not ctx.get(dut.results.valid):
+            await ctx.tick()
+        first = ctx.get(dut.results.payload.as_value())
+        await stream_put(ctx, dut.cfg, {"addr": CONTROL_ADDR,
+                                        "data": control_word("flagship", reset=True)})
+        for addr in (REGS["THETA0"], REGS["QOUT0"], REGS["BIAS1"], CONFIG_REGS["ZERO"]):
+            await stream_put(ctx, dut.cfg, {"addr": addr, "data": 0x1234})
+        for _ in range(800):                      # longer than any reset program
+            assert ctx.get(dut.results.valid)
+            assert ctx.get(dut.results.payload.as_value()) == first
+            await ctx.tick()
+        seen["refused"] = ctx.get(dut.cfg_refused)
+        ctx.set(dut.results.ready, 1)
+        await ctx.tick()
+        ctx.set(dut.results.ready, 0)
+        await ctx.tick()
+        seen["busy_after_take"] = ctx.get(dut.busy)
+    _run_unit(dut, testbench)
+    assert seen == {"refused": 4, "busy_after_take": 1}
 
 
 def test_simulate_verb_with_pose_and_attitude(capsys):

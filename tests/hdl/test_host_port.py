@@ -58,3 +58,36 @@ def test_writes_control_and_read_back():
     sim.add_testbench(testbench)
     sim.run()
     assert seen == {0x33: 777, CONTROL_ADDR: FILTER_CODES["kalman"]}
+
+
+def test_read_only_and_state_registers_refuse_writes():
+    """With the engine's ``HOST_WRITABLE``, a write to a constant (ZERO, INV_GAIN, SHL8) or to
+    filter state (0x20 up) is taken, writes nothing, and is counted; run-time registers and
+    CONTROL are written as before."""
+    from mpu9250_ahrs.hdl.attitude_program import CONFIG_REGS, HOST_WRITABLE, REGS
+    dut = HostPort(filter_at_reset=FILTER_CODES["flagship"], writable=HOST_WRITABLE)
+    refused = [CONFIG_REGS["ZERO"], CONFIG_REGS["INV_GAIN"], CONFIG_REGS["SHL8"],
+               REGS["P0_00"], REGS["THETA0"], 0x20, 0xFD]
+    allowed = [CONFIG_REGS["R"], CONFIG_REGS["K_REST"], CONFIG_REGS["TELEMETRY_DIV"]]
+    log = []
+
+    async def testbench(ctx):
+        ctx.set(dut.open, 1)
+        for addr in refused + allowed:
+            ctx.set(dut.cfg.payload, {"addr": addr, "data": 5})
+            ctx.set(dut.cfg.valid, 1)
+            log.append((addr, ctx.get(dut.cfg.ready), ctx.get(dut.w_en)))
+            await ctx.tick()
+        ctx.set(dut.cfg.valid, 0)
+        log.append(("refused", ctx.get(dut.refused)))
+        ctx.set(dut.cfg.payload, {"addr": CONTROL_ADDR, "data": control_word("kalman")})
+        ctx.set(dut.cfg.valid, 1)
+        await ctx.tick()
+        log.append(("select", ctx.get(dut.select)))
+    sim = Simulator(dut)
+    sim.add_clock(1e-6)
+    sim.add_testbench(testbench)
+    sim.run()
+    assert log[:len(refused)] == [(a, 1, 0) for a in refused]
+    assert log[len(refused):len(refused) + len(allowed)] == [(a, 1, 1) for a in allowed]
+    assert log[-2:] == [("refused", len(refused)), ("select", FILTER_CODES["kalman"])]

@@ -38,8 +38,10 @@ class RegisterFile:
         self.regs[addr] = value
 
 
-def run(ops, *, timing=None, bus_kw=None):
-    """Run ``ops`` ((op, data, ack) tuples); return results, the bus model and the status."""
+def run(ops, *, timing=None, bus_kw=None, before=None):
+    """Run ``ops`` ((op, data, ack) tuples); return results, the bus model and the status.
+    ``before``: {op index: function(bus)} called before that op is offered (returning a number
+    of cycles to wait first, or None)."""
     timing = timing or I2CTiming.for_clock(CLK)
     dut = I2CController(timing)
     harness = CosimHarness(dut, i2c=dut.pins)
@@ -55,7 +57,11 @@ def run(ops, *, timing=None, bus_kw=None):
     async def tb(ctx):
         ctx.set(dut.o_stream.ready, 1)
         await ctx.tick().repeat(10)          # let the lines settle through the synchronisers
-        for op, data, ack in ops:
+        for index, (op, data, ack) in enumerate(ops):
+            if before and index in before:
+                pause = before[index](bus)
+                if pause:
+                    await ctx.tick().repeat(pause)
             await stream_put(ctx, dut.i_stream, {"op": op, "data": data, "ack": ack})
             for _ in range(200_000):
                 _, _, valid, payload = await ctx.tick().sample(dut.o_stream.valid,
@@ -102,8 +108,11 @@ def test_write_then_read_with_repeated_start(scl_hz):
 
 def test_address_nack():
     results, bus, dev, status = run([(S, 0, 0), (W, 0x51 << 1, 0), (P, 0, 0)])
-    assert results[1] == {"data": results[1]["data"], "ack": 0, "error": 0}
+    # nobody at 0x51: the address byte is not acknowledged, which is no bus error (the data
+    # field of a WRITE's result carries nothing)
+    assert (results[1]["ack"], results[1]["error"]) == (0, 0)
     assert not results[2]["error"] and status["lines"] == (1, 1)
+    assert status["timeout"] == 0 and status["bus_stuck"] == 0
     assert bus.violations == []
 
 
@@ -127,6 +136,23 @@ def test_stretching_past_the_timeout_is_an_error():
                                     timing=timing, bus_kw={"stretch_s": 400e-6})
     assert results[1]["error"] == 0 and results[2]["error"] == 1
     assert status["timeout"] == 1
+
+
+def test_after_a_time_out_the_devices_are_reset_before_the_next_start():
+    """A device stretches past the time-out in the middle of a write, then stops: the aborted
+    transfer left it mid-byte, so the next START goes out as a START and a STOP first (and
+    waits for SCL to be released); the next write lands, the flag clears, no violation."""
+    timing = I2CTiming.for_clock(CLK, timeout_s=100e-6)
+    ops = [(S, 0, 0), (W, 0x50 << 1, 0), (W, 0x01, 0), (P, 0, 0)] + \
+        [(S, 0, 0), (W, 0x50 << 1, 0), (W, 0x40, 0), (W, 0x99, 0), (P, 0, 0)]
+    results, bus, dev, status = run(ops, timing=timing, bus_kw={"stretch_s": 400e-6},
+                                    before={4: lambda bus: setattr(bus, "stretch_s", 0.0) or
+                                            int(450e-6 * CLK)})
+    assert results[2]["error"] == 1
+    assert not any(r["error"] for r in results[4:]) and results[7]["ack"] == 1
+    assert dev.regs[0x40] == 0x99 and dev.regs[0x01] == 0x01     # the aborted write: none
+    assert status["timeout"] == 0 and bus.violations == []
+    assert bus.starts == 3                  # the first, the reset START-STOP, the new one
 
 
 def test_stuck_bus_is_recovered():

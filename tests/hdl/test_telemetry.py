@@ -131,7 +131,8 @@ def model_reference(core, model, n, asa, select):
     bytes from the same bursts), whether or not their results were sent."""
     from mpu9250_ahrs.sim.cosim import expected_mag
     reads = [model.samples[k] for k in model.sample_reads[:n]]
-    mags = [expected_mag(model.ext_reads[i], core.config.magnetometer) for i in range(n)]
+    mags = [expected_mag(model.ext_reads[i], core.config.magnetometer,
+                         model.ext_reads[i - 1] if i else None) for i in range(n)]
     return attitude_fixed([s.gyro for s in reads], [s.accel for s in reads],
                           [m for m, _ in mags], [f["mag_valid"] for _, f in mags],
                           asa=asa or (128, 128, 128), config=core.engine.config,
@@ -158,7 +159,8 @@ def test_core_end_to_end_over_uart(vcd):
         c = frame["counters"]
         assert c["filtered"] == i + 1 and c["lost"] == 0
         assert c["not_sent"] + k + 1 == c["filtered"]
-    run = EngineRun.from_results([f["attitude"] for f in frames])
+    run = EngineRun.from_results([{**f["attitude"], "counter": f["sample"]["counter"]}
+                                  for f in frames])
     sent = [f["sample"]["counter"] for f in frames]
     assert first_mismatch(run, ref.take(sent)) is None, first_mismatch(run, ref.take(sent))
     assert list(run.counter) == sent and frames[-1]["counters"]["not_sent"] <= 1
@@ -199,3 +201,78 @@ def test_telemetry_divider_is_a_run_time_register():
     filtered = [f["counters"]["filtered"] for f in frames]
     assert [b - a for a, b in zip(filtered, filtered[1:])] == [3] * (len(frames) - 1)
     assert all(f["counters"]["not_sent"] == 0 for f in frames)
+
+
+# The sensor frame's wire format written out independently of the layouts: (field, bits) in
+# order from bit 0 of the payload, packed least significant byte first.
+SENSOR_FRAME_FIELDS = [
+    *[(f"accel{i}", 16) for i in range(3)], ("temp", 16), *[(f"gyro{i}", 16) for i in range(3)],
+    *[(f"mag{i}", 16) for i in range(3)], ("counter", 32),
+    ("data_ready", 1), ("overrun", 1), ("mag_valid", 1), ("mag_overflow", 1), ("mag_new", 1),
+    ("mag_dor", 1), ("resumed", 1), ("skipped", 4),
+    ("streaming", 1), ("whoami_error", 1), ("no_response", 1), ("int_timeout", 1),
+    ("restarts", 8), ("who_am_i", 8), ("mag_ok", 1), ("mag_absent", 1), ("mag_wia_error", 1),
+    ("mag_stale", 1), ("bad_burst", 1), ("bus_timeout", 1), ("bus_stuck", 1),
+    ("bus_arbitration", 1),
+]
+KNOWN = {"accel0": 1, "accel1": -2, "accel2": 0x3FF, "temp": 0x1234, "gyro0": -1, "gyro1": 0,
+         "gyro2": 32767, "mag0": -32768, "mag1": 5, "mag2": 6, "counter": 0x01020304,
+         "data_ready": 1, "mag_valid": 1, "mag_new": 1, "skipped": 2, "streaming": 1,
+         "restarts": 3, "who_am_i": 0x71, "mag_ok": 1, "bad_burst": 1}
+# the frame on the wire: sync, type 0x01, length 29, payload, CRC-8/SMBUS
+KNOWN_FRAME = bytes.fromhex(
+    "a55a011d"                                      # sync, type, length
+    "0100" "feff" "ff03" "3412" "ffff" "0000" "ff7f"    # accel, temp, gyro (little-endian)
+    "0080" "0500" "0600" "04030201"                     # mag, counter
+    "15" "89" "81" "b8" "08"                            # flags, skipped, status (bit-packed)
+    "14")                                               # CRC-8/SMBUS
+
+
+def crc8_smbus(data):
+    """CRC-8/SMBUS bit by bit: polynomial 0x07, initial 0, no reflection, no final XOR."""
+    crc = 0
+    for byte in data:
+        crc ^= byte
+        for _ in range(8):
+            crc = ((crc << 1) ^ 0x07) & 0xFF if crc & 0x80 else (crc << 1) & 0xFF
+    return crc
+
+
+def test_sensor_frame_known_answer():
+    """One frame written out byte for byte: built here from the field list above with a
+    bitwise CRC, equal to the literal, to what the gateware framer sends, and decoded back."""
+    value, pos = 0, 0
+    for name, bits in SENSOR_FRAME_FIELDS:
+        value |= (KNOWN.get(name, 0) & ((1 << bits) - 1)) << pos
+        pos += bits
+    payload = value.to_bytes((pos + 7) // 8, "little")
+    body = bytes([0x01, len(payload)]) + payload
+    built = bytes(SYNC) + body + bytes([crc8_smbus(body)])
+    assert built == KNOWN_FRAME
+
+    frame = {"sample": {"accel": [1, -2, 0x3FF], "temp": 0x1234, "gyro": [-1, 0, 32767],
+                        "mag": [-32768, 5, 6], "counter": 0x01020304, "skipped": 2,
+                        "flags": {"data_ready": 1, "mag_valid": 1, "mag_new": 1}},
+             "status": {"streaming": 1, "restarts": 3, "who_am_i": 0x71, "mag_ok": 1,
+                        "bad_burst": 1}}
+    dut = TelemetryFramer()
+    out = []
+
+    async def producer(ctx):
+        await stream_put(ctx, dut.i_stream, frame)
+
+    async def consumer(ctx):
+        ctx.set(dut.o_stream.ready, 1)
+        for _ in range(10 * len(KNOWN_FRAME)):
+            _, _, valid, byte = await ctx.tick().sample(dut.o_stream.valid, dut.o_stream.payload)
+            if valid:
+                out.append(byte)
+    sim = Simulator(dut)
+    sim.add_clock(1e-6)
+    sim.add_testbench(producer)
+    sim.add_testbench(consumer)
+    sim.run()
+    assert bytes(out) == KNOWN_FRAME
+    (ftype, fields), = decode_frames(KNOWN_FRAME, strict=True)
+    assert ftype == 0x01 and fields["sample"]["counter"] == 0x01020304
+    assert fields["sample"]["mag"] == [-32768, 5, 6] and fields["status"]["who_am_i"] == 0x71

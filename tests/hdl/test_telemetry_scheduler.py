@@ -26,6 +26,8 @@ def test_every_nth_result_framed_when_the_framer_is_idle(divider):
             ctx.set(dut.sample.counter, k)
             ctx.set(dut.sample.skipped, skipped[k])
             ctx.set(dut.results.payload.counter, k)
+            ctx.set(dut.results.payload.quat[0], 100 + k)   # the frame's result (no counter)
+            ctx.set(dut.cfg_refused, 7 * k)
             ctx.set(dut.results.valid, 1)
             waited = 0
             while True:
@@ -33,7 +35,10 @@ def test_every_nth_result_framed_when_the_framer_is_idle(divider):
                     waited += 1
                     ctx.set(dut.frames.ready, waited == 3)
                     if waited == 3:
-                        framed.append(ctx.get(dut.frames.payload.attitude.counter))
+                        p = dut.frames.payload
+                        assert ctx.get(p.attitude.quat[0]) == 100 + k
+                        assert ctx.get(p.cfg_refused) == 7 * k
+                        framed.append(ctx.get(p.sample.counter))
                         counters_seen.append(
                             {n: ctx.get(getattr(dut.frames.payload.counters, n))
                              for n in ("filtered", "lost", "not_sent")})

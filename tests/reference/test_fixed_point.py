@@ -128,12 +128,14 @@ def test_edge_poses(euler):
     # Near ±90° pitch roll is undefined (ay, az are noise), the Euler yaw wanders by tens of
     # degrees and rounding differences grow along it: the two still agree, more loosely.
     near_lock = abs(euler[1]) > 80
-    assert angle_diff(fx[:, 2], fl[:, 2]).max() < (0.2 if near_lock else 0.01)
+    assert angle_diff(fx[:, 2], fl[:, 2]).max() < (0.1 if near_lock else 0.01)
     if not near_lock:
         assert angle_diff(fx[:, 0], fl[:, 0]).max() < 0.01
-    assert angle_diff(fx[-1, 1], euler[1]).max() < 1.0
+    # against the pose itself after 10 s (sensor noise; the yaw converges at the filter's
+    # Kalman gain): pitch within 0.1°, yaw within 0.75° (measured 0.46-0.61°)
+    assert angle_diff(fx[-1, 1], euler[1]).max() < 0.1
     if abs(euler[1]) < 80:
-        assert angle_diff(fx[-1, 2], euler[2]) < 1.0       # no spin through 0° at the wrap
+        assert angle_diff(fx[-1, 2], euler[2]) < 0.75      # no spin through 0° at the wrap
 
 
 def test_full_scale_and_zero_vectors():

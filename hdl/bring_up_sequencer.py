@@ -1,0 +1,332 @@
+"""Bring-up sequencer of the MPU9250 driver: the bring-up program and the machine that runs it.
+
+``bring_up_program`` writes the sequence (``hdl/mpu9250_driver.py`` describes it) as a list of
+``Step``: register writes, checked reads, stored reads, status polls and waits, each with what
+to do on failure. ``BringUpSequencer`` runs it over a register port, one step at a time, and
+owns the status a bring-up decides: WHO_AM_I, the magnetometer's, the restarts.
+"""
+
+from dataclasses import dataclass
+
+from amaranth import *
+from amaranth.lib import data, enum, wiring
+from amaranth.lib.wiring import In, Out
+
+from . import ak8963_regs as A
+from . import mpu9250_regs as R
+from .register_port import RegisterPortSignature
+
+
+__all__ = ["Op", "Fail", "Step", "bring_up_program", "mag_setup_start", "BringUpSequencer"]
+
+
+class Op(enum.Enum, shape=3):
+    WAIT   = 0      # arg cycles
+    WRITE  = 1      # reg <- value
+    CHECK  = 2      # read reg; must be one of the check's values
+    STORE  = 3      # read reg into asa[value]
+    POLL   = 4      # read reg until (byte & value) != 0; fails on (byte & mask) or time-out
+    MARK   = 5      # status.mag_ok <- 1
+    STREAM = 6
+
+
+class Fail(enum.Enum, shape=1):
+    RESTART = 0     # MPU9250 problem: flag it and run the program again from the start
+    MAG     = 1     # magnetometer problem: flag it and jump to the end of the magnetometer part
+
+
+@dataclass(frozen=True)
+class Step:
+    op: Op
+    device: int = 0             # 0 = MPU9250, 1 = AK8963 directly (I2C wiring)
+    reg: int = 0
+    value: int = 0
+    mask: int = 0
+    wait: int = 0
+    fail: Fail = Fail.RESTART
+    check: str = ""             # "who_am_i" or "wia"
+
+
+def mag_setup_start(config):
+    """Index of the first step of the magnetometer's part of ``bring_up_program``: where a
+    re-initialisation starts (right after the accel/gyro register writes)."""
+    return 1 + (2 if config.wiring == "spi" else 0) + 2 + 2 + len(config.sensor_writes())
+
+
+def bring_up_program(config, power_up_cycles, reset_cycles, mag_wait_cycles):
+    """The bring-up sequence for ``config.wiring``, as a list of ``Step`` (the driver's ROM)."""
+    spi = config.wiring == "spi"
+    steps = [Step(Op.WAIT, wait=power_up_cycles)]
+    if spi:
+        steps.append(Step(Op.WRITE, reg=R.USER_CTRL, value=R.USER_CTRL_I2C_IF_DIS))
+    steps += [Step(Op.WRITE, reg=R.PWR_MGMT_1, value=R.PWR_MGMT_1_H_RESET),
+              Step(Op.WAIT, wait=reset_cycles)]
+    if spi:
+        steps.append(Step(Op.WRITE, reg=R.USER_CTRL, value=R.USER_CTRL_I2C_IF_DIS))
+    steps += [Step(Op.WRITE, reg=R.PWR_MGMT_1, value=R.PWR_MGMT_1_CLKSEL_AUTO),
+              Step(Op.CHECK, reg=R.WHO_AM_I, check="who_am_i")]
+    steps += [Step(Op.WRITE, reg=reg, value=value) for reg, value in config.sensor_writes()]
+
+    if config.magnetometer:
+        mag = []
+
+        def mag_write(reg, value):
+            if spi:
+                mag.extend([Step(Op.WRITE, reg=R.I2C_SLV4_ADDR, value=A.I2C_ADDRESS),
+                            Step(Op.WRITE, reg=R.I2C_SLV4_REG, value=reg),
+                            Step(Op.WRITE, reg=R.I2C_SLV4_DO, value=value),
+                            Step(Op.WRITE, reg=R.I2C_SLV4_CTRL, value=R.I2C_SLV_EN),
+                            Step(Op.POLL, reg=R.I2C_MST_STATUS, value=R.I2C_MST_STATUS_SLV4_DONE,
+                                 mask=R.I2C_MST_STATUS_SLV4_NACK, fail=Fail.MAG)])
+            else:
+                mag.append(Step(Op.WRITE, device=1, reg=reg, value=value, fail=Fail.MAG))
+
+        def mag_read(op, reg, **kw):
+            if spi:
+                mag.extend([Step(Op.WRITE, reg=R.I2C_SLV4_ADDR,
+                                 value=R.I2C_SLV_RNW | A.I2C_ADDRESS),
+                            Step(Op.WRITE, reg=R.I2C_SLV4_REG, value=reg),
+                            Step(Op.WRITE, reg=R.I2C_SLV4_CTRL, value=R.I2C_SLV_EN),
+                            Step(Op.POLL, reg=R.I2C_MST_STATUS, value=R.I2C_MST_STATUS_SLV4_DONE,
+                                 mask=R.I2C_MST_STATUS_SLV4_NACK, fail=Fail.MAG),
+                            Step(op, reg=R.I2C_SLV4_DI, fail=Fail.MAG, **kw)])
+            else:
+                mag.append(Step(op, device=1, reg=reg, fail=Fail.MAG, **kw))
+
+        if spi:
+            wait_es = R.I2C_MST_CTRL_WAIT_FOR_ES if config.aux_every == 1 else 0
+            mag += [Step(Op.WRITE, reg=R.USER_CTRL,
+                         value=R.USER_CTRL_I2C_IF_DIS | R.USER_CTRL_I2C_MST_EN),
+                    Step(Op.WRITE, reg=R.I2C_MST_CTRL, value=wait_es | R.I2C_MST_CLK_400KHZ)]
+        else:
+            # the whole INT_PIN_CFG (BYPASS_EN is in it): a re-initialisation runs this while
+            # samples stream, and must not switch a latched INT to pulses meanwhile
+            mag += [Step(Op.WRITE, reg=R.USER_CTRL, value=0x00),
+                    Step(Op.WRITE, reg=R.INT_PIN_CFG, value=config.int_pin_cfg)]
+        mag_read(Op.CHECK, A.WIA, check="wia")
+        mag_write(A.CNTL2, A.CNTL2_SRST)
+        mag_write(A.CNTL1, A.MODE_FUSE_ROM)
+        for axis in range(3):
+            mag_read(Op.STORE, A.ASAX + axis, value=axis)
+        mag_write(A.CNTL1, A.MODE_POWER_DOWN)
+        mag.append(Step(Op.WAIT, wait=mag_wait_cycles))
+        mag_write(A.CNTL1, A.CNTL1_BIT_16 | A.MODE_CONT_100HZ)
+        if spi:
+            mag += [Step(Op.WRITE, reg=R.I2C_SLV_ADDR[0], value=R.I2C_SLV_RNW | A.I2C_ADDRESS),
+                    Step(Op.WRITE, reg=R.I2C_SLV_ADDR[0] + 1, value=A.ST1),
+                    Step(Op.WRITE, reg=R.I2C_SLV_ADDR[0] + 2,
+                         value=R.I2C_SLV_EN | A.SAMPLE_BYTES)]
+            if config.aux_every > 1:
+                mag += [Step(Op.WRITE, reg=R.I2C_SLV4_CTRL, value=config.aux_every - 1),
+                        Step(Op.WRITE, reg=R.I2C_MST_DELAY_CTRL,
+                             value=R.I2C_MST_DELAY_CTRL_DELAY_ES_SHADOW |
+                             R.I2C_MST_DELAY_CTRL_SLV0_DLY_EN)]
+        mag.append(Step(Op.MARK))
+        steps += mag
+
+    steps += [Step(Op.WRITE, reg=R.INT_PIN_CFG, value=config.int_pin_cfg),
+              Step(Op.WRITE, reg=R.INT_ENABLE, value=R.INT_ENABLE_RAW_RDY),
+              Step(Op.STREAM)]
+    return steps
+
+
+class BringUpSequencer(wiring.Component):
+    """Runs ``program`` (``bring_up_program``) over a register port.
+
+    Parameters
+        ``program``: the steps. ``accepted_who_am_i``: the WHO_AM_I values that pass.
+        ``mag_start``: the first step of the magnetometer's part (``mag_setup_start``).
+        ``poll_cycles``: how long a POLL step may take.
+    Members
+        ``port`` (a register port's client side): the sequencer's commands.
+        ``restart`` (in, pulse): run the program again from the start (the reader lost the
+            sensor: no data-ready, bursts that fail their checks).
+        ``mag_lost`` (in, pulse): the magnetometer gave no new field for its time-out: drop
+            ``mag_ok`` and run the magnetometer's part again (``mag_setup`` while it runs).
+        ``mag_nack`` (in, pulse): a per-sample read of the AK8963 failed (I2C wiring): it is
+            flagged absent and ``mag_ok`` drops.
+        ``streaming`` (out): the program reached its STREAM step; samples may be read. Drops
+            on a restart. ``started`` (out, pulse): it just did, from the start of the program.
+        ``restarted`` (out, pulse): a restart began (requested, or a failed MPU9250 step).
+        ``mag_setup`` (out): the magnetometer's part is running while streaming.
+        ``whoami_error``, ``no_response``, ``who_am_i``, ``restarts`` (8, saturating),
+        ``mag_ok``, ``mag_absent``, ``mag_wia_error`` (out): as ``DriverStatus`` has them.
+        ``asa`` (out, 3 × 8): the AK8963's sensitivity adjustment, stored by STORE steps.
+
+    A step's command goes out in the cycle it is fetched; WRITE, CHECK, STORE and MARK take one
+    command (or none), POLL repeats its read until the bit is set, a NACK or ``poll_cycles``;
+    WAIT counts its cycles. Failures: ``Fail.RESTART`` restarts the program, ``Fail.MAG`` flags
+    the magnetometer and jumps past its part (samples flow without it).
+    """
+
+    def __init__(self, program, *, accepted_who_am_i, mag_start, poll_cycles):
+        self.program = program
+        self.accepted_who_am_i = tuple(accepted_who_am_i)
+        self.mag_start = mag_start
+        self.poll_cycles = poll_cycles
+        super().__init__({
+            "port": Out(RegisterPortSignature().flip()),
+            "restart": In(1), "mag_lost": In(1), "mag_nack": In(1),
+            "streaming": Out(1), "started": Out(1), "restarted": Out(1), "mag_setup": Out(1),
+            "whoami_error": Out(1), "no_response": Out(1), "who_am_i": Out(8),
+            "restarts": Out(8), "mag_ok": Out(1), "mag_absent": Out(1),
+            "mag_wia_error": Out(1),
+            "asa": Out(data.ArrayLayout(8, 3)),
+        })
+
+    def elaborate(self, platform):
+        m = Module()
+        program = self.program
+        mark = next((i for i, s in enumerate(program) if s.op == Op.MARK), None)
+        skip_mag = 0 if mark is None else mark + 1
+
+        # -- program ROM --------------------------------------------------------------------------
+        pc = Signal(range(len(program)))
+        step_layout = data.StructLayout({
+            "op": Op, "device": 1, "reg": 8, "value": 8, "mask": 8, "fail": Fail,
+            "check_wia": 1, "wait": range(max(s.wait for s in program) + 1)})
+        step = Signal(step_layout)
+        with m.Switch(pc):
+            for index, s in enumerate(program):
+                with m.Case(index):
+                    m.d.comb += step.eq(step_layout.const({
+                        "op": s.op, "device": s.device, "reg": s.reg, "value": s.value,
+                        "mask": s.mask, "fail": s.fail, "check_wia": s.check == "wia",
+                        "wait": s.wait}))
+
+        # -- the register port: every read here is one byte, kept as ``last`` -------------------
+        port = self.port
+        last = Signal(8)
+        m.d.comb += [port.rx.ready.eq(1), port.rsp.ready.eq(1)]
+        with m.If(port.rx.valid):
+            m.d.sync += last.eq(port.rx.payload)
+
+        def command(*, write=0):
+            p = port.cmd.payload
+            m.d.comb += [port.cmd.valid.eq(1), p.device.eq(step.device), p.reg.eq(step.reg),
+                         p.write.eq(write), p.data.eq(step.value), p.length.eq(1)]
+
+        timer = Signal(range(max(self.poll_cycles, max(s.wait for s in program)) + 1))
+
+        # a requested restart waits for the step under way (at most a poll time-out), so that
+        # no command is left half done on the port
+        restart_pending = Signal()
+        with m.If(self.restart):
+            m.d.sync += restart_pending.eq(1)
+
+        def restart():
+            m.d.sync += [pc.eq(0), self.streaming.eq(0), self.mag_ok.eq(0),
+                         self.mag_setup.eq(0), restart_pending.eq(0)]
+            m.d.comb += self.restarted.eq(1)
+            with m.If(self.restarts != 255):
+                m.d.sync += self.restarts.eq(self.restarts + 1)
+            m.next = "FETCH"
+
+        def fail(absent):
+            """The current step failed: ``absent`` = no acknowledge / time-out, else a bad value."""
+            with m.If(step.fail == Fail.MAG):
+                m.d.sync += [pc.eq(skip_mag), self.mag_absent.eq(absent),
+                             self.mag_wia_error.eq(~absent)]
+                m.next = "FETCH"
+            with m.Else():
+                with m.If(absent):
+                    m.d.sync += [self.no_response.eq(1), self.whoami_error.eq(0)]
+                restart()
+
+        def next_step():
+            m.d.sync += pc.eq(pc + 1)
+            m.next = "FETCH"
+
+        with m.If(self.mag_nack):
+            # the AK8963 stopped answering: down until a set-up finds it (the reader stops
+            # reading it, and asks for the set-up after its time-out)
+            m.d.sync += [self.mag_absent.eq(1), self.mag_ok.eq(0)]
+
+        with m.FSM():
+            with m.State("FETCH"):
+                with m.If(restart_pending):
+                    restart()
+                with m.Else():
+                    self._fetch(m, step, command, timer, next_step)
+            with m.State("WAIT"):
+                m.d.sync += timer.eq(timer - 1)
+                with m.If(timer == 0):
+                    next_step()
+            with m.State("ACCESS"):
+                with m.If(port.rsp.valid):
+                    with m.If(port.rsp.payload.error):
+                        fail(absent=1)
+                    with m.Elif(step.op == Op.CHECK):
+                        with m.If(step.check_wia):
+                            with m.If(last == A.WIA_VALUE):
+                                next_step()
+                            with m.Else():
+                                fail(absent=0)
+                        with m.Else():
+                            good = Cat(last == v for v in self.accepted_who_am_i).any()
+                            m.d.sync += [self.who_am_i.eq(last), self.whoami_error.eq(~good),
+                                         self.no_response.eq((last == 0x00) | (last == 0xFF))]
+                            with m.If(good):
+                                next_step()
+                            with m.Else():
+                                restart()
+                    with m.Elif(step.op == Op.STORE):
+                        m.d.sync += self.asa[step.value[:2]].eq(last)
+                        next_step()
+                    with m.Else():
+                        next_step()
+            with m.State("POLL"):
+                with m.If(timer != 0):
+                    m.d.sync += timer.eq(timer - 1)
+                command()
+                with m.If(port.cmd.ready):
+                    m.next = "POLL_WAIT"
+            with m.State("POLL_WAIT"):
+                with m.If(timer != 0):
+                    m.d.sync += timer.eq(timer - 1)
+                with m.If(port.rsp.valid):
+                    with m.If(port.rsp.payload.error | (last & step.mask).any()):
+                        fail(absent=1)
+                    with m.Elif((last & step.value).any()):
+                        next_step()
+                    with m.Elif(timer == 0):
+                        fail(absent=1)
+                    with m.Else():
+                        m.next = "POLL"
+            with m.State("RUNNING"):
+                # streaming; the magnetometer's part again when it went quiet
+                with m.If(restart_pending):
+                    restart()
+                with m.Elif(self.mag_lost):
+                    m.d.sync += [self.mag_ok.eq(0), self.mag_setup.eq(1),
+                                 pc.eq(self.mag_start)]
+                    m.next = "FETCH"
+        return m
+
+    def _fetch(self, m, step, command, timer, next_step):
+        """FETCH: start the step at ``pc``."""
+        port = self.port
+        with m.Switch(step.op):
+            with m.Case(Op.WAIT):
+                m.d.sync += timer.eq(step.wait - 1)
+                m.next = "WAIT"
+            with m.Case(Op.WRITE):
+                command(write=1)
+                with m.If(port.cmd.ready):
+                    m.next = "ACCESS"
+            with m.Case(Op.CHECK, Op.STORE):
+                command()
+                with m.If(port.cmd.ready):
+                    m.next = "ACCESS"
+            with m.Case(Op.POLL):
+                m.d.sync += timer.eq(self.poll_cycles - 1)
+                m.next = "POLL"
+            with m.Case(Op.MARK):
+                m.d.sync += [self.mag_ok.eq(1), self.mag_absent.eq(0),
+                             self.mag_wia_error.eq(0)]
+                next_step()
+            with m.Case(Op.STREAM):
+                with m.If(~self.streaming):
+                    m.d.comb += self.started.eq(1)
+                m.d.sync += [self.streaming.eq(1), self.mag_setup.eq(0)]
+                m.next = "RUNNING"

@@ -1,0 +1,122 @@
+"""BringUpSequencer against a register-port model: the program's commands in order, what a
+failed check does, a restart asked for, and the magnetometer's part run again."""
+
+from amaranth.sim import Simulator
+
+from mpu9250_ahrs.hdl import ak8963_regs as A
+from mpu9250_ahrs.hdl import mpu9250_regs as R
+from mpu9250_ahrs.hdl.bring_up_sequencer import (BringUpSequencer, bring_up_program,
+                                                 mag_setup_start)
+from mpu9250_ahrs.hdl.mpu9250_driver import MPU9250Config
+
+from .register_port_model import RegisterPortModel
+from .test_mpu9250_driver import expected_writes
+
+
+class Chip:
+    """The MPU9250 with an AK8963 behind SLV4, as far as bring-up sees them."""
+    def __init__(self, who_am_i=0x71, wia=A.WIA_VALUE):
+        self.who_am_i, self.wia, self.slv4_reg = who_am_i, wia, None
+
+    def answer(self, device, reg, length):
+        if reg == R.WHO_AM_I:
+            return [self.who_am_i]
+        if reg == R.I2C_MST_STATUS:
+            return [R.I2C_MST_STATUS_SLV4_DONE]
+        if reg == R.I2C_SLV4_DI:
+            return [self.wia if self.slv4_reg == A.WIA else 0x80 + self.slv4_reg - A.ASAX]
+        return [0]
+
+
+def make(config=MPU9250Config()):
+    program = bring_up_program(config, 3, 3, 2)
+    return BringUpSequencer(program, accepted_who_am_i=config.accepted_who_am_i,
+                            mag_start=mag_setup_start(config), poll_cycles=50)
+
+
+def run(dut, chip, body):
+    model = RegisterPortModel(dut.port, chip.answer)
+    orig = model.cycle
+
+    async def cycle(ctx):
+        await orig(ctx)
+        if model.writes and model.writes[-1][1] == R.I2C_SLV4_REG:
+            chip.slv4_reg = model.writes[-1][2]
+    model.cycle = cycle
+
+    async def testbench(ctx):
+        await body(ctx, model)
+    sim = Simulator(dut)
+    sim.add_clock(1e-6)
+    sim.add_testbench(testbench)
+    sim.run()
+    return model
+
+
+def test_program_restart_and_magnetometer_again():
+    config = MPU9250Config()
+    dut = make(config)
+    seen = {}
+    mag_part = expected_writes(config)[10:-2]        # from USER_CTRL |= I2C_MST_EN to SLV0
+
+    async def body(ctx, model):
+        pulses = []
+
+        async def watch(n):
+            for _ in range(n):
+                await model.cycle(ctx)
+                pulses.append((ctx.get(dut.started), ctx.get(dut.restarted)))
+        await model.until(ctx, lambda: ctx.get(dut.streaming))
+        seen["writes"] = [(r, v) for _, r, v in model.writes]
+        seen["status"] = (ctx.get(dut.mag_ok), ctx.get(dut.who_am_i), ctx.get(dut.restarts),
+                          [ctx.get(dut.asa[i]) for i in range(3)])
+        # the magnetometer's part again: mag_ok drops at once, the part runs, samples go on
+        model.writes.clear()
+        ctx.set(dut.mag_lost, 1)
+        await model.cycle(ctx)
+        ctx.set(dut.mag_lost, 0)
+        seen["during"] = (ctx.get(dut.mag_ok), ctx.get(dut.mag_setup), ctx.get(dut.streaming))
+        await model.until(ctx, lambda: not ctx.get(dut.mag_setup))
+        seen["again"] = [(r, v) for _, r, v in model.writes]
+        seen["after"] = (ctx.get(dut.mag_ok), ctx.get(dut.streaming), ctx.get(dut.restarts))
+        # a restart asked for: from the start, counted
+        model.writes.clear()
+        ctx.set(dut.restart, 1)
+        await watch(1)
+        ctx.set(dut.restart, 0)
+        await watch(3)
+        seen["restarting"] = (ctx.get(dut.streaming), ctx.get(dut.restarts))
+        while not ctx.get(dut.streaming):
+            await watch(1)
+        seen["pulses"] = (sum(p[0] for p in pulses), sum(p[1] for p in pulses))
+        seen["rewrites"] = [(r, v) for _, r, v in model.writes]
+    run(dut, Chip(), body)
+    assert seen["writes"] == expected_writes(config)
+    assert seen["status"] == (1, 0x71, 0, [0x80, 0x81, 0x82])
+    assert seen["during"] == (0, 1, 1)
+    # the magnetometer's part, then the INT set-up again (the same values)
+    assert seen["again"] == mag_part + expected_writes(config)[-2:]
+    assert seen["after"] == (1, 1, 0)
+    assert seen["restarting"] == (0, 1)
+    assert seen["pulses"] == (1, 1)
+    assert seen["rewrites"] == expected_writes(config)
+
+
+def test_wrong_who_am_i_restarts_and_wrong_wia_skips_the_magnetometer():
+    dut = make()
+    seen = {}
+
+    async def body(ctx, model):
+        await model.until(ctx, lambda: ctx.get(dut.restarts) >= 2)
+        seen["bad"] = (ctx.get(dut.whoami_error), ctx.get(dut.who_am_i), ctx.get(dut.streaming))
+    run(dut, Chip(who_am_i=0x68), body)
+    assert seen["bad"] == (1, 0x68, 0)
+
+    dut = make()
+
+    async def body2(ctx, model):
+        await model.until(ctx, lambda: ctx.get(dut.streaming))
+        seen["wia"] = (ctx.get(dut.mag_ok), ctx.get(dut.mag_wia_error), ctx.get(dut.mag_absent),
+                       ctx.get(dut.restarts))
+    run(dut, Chip(wia=0x00), body2)
+    assert seen["wia"] == (0, 1, 0, 0)

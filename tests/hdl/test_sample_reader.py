@@ -1,0 +1,97 @@
+"""SampleReader against a register-port model: decoding, the burst checks, magnetometer
+freshness (DRDY after a read without it, or new bytes), restarts and the stale time-out."""
+
+from amaranth.sim import Simulator
+
+from mpu9250_ahrs.hdl.sample_reader import BAD_BURST_LIMIT, SampleReader
+
+from .register_port_model import RegisterPortModel
+
+
+PERIOD = 300
+
+
+def burst(k, *, int_status=0x01, drdy=1, field=(100, -200, 300), data=None):
+    """INT_STATUS, accel/temp/gyro (big-endian, distinct per k), ST1, HX..HZ (little-endian),
+    ST2 (BITM)."""
+    values = data if data is not None else [k * 10 + i for i in range(7)]
+    mpu = b"".join((v & 0xFFFF).to_bytes(2, "big") for v in values) if data is None else data
+    ak = bytes([drdy]) + b"".join((v & 0xFFFF).to_bytes(2, "little") for v in field) + b"\x10"
+    return bytes([int_status]) + mpu + ak
+
+
+def run(bursts, *, mag_ok=1, extra_periods=0):
+    """One data-ready edge per entry of ``bursts`` (None: no edge that period), a period apart;
+    returns the samples taken and, per period, the status and pulses seen."""
+    dut = SampleReader(period_cycles=PERIOD, first_timeout_cycles=4 * PERIOD,
+                       timeout_cycles=4 * PERIOD, mag_timeout_periods=3)
+    queue = []
+    model = RegisterPortModel(dut.port, lambda device, reg, length: queue.pop(0))
+    samples, log = [], []
+
+    async def testbench(ctx):
+        ctx.set(dut.enable, 1)
+        ctx.set(dut.mag_ok, mag_ok)
+        ctx.set(dut.samples.ready, 1)
+        ctx.set(dut.start, 1)
+        await model.cycle(ctx)
+        ctx.set(dut.start, 0)
+        for b in list(bursts) + [None] * extra_periods:
+            pulses = {"restart": 0, "mag_lost": 0}
+            if b is not None:
+                queue.append(b)
+                ctx.set(dut.int_pin, 1)
+            for c in range(PERIOD):
+                if c == PERIOD // 2:
+                    ctx.set(dut.int_pin, 0)
+                await model.cycle(ctx)
+                for name in pulses:
+                    pulses[name] |= ctx.get(getattr(dut, name))
+                if ctx.get(dut.samples.valid):
+                    samples.append(ctx.get(dut.samples.payload))
+            log.append({"bad_burst": ctx.get(dut.bad_burst), "mag_stale": ctx.get(dut.mag_stale),
+                        "int_timeout": ctx.get(dut.int_timeout), **pulses})
+    sim = Simulator(dut)
+    sim.add_clock(1e-6)
+    sim.add_testbench(testbench)
+    sim.run()
+    return samples, log
+
+
+def test_decoding_and_magnetometer_freshness():
+    f1, f2 = (100, -200, 300), (101, -200, 300)
+    samples, log = run([burst(0, field=f1), burst(1, field=f1), burst(2, drdy=0, field=f1),
+                        burst(3, field=f1), burst(4, field=f2), burst(5, field=f2)])
+    assert [s.counter for s in samples] == list(range(6))
+    assert [list(s.accel) for s in samples[:2]] == [[0, 1, 2], [10, 11, 12]]
+    assert samples[1].temp == 13 and list(samples[1].gyro) == [14, 15, 16]
+    # DRDY with new bytes: new; DRDY again, same bytes: an old measurement read again; DRDY
+    # after a read without it: new even with the same bytes
+    assert [s.flags.mag_new for s in samples] == [1, 0, 0, 1, 1, 0]
+    assert [s.flags.mag_valid for s in samples] == [1, 0, 0, 1, 1, 0]
+    assert list(samples[4].mag) == list(f2)
+    assert not any(entry["bad_burst"] or entry["restart"] for entry in log)
+
+
+def test_bad_bursts_are_dropped_counted_and_restart():
+    good = [burst(k) for k in range(2)]
+    bad = [burst(2, int_status=0x00), burst(3, data=b"\xff" * 14), burst(4, int_status=0xFF)]
+    samples, log = run(good + bad[:1] + [burst(5)] + bad + [burst(9, int_status=0)])
+    # one bad burst: no sample, flagged, counted in the next sample's skipped
+    assert [s.counter for s in samples] == [0, 1, 3]
+    assert samples[2].skipped == 1
+    assert [e["bad_burst"] for e in log[:4]] == [0, 0, 1, 0]
+    # BAD_BURST_LIMIT in a row: a restart asked for
+    assert BAD_BURST_LIMIT == 4
+    assert [e["restart"] for e in log] == [0] * 7 + [1]
+
+
+def test_magnetometer_time_out_and_no_data_ready():
+    samples, log = run([burst(0, field=(1, 2, 3))] + [burst(k, drdy=0) for k in range(1, 6)],
+                       extra_periods=5)
+    lost = [e["mag_lost"] for e in log]
+    # three sample-period ticks (mid-period) without a new field: stale, and the set-up asked
+    # for, again every three periods
+    assert lost[:6] == [0, 0, 1, 0, 0, 1] and log[2]["mag_stale"] == 1
+    # no data-ready edge for four periods: a time-out and a restart asked for
+    assert any(e["restart"] and e["int_timeout"] for e in log[6:])

@@ -1,0 +1,171 @@
+"""Bad input to every verb of the command line: one clear line on stderr and a non-zero exit,
+never a traceback, a hang or silent nonsense. Each case runs ``main`` in-process (an uncaught
+exception fails the test) and stops before any simulation or synthesis starts."""
+
+import json
+
+import numpy as np
+import pytest
+
+from mpu9250_ahrs.cli import main
+
+
+def broad_file(path, n=50, rate=100.0, **override):
+    """A small BROAD-format file; ``override`` replaces datasets or the rate."""
+    import h5py
+    rng = np.random.default_rng(0)
+    data = {"imu_gyr": rng.normal(0, 0.01, (n, 3)),
+            "imu_acc": np.tile([0.0, 0.0, 9.81], (n, 1)) + rng.normal(0, 0.05, (n, 3)),
+            "imu_mag": np.tile([20.0, 0.0, -40.0], (n, 1)) + rng.normal(0, 0.3, (n, 3)),
+            "opt_quat": np.tile([1.0, 0.0, 0.0, 0.0], (n, 1)),
+            "movement": np.ones(n, bool)}
+    data.update({k: v for k, v in override.items() if k != "sampling_rate"})
+    with h5py.File(path, "w") as f:
+        for k, v in data.items():
+            if v is not None:
+                f[k] = v
+        f.attrs["sampling_rate"] = override.get("sampling_rate", rate)
+    return str(path)
+
+
+def run(argv, capsys):
+    try:
+        code = main(argv)
+    except SystemExit as e:             # argparse's usage errors
+        code = e.code
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def assert_one_error(code, err, *words):
+    assert code not in (0, None), err
+    assert "Traceback" not in err
+    lines = [l for l in err.splitlines() if "error" in l]
+    assert len(lines) == 1, err
+    for w in words:
+        assert w.lower() in lines[0].lower(), lines[0]
+
+
+SIMULATE = [
+    (["--samples", "0"], "less than 1"),
+    (["--samples", "-5"], "less than 1"),
+    (["--samples", "many"], "not an integer"),
+    (["--odr-scale", "0"], "more than 0"),
+    (["--odr-scale", "nan"], "finite"),
+    (["--delay-scale", "-1"], "more than 0"),
+    (["--clk-freq", "0"], "more than 0"),
+    (["--gyro-fs", "300"], "gyro full scale"),
+    (["--accel-fs", "3"], "full scale"),
+    (["--odr", "0"], "more than 0"),
+    (["--odr", "7"], "1000/n"),
+    (["--odr", "100", "--dlpf", "1"], "leave out"),
+    (["--dlpf", "9"], "dlpf_cfg"),
+    (["--baud", "0"], "less than 1"),
+    (["--telemetry-divider", "0"], "less than 1"),
+    (["--i2c-address", "0x50", "--wiring", "i2c"], "i2c_address"),
+    (["--who-am-i", "-1"], "less than 0"),
+    (["--fault", "nonsense"], "unknown fault"),
+    (["--fault", "i2c_bus_stuck"], "i2c wiring"),
+    (["--fault", "ak8963_lost", "--no-mag"], "magnetometer"),
+    (["--fault", "ak8963_lost", "--attitude"], "leave out"),
+    (["--fault", "ak8963_lost", "--fault-at", "0"], "less than 1"),
+    (["--odr", "8000", "--wiring", "i2c"], "more than this design filters"),
+]
+
+
+@pytest.mark.parametrize("args,words", SIMULATE, ids=[" ".join(a) for a, _ in SIMULATE])
+def test_simulate_bad_input(args, words, capsys):
+    code, out, err = run(["simulate", *args], capsys)
+    assert_one_error(code, err, words)
+
+
+BUILD = [
+    (["--pin", "imu_sclk"], "NAME=BALL"),
+    (["--pin", "imu_sclk=Z9"], "not a ball"),
+    (["--pin", "imu_sclk=N14"], "not a ball"),
+    (["--pin", "imu_sclk=H6"], "both on ball"),
+    (["--pin", "nothing=A1"], "unknown pin names"),
+    (["--clk-freq", "-4"], "more than 0"),
+    (["--clk-freq", "7e6"], "baud"),
+    (["--gyro-fs", "300"], "gyro full scale"),
+]
+
+
+@pytest.mark.parametrize("args,words", BUILD, ids=[" ".join(a) for a, _ in BUILD])
+def test_build_bad_input(args, words, capsys, tmp_path):
+    code, out, err = run(["build", "--out", str(tmp_path / "q"), *args], capsys)
+    assert_one_error(code, err, words)
+    assert not (tmp_path / "q" / "top.v").exists()
+
+
+REPORT = [(["--clk-freq", "0"], "more than 0"), (["--accel-fs", "32"], "full scale"),
+          (["--odr", "3"], "1000/n")]
+
+
+@pytest.mark.parametrize("args,words", REPORT, ids=[" ".join(a) for a, _ in REPORT])
+def test_report_bad_input(args, words, capsys):
+    code, out, err = run(["report", *args], capsys)
+    assert_one_error(code, err, words)
+
+
+def _replay_cases(tmp_path):
+    n = 50
+    text = tmp_path / "text.hdf5"
+    text.write_text("not HDF5")
+    return [
+        (str(tmp_path / "missing.hdf5"), [], "cannot be read"),
+        (str(text), [], "cannot be read"),
+        (broad_file(tmp_path / "shape.hdf5", imu_gyr=np.zeros((n, 2))), [], "shape"),
+        (broad_file(tmp_path / "length.hdf5", imu_acc=np.zeros((n - 1, 3))), [], "shape"),
+        (broad_file(tmp_path / "empty.hdf5", n=0), [], "at least 2"),
+        (broad_file(tmp_path / "rate0.hdf5", sampling_rate=0.0), [], "sampling_rate"),
+        (broad_file(tmp_path / "nomag.hdf5", imu_mag=None), [], "missing imu_mag"),
+        (broad_file(tmp_path / "allnan.hdf5", imu_gyr=np.full((n, 3), np.nan)), [],
+         "no sample has finite"),
+        (broad_file(tmp_path / "ok.hdf5"), ["--gyro-fs", "0"], "gyro full scale"),
+        (broad_file(tmp_path / "ok2.hdf5"), ["--gyro-fs", "300"], "gyro full scale"),
+        (broad_file(tmp_path / "ok3.hdf5"), ["--accel-fs", "5"], "full scale"),
+        (broad_file(tmp_path / "ok4.hdf5"), ["--engine", "fixed", "--filter", "madgwick"],
+         "runs kalman"),
+        (broad_file(tmp_path / "ok5.hdf5"), ["--beta", "-1"], "more than 0"),
+    ]
+
+
+def test_replay_bad_input(capsys, tmp_path):
+    for path, args, words in _replay_cases(tmp_path):
+        code, out, err = run(["replay", path, *args], capsys)
+        assert_one_error(code, err, words)
+
+
+def test_replay_nan_samples_are_held_and_counted(capsys, tmp_path):
+    """NaN sensor values become neither −2³¹ counts nor a silent jump: held at the previous
+    sample, counted in ``samples_held`` and announced on stderr."""
+    n = 60
+    gyr = np.zeros((n, 3))
+    gyr[10:13] = np.nan
+    path = broad_file(tmp_path / "nan.hdf5", n=n, imu_gyr=gyr)
+    for engine in ("float", "fixed"):
+        code, out, err = run(["replay", path, "--filter", "flagship", "--engine", engine],
+                             capsys)
+        assert code == 0, err
+        result = json.loads(out)
+        assert result["samples_held"] == 3
+        assert "3 samples" in err and "held" in err
+        assert result["inclination_rmse_deg"] < 5
+
+
+def test_replay_without_scored_samples_prints_null(capsys, tmp_path):
+    """No movement sample with a truth: RMSE is JSON null with a reason, not a bare NaN."""
+    n = 40
+    path = broad_file(tmp_path / "still.hdf5", n=n, movement=np.zeros(n, bool))
+    code, out, err = run(["replay", path, "--filter", "madgwick"], capsys)
+    assert code == 0, err
+    result = json.loads(out)
+    assert result["total_rmse_deg"] is None and result["rmse_note"]
+
+
+def test_simulate_fault_list(capsys):
+    from mpu9250_ahrs.sim.faults import FAULTS
+    code, out, err = run(["simulate", "--fault", "list"], capsys)
+    assert code == 0
+    assert [line.split()[0] for line in out.splitlines()] == list(FAULTS)
