@@ -363,22 +363,17 @@ def summarise(fault, inj, result, setup, after):
         summary.update({"detected_after_samples": None, "flags": [], "recovered": False,
                         "stale_valid_samples": None, "error": "the fault was never injected"})
         return summary
-    # flags after the fault: status bits going to 1, restarts going up, sample flags
-    flags, first = set(), {}
-    before = None
+    # flags after the fault: status bits rising to 1, restarts going up, sample flags
+    first = {}
+    prev = None
     for cycle, st in result.status_log:
-        if cycle / clk < t0 - 1e-12:
-            before = st
-            continue
-        for name in ERROR_FLAGS:
-            if st[name] and not (before and before[name] and cycle / clk < t0) and \
-                    name not in first:
-                first[name] = cycle
-        if before is not None and st["restarts"] > before["restarts"] and \
-                "restarts" not in first:
-            first["restarts"] = cycle
-        if before is None and st["restarts"] and "restarts" not in first:
-            first["restarts"] = cycle
+        if cycle / clk >= t0 - 1e-12:
+            for name in ERROR_FLAGS:
+                if st[name] and not (prev and prev[name]):
+                    first.setdefault(name, cycle)
+            if st["restarts"] > (prev["restarts"] if prev else 0):
+                first.setdefault("restarts", cycle)
+        prev = st
     for cycle, s in zip(result.sample_cycles, result.samples):
         if cycle / clk < t0:
             continue
