@@ -13,7 +13,9 @@ VERBS_HELP = """verbs:
   simulate   cycle-accurate co-simulation: the gateware brings an MPU9250 model up over SPI
              and reads samples; prints them, the bring-up time and the simulator's speed;
              with --attitude the whole core (driver, engine, telemetry): every result,
-             samples filtered / lost, saturated results, data-ready-to-attitude latency
+             samples filtered / lost, saturated results, data-ready-to-attitude latency;
+             with --fault NAME a fault of the catalogue (hdl/FAULTS.md) injected into the
+             models: when it was detected, the flags, recovery, stale samples passed on
   replay     run a filter on a recording (BROAD HDF5 format), quantised to MPU9250/AK8963
              counts: the float reference, the bit-exact model (--engine fixed) or the gateware
              in a compiled simulation (--engine gateware); print its errors against the optical
