@@ -6,7 +6,7 @@ to do on failure. ``BringUpSequencer`` runs it over a register port, one step at
 owns the status a bring-up decides: WHO_AM_I, the magnetometer's, the restarts.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from amaranth import *
 from amaranth.lib import data, enum, wiring
@@ -17,7 +17,7 @@ from . import mpu9250_regs as R
 from .register_port import RegisterPortSignature
 
 
-__all__ = ["Op", "Fail", "Step", "bring_up_program", "mag_setup_start", "BringUpSequencer"]
+__all__ = ["Op", "Fail", "Step", "bring_up_program", "BringUpSequencer"]
 
 
 class Op(enum.Enum, shape=3):
@@ -45,12 +45,7 @@ class Step:
     wait: int = 0
     fail: Fail = Fail.RESTART
     check: str = ""             # "who_am_i" or "wia"
-
-
-def mag_setup_start(config):
-    """Index of the first step of the magnetometer's part of ``bring_up_program``: where a
-    re-initialisation starts (right after the accel/gyro register writes)."""
-    return 1 + (2 if config.wiring == "spi" else 0) + 2 + 2 + len(config.sensor_writes())
+    mag: bool = False           # part of the magnetometer's set-up (run again from its first)
 
 
 def bring_up_program(config, power_up_cycles, reset_cycles, mag_wait_cycles):
@@ -122,7 +117,7 @@ def bring_up_program(config, power_up_cycles, reset_cycles, mag_wait_cycles):
                              value=R.I2C_MST_DELAY_CTRL_DELAY_ES_SHADOW |
                              R.I2C_MST_DELAY_CTRL_SLV0_DLY_EN)]
         mag.append(Step(Op.MARK))
-        steps += mag
+        steps += [replace(step, mag=True) for step in mag]
 
     steps += [Step(Op.WRITE, reg=R.INT_PIN_CFG, value=config.int_pin_cfg),
               Step(Op.WRITE, reg=R.INT_ENABLE, value=R.INT_ENABLE_RAW_RDY),
@@ -134,9 +129,9 @@ class BringUpSequencer(wiring.Component):
     """Runs ``program`` (``bring_up_program``) over a register port.
 
     Parameters
-        ``program``: the steps. ``accepted_who_am_i``: the WHO_AM_I values that pass.
-        ``mag_start``: the first step of the magnetometer's part (``mag_setup_start``).
-        ``poll_cycles``: how long a POLL step may take.
+        ``program``: the steps; those marked ``mag`` are the magnetometer's part, which runs
+            again from its first step when the magnetometer is lost. ``accepted_who_am_i``: the
+            WHO_AM_I values that pass. ``poll_cycles``: how long a POLL step may take.
     Members
         ``port`` (a register port's client side): the sequencer's commands.
         ``restart`` (in, pulse): run the program again from the start (the reader lost the
@@ -159,10 +154,9 @@ class BringUpSequencer(wiring.Component):
     the magnetometer and jumps past its part (samples flow without it).
     """
 
-    def __init__(self, program, *, accepted_who_am_i, mag_start, poll_cycles):
+    def __init__(self, program, *, accepted_who_am_i, poll_cycles):
         self.program = program
         self.accepted_who_am_i = tuple(accepted_who_am_i)
-        self.mag_start = mag_start
         self.poll_cycles = poll_cycles
         super().__init__({
             "port": Out(RegisterPortSignature().flip()),
@@ -179,6 +173,7 @@ class BringUpSequencer(wiring.Component):
         program = self.program
         mark = next((i for i, s in enumerate(program) if s.op == Op.MARK), None)
         skip_mag = 0 if mark is None else mark + 1
+        mag_start = next((i for i, s in enumerate(program) if s.mag), 0)
 
         # -- program ROM --------------------------------------------------------------------------
         pc = Signal(range(len(program)))
@@ -299,7 +294,7 @@ class BringUpSequencer(wiring.Component):
                     restart()
                 with m.Elif(self.mag_lost):
                     m.d.sync += [self.mag_ok.eq(0), self.mag_setup.eq(1),
-                                 pc.eq(self.mag_start)]
+                                 pc.eq(mag_start)]
                     m.next = "FETCH"
         return m
 

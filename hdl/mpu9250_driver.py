@@ -59,8 +59,7 @@ from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out, connect, flipped
 
 from . import mpu9250_regs as R
-from .bring_up_sequencer import (BringUpSequencer, Fail, Op, Step, bring_up_program,
-                                 mag_setup_start)
+from .bring_up_sequencer import BringUpSequencer, Fail, Op, Step, bring_up_program
 from .clocking import cycles
 from .register_port import RegisterPortSignature
 from .register_port_arbiter import RegisterPortArbiter
@@ -156,7 +155,8 @@ class DriverTiming:
 
     ``time_scale`` multiplies the power-up and reset waits (simulations use ≪ 1; the sensor
     model's delays must be scaled alike). ``int_timeout_s`` is used as given; ``None`` means
-    four output sample periods plus 50 ms for the gyro to wake. It also bounds each SLV4 poll.
+    ``stream_timeout_periods`` sample periods plus 50 ms for the gyro to wake. It also bounds
+    each SLV4 poll.
     ``mag_power_down_s`` is the AK8963's power-down wait (not scaled). ``sample_period_s`` is
     the sensor's sample period the driver measures data-ready intervals against (``None``:
     1/ODR; simulations that compress the sensor's period give it here). Once samples flow, the
@@ -180,7 +180,7 @@ class DriverTiming:
     def cycles(self, clk_freq, config):
         timeout = self.int_timeout_s
         if timeout is None:
-            timeout = 4 / config.output_data_rate + 0.050
+            timeout = self.stream_timeout_periods / config.output_data_rate + 0.050
         return (cycles(self.power_up_s * self.time_scale, clk_freq),
                 cycles(self.reset_s * self.time_scale, clk_freq), cycles(timeout, clk_freq))
 
@@ -228,10 +228,8 @@ class MPU9250Driver(wiring.Component):
     def elaborate(self, platform):
         m = Module()
         cfg = self.config
-        mag_start = mag_setup_start(cfg)
-        assert not cfg.magnetometer or (self.program[mag_start].reg == R.USER_CTRL)
         m.submodules.sequencer = seq = BringUpSequencer(
-            self.program, accepted_who_am_i=cfg.accepted_who_am_i, mag_start=mag_start,
+            self.program, accepted_who_am_i=cfg.accepted_who_am_i,
             poll_cycles=self.timeout_cycles)
         m.submodules.reader = reader = SampleReader(
             wiring=cfg.wiring, int_active_low=cfg.int_active_low,

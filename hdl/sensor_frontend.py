@@ -23,6 +23,7 @@ from .mpu9250_driver import DriverTiming, MPU9250Config, MPU9250Driver
 from .sample import DriverStatus, Sample
 from .i2c_controller import I2CController, I2CPinsSignature, I2CTiming
 from .register_port import I2CRegisterPort, SPIRegisterPort
+from .sample_reader import MPU_BYTES, SAMPLE_BYTES
 from .spi_controller import SPIController, SPIPinsSignature, SPITiming
 
 
@@ -36,7 +37,6 @@ def sample_read_cycles(config, clk_freq, bus_timing=None):
     setup, hold and gap), or on I2C the MPU9250 read and the AK8963 read (9 SCL periods a byte
     plus START, repeated START, STOP). ``simulate``'s measured ``sample_read_us`` stays below it
     (a test checks)."""
-    from .mpu9250_driver import MPU_BYTES as _MPU_BYTES, SAMPLE_BYTES
     overhead = 16
     if config.wiring == "spi":
         t = bus_timing or SPITiming.for_clock(clk_freq)
@@ -46,7 +46,7 @@ def sample_read_cycles(config, clk_freq, bus_timing=None):
     period = t.low + t.high
     def read(n):       # START, address+W, register, repeated START, address+R, n bytes, STOP
         return (3 + 9 * (3 + n)) * period
-    return overhead + read(_MPU_BYTES) + (read(8) if config.magnetometer else 0)
+    return overhead + read(MPU_BYTES) + (read(8) if config.magnetometer else 0)
 
 
 class SensorFrontEnd(wiring.Component):

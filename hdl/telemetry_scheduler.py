@@ -7,11 +7,10 @@ while the telemetry carries the latest result at the rate the link allows.
 """
 
 from amaranth import *
-from amaranth.hdl import signed
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
-from .sample import Attitude, AttitudeFlags, DriverStatus, Sample
+from .sample import Attitude, DriverStatus, Sample
 
 
 __all__ = ["TelemetryCounters", "FramedAttitude", "AttitudeFrame", "TelemetryScheduler"]
@@ -33,12 +32,10 @@ class TelemetryCounters(data.Struct):
     not_sent: 32
 
 
-class FramedAttitude(data.Struct):
-    """An ``Attitude`` without its counter, which is the sample's (framed beside it)."""
-    quat: data.ArrayLayout(signed(32), 4)
-    angles: data.ArrayLayout(signed(32), 3)
-    bias: data.ArrayLayout(signed(32), 3)
-    flags: AttitudeFlags
+# An ``Attitude`` without its counter, which is the sample's (framed beside it).
+FramedAttitude = data.StructLayout({name: field.shape
+                                    for name, field in data.Layout.cast(Attitude)
+                                    if name != "counter"})
 
 
 class AttitudeFrame(data.Struct):
@@ -105,8 +102,7 @@ class TelemetryScheduler(wiring.Component):
 
         p = self.frames.payload
         result = self.results.payload
-        m.d.comb += [*(p.attitude[name].eq(result[name])
-                       for name in ("quat", "angles", "bias", "flags")),
+        m.d.comb += [*(p.attitude[name].eq(result[name]) for name, _ in FramedAttitude),
                      p.sample.eq(self.sample),
                      p.status.eq(self.status), p.cfg_refused.eq(self.cfg_refused),
                      p.counters.filtered.eq(c.filtered + 1),

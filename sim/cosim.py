@@ -208,6 +208,13 @@ class SimSetup:
                             # the AK8963's period is scaled like the MPU9250's
                             mag_timeout_s=DriverTiming.mag_timeout_s * self.odr_scale)
 
+    def bring_up_budget_cycles(self):
+        """Cycles that cover three bring-up attempts' waits plus the magnetometer's SLV4
+        transfers (each waits for a sample tick of the MPU9250's I2C master): the start of
+        every simulation's cycle budget."""
+        power_up, reset, _ = self.driver_timing().cycles(self.clk_freq, self.config)
+        return 3 * (power_up + reset) + 40 * self.sample_period_s * self.clk_freq
+
     def model_timing(self):
         return MPU9250Timing().scaled(delays=self.delay_scale, odr=self.odr_scale)
 
@@ -292,11 +299,8 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
         model = setup.model()
     if max_cycles is None:
         period = setup.sample_period_s * setup.clk_freq
-        # Three bring-up attempts' waits, plus the magnetometer's SLV4 transfers (each waits
-        # for a sample tick of the MPU9250's I2C master).
-        bring_up = 3 * (dut.driver.power_up_cycles + dut.driver.reset_cycles) + \
-            40 * period + 20_000
-        max_cycles = int(bring_up + (n_samples + 3) * period * 1.5)
+        max_cycles = int(setup.bring_up_budget_cycles() + 20_000 +
+                         (n_samples + 3) * period * 1.5)
 
     bus = None
     if setup.config.wiring == "spi":
@@ -452,10 +456,9 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
     model = model or setup.model(magnetometer=setup.config.magnetometer)
     if max_cycles is None:
         period = setup.sample_period_s * setup.clk_freq
-        fe = core.frontend.driver
         frame_s = 10 * core.framer.frame_bytes / baud * core.telemetry_divider
         samples = max(n_results or 0, (n_frames or 0) * max(1, frame_s / setup.sample_period_s))
-        max_cycles = int(3 * (fe.power_up_cycles + fe.reset_cycles) + 40 * period + 40_000 +
+        max_cycles = int(setup.bring_up_budget_cycles() + 40_000 +
                          (samples + 3) * period * 1.5)
     harness = CosimHarness(core, spi=core.imu, int_pin=core.imu_int)
     sim = Simulator(harness)

@@ -340,7 +340,7 @@ def run_fault(name, setup=None, *, at=20, duration=None, after=None, max_cycles=
         return ok
 
     if max_cycles is None:
-        bring_up = 3 * (power_up + reset) + 40 * period * clk
+        bring_up = setup.bring_up_budget_cycles()
         span = (at + (duration or 0) + after + 2 * mag_limit + 60) * period * clk
         if fault.at_power_up:
             span += inj.duration * period * clk

@@ -5,8 +5,7 @@ from amaranth.sim import Simulator
 
 from mpu9250_ahrs.hdl import ak8963_regs as A
 from mpu9250_ahrs.hdl import mpu9250_regs as R
-from mpu9250_ahrs.hdl.bring_up_sequencer import (BringUpSequencer, bring_up_program,
-                                                 mag_setup_start)
+from mpu9250_ahrs.hdl.bring_up_sequencer import BringUpSequencer, bring_up_program
 from mpu9250_ahrs.hdl.mpu9250_driver import MPU9250Config
 
 from .register_port_model import RegisterPortModel
@@ -30,8 +29,11 @@ class Chip:
 
 def make(config=MPU9250Config()):
     program = bring_up_program(config, 3, 3, 2)
+    # the magnetometer's part, the one run again, starts with the I2C master's USER_CTRL
+    first = next(s for s in program if s.mag)
+    assert (first.reg, first.value) == (R.USER_CTRL, 0x30)
     return BringUpSequencer(program, accepted_who_am_i=config.accepted_who_am_i,
-                            mag_start=mag_setup_start(config), poll_cycles=50)
+                            poll_cycles=50)
 
 
 def run(dut, chip, body):
