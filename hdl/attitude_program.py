@@ -49,7 +49,8 @@ address  name            meaning, format                                        
 0xFF     CONTROL         (not a register-file word) bits 1:0 filter: 0 = per-axis
                          Kalman, 1 = complementary, 2 = flagship (the reset
                          default); bit 2: write 1 to reset the filter state
-                         (angles 0, bias 0, P = P0·I, flagship afresh). Selecting
+                         (angles 0, bias 0, P = P0·I, flagship afresh); bit 3: keep
+                         the filter (bits 1:0 ignored: a reset alone). Selecting
                          another filter makes the next sample a first one.
 =======  ==============  =========================================================  ===========
 
@@ -67,13 +68,14 @@ from .attitude_isa import Q14, Q24, Q30, REG_COUNT, Assembler, Cond, Flag
 from .flagship_microcode import FLAGSHIP_REGISTERS, flagship_names, flagship_routine
 
 
-__all__ = ["CONFIG_REGS", "CONTROL_ADDR", "TELEMETRY_DIV_ADDR", "HOST_WRITABLE", "HOST_READ_ONLY", "REGS", "FILTERS",
+__all__ = ["CONFIG_REGS", "CONTROL_ADDR", "CONTROL_RESET", "CONTROL_KEEP", "TELEMETRY_DIV_ADDR", "HOST_WRITABLE", "HOST_READ_ONLY", "REGS", "FILTERS",
            "FILTER_CODES", "FilterRoutine",
            "LOAD_BASE", "LOAD_ORDER", "TEMPS", "CONSTANTS", "build_program", "config_init",
            "load_words", "control_word"]
 
 CONTROL_ADDR = REG_COUNT - 1
 CONTROL_RESET = 1 << 2
+CONTROL_KEEP = 1 << 3          # with it, bits 1:0 are ignored: the filter stays as selected
 
 
 @dataclass(frozen=True)

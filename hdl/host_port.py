@@ -6,7 +6,7 @@ from amaranth.lib import stream, wiring
 from amaranth.lib.wiring import In, Out
 
 from .attitude_isa import REG_BITS
-from .attitude_program import CONTROL_ADDR, CONTROL_RESET
+from .attitude_program import CONTROL_ADDR, CONTROL_KEEP, CONTROL_RESET
 from .sample import ConfigWrite
 
 
@@ -24,8 +24,8 @@ class HostPort(wiring.Component):
             only to the host: a write to one is taken, changes nothing, and is counted.
     Members
         ``cfg`` (in, stream of ``ConfigWrite``): a write per transfer, taken in one cycle while
-            ``open``. ``CONTROL_ADDR`` sets ``select`` (bits 1:0) and, with bit 2, pulses
-            ``reset``; another filter than the present one pulses ``switched``. Any other
+            ``open``. ``CONTROL_ADDR`` sets ``select`` (bits 1:0, unless bit 3 says keep it)
+            and, with bit 2, pulses ``reset``; another filter than the present one pulses ``switched``. Any other
             writable address writes the register file.
         ``refused`` (out, 16): writes refused since reset (saturating at 65535).
         ``cfg_read`` (in, stream of addresses) / ``cfg_read_data`` (out, stream of signed 32):
@@ -65,7 +65,8 @@ class HostPort(wiring.Component):
                 m.d.sync += self.refused.eq(self.refused + 1)
         with m.Elif(self.cfg.valid & self.open):
             with m.If(write.addr == CONTROL_ADDR):
-                new = write.data[:2]
+                keep = write.data[CONTROL_KEEP.bit_length() - 1]
+                new = Mux(keep, self.select, write.data[:2])
                 m.d.sync += self.select.eq(new)
                 m.d.comb += [self.switched.eq(new != self.select),
                              self.reset.eq(write.data[CONTROL_RESET.bit_length() - 1])]

@@ -13,12 +13,14 @@ name                      pin    what
 clk12                     H6     12 MHz oscillator (system clock)
 led0 .. led7              A8 A9 A11 A10 B10 C9 C10 D8  (status LEDs, active high)
 uart_tx                   B4     FPGA -> host (FTDI BDBUS1 on the MAX1000)
-uart_rx                   A4     host -> FPGA (FTDI BDBUS0), unused for now
+uart_rx                   A4     host -> FPGA (FTDI BDBUS0): the command channel
 imu_cs_n                  M3     PMOD pin 1: MPU9250 NCS
 imu_copi                  L3     PMOD pin 2: MPU9250 SDI/SDA
 imu_cipo                  M2     PMOD pin 3: MPU9250 SDO/AD0
 imu_sclk                  M1     PMOD pin 4: MPU9250 SCLK/SCL
 imu_int                   N3     PMOD pin 5: MPU9250 INT
+pwm0 .. pwm3              H4 J2 L12 K11  Arduino header D3 D5 D6 D9: PWM outputs (servo or
+                                 motor style, low until enabled; ``hdl/pwm.py``)
 ========================  =====  ====================================================
 
 An I2C-wired MPU9250 board uses the same header: SCL on ``imu_sclk``, SDA on ``imu_copi``
@@ -47,6 +49,7 @@ DEFAULT_PINOUT = {
     "imu_cipo": "M2",
     "imu_sclk": "M1",
     "imu_int": "N3",
+    **{f"pwm{i}": pin for i, pin in enumerate("H4 J2 L12 K11".split())},
 }
 
 
@@ -94,6 +97,7 @@ class MAX10Platform(AlteraPlatform):
             Resource("uart", 0,
                      Subsignal("tx", Pins(pinout["uart_tx"], dir="o")),
                      Subsignal("rx", Pins(pinout["uart_rx"], dir="i")), io),
+            *[Resource("pwm", i, Pins(pinout[f"pwm{i}"], dir="o"), io) for i in range(4)],
             Resource("imu_spi", 0,
                      Subsignal("cs", PinsN(pinout["imu_cs_n"], dir="o")),
                      Subsignal("clk", Pins(pinout["imu_sclk"], dir="o")),

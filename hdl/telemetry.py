@@ -1,41 +1,51 @@
-"""Telemetry framer: packs a struct (a ``Sample`` plus the driver status) into framed bytes.
+"""Telemetry framer: packs a struct (a ``Sample`` plus the driver status, an attitude result,
+a reply to a command) into a frame of the link layer (``hdl/FRAMES.md``).
 
 Frame (all bytes on the wire in this order)
     ``0xA5 0x5A``  sync
-    ``type``       frame type: 0x01 = ``SensorFrame`` (sample and driver status),
-                   0x02 = ``AttitudeFrame`` (attitude result, the sample it came from, driver
-                   status latched with it, telemetry counters; ``hdl/telemetry_scheduler.py``)
+    ``type``       frame type (``FRAME_TYPES``): 0x01 ``SensorFrame`` (a sample and the driver
+                   status), 0x02 ``AttitudeFrame`` (an attitude result, the sample it came
+                   from, the driver status latched with it, telemetry counters;
+                   ``hdl/telemetry_scheduler.py``), 0x81 ``Reply`` (to a host command,
+                   ``hdl/command_decoder.py``)
+    ``seq``        sequence number: the board's frames are numbered 0, 1, 2 ... (mod 256) in
+                   the order they leave (``FrameArbiter``), whatever their type, so a gap is a
+                   lost frame
     ``length``     payload length in bytes
     payload        the frame struct packed as its ``lib.data`` layout says, least significant
                    byte first (padded with zeros to whole bytes)
-    ``crc``        CRC-8/SMBUS (polynomial 0x07, init 0) over type, length and payload
+    ``crc``        CRC-16/IBM-3740 (polynomial 0x1021, initial 0xFFFF, no reflection, no final
+                   XOR) over type, seq, length and payload, most significant byte first; why
+                   this one: ``hdl/FRAMES.md``
 
-``mpu9250_ahrs.sim.telemetry`` decodes frames with the same layouts, so the gateware and the
+``mpu9250_ahrs.host.protocol`` decodes frames with the same layouts, so the gateware and the
 host never disagree on a field position.
-
-Interface
-    ``i_stream`` (in, stream of the frame layout): one frame per transfer; its payload is read
-        byte by byte while it is sent and acknowledged (``ready``) with the last byte.
-    ``o_stream`` (out, byte stream): to a UART transmitter.
-Throughput: ``length + 5`` bytes per frame, one byte per ``o_stream`` handshake.
-``TelemetryFramer`` below has the details (and a buffered mode: the attitude frames).
 """
 
 from amaranth import *
 from amaranth.lib import data, stream, wiring
-from amaranth.lib.crc.catalog import CRC8_SMBUS
+from amaranth.lib.crc.catalog import CRC16_IBM_3740
 from amaranth.lib.wiring import In, Out
 
 from .memories import FrameRAM
 from .sample import DriverStatus, Sample
-from .telemetry_scheduler import AttitudeFrame
 
 
-__all__ = ["SYNC", "CRC", "SensorFrame", "AttitudeFrame", "FRAME_TYPES", "TelemetryFramer"]
+__all__ = ["SYNC", "CRC", "HEADER_BYTES", "FrameByte", "SensorFrame", "payload_bytes",
+           "frame_bytes", "TelemetryFramer"]
 
 
 SYNC = (0xA5, 0x5A)
-CRC = CRC8_SMBUS
+# Every 1-, 2- and 3-bit error in any frame up to 4,095 bytes: hdl/FRAMES.md says why.
+CRC = CRC16_IBM_3740
+HEADER_BYTES = 5                       # sync (2), type, seq, length; then payload, CRC (2)
+
+
+class FrameByte(data.Struct):
+    """A byte of a frame on its way to the UART; ``last`` marks the frame's final byte (the
+    ``FrameArbiter`` hands the link to another framer only after it)."""
+    data: 8
+    last: 1
 
 
 class SensorFrame(data.Struct):
@@ -43,20 +53,19 @@ class SensorFrame(data.Struct):
     status: DriverStatus
 
 
-FRAME_TYPES = {0x01: SensorFrame, 0x02: AttitudeFrame}
-
-
 def payload_bytes(layout):
     return (data.Layout.cast(layout).size + 7) // 8
 
 
 def frame_bytes(layout):
-    """Bytes on the wire for a frame of ``layout``: sync (2), type, length, payload, CRC."""
-    return payload_bytes(layout) + 5
+    """Bytes on the wire for a frame of ``layout``: sync (2), type, seq, length, payload,
+    CRC (2)."""
+    return payload_bytes(layout) + HEADER_BYTES + 2
 
 
 class TelemetryFramer(wiring.Component):
-    """Frames a struct: sync, type, length, payload, CRC, one byte per ``o_stream`` transfer.
+    """Frames a struct: sync, type, seq, length, payload, CRC-16, one byte per ``o_stream``
+    transfer.
 
     Parameters
         ``layout``, ``frame_type``: the payload struct and its type byte.
@@ -67,14 +76,23 @@ class TelemetryFramer(wiring.Component):
             after ``valid``, if ``idle``); the frame is then sent from the copy, so the
             producer is free to change the payload after those cycles, whatever the UART's
             rate.
+        ``short`` (buffered only): None, or ``(type, layout)``: a second frame type whose
+            payload is the first bytes of ``layout``'s (its layout's bits must be the first
+            bits of ``layout``, in whole bytes). A frame offered while the ``short`` input is
+            high is sent as that type, cut to that length (raw-sample mode sends the sample
+            and status of an attitude frame so).
         ``blackbox``: the RAM as an empty module (``report``'s synthesis).
     Members
-        ``i_stream`` (in, stream of ``layout``); ``o_stream`` (out, byte stream, to a UART).
+        ``i_stream`` (in, stream of ``layout``); ``o_stream`` (out, stream of ``FrameByte``:
+            to a ``FrameArbiter``, or a UART taking ``data``).
+        ``seq`` (in, 8): the sequence number, read when the seq byte is sent.
+        ``short`` (in): see above; sampled when the copy starts.
         ``idle`` (out): buffered: no frame is being copied or sent (a frame offered now is
             copied at once). Unbuffered: no frame is being sent.
-    Throughput: ``length + 5`` bytes per frame.
+    Throughput: ``length + 7`` bytes per frame.
     """
-    def __init__(self, layout=SensorFrame, frame_type=0x01, *, buffered=False, blackbox=False):
+    def __init__(self, layout=SensorFrame, frame_type=0x01, *, buffered=False, short=None,
+                 blackbox=False):
         self.layout = layout
         self.frame_type = frame_type
         self.buffered = buffered
@@ -82,27 +100,37 @@ class TelemetryFramer(wiring.Component):
         if self.length > 255:
             raise ValueError("telemetry payload longer than 255 bytes")
         self.frame_bytes = frame_bytes(layout)
-        # the copy goes a 32-bit word per cycle: a 21-way multiplexer of words costs fewer
-        # LUTs than an 81-way one of bytes
+        if short is not None and not buffered:
+            raise ValueError("a short frame type needs a buffered framer")
+        self.short_type = None if short is None else short[0]
+        self.short_length = None if short is None else payload_bytes(short[1])
+        # the copy goes a 32-bit word per cycle: a 23-way multiplexer of words costs fewer
+        # LUTs than a 92-way one of bytes
         self.words = (self.length + 3) // 4
         self.ram = FrameRAM(self.words, 32, blackbox=blackbox) if buffered else None
         super().__init__({
             "i_stream": In(stream.Signature(layout)),
-            "o_stream": Out(stream.Signature(8)),
+            "o_stream": Out(stream.Signature(FrameByte)),
+            "seq": In(8),
+            "short": In(1),
             "idle": Out(1),
         })
 
     def elaborate(self, platform):
         m = Module()
         n = self.length
-        index = Signal(range(n + 5))
+        index = Signal(range(n + 7))
         m.submodules.crc = crc = CRC(data_width=8).create()
 
         value = self.i_stream.payload.as_value()
         bits = Cat(value, C(0, 8 * n - len(value)))
         payload_bytes = Array(bits[8 * i:8 * i + 8] for i in range(n))
         sent = self.o_stream.valid & self.o_stream.ready
-        last = sent & (index == n + 4)
+        # the frame's length and type: this one's, or (short) the short type's
+        length = Signal(8, init=n)
+        ftype = Signal(8, init=self.frame_type)
+        end = index == length + 6
+        last = sent & end
 
         if self.buffered:
             m.submodules.ram = ram = self.ram
@@ -116,6 +144,11 @@ class TelemetryFramer(wiring.Component):
                 m.d.comb += [ram.w_en.eq(1), ram.w_addr.eq(copy_index),
                              ram.w_data.eq(payload_words[copy_index])]
                 m.d.sync += copy_index.eq(copy_index + 1)
+                if self.short_type is not None:
+                    with m.If(copy_index == 0):
+                        m.d.sync += [length.eq(Mux(self.short, self.short_length, n)),
+                                     ftype.eq(Mux(self.short, self.short_type,
+                                                  self.frame_type))]
                 with m.If(copy_index == words - 1):
                     m.d.comb += self.i_stream.ready.eq(1)
                     m.d.sync += [copy_index.eq(0), sending.eq(1)]
@@ -123,39 +156,43 @@ class TelemetryFramer(wiring.Component):
                 m.d.sync += sending.eq(0)
             # send: each handshake reads the word of the next payload byte (the read data holds
             # between), and the byte is picked from it
-            ahead = Signal(range(n + 5))
-            m.d.comb += [ahead.eq(index - 3),
+            ahead = Signal(range(n + 7))
+            m.d.comb += [ahead.eq(index - 4),
                          self.o_stream.valid.eq(sending), ram.r_en.eq(sent),
                          ram.r_addr.eq(ahead[2:]),
                          self.idle.eq(~sending & (copy_index == 0))]
-            payload_byte = ram.r_data.word_select((index - 4)[:2], 8)
+            payload_byte = ram.r_data.word_select((index - 5)[:2], 8)
         else:
             m.d.comb += [self.o_stream.valid.eq(self.i_stream.valid),
                          self.i_stream.ready.eq(last), self.idle.eq(index == 0)]
             # straight from the payload: the stream keeps it still until ``ready``
-            payload_byte = payload_bytes[index - 4]
+            payload_byte = payload_bytes[index - 5]
 
         byte = Signal(8)
-        with m.Switch(index):
-            with m.Case(0):
-                m.d.comb += byte.eq(SYNC[0])
-            with m.Case(1):
-                m.d.comb += byte.eq(SYNC[1])
-            with m.Case(2):
-                m.d.comb += byte.eq(self.frame_type)
-            with m.Case(3):
-                m.d.comb += byte.eq(n)
-            with m.Case(n + 4):
-                m.d.comb += byte.eq(crc.crc)
-            with m.Default():
-                m.d.comb += byte.eq(payload_byte)
+        with m.If(index == 0):
+            m.d.comb += byte.eq(SYNC[0])
+        with m.Elif(index == 1):
+            m.d.comb += byte.eq(SYNC[1])
+        with m.Elif(index == 2):
+            m.d.comb += byte.eq(ftype)
+        with m.Elif(index == 3):
+            m.d.comb += byte.eq(self.seq)
+        with m.Elif(index == 4):
+            m.d.comb += byte.eq(length)
+        with m.Elif(index == length + 5):
+            m.d.comb += byte.eq(crc.crc[8:])
+        with m.Elif(end):
+            m.d.comb += byte.eq(crc.crc[:8])
+        with m.Else():
+            m.d.comb += byte.eq(payload_byte)
 
         m.d.comb += [
-            self.o_stream.payload.eq(byte),
+            self.o_stream.payload.data.eq(byte),
+            self.o_stream.payload.last.eq(end),
             crc.data.eq(byte),
             crc.start.eq(sent & (index == 0)),
-            crc.valid.eq(sent & (index >= 2) & (index < n + 4)),
+            crc.valid.eq(sent & (index >= 2) & (index < length + 5)),
         ]
         with m.If(sent):
-            m.d.sync += index.eq(Mux(index == n + 4, 0, index + 1))
+            m.d.sync += index.eq(Mux(end, 0, index + 1))
         return m

@@ -39,13 +39,16 @@ FramedAttitude = data.StructLayout({name: field.shape
 
 
 class AttitudeFrame(data.Struct):
-    """Frame type 0x02: an attitude result (its counter is the sample's), the sample it came
-    from, the driver status latched with that sample, the telemetry counters at the time the
-    result was taken, and the host writes the engine refused so far (``cfg_refused``: to
-    read-only or state registers)."""
-    attitude: FramedAttitude
+    """Frame type 0x02: the sample an attitude result came from and the driver status latched
+    with that sample (first, and padded to whole bytes: these 29 bytes are exactly a
+    ``SensorFrame``'s payload, which raw-sample mode sends alone as frame type 0x01), the
+    result (its counter is the sample's), the telemetry counters at the time the result was
+    taken, and the host writes the engine refused so far (``cfg_refused``: to read-only or
+    state registers)."""
     sample: Sample
     status: DriverStatus
+    reserved: 1
+    attitude: FramedAttitude
     counters: TelemetryCounters
     cfg_refused: 16
 

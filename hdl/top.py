@@ -5,8 +5,9 @@
 ``build --verilog-only`` exports and what simulations of the whole design drive. Ports:
 ``imu`` (SPI pins, or I2C pins with ``config.wiring == "i2c"``), ``imu_int``, ``uart_tx``,
 ``status``, ``asa``, ``samples_seen`` (counts samples, for a heartbeat LED), and with the
-engine ``cfg`` (register writes to the engine; tie ``valid`` low to keep the reset values)
-and ``cfg_read`` / ``cfg_read_data`` (read-back).
+engine ``cfg`` (register writes to the engine, before the command channel's; tie ``valid``
+low on a board) and ``cfg_read`` / ``cfg_read_data`` (read-back), ``uart_rx`` (the command
+channel, ``hdl/FRAMES.md``) and ``pwm`` (four PWM outputs, ``hdl/pwm.py``).
 
 Telemetry: with the engine, an ``AttitudeFrame`` (type 0x02: the result, the raw sample it
 came from, the driver status latched with it, the counters) for every ``TELEMETRY_DIV``-th
@@ -39,6 +40,7 @@ import math
 from amaranth import *
 from amaranth.lib import data, io, stream, wiring
 from amaranth.lib.cdc import ResetSynchronizer
+from amaranth.lib.fifo import SyncFIFOBuffered
 from amaranth.lib.wiring import In, Out, connect, flipped
 
 from .clocking import SYSTEM_CLOCK_HZ, SystemPLL
@@ -51,12 +53,30 @@ from .sample import ConfigWrite, DriverStatus, Sample
 from .sensor_frontend import SensorFrontEnd, sample_read_cycles
 from .i2c_controller import I2CPinsSignature
 from .spi_controller import SPIPinsSignature
-from .telemetry import TelemetryFramer, frame_bytes
+from .attitude_program import HOST_WRITABLE
+from .command_decoder import CommandDecoder, CommandStats, Reply
+from .frame_arbiter import FrameArbiter
+from .frame_types import ATTITUDE, REPLY, SENSOR
+from .pwm import PWM_CHANNELS, PWMOutputs
+from .telemetry import CRC, SensorFrame, TelemetryFramer, frame_bytes
 from .telemetry_scheduler import AttitudeFrame, TelemetryCounters, TelemetryScheduler
+from .uart_rx import UARTReceiver
 from .uart_tx import UARTTransmitter
 
 
-__all__ = ["AHRSCore", "BoardTop", "telemetry_divider_for", "rate_budget"]
+__all__ = ["AHRSCore", "BoardTop", "telemetry_divider_for", "rate_budget", "VERSION",
+           "version_word"]
+
+
+VERSION = (0, 2)        # major, minor: the version/build word's top bytes
+
+
+def version_word(**build):
+    """The word "who are you" returns: major (8 bits), minor (8), then a build number: the
+    CRC-16 of the build's options (``repr`` of ``build``'s sorted items), so two bitstreams
+    built with other options answer differently."""
+    text = repr(sorted(build.items())).encode()
+    return (VERSION[0] << 24) | (VERSION[1] << 16) | CRC(data_width=8).compute(text)
 
 
 def telemetry_divider_for(config, baud, divider=None):
@@ -109,6 +129,10 @@ class AHRSCore(wiring.Component):
         ``cfg``, ``cfg_read``, ``cfg_read_data``: the engine's register port (with ``attitude``).
         ``counters`` (``TelemetryCounters``): results filtered, samples lost, results not sent.
         ``cfg_refused`` (16): host writes the engine refused (read-only or state registers).
+        ``uart_rx``: commands in (``UARTReceiver`` -> FIFO -> ``CommandDecoder``, replies out
+            through the ``FrameArbiter`` before telemetry); ``pwm`` (4): ``PWMOutputs``;
+            ``command_stats`` (``CommandStats``), ``raw_mode``: the command channel's.
+        ``command_timeout_s``: a command frame with no byte for this long is dropped (5 ms).
 
     With the engine, every sample the driver reads is filtered: the engine takes a sample as
     soon as its previous update is done (``WORST_UPDATE_CYCLES`` at most) and the
@@ -118,7 +142,7 @@ class AHRSCore(wiring.Component):
     def __init__(self, *, clk_freq=SYSTEM_CLOCK_HZ, config=MPU9250Config(),
                  timing=DriverTiming(), baud=921_600, attitude=True, filter_config=None,
                  calibration=None, flagship_config=None, filter="flagship",
-                 telemetry_divider=None, blackbox_hard_blocks=False):
+                 telemetry_divider=None, command_timeout_s=0.005, blackbox_hard_blocks=False):
         self.clk_freq = clk_freq
         self.config = config
         self.attitude = attitude
@@ -132,7 +156,8 @@ class AHRSCore(wiring.Component):
                 filter_config = default_filter_config(config)
             if flagship_config is None:
                 flagship_config = default_flagship_config(config)
-            self.framer = TelemetryFramer(AttitudeFrame, 0x02, buffered=True,
+            self.framer = TelemetryFramer(AttitudeFrame, ATTITUDE, buffered=True,
+                                          short=(SENSOR, SensorFrame),
                                           blackbox=blackbox_hard_blocks)
             self.telemetry_divider = telemetry_divider
             self.engine = AttitudeEngine(filter_config, calibration, flagship_config,
@@ -140,9 +165,20 @@ class AHRSCore(wiring.Component):
                                          extra_registers={"TELEMETRY_DIV": telemetry_divider},
                                          blackbox_hard_blocks=blackbox_hard_blocks)
             self.scheduler = TelemetryScheduler()
+            self.version = version_word(clk_freq=clk_freq, baud=baud, config=repr(config),
+                                        filter=filter)
+            self.receiver = UARTReceiver(divisor=UARTTransmitter.divisor_for(clk_freq, baud))
+            # a command is at most 13 bytes: 16 hold a whole one while the last executes
+            self.rx_fifo = SyncFIFOBuffered(width=8, depth=16)
+            self.decoder = CommandDecoder(writable=HOST_WRITABLE, version=self.version,
+                                          timeout=max(1, round(command_timeout_s * clk_freq)))
+            self.pwm_block = PWMOutputs(clk_freq=clk_freq)
+            self.reply_framer = TelemetryFramer(Reply, REPLY)
+            self.arbiter = FrameArbiter(2)             # replies first, then telemetry
         else:
             self.framer = TelemetryFramer()
             self.telemetry_divider = 1
+            self.arbiter = FrameArbiter(1)
         self.uart = UARTTransmitter.for_baud(clk_freq, baud)
         ports = {
             "imu": Out(SPIPinsSignature() if config.wiring == "spi" else I2CPinsSignature()),
@@ -158,6 +194,10 @@ class AHRSCore(wiring.Component):
             ports["cfg_read_data"] = Out(stream.Signature(signed(32)))
             ports["counters"] = Out(TelemetryCounters)
             ports["cfg_refused"] = Out(16)
+            ports["uart_rx"] = In(1, init=1)
+            ports["pwm"] = Out(PWM_CHANNELS)
+            ports["command_stats"] = Out(CommandStats)
+            ports["raw_mode"] = Out(1)
         super().__init__(ports)
 
     def elaborate(self, platform):
@@ -165,6 +205,7 @@ class AHRSCore(wiring.Component):
         m.submodules.frontend = fe = self.frontend
         m.submodules.framer = framer = self.framer
         m.submodules.uart = uart = self.uart
+        m.submodules.arbiter = arbiter = self.arbiter
 
         connect(m, fe.pins, flipped(self.imu))
         m.d.comb += [fe.int_pin.eq(self.imu_int), self.status.eq(fe.status),
@@ -178,20 +219,60 @@ class AHRSCore(wiring.Component):
             m.submodules.engine = engine = self.engine
             m.submodules.scheduler = sched = self.scheduler
             connect(m, fe.samples, engine.samples)
-            connect(m, flipped(self.cfg), engine.cfg)
-            connect(m, flipped(self.cfg_read), engine.cfg_read)
-            connect(m, engine.cfg_read_data, flipped(self.cfg_read_data))
             connect(m, engine.results, sched.results)
             connect(m, sched.frames, framer.i_stream)
             held = Signal(Sample, reset_less=True)
             held_status = Signal(DriverStatus, reset_less=True)
             with m.If(fe.samples.valid & fe.samples.ready):
                 m.d.sync += [held.eq(fe.samples.payload), held_status.eq(fe.status)]
+
+            # Host -> UART receiver -> FIFO -> command decoder -> engine / board / PWM, and its
+            # replies -> framer -> arbiter (before telemetry) -> UART.
+            m.submodules.uart_rx = rx = self.receiver
+            m.submodules.rx_fifo = fifo = self.rx_fifo
+            m.submodules.decoder = decoder = self.decoder
+            m.submodules.pwm = pwm = self.pwm_block
+            m.submodules.reply_framer = reply_framer = self.reply_framer
+            m.d.comb += rx.rx.eq(self.uart_rx)
+            connect(m, rx.o_stream, fifo.w_stream)
+            connect(m, fifo.r_stream, decoder.i_stream)
+            connect(m, decoder.pwm, pwm.bus)
+            connect(m, decoder.replies, reply_framer.i_stream)
+            m.d.comb += [pwm.kick.eq(decoder.kick), self.pwm.eq(pwm.pwm),
+                         decoder.rx_framing_errors.eq(rx.framing_errors),
+                         decoder.rx_overruns.eq(rx.overruns),
+                         decoder.frames_sent.eq(arbiter.frames),
+                         self.command_stats.eq(decoder.stats), self.raw_mode.eq(decoder.raw_mode),
+                         framer.short.eq(decoder.raw_mode)]
+            # The engine's register port: the ``cfg`` ports (a test bench, or tied off) first,
+            # then the command decoder's; a transfer is never split between them.
+            ext_write, dec_write = self.cfg, decoder.cfg
+            m.d.comb += [engine.cfg.valid.eq(ext_write.valid | dec_write.valid),
+                         engine.cfg.payload.eq(Mux(ext_write.valid, ext_write.payload,
+                                                   dec_write.payload)),
+                         ext_write.ready.eq(engine.cfg.ready),
+                         dec_write.ready.eq(engine.cfg.ready & ~ext_write.valid)]
+            ext_read, dec_read = self.cfg_read, decoder.cfg_read
+            # whose read is outstanding: its word goes back to it
+            reader = Signal()                                  # 1: the decoder's
+            m.d.comb += [engine.cfg_read.valid.eq(ext_read.valid | dec_read.valid),
+                         engine.cfg_read.payload.eq(Mux(ext_read.valid, ext_read.payload,
+                                                        dec_read.payload)),
+                         ext_read.ready.eq(engine.cfg_read.ready),
+                         dec_read.ready.eq(engine.cfg_read.ready & ~ext_read.valid)]
+            with m.If(engine.cfg_read.valid & engine.cfg_read.ready):
+                m.d.sync += reader.eq(~ext_read.valid)
+            m.d.comb += [self.cfg_read_data.payload.eq(engine.cfg_read_data.payload),
+                         decoder.cfg_read_data.payload.eq(engine.cfg_read_data.payload),
+                         self.cfg_read_data.valid.eq(engine.cfg_read_data.valid & ~reader),
+                         decoder.cfg_read_data.valid.eq(engine.cfg_read_data.valid & reader),
+                         engine.cfg_read_data.ready.eq(Mux(reader, decoder.cfg_read_data.ready,
+                                                           self.cfg_read_data.ready))]
             # the divider register: the engine keeps its copy for read-back
             divider = Signal(16, init=self.telemetry_divider)
-            with m.If(self.cfg.valid & self.cfg.ready &
-                      (self.cfg.payload.addr == TELEMETRY_DIV_ADDR)):
-                m.d.sync += divider.eq(self.cfg.payload.data[:16])
+            with m.If(engine.cfg.valid & engine.cfg.ready &
+                      (engine.cfg.payload.addr == TELEMETRY_DIV_ADDR)):
+                m.d.sync += divider.eq(engine.cfg.payload.data[:16])
             m.d.comb += [
                 engine.asa.eq(fe.asa),
                 sched.sample.eq(held), sched.status.eq(held_status),
@@ -199,6 +280,9 @@ class AHRSCore(wiring.Component):
                 sched.cfg_refused.eq(engine.cfg_refused), self.cfg_refused.eq(engine.cfg_refused),
                 sched.framer_idle.eq(framer.idle),
             ]
+            connect(m, reply_framer.o_stream, arbiter.i0)
+            connect(m, framer.o_stream, arbiter.i1)
+            m.d.comb += reply_framer.seq.eq(arbiter.seq)
         else:
             # Sample stream -> frame (sample + status at the moment it was taken) -> UART.
             m.d.comb += [
@@ -207,7 +291,9 @@ class AHRSCore(wiring.Component):
                 framer.i_stream.payload.status.eq(fe.status),
                 fe.samples.ready.eq(framer.i_stream.ready),
             ]
-        connect(m, framer.o_stream, uart.i_stream)
+            connect(m, framer.o_stream, arbiter.i0)
+        m.d.comb += framer.seq.eq(arbiter.seq)
+        connect(m, arbiter.o_stream, uart.i_stream)
         with m.If(fe.samples.valid & fe.samples.ready):
             m.d.sync += self.samples_seen.eq(self.samples_seen + 1)
         return m
@@ -242,7 +328,14 @@ class BoardTop(Elaboratable):
         config = core.config
         uart = platform.request("uart", 0, dir="-")
         m.submodules.uart_tx = uart_tx = io.Buffer("o", uart.tx)
+        m.submodules.uart_rx = uart_rx = io.Buffer("i", uart.rx)
         m.d.comb += uart_tx.o.eq(core.uart_tx)
+        if core.attitude:
+            m.d.comb += core.uart_rx.eq(uart_rx.i)       # synchronised in the receiver
+            for i in range(len(core.pwm)):
+                pwm = io.Buffer("o", platform.request("pwm", i, dir="-"))
+                m.submodules[f"pwm{i}"] = pwm
+                m.d.comb += pwm.o.eq(core.pwm[i])
 
         if config.wiring == "spi":
             imu = platform.request("imu_spi", 0, dir="-")

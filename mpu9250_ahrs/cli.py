@@ -23,6 +23,14 @@ VERBS_HELP = """verbs:
   report     resources of the attitude datapath and of the whole design from Yosys (MAX10
              mapping), cycles per filter update, the clock, the co-simulated latency and the
              highest sample rate the design sustains, as JSON
+  monitor    decode a board's frames on a serial port (or PORT=sim: the co-simulated design
+             behind a pseudo-terminal): a live line, a CSV or HDF5 log, a JSON summary
+  config     read or write the board's registers by name in physical units, select the
+             filter, reset it, set the telemetry rate (hdl/FRAMES.md)
+  calibrate  guided calibration (gyro at rest, six accelerometer poses, magnetometer turned
+             through all orientations), checked, written to the board and saved as JSON for
+             build --calibration
+  plot       a monitor log's attitude, rates and flags against time, as an image
 """
 
 
@@ -158,20 +166,23 @@ def cmd_build(args):
     config = _config(args)
     clk_freq = _clock(args)
     check_rates(config, clk_freq, args)
+    options = _core_options(args)
+    if args.calibration:
+        from .host.calibrate import load_calibration
+        options["calibration"] = load_calibration(args.calibration)
     pinout = dict(args.pin)
     platform = MAX10Platform(pinout=pinout)
     if not args.verilog_only and clk_freq != platform.default_clk_frequency:
         pll_ratio(platform.default_clk_frequency, clk_freq)     # a clear error, before the build
     out.mkdir(parents=True, exist_ok=True)
     if args.verilog_only:
-        core = AHRSCore(clk_freq=clk_freq, config=config, baud=args.baud,
-                        **_core_options(args))
+        core = AHRSCore(clk_freq=clk_freq, config=config, baud=args.baud, **options)
         path = out / "mpu9250_ahrs_core.v"
         path.write_text(verilog.convert(core, name="mpu9250_ahrs_core"))
         print(f"wrote {path} (system clock {clk_freq / 1e6:g} MHz)")
         return 0
     plan = platform.build(BoardTop(clk_freq=clk_freq, config=config, baud=args.baud,
-                                   **_core_options(args)),
+                                   **options),
                           name="top", do_build=False,
                           add_constraints=BoardTop.PLL_CONSTRAINTS)
     plan.extract(str(out))
@@ -377,6 +388,8 @@ def build_parser():
                    help="write only the core (no pin buffers) as mpu9250_ahrs_core.v")
     p.add_argument("--pin", action="append", default=[], metavar="NAME=PIN", type=_pin,
                    help="override a pin of the default pinout, e.g. imu_sclk=J1 (repeatable)")
+    p.add_argument("--calibration", default=None, metavar="FILE",
+                   help="bake a calibration saved by 'calibrate' (JSON) in as reset values")
     _add_sensor_options(p)
     p.set_defaults(func=cmd_build)
 
@@ -445,7 +458,150 @@ def build_parser():
                                    "max_sample_rate_hz. About a minute.")
     _add_sensor_options(p)
     p.set_defaults(func=cmd_report)
+    _add_host_verbs(sub)
     return parser
+
+
+def _add_port_options(p):
+    p.add_argument("port", metavar="PORT",
+                   help="serial device (/dev/ttyUSB0, COM3), or 'sim': the co-simulated design "
+                        "behind a pseudo-terminal, started here")
+    p.add_argument("--baud", type=_count, default=921_600, help="the board's UART (921600)")
+    p.add_argument("--timeout", type=_positive, default=1.0, metavar="S",
+                   help="seconds without a valid frame (or a reply) before giving up (1)")
+
+
+def _add_host_verbs(sub):
+    p = sub.add_parser("monitor", help="decode and log a board's frames",
+                       description="Decode the board's frames: a live line on stderr (frame "
+                                   "rate, attitude, flags, CRC errors, frames lost by the "
+                                   "sequence numbers), every frame logged, a JSON summary "
+                                   "on stdout at the end.")
+    _add_port_options(p)
+    log = p.add_mutually_exclusive_group()
+    log.add_argument("--csv", default=None, metavar="FILE", help="log every frame as CSV")
+    log.add_argument("--hdf5", default=None, metavar="FILE", help="... or as HDF5")
+    p.add_argument("--frames", type=_count, default=None, metavar="N",
+                   help="stop after N frames (default: until Ctrl-C)")
+    p.set_defaults(func=cmd_monitor)
+
+    p = sub.add_parser("config", help="read or write the board's registers",
+                       description="get NAME | set NAME VALUE | filter NAME | reset | rate HZ | "
+                                   "list. Names, formats and units: hdl/FRAMES.md (VALUE in the "
+                                   "register's unit; the tool converts).")
+    _add_port_options(p)
+    p.add_argument("action", choices=("get", "set", "filter", "reset", "rate", "list"))
+    p.add_argument("args", nargs="*", metavar="ARG")
+    p.set_defaults(func=cmd_config)
+
+    p = sub.add_parser("calibrate", help="guided calibration, written to the board and saved",
+                       description="Gyro bias at rest, the accelerometer in six poses, the "
+                                   "magnetometer turned through all orientations; each step "
+                                   "checked; the result written to the board and saved as "
+                                   "JSON (build --calibration FILE bakes it in). With PORT=sim "
+                                   "a simulated user moves the simulated board.")
+    _add_port_options(p)
+    p.add_argument("--out", default="calibration.json", metavar="FILE",
+                   help="where to save the result (calibration.json)")
+    p.add_argument("--accel-fs", type=int, default=16, help="the board's accelerometer full "
+                   "scale in g (16)")
+    p.add_argument("--quick", action="store_true",
+                   help="collect less and skip the read-back (for a simulated board; the "
+                        "default with PORT=sim)")
+    p.set_defaults(func=cmd_calibrate)
+
+    p = sub.add_parser("plot", help="plot a monitor log",
+                       description="Attitude, gyro rates and flags of a monitor log (CSV or "
+                                   "HDF5) against time, written as an image.")
+    p.add_argument("log", metavar="LOG")
+    p.add_argument("--out", required=True, metavar="FILE.png")
+    p.set_defaults(func=cmd_plot)
+
+
+def _open(args, **kwargs):
+    from .host.link import open_link
+    return open_link(args.port, args.baud, timeout=args.timeout, **kwargs)
+
+
+def _progress(what, k, n):
+    if k == 1 or k == n or k % 10 == 0:
+        sys.stderr.write(f"\r{what}: {k}/{n}   ")
+        if k == n:
+            sys.stderr.write("\n")
+        sys.stderr.flush()
+
+
+def cmd_monitor(args):
+    from .host.monitor import monitor
+    with _open(args) as link:
+        summary = monitor(link, frames=args.frames, csv_path=args.csv, hdf5_path=args.hdf5)
+    print(json.dumps(summary))
+    return 0
+
+
+def cmd_config(args):
+    from .host import config as c
+    from .host.regmap import REGISTERS
+    expected = {"get": 1, "set": 2, "filter": 1, "reset": 0, "rate": 1, "list": 0}[args.action]
+    if len(args.args) != expected:
+        raise ValueError(f"config {args.action} takes {expected} argument(s), not "
+                         f"{len(args.args)}")
+    if args.action == "list":
+        for reg in REGISTERS.values():
+            print(f"{reg.name:16} {reg.space:6} 0x{reg.addr:02X} {reg.format:6} "
+                  f"{'rw' if reg.writable else 'ro'} {reg.unit}")
+        return 0
+    with _open(args) as link:
+        link.identify()
+        if args.action == "get":
+            result = c.get(link, args.args[0])
+        elif args.action == "set":
+            result = c.set_register(link, *args.args)
+        elif args.action == "filter":
+            result = c.select_filter(link, args.args[0])
+        elif args.action == "reset":
+            result = c.reset_filter(link)
+        else:
+            result = c.set_rate(link, _positive(args.args[0]))
+    print(json.dumps(result))
+    return 0
+
+
+def cmd_calibrate(args):
+    from .host.calibrate import Amounts, calibrate, human_operator
+    sim = args.port == "sim"
+    amounts = Amounts(rest=12, pose=6, fields=24, settle=2, read_back=False) \
+        if (args.quick or sim) \
+        else Amounts()
+    with _open(args) as link:
+        operator = human_operator
+        if link.board is not None:
+            operator = _simulated_user(link.board)
+        result = calibrate(link, operator=operator, amounts=amounts, accel_fs_g=args.accel_fs,
+                           progress=_progress, out_json=args.out)
+    print(json.dumps({k: result[k] for k in ("gyro_offset", "accel_offset", "accel_scale",
+                                             "hard_iron", "checks")}))
+    print(f"saved to {args.out}; build --calibration {args.out} bakes it in", file=sys.stderr)
+    return 0
+
+
+def _simulated_user(board):
+    """Moves the simulated board as ``calibrate`` asks."""
+    from .host.calibrate import POSES
+
+    def operator(step, text):
+        print(f"[simulated user] {text}", file=sys.stderr)
+        if step == "tumble":
+            board.tumble()
+        else:
+            board.set_pose(*POSES.get(step, (0, 0, 0)))
+    return operator
+
+
+def cmd_plot(args):
+    from .host.plot import plot_log
+    print(json.dumps(plot_log(args.log, args.out)))
+    return 0
 
 
 def main(argv=None):

@@ -189,5 +189,21 @@ def report(*, clk_freq=None, config=None, latency=True):
                 100 * design["multipliers_18x18"] / DEVICE["multipliers_18x18"], 1),
             "memory_bits": round(100 * design["memory_bits"] / DEVICE["memory_bits"], 1),
         },
+        "link": link_figures(config, budget["baud"]),
         "tool": "Yosys 0.23 synth_intel -family max10 (see mpu9250_ahrs/report.py for method)",
     }
+
+
+def link_figures(config, baud):
+    """The UART's frames: bytes per frame type, the most frames a second the link carries
+    (10 bits a byte), and the default telemetry divider and frame rate for ``config``."""
+    from .hdl.frame_types import FRAME_TYPES
+    from .hdl.telemetry import frame_bytes
+    from .hdl.top import telemetry_divider_for
+    names = {0x01: "sensor", 0x02: "attitude", 0x81: "reply"}
+    sizes = {names[t]: frame_bytes(layout) for t, layout in FRAME_TYPES.items()}
+    divider = telemetry_divider_for(config, baud)
+    return {"baud": baud, "frame_bytes": sizes,
+            "max_frames_per_s": {k: round(baud / 10 / v, 1) for k, v in sizes.items()},
+            "telemetry_divider": divider,
+            "attitude_frames_per_s": round(config.output_data_rate / divider, 1)}

@@ -24,7 +24,7 @@ from .mpu9250_model import MPU9250Model, MPU9250Timing
 from ..hdl import ak8963_regs as A
 from .ak8963_model import AK8963Model, AK8963Timing
 from .sources import counting_field, counting_source
-from .telemetry import to_python
+from ..host.protocol import to_python
 
 
 __all__ = ["CosimHarness", "attach_models", "attach_mpu9250", "attach_stuck_miso", "SimSetup",
@@ -446,7 +446,7 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
     value) register writes through the ``cfg`` port at the start."""
     from ..hdl.top import AHRSCore
     from .streams import stream_put
-    from .telemetry import FrameDecoder
+    from ..host.protocol import FrameDecoder
     from .uart import attach_uart_receiver
     if n_results is None and n_frames is None:
         raise ValueError("run_core needs n_results or n_frames")
@@ -471,7 +471,7 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
     decoder = FrameDecoder()
 
     def more_wanted():
-        out["frames"] += [f for _, f in decoder.feed(received)]
+        out["frames"] += [f for _, _, f in decoder.feed(received)]
         received.clear()
         return (len(out["results"]) < (n_results or 0) or
                 len(out["frames"]) < (n_frames or 0))

@@ -164,3 +164,36 @@ def test_simulate_fault_list(capsys):
     code, out, err = run(["simulate", "--fault", "list"], capsys)
     assert code == 0
     assert [line.split()[0] for line in out.splitlines()] == list(FAULTS)
+
+
+def test_host_verbs_bad_input(capsys, tmp_path):
+    """The host verbs (monitor, config, calibrate, plot) and build --calibration: bad options
+    and bad files, each one line (no port is opened for any of them but the missing one)."""
+    bad_json = tmp_path / "bad.json"
+    bad_json.write_text("{not json")
+    wrong = tmp_path / "wrong.json"
+    wrong.write_text(json.dumps({"gyro_offset": [1, 2], "accel_offset": [0, 0, 0],
+                                 "accel_scale": [1, 1, 1], "hard_iron": [0, 0, 0],
+                                 "soft_iron": [[1, 0, 0], [0, 1, 0], [0, 0, 1]]}))
+    huge = tmp_path / "huge.json"
+    huge.write_text(json.dumps({"gyro_offset": [1e9, 0, 0], "accel_offset": [0, 0, 0],
+                                "accel_scale": [1, 1, 1], "hard_iron": [0, 0, 0],
+                                "soft_iron": [[1, 0, 0], [0, 1, 0], [0, 0, 1]]}))
+    not_a_log = tmp_path / "x.csv"
+    not_a_log.write_text("a,b\n1,2\n")
+    cases = [
+        (["monitor", "/dev/no-such-tty"], "no such serial port"),
+        (["monitor", "sim", "--frames", "0"], "less than 1"),
+        (["monitor", "sim", "--timeout", "-1"], "more than 0"),
+        (["config", "sim", "frobnicate"], "invalid choice"),
+        (["config", "sim", "set", "R"], "takes 2 argument"),
+        (["plot", str(tmp_path / "none.csv"), "--out", str(tmp_path / "p.png")], "no such file"),
+        (["plot", str(not_a_log), "--out", str(tmp_path / "p.png")], "not a monitor log"),
+        (["build", "--calibration", str(tmp_path / "none.json")], "no such file"),
+        (["build", "--calibration", str(bad_json)], "not json"),
+        (["build", "--calibration", str(wrong)], "gyro_offset"),
+        (["build", "--calibration", str(huge)], "out of range"),
+    ]
+    for argv, words in cases:
+        code, out, err = run(argv, capsys)
+        assert_one_error(code, err, words)

@@ -6,14 +6,15 @@ import pytest
 from amaranth.lib import data
 from amaranth.sim import Simulator
 
-from mpu9250_ahrs.hdl.telemetry import CRC, SYNC, SensorFrame, TelemetryFramer
+from mpu9250_ahrs.hdl.telemetry import SYNC, SensorFrame, TelemetryFramer
 from mpu9250_ahrs.hdl.uart_tx import UARTTransmitter
 from mpu9250_ahrs.reference.fixed_point import attitude_fixed
 from mpu9250_ahrs.sim.attitude_bench import EngineRun, first_mismatch
 from mpu9250_ahrs.sim.cosim import SimSetup, sample_matches
 from mpu9250_ahrs.sim.cosim import run_core as cosim_run_core
 from mpu9250_ahrs.sim.streams import stream_put
-from mpu9250_ahrs.sim.telemetry import FrameDecoder, FrameError, decode_frames, unpack
+from mpu9250_ahrs.host.protocol import (FrameDecoder, FrameError, crc16, decode_frames,
+                                        encode_frame, unpack)
 from mpu9250_ahrs.sim.uart import attach_uart_receiver
 
 
@@ -59,6 +60,7 @@ def test_framer_against_decoder(buffered):
     copy_cycles = []
 
     async def producer(ctx):
+        ctx.set(dut.seq, 0x42)
         for f in frames:
             start = ctx.get(dut.idle)
             ctx.set(dut.i_stream.payload, f)
@@ -76,19 +78,22 @@ def test_framer_against_decoder(buffered):
 
     async def consumer(ctx):
         n = 0
-        while len(out) < 4 * (dut.length + 5):
+        while len(out) < 4 * dut.frame_bytes:
             ctx.set(dut.o_stream.ready, n % 3 != 0)      # with back-pressure
             _, _, valid, ready, byte = await ctx.tick().sample(
                 dut.o_stream.valid, dut.o_stream.ready, dut.o_stream.payload)
             if valid and ready:
-                out.append(byte)
+                out.append(byte.data)
+                # ``last`` marks exactly each frame's final byte
+                assert byte.last == (len(out) % dut.frame_bytes == 0)
             n += 1
     sim.add_testbench(producer)
     sim.add_testbench(consumer)
     sim.run()
 
-    assert bytes(out[:2]) == bytes(SYNC) and out[2] == 0x01 and out[3] == dut.length
-    assert CRC(data_width=8).compute(out[2:dut.length + 4]) == out[dut.length + 4]
+    n = dut.length
+    assert bytes(out[:2]) == bytes(SYNC) and out[2:5] == [0x01, 0x42, n]
+    assert crc16(out[2:n + 5]) == int.from_bytes(bytes(out[n + 5:n + 7]), "big")
     decoded = [fields for _, fields in decode_frames(out, strict=True)]
     assert decoded == frames
     if buffered:
@@ -100,8 +105,7 @@ def test_decoder_resynchronises_and_rejects_bad_crc():
     frame = random_frame(rng)
     value = data.Layout.cast(SensorFrame).const(frame).as_bits()
     n = (data.Layout.cast(SensorFrame).size + 7) // 8
-    body = bytes([0x01, n]) + value.to_bytes(n, "little")
-    good = bytes(SYNC) + body + bytes([CRC(data_width=8).compute(body)])
+    good = encode_frame(0x01, 0, value.to_bytes(n, "little"))
     bad = bytearray(good)
     bad[10] ^= 0x40
     stream = b"\x00\xA5\x13" + bytes(bad) + good[:7] + good + good
@@ -114,7 +118,7 @@ def test_decoder_resynchronises_and_rejects_bad_crc():
     for size in (1, 5, 33):
         decoder = FrameDecoder()
         pieces = [stream[i:i + size] for i in range(0, len(stream), size)]
-        assert [f for piece in pieces for _, f in decoder.feed(piece)] == [frame, frame]
+        assert [f for piece in pieces for _, _, f in decoder.feed(piece)] == [frame, frame]
 
 
 def run_core(setup, n_frames, *, baud, max_cycles, vcd=None, writes=(), **core_kw):
@@ -145,8 +149,8 @@ def test_core_end_to_end_over_uart(vcd):
     attitude (quaternion, angles, bias, every flag) the fixed-point reference's for that sample,
     over every sample read, sent or not; the counters add up (the first two samples come closer
     than a frame lasts, so one result is not sent)."""
-    setup = SimSetup(clk_freq=12e6)
-    core, model, frames, asa = run_core(setup, 6, baud=6_000_000, max_cycles=80_000, vcd=vcd)
+    setup = SimSetup(clk_freq=12e6, odr_scale=0.4)      # a frame (3,680 cycles) per period
+    core, model, frames, asa = run_core(setup, 6, baud=3_000_000, max_cycles=120_000, vcd=vcd)
     assert core.telemetry_divider == 1
     n = frames[-1]["sample"]["counter"] + 1
     ref, reads = model_reference(core, model, n, asa, "flagship")
@@ -196,7 +200,7 @@ def test_telemetry_divider_is_a_run_time_register():
     from mpu9250_ahrs.hdl.attitude_program import TELEMETRY_DIV_ADDR
     from mpu9250_ahrs.hdl.mpu9250_driver import MPU9250Config
     setup = SimSetup(clk_freq=12e6, config=MPU9250Config(magnetometer=False))
-    core, _, frames, _ = run_core(setup, 4, baud=6_000_000, max_cycles=120_000,
+    core, _, frames, _ = run_core(setup, 4, baud=3_000_000, max_cycles=120_000,
                                   writes=[(TELEMETRY_DIV_ADDR, 3)])
     filtered = [f["counters"]["filtered"] for f in frames]
     assert [b - a for a, b in zip(filtered, filtered[1:])] == [3] * (len(frames) - 1)
@@ -219,35 +223,37 @@ KNOWN = {"accel0": 1, "accel1": -2, "accel2": 0x3FF, "temp": 0x1234, "gyro0": -1
          "gyro2": 32767, "mag0": -32768, "mag1": 5, "mag2": 6, "counter": 0x01020304,
          "data_ready": 1, "mag_valid": 1, "mag_new": 1, "skipped": 2, "streaming": 1,
          "restarts": 3, "who_am_i": 0x71, "mag_ok": 1, "bad_burst": 1}
-# the frame on the wire: sync, type 0x01, length 29, payload, CRC-8/SMBUS
-KNOWN_FRAME = bytes.fromhex(
-    "a55a011d"                                      # sync, type, length
-    "0100" "feff" "ff03" "3412" "ffff" "0000" "ff7f"    # accel, temp, gyro (little-endian)
-    "0080" "0500" "0600" "04030201"                     # mag, counter
-    "15" "89" "81" "b8" "08"                            # flags, skipped, status (bit-packed)
-    "14")                                               # CRC-8/SMBUS
+def known_frame():
+    """The frame written out in the frame format page (``hdl/FRAMES.md``)."""
+    from pathlib import Path
+    page = (Path(__file__).parents[2] / "hdl" / "FRAMES.md").read_text()
+    block = page.split("```known-answer\n", 1)[1].split("```", 1)[0]
+    return bytes.fromhex(block)
 
 
-def crc8_smbus(data):
-    """CRC-8/SMBUS bit by bit: polynomial 0x07, initial 0, no reflection, no final XOR."""
-    crc = 0
+def crc16_ibm_3740(data, initial=0xFFFF):
+    """CRC-16/IBM-3740 bit by bit: polynomial 0x1021, initial 0xFFFF (0: the CRC's linear
+    part), no reflection, no final XOR."""
+    crc = initial
     for byte in data:
-        crc ^= byte
+        crc ^= byte << 8
         for _ in range(8):
-            crc = ((crc << 1) ^ 0x07) & 0xFF if crc & 0x80 else (crc << 1) & 0xFF
+            crc = ((crc << 1) ^ 0x1021) & 0xFFFF if crc & 0x8000 else (crc << 1) & 0xFFFF
     return crc
 
 
 def test_sensor_frame_known_answer():
-    """One frame written out byte for byte: built here from the field list above with a
-    bitwise CRC, equal to the literal, to what the gateware framer sends, and decoded back."""
+    """The frame written out byte for byte in the frame format page: built here from the
+    field list above with a bitwise CRC, equal to the page's, to what the gateware framer
+    sends (sequence number 7), and decoded back."""
+    KNOWN_FRAME = known_frame()
     value, pos = 0, 0
     for name, bits in SENSOR_FRAME_FIELDS:
         value |= (KNOWN.get(name, 0) & ((1 << bits) - 1)) << pos
         pos += bits
     payload = value.to_bytes((pos + 7) // 8, "little")
-    body = bytes([0x01, len(payload)]) + payload
-    built = bytes(SYNC) + body + bytes([crc8_smbus(body)])
+    body = bytes([0x01, 7, len(payload)]) + payload
+    built = bytes(SYNC) + body + crc16_ibm_3740(body).to_bytes(2, "big")
     assert built == KNOWN_FRAME
 
     frame = {"sample": {"accel": [1, -2, 0x3FF], "temp": 0x1234, "gyro": [-1, 0, 32767],
@@ -259,6 +265,7 @@ def test_sensor_frame_known_answer():
     out = []
 
     async def producer(ctx):
+        ctx.set(dut.seq, 7)
         await stream_put(ctx, dut.i_stream, frame)
 
     async def consumer(ctx):
@@ -266,7 +273,7 @@ def test_sensor_frame_known_answer():
         for _ in range(10 * len(KNOWN_FRAME)):
             _, _, valid, byte = await ctx.tick().sample(dut.o_stream.valid, dut.o_stream.payload)
             if valid:
-                out.append(byte)
+                out.append(byte.data)
     sim = Simulator(dut)
     sim.add_clock(1e-6)
     sim.add_testbench(producer)

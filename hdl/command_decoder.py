@@ -1,0 +1,350 @@
+"""Command decoder: the host's commands, framed like the telemetry (``hdl/FRAMES.md``),
+checked whole before anything is done, executed, and answered with a reply frame."""
+
+from contextlib import contextmanager
+
+from amaranth import *
+from amaranth.lib import data, stream, wiring
+from amaranth.lib.wiring import In, Out
+
+from .attitude_isa import REG_BITS
+from .attitude_program import (CONTROL_ADDR, CONTROL_KEEP, CONTROL_RESET, FILTER_CODES,
+                               TELEMETRY_DIV_ADDR)
+from .board_bus import BoardBusSignature
+from .sample import ConfigWrite
+from .telemetry import CRC, SYNC
+
+
+__all__ = ["COMMANDS", "RESULTS", "SPACES", "BOARD_REGS", "REGMAP_VERSION", "MAX_COMMAND_PAYLOAD",
+           "Reply", "CommandStats", "CommandDecoder"]
+
+
+# name: (type byte, payload bytes)
+COMMANDS = {
+    "write": (0x10, 6),        # address (2 bytes), value (4, signed)
+    "read": (0x11, 2),         # address
+    "filter": (0x12, 1),       # filter code (FILTER_CODES)
+    "reset": (0x13, 0),        # reset the filter state, keep the filter
+    "rate": (0x14, 2),         # telemetry divider: frame every n-th result
+    "raw": (0x15, 1),          # bit 0: raw-sample mode (sensor frames instead of attitude)
+    "who": (0x16, 0),          # who are you: version/build word and register-map version
+}
+MAX_COMMAND_PAYLOAD = max(n for _, n in COMMANDS.values())
+RESULTS = {"ok": 0, "refused": 1, "bad_address": 2, "bad_command": 3}
+# The high byte of a register address: which block it is in.
+SPACES = {"engine": 0x00, "board": 0x01, "pwm": 0x02}
+# The board's own registers (space 0x01): all read-only but RAW_MODE.
+BOARD_REGS = {
+    "RAW_MODE": 0x00, "VERSION": 0x01, "REGMAP_VERSION": 0x02,
+    "RX_FRAMING_ERRORS": 0x03, "RX_OVERRUNS": 0x04, "CMD_DISCARDED": 0x05,
+    "CMD_CRC_ERRORS": 0x06, "CMD_MALFORMED": 0x07, "CMD_OK": 0x08, "CMD_REFUSED": 0x09,
+    "FRAMES_SENT": 0x0A,
+}
+# Bumped whenever an address, a format or a meaning in the register map changes (engine,
+# board, PWM); the host tool refuses to configure a board whose map it does not know.
+REGMAP_VERSION = 2
+
+
+class Reply(data.Struct):
+    """Frame type 0x81: the answer to a command that arrived whole and with a good CRC.
+    ``command`` and ``cmd_seq`` are the command's type and sequence number; ``result`` a
+    ``RESULTS`` code; ``addr`` and ``value``: a read's address and word, a write's address
+    and the value written; for "who": ``addr`` the register-map version, ``value`` the
+    version/build word."""
+    command: 8
+    cmd_seq: 8
+    result: 8
+    addr: 16
+    value: 32
+
+
+class CommandStats(data.Struct):
+    """The decoder's counters (16 bits each, saturating), readable as board registers."""
+    discarded: 16      # bytes outside any frame (hunting for the sync pattern)
+    crc_errors: 16     # frames whose CRC did not match
+    malformed: 16      # too long, cut off (no byte for ``timeout`` cycles), bad type or length
+    ok: 16             # commands done
+    refused: 16        # well-formed commands refused (read-only, out of range, no address)
+
+
+def _member(value, members):
+    """``value`` is in ``members`` (a set of ints), as comparisons with its runs of
+    consecutive members: a few comparators rather than a 256-way decode."""
+    runs = []
+    for a in sorted(members):
+        if runs and a == runs[-1][1] + 1:
+            runs[-1][1] = a
+        else:
+            runs.append([a, a])
+    hit = C(0)
+    for first, last in runs:
+        hit = hit | ((value == first) if first == last else (value >= first) & (value <= last))
+    return hit
+
+
+class CommandDecoder(wiring.Component):
+    """Parses command frames from a byte stream and executes them.
+
+    A command is parsed into a buffer and its CRC checked before anything is done: a
+    truncated, corrupt or malformed command changes nothing (it is counted, and a corrupt one
+    gets no reply: its sequence number cannot be trusted). A good one is executed whole (an
+    engine write is one ``cfg`` transfer; a board write one cycle) and answered with a
+    ``Reply``.
+
+    Parameters
+        ``writable``: engine addresses a host may write (``HOST_WRITABLE``).
+        ``version``: the version/build word "who" returns and VERSION reads.
+        ``timeout``: cycles without a byte after which a frame in progress is dropped.
+    Members
+        ``i_stream`` (in, byte stream): from the UART receiver (through a FIFO: bytes that
+            arrive while a command executes wait there).
+        ``cfg``, ``cfg_read``, ``cfg_read_data``: to the engine's register port.
+        ``pwm`` (out, ``BoardBusSignature``): the PWM block's registers (space 0x02).
+        ``replies`` (out, stream of ``Reply``): to an unbuffered framer (held until sent).
+        ``raw_mode`` (out): RAW_MODE bit 0.
+        ``kick`` (out): a pulse per good command (the PWM watchdog).
+        ``stats`` (out, ``CommandStats``); ``rx_framing_errors``, ``rx_overruns``,
+        ``frames_sent`` (in): read back as board registers.
+    Throughput: a byte per cycle while parsing; a command then takes a few cycles, or until
+    the engine is idle (``WORST_UPDATE_CYCLES`` at most), and its reply's time on the link.
+    """
+    def __init__(self, *, writable, version, timeout):
+        self.writable = frozenset(writable)
+        self.version = version
+        self.timeout = timeout
+        super().__init__({
+            "i_stream": In(stream.Signature(8)),
+            "cfg": Out(stream.Signature(ConfigWrite)),
+            "cfg_read": Out(stream.Signature(REG_BITS)),
+            "cfg_read_data": In(stream.Signature(signed(32))),
+            "pwm": Out(BoardBusSignature()),
+            "replies": Out(stream.Signature(Reply)),
+            "raw_mode": Out(1),
+            "kick": Out(1),
+            "stats": Out(CommandStats),
+            "rx_framing_errors": In(16),
+            "rx_overruns": In(16),
+            "frames_sent": In(32),
+        })
+
+    def elaborate(self, platform):
+        m = Module()
+        m.submodules.crc = crc = CRC(data_width=8).create()
+        stats = self.stats
+        byte = self.i_stream.payload
+        take = self.i_stream.valid & self.i_stream.ready
+
+        ctype = Signal(8)
+        seq = Signal(8)
+        length = Signal(8)
+        count = Signal(range(MAX_COMMAND_PAYLOAD + 1))
+        payload = Signal(8 * MAX_COMMAND_PAYLOAD)
+        crc_high = Signal(8)
+        gap = Signal(range(self.timeout + 1))
+        addr = payload[:16]
+        value = payload[16:48]
+        space, low = addr[8:], addr[:8]
+        reply = self.replies.payload
+
+        def count_up(counter):
+            with m.If(~counter.all()):                  # saturating at 0xFFFF
+                m.d.sync += counter.eq(counter + 1)
+
+        def answer(result, value_=None, addr_=None):
+            m.d.sync += [reply.command.eq(ctype), reply.cmd_seq.eq(seq), reply.result.eq(result),
+                         reply.addr.eq(addr if addr_ is None else addr_),
+                         reply.value.eq(value if value_ is None else value_)]
+            if result == RESULTS["ok"]:
+                count_up(stats.ok)
+            else:
+                count_up(stats.refused)
+            m.next = "REPLY"
+
+        m.d.comb += [crc.data.eq(byte)]
+        board_regs = {
+            BOARD_REGS["RAW_MODE"]: self.raw_mode,
+            BOARD_REGS["VERSION"]: C(self.version, 32),
+            BOARD_REGS["REGMAP_VERSION"]: C(REGMAP_VERSION, 32),
+            BOARD_REGS["RX_FRAMING_ERRORS"]: self.rx_framing_errors,
+            BOARD_REGS["RX_OVERRUNS"]: self.rx_overruns,
+            BOARD_REGS["CMD_DISCARDED"]: stats.discarded,
+            BOARD_REGS["CMD_CRC_ERRORS"]: stats.crc_errors,
+            BOARD_REGS["CMD_MALFORMED"]: stats.malformed,
+            BOARD_REGS["CMD_OK"]: stats.ok,
+            BOARD_REGS["CMD_REFUSED"]: stats.refused,
+            BOARD_REGS["FRAMES_SENT"]: self.frames_sent,
+        }
+        writable = _member(low, self.writable)
+        m.d.comb += [self.pwm.addr.eq(low), self.pwm.w_data.eq(value)]
+
+        parsing = ("HUNT", "SYNC1", "TYPE", "SEQ", "LENGTH", "PAYLOAD", "CRC_HIGH", "CRC_LOW")
+        in_frame = Signal()
+        timed_out = (gap == self.timeout) & ~take & in_frame
+        with m.FSM() as fsm:
+            with m.State("HUNT"):
+                m.d.comb += self.i_stream.ready.eq(1)
+                with m.If(take):
+                    with m.If(byte == SYNC[0]):
+                        m.next = "SYNC1"
+                    with m.Else():
+                        count_up(stats.discarded)
+
+            @contextmanager
+            def receiving(state, *, checked=True):
+                """A parsing state: takes a byte (into the CRC if ``checked``), or gives up
+                on the frame at the time-out."""
+                with m.State(state):
+                    with m.If(timed_out):
+                        m.next = "HUNT"
+                    m.d.comb += self.i_stream.ready.eq(1)
+                    if checked:
+                        m.d.comb += crc.valid.eq(take)
+                    with m.If(take):
+                        yield
+
+            with m.State("SYNC1"):
+                with m.If(timed_out):
+                    m.next = "HUNT"
+                # a byte other than the sync's second goes back to the hunt untaken (the hunt
+                # counts it, or starts on it if it is 0xA5); the 0xA5 before it began nothing
+                m.d.comb += self.i_stream.ready.eq(byte == SYNC[1])
+                with m.If(self.i_stream.valid):
+                    with m.If(byte == SYNC[1]):
+                        m.next = "TYPE"
+                    with m.Else():
+                        count_up(stats.discarded)
+                        m.next = "HUNT"
+            with receiving("TYPE"):
+                m.d.comb += crc.start.eq(1)
+                m.d.sync += ctype.eq(byte)
+                m.next = "SEQ"
+            with receiving("SEQ"):
+                m.d.sync += seq.eq(byte)
+                m.next = "LENGTH"
+            with receiving("LENGTH"):
+                m.d.sync += [length.eq(byte), count.eq(0), payload.eq(0)]
+                with m.If(byte > MAX_COMMAND_PAYLOAD):
+                    count_up(stats.malformed)
+                    m.next = "HUNT"
+                with m.Elif(byte == 0):
+                    m.next = "CRC_HIGH"
+                with m.Else():
+                    m.next = "PAYLOAD"
+            with receiving("PAYLOAD"):
+                m.d.sync += [payload.word_select(count, 8).eq(byte), count.eq(count + 1)]
+                with m.If(count + 1 == length):
+                    m.next = "CRC_HIGH"
+            with receiving("CRC_HIGH", checked=False):
+                m.d.sync += crc_high.eq(byte)
+                m.next = "CRC_LOW"
+            with receiving("CRC_LOW", checked=False):
+                with m.If(Cat(byte, crc_high) == crc.crc):
+                    m.next = "EXECUTE"
+                with m.Else():
+                    count_up(stats.crc_errors)
+                    m.next = "HUNT"
+
+            with m.State("EXECUTE"):
+                m.d.comb += self.kick.eq(1)
+                expected = Signal(8)
+                known = Signal()
+                with m.Switch(ctype):
+                    for name, (code, n) in COMMANDS.items():
+                        with m.Case(code):
+                            m.d.comb += [expected.eq(n), known.eq(1)]
+                with m.If(~known | (length != expected)):
+                    count_up(stats.malformed)
+                    answer(RESULTS["bad_command"])
+                with m.Elif(ctype == COMMANDS["write"][0]):
+                    with m.If(space == SPACES["engine"]):
+                        with m.If(writable):
+                            m.d.sync += [self.cfg.payload.addr.eq(low),
+                                         self.cfg.payload.data.eq(value)]
+                            m.next = "ENGINE_WRITE"
+                        with m.Else():
+                            answer(RESULTS["refused"])
+                    with m.Elif(space == SPACES["board"]):
+                        with m.If(low == BOARD_REGS["RAW_MODE"]):
+                            m.d.sync += self.raw_mode.eq(value[0])
+                            answer(RESULTS["ok"])
+                        with m.Elif(low < len(BOARD_REGS)):
+                            answer(RESULTS["refused"])
+                        with m.Else():
+                            answer(RESULTS["bad_address"])
+                    with m.Elif(space == SPACES["pwm"]):
+                        with m.If(self.pwm.exists & self.pwm.ok):
+                            m.d.comb += self.pwm.w_en.eq(1)
+                            answer(RESULTS["ok"])
+                        with m.Elif(self.pwm.exists):
+                            answer(RESULTS["refused"])
+                        with m.Else():
+                            answer(RESULTS["bad_address"])
+                    with m.Else():
+                        answer(RESULTS["bad_address"])
+                with m.Elif(ctype == COMMANDS["read"][0]):
+                    with m.If(space == SPACES["engine"]):
+                        m.next = "ENGINE_READ"
+                    with m.Elif(space == SPACES["board"]):
+                        with m.Switch(low):
+                            for a, signal in board_regs.items():
+                                with m.Case(a):
+                                    answer(RESULTS["ok"], value_=signal)
+                            with m.Default():
+                                answer(RESULTS["bad_address"], value_=0)
+                    with m.Elif(space == SPACES["pwm"]):
+                        with m.If(self.pwm.exists):
+                            answer(RESULTS["ok"], value_=self.pwm.r_data)
+                        with m.Else():
+                            answer(RESULTS["bad_address"], value_=0)
+                    with m.Else():
+                        answer(RESULTS["bad_address"], value_=0)
+                with m.Elif(ctype == COMMANDS["filter"][0]):
+                    with m.If(payload[:8] <= max(FILTER_CODES.values())):
+                        m.d.sync += [self.cfg.payload.addr.eq(CONTROL_ADDR),
+                                     self.cfg.payload.data.eq(payload[:8])]
+                        m.next = "ENGINE_WRITE"
+                    with m.Else():
+                        answer(RESULTS["refused"], addr_=CONTROL_ADDR, value_=payload[:8])
+                with m.Elif(ctype == COMMANDS["reset"][0]):
+                    m.d.sync += [self.cfg.payload.addr.eq(CONTROL_ADDR),
+                                 self.cfg.payload.data.eq(CONTROL_KEEP | CONTROL_RESET)]
+                    m.next = "ENGINE_WRITE"
+                with m.Elif(ctype == COMMANDS["rate"][0]):
+                    m.d.sync += [self.cfg.payload.addr.eq(TELEMETRY_DIV_ADDR),
+                                 self.cfg.payload.data.eq(payload[:16])]
+                    m.next = "ENGINE_WRITE"
+                with m.Elif(ctype == COMMANDS["raw"][0]):
+                    m.d.sync += self.raw_mode.eq(payload[0])
+                    answer(RESULTS["ok"], addr_=(SPACES["board"] << 8) | BOARD_REGS["RAW_MODE"],
+                           value_=payload[0])
+                with m.Else():                                  # who
+                    answer(RESULTS["ok"], addr_=REGMAP_VERSION, value_=self.version)
+
+            with m.State("ENGINE_WRITE"):
+                m.d.comb += self.cfg.valid.eq(1)
+                with m.If(self.cfg.ready):
+                    answer(RESULTS["ok"], addr_=self.cfg.payload.addr,
+                           value_=self.cfg.payload.data)
+            with m.State("ENGINE_READ"):
+                m.d.comb += [self.cfg_read.valid.eq(1), self.cfg_read.payload.eq(low)]
+                with m.If(self.cfg_read.ready):
+                    m.next = "ENGINE_READ_DATA"
+            with m.State("ENGINE_READ_DATA"):
+                m.d.comb += self.cfg_read_data.ready.eq(1)
+                with m.If(self.cfg_read_data.valid):
+                    answer(RESULTS["ok"], value_=self.cfg_read_data.payload)
+            with m.State("REPLY"):
+                m.d.comb += self.replies.valid.eq(1)
+                with m.If(self.replies.ready):
+                    m.next = "HUNT"
+
+        # a frame cut off: no byte for ``timeout`` cycles while one is being parsed
+        m.d.comb += in_frame.eq(sum(fsm.ongoing(state) for state in parsing[1:]) != 0)
+        with m.If(take | ~in_frame):
+            m.d.sync += gap.eq(0)
+        with m.Elif(~timed_out):
+            m.d.sync += gap.eq(gap + 1)
+        with m.If(timed_out):
+            count_up(stats.malformed)
+            m.d.sync += gap.eq(0)
+        return m

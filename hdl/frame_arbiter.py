@@ -1,0 +1,70 @@
+"""Frame arbiter: several framers share one UART, a whole frame at a time, and every frame
+that leaves gets the next sequence number."""
+
+from amaranth import *
+from amaranth.lib import stream, wiring
+from amaranth.lib.wiring import In, Out
+
+from .telemetry import FrameByte
+
+
+__all__ = ["FrameArbiter"]
+
+
+class FrameArbiter(wiring.Component):
+    """Passes the frames of ``n`` framers to one byte stream, never interleaving two frames.
+
+    Parameters
+        ``n``: number of inputs; input 0 has the highest priority (the command replies: a
+            host waiting for an answer should not wait behind telemetry), then 1, 2 ...
+    Members
+        ``inputs[i]`` (in, stream of ``FrameByte``): a framer's bytes; ``last`` ends a frame.
+        ``o_stream`` (out, byte stream): to the UART.
+        ``seq`` (out, 8): the sequence number of the frame being sent, or of the next one;
+            it goes up by one after each frame's last byte (mod 256). Framers read it when
+            they send their seq byte, which is after they were granted the link.
+        ``frames`` (out, 32): frames sent since reset (wrapping).
+    Latency: none; a grant is decided combinationally in a cycle with no frame in progress
+    and held until that frame's last byte is taken. Throughput: the UART's.
+    """
+    def __init__(self, n):
+        self.n = n
+        super().__init__({
+            **{f"i{k}": In(stream.Signature(FrameByte)) for k in range(n)},
+            "o_stream": Out(stream.Signature(8)),
+            "seq": Out(8),
+            "frames": Out(32),
+        })
+
+    @property
+    def inputs(self):
+        return [getattr(self, f"i{k}") for k in range(self.n)]
+
+    def elaborate(self, platform):
+        m = Module()
+        inputs = self.inputs
+        busy = Signal()                          # a frame is in progress
+        held = Signal(range(self.n))             # ... from this input
+        choice = Signal(range(self.n))
+        # the highest-priority valid input, or the one holding the link
+        for k in reversed(range(self.n)):
+            with m.If(inputs[k].valid):
+                m.d.comb += choice.eq(k)
+        grant = Mux(busy, held, choice)
+        with m.Switch(grant):
+            for k, port in enumerate(inputs):
+                with m.Case(k):
+                    m.d.comb += [self.o_stream.valid.eq(port.valid),
+                                 self.o_stream.payload.eq(port.payload.data),
+                                 port.ready.eq(self.o_stream.ready)]
+        sent = self.o_stream.valid & self.o_stream.ready
+        last = Signal()
+        with m.Switch(grant):
+            for k, port in enumerate(inputs):
+                with m.Case(k):
+                    m.d.comb += last.eq(port.payload.last)
+        with m.If(sent):
+            m.d.sync += [busy.eq(~last), held.eq(grant)]
+            with m.If(last):
+                m.d.sync += [self.seq.eq(self.seq + 1), self.frames.eq(self.frames + 1)]
+        return m

@@ -1,0 +1,186 @@
+"""PWM outputs for closing a control loop around the attitude: four channels, servo or motor
+style, set through the command channel, low until enabled, and returned to low by a command
+watchdog when the host goes silent."""
+
+import math
+
+from amaranth import *
+from amaranth.lib import data, wiring
+from amaranth.lib.wiring import In, Out
+
+from .board_bus import BoardBusSignature
+
+
+__all__ = ["PWM_REGS", "PWM_CHANNELS", "SERVO_PERIOD_US", "MOTOR_MAX_HZ", "PERIOD_BITS",
+           "WATCHDOG_MS_AT_RESET", "PWMOutputs"]
+
+
+PWM_CHANNELS = 4
+PERIOD_BITS = 16
+SERVO_PERIOD_US = (2_500, 20_000)      # 400 .. 50 Hz frames
+MOTOR_MAX_HZ = 20_000
+WATCHDOG_MS_AT_RESET = 500
+
+# Register addresses in the PWM block's space (the command channel's 0x02xx).
+PWM_REGS = {
+    "PWM_ENABLE": 0x00, "PWM_MODE": 0x01, "PWM_WATCHDOG_MS": 0x02, "PWM_STATUS": 0x03,
+    "PWM_SERVO_PERIOD": 0x04, "PWM_MOTOR_PERIOD": 0x05,
+    **{f"PWM_HIGH{k}": 0x10 + k for k in range(PWM_CHANNELS)},
+}
+
+
+class PWMOutputs(wiring.Component):
+    """Four PWM channels behind a ``BoardBusSignature`` register bus.
+
+    Each channel is servo or motor style. The servo channels share one frame (period) and the
+    motor channels another, as on most flight controllers (a timer per group): two counters
+    and, per channel, a high time. That keeps the block small (the MAX10's logic is mostly
+    the attitude engine's).
+
+    Registers (``PWM_REGS``; unused bits read 0)
+
+    ==================  =======================================================================
+    PWM_ENABLE (0x00)   bits 3:0: channel enabled. 0 at reset: every output low. Writing it
+                        clears the watchdog's ``tripped``.
+    PWM_MODE (0x01)     bits 3:0: 0 = servo (high time in µs), 1 = motor (in clock cycles). A
+                        change to the mode of an enabled channel is refused.
+    PWM_WATCHDOG_MS     0..65535: with a channel enabled, no command for this long disables
+    (0x02)              every channel (outputs low) and sets ``tripped``; 0 = off. 500 at
+                        reset.
+    PWM_STATUS (0x03)   read only: bit 0 ``tripped``; bits 7:4 the channels enabled now.
+    PWM_SERVO_PERIOD    the servo channels' frame: 2,500..20,000 µs (400..50 Hz); 20,000 at
+    (0x04)              reset.
+    PWM_MOTOR_PERIOD    the motor channels' period: ⌈clk/20 kHz⌉ .. 65,535 cycles; the
+    (0x05)              20 kHz one at reset.
+    PWM_HIGHk (0x10+k)  channel k's high time per period in its unit, ≤ its group's period (a
+                        motor duty d/1024 is round(period · d / 1024) cycles: the host
+                        converts). 0 at reset. A period written below a high time makes that
+                        output high for the whole period.
+    ==================  =======================================================================
+
+    A write outside these ranges is refused (``ok`` low: nothing changes). A new period or
+    high time takes effect at the start of the group's next period (a period written while no
+    channel of its group is enabled, at once), so a pulse is never cut short or stretched by
+    an update; a channel enabled starts at its group's next period.
+
+    Parameters
+        ``clk_freq``: the clock (Hz); the servo unit is ``round(clk_freq / 1e6)`` cycles.
+    Members
+        ``bus`` (in, ``BoardBusSignature`` flipped): the registers.
+        ``kick`` (in): a pulse per good command: restarts the watchdog.
+        ``pwm`` (out, 4): the outputs.
+        ``tripped`` (out): the watchdog disabled the outputs (cleared by a PWM_ENABLE write).
+    """
+    def __init__(self, *, clk_freq):
+        self.clk_freq = clk_freq
+        self.us_cycles = max(1, round(clk_freq / 1e6))
+        self.ms_cycles = max(1, round(clk_freq / 1e3))
+        self.motor_min = math.ceil(clk_freq / MOTOR_MAX_HZ)
+        if self.motor_min >= 1 << PERIOD_BITS:
+            raise ValueError(f"a {MOTOR_MAX_HZ} Hz motor period at {clk_freq / 1e6:g} MHz "
+                             f"does not fit {PERIOD_BITS} bits")
+        super().__init__({
+            "bus": In(BoardBusSignature()),
+            "kick": In(1),
+            "pwm": Out(PWM_CHANNELS),
+            "tripped": Out(1),
+        })
+
+    def elaborate(self, platform):
+        m = Module()
+        n = PWM_CHANNELS
+        bus = self.bus
+        enable = Signal(n)
+        mode = Signal(n)
+        watchdog_ms = Signal(16, init=WATCHDOG_MS_AT_RESET)
+        # the two groups: 0 servo (µs), 1 motor (cycles)
+        period = [Signal(PERIOD_BITS, init=SERVO_PERIOD_US[1], name="servo_period"),
+                  Signal(PERIOD_BITS, init=self.motor_min, name="motor_period")]
+        high = [Signal(PERIOD_BITS, name=f"high{k}") for k in range(n)]
+
+        # register reads, existence and the range checks of a write
+        value = bus.w_data
+        small = value[PERIOD_BITS:] == 0
+        low = value[:PERIOD_BITS]
+        # a high time fits its channel's group period: one comparator for all channels (the
+        # addressed channel's mode picks the period)
+        high_fits = small & (low <= Mux(mode.bit_select(bus.addr[:2], 1), period[1], period[0]))
+        checks = {
+            PWM_REGS["PWM_ENABLE"]: (enable, value < (1 << n)),
+            # the mode of an enabled channel stays
+            PWM_REGS["PWM_MODE"]: (mode, (value < (1 << n)) &
+                                   (((value[:n] ^ mode) & enable) == 0)),
+            PWM_REGS["PWM_WATCHDOG_MS"]: (watchdog_ms, small),
+            PWM_REGS["PWM_STATUS"]: (Cat(self.tripped, C(0, 3), enable), C(0)),
+            PWM_REGS["PWM_SERVO_PERIOD"]: (period[0], small & (low >= SERVO_PERIOD_US[0]) &
+                                           (low <= SERVO_PERIOD_US[1])),
+            PWM_REGS["PWM_MOTOR_PERIOD"]: (period[1], small & (low >= self.motor_min)),
+            **{PWM_REGS[f"PWM_HIGH{k}"]: (high[k], high_fits) for k in range(n)},
+        }
+        with m.Switch(bus.addr):
+            for addr, (signal, ok) in checks.items():
+                with m.Case(addr):
+                    m.d.comb += [bus.exists.eq(1), bus.r_data.eq(signal), bus.ok.eq(ok)]
+        write = bus.w_en & bus.ok
+        with m.If(write):
+            with m.Switch(bus.addr):
+                with m.Case(PWM_REGS["PWM_ENABLE"]):
+                    m.d.sync += [enable.eq(value[:n]), self.tripped.eq(0)]
+                with m.Case(PWM_REGS["PWM_MODE"]):
+                    m.d.sync += mode.eq(value[:n])
+                with m.Case(PWM_REGS["PWM_WATCHDOG_MS"]):
+                    m.d.sync += watchdog_ms.eq(low)
+                with m.Case(PWM_REGS["PWM_SERVO_PERIOD"]):
+                    m.d.sync += period[0].eq(low)
+                with m.Case(PWM_REGS["PWM_MOTOR_PERIOD"]):
+                    m.d.sync += period[1].eq(low)
+                for k in range(n):
+                    with m.Case(PWM_REGS[f"PWM_HIGH{k}"]):
+                        m.d.sync += high[k].eq(low)
+
+        # the watchdog: milliseconds since the last good command
+        ms_timer = Signal(range(self.ms_cycles), init=self.ms_cycles - 1)
+        silent_ms = Signal(16)
+        m.d.sync += ms_timer.eq(Mux(ms_timer == 0, self.ms_cycles - 1, ms_timer - 1))
+        with m.If(self.kick):
+            m.d.sync += [silent_ms.eq(0), ms_timer.eq(self.ms_cycles - 1)]
+        with m.Elif((ms_timer == 0) & ~silent_ms.all()):
+            m.d.sync += silent_ms.eq(silent_ms + 1)
+        with m.If((watchdog_ms != 0) & (silent_ms >= watchdog_ms) & (enable != 0) & ~write):
+            m.d.sync += [enable.eq(0), self.tripped.eq(1)]
+
+        # the two time bases: a counter each, its period taken at each wrap
+        us_timer = Signal(range(self.us_cycles))
+        us_tick = us_timer == 0
+        m.d.sync += us_timer.eq(Mux(us_tick, self.us_cycles - 1, us_timer - 1))
+        count = [Signal(PERIOD_BITS, name="servo_count"), Signal(PERIOD_BITS, name="motor_count")]
+        active = [Signal(PERIOD_BITS, init=SERVO_PERIOD_US[1], name="servo_active_period"),
+                  Signal(PERIOD_BITS, init=self.motor_min, name="motor_active_period")]
+        wrap = [Signal(name="servo_wrap"), Signal(name="motor_wrap")]
+        in_use = [(enable & ~mode) != 0, (enable & mode) != 0]
+        for g, tick in enumerate((us_tick, C(1))):
+            m.d.comb += wrap[g].eq(tick & (count[g] + 1 >= active[g]))
+            with m.If(~in_use[g]):
+                # no channel runs on it: the new period at once, and a wrap at the next tick
+                # (a channel enabled starts there)
+                m.d.sync += [count[g].eq(period[g] - 1), active[g].eq(period[g])]
+            with m.Elif(wrap[g]):
+                m.d.sync += [count[g].eq(0), active[g].eq(period[g])]
+            with m.Elif(tick):
+                m.d.sync += count[g].eq(count[g] + 1)
+
+        for k in range(n):
+            active_high = Signal(PERIOD_BITS, name=f"active_high{k}")
+            running = Signal(name=f"running{k}")        # enabled, and a period has begun since
+            group_wrap = Mux(mode[k], wrap[1], wrap[0])
+            # a disabled channel takes its high time at once; an enabled one at its group's
+            # wrap, where it also starts: its first pulse is a whole one
+            with m.If(~enable[k] | group_wrap):
+                m.d.sync += active_high.eq(high[k])
+            with m.If(~enable[k]):
+                m.d.sync += running.eq(0)
+            with m.Elif(group_wrap):
+                m.d.sync += running.eq(1)
+            m.d.comb += self.pwm[k].eq(enable[k] & running &
+                                       (Mux(mode[k], count[1], count[0]) < active_high))
+        return m

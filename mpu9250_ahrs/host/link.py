@@ -1,0 +1,179 @@
+"""A board on a serial port: frames in, commands out, with time-outs and one-line errors.
+
+``open_link(port, baud)`` opens a serial device with pyserial (``exclusive``: a port another
+program holds is "busy"), or with ``port == "sim"`` starts a ``sim.board.SimulatedBoard`` in
+this process and opens its pseudo-terminal. Against a simulated board in this process (``sim``,
+or the path of one started here) time-outs count the board's own time, not the wall clock's:
+the co-simulation runs about a thousand times slower than the hardware.
+"""
+
+import errno
+import time
+
+from ..hdl.command_decoder import REGMAP_VERSION
+from ..hdl.frame_types import REPLY
+from .protocol import FrameDecoder, RESULT_NAMES, encode_command
+
+
+__all__ = ["BoardError", "Link", "open_link", "SIM_BOARDS"]
+
+
+# Simulated boards running in this process, by port path (``sim.board`` registers them).
+SIM_BOARDS = {}
+
+
+class BoardError(RuntimeError):
+    """A failure worth one line to the user (the command line prints it and exits 1)."""
+
+
+class Link:
+    """Frames from and commands to a board on ``serial`` (a pyserial ``Serial``).
+
+    ``frames(n=None, timeout=...)`` yields ``(type, seq, fields)``; ``command(name, ...)``
+    sends a command and returns its reply's fields, retrying a lost one. ``stats`` (the
+    decoder's ``LinkStats``): frames, CRC errors, lost frames, noise bytes.
+    """
+    def __init__(self, serial, *, board=None, timeout=1.0):
+        self.serial = serial
+        self.board = board
+        self.timeout = timeout
+        self.decoder = FrameDecoder()
+        self.seq = 0
+        self.backlog = []            # frames read while waiting for a reply
+        self.port = serial.port
+
+    @property
+    def stats(self):
+        return self.decoder.stats
+
+    def clock(self):
+        """Seconds: the wall clock's, or the simulated board's (scaled to the real sensor's
+        sample periods)."""
+        if self.board is None:
+            return time.monotonic()
+        setup = self.board.setup
+        return self.board.cycles / setup.clk_freq / setup.odr_scale
+
+    def _read(self):
+        try:
+            chunk = self.serial.read(4096)
+        except OSError as e:
+            raise BoardError(f"{self.port}: read failed: {e}") from None
+        return self.decoder.feed(chunk) if chunk else []
+
+    def frames(self, n=None, *, timeout=None, types=None):
+        """Frames as they come (``types``: only these), until ``n``; a silence of
+        ``timeout`` seconds (default: the link's) raises ``BoardError``."""
+        timeout = self.timeout if timeout is None else timeout
+        count = 0
+        last = self.clock()
+        while n is None or count < n:
+            got = self.backlog + self._read()
+            self.backlog = []
+            for k, frame in enumerate(got):
+                if types is None or frame[0] in types:
+                    count += 1
+                    last = self.clock()
+                    if n is not None and count >= n:
+                        self.backlog += got[k + 1:]
+                        yield frame
+                        return
+                    yield frame
+            if self.clock() - last > timeout:
+                raise BoardError(self._silence(timeout))
+
+    def _silence(self, timeout):
+        if self.stats.frames:
+            return f"{self.port}: no frame for {timeout:g} s: the board stopped sending"
+        if self.stats.skipped_bytes or self.stats.crc_errors:
+            return (f"{self.port}: no valid frame within {timeout:g} s but "
+                    f"{self.stats.skipped_bytes} bytes of noise: wrong baud rate "
+                    f"({self.serial.baudrate})?")
+        return (f"{self.port}: nothing received within {timeout:g} s: no board, not powered, "
+                f"or not configured")
+
+    def wait_for_frame(self, timeout=None):
+        return next(self.frames(1, timeout=timeout))
+
+    def command(self, name, *, retries=3, timeout=None, **kwargs):
+        """Send command ``name`` (``protocol.encode_command``'s arguments) and return its
+        reply (``Reply`` fields plus ``result_name``). A reply that does not come within
+        ``timeout`` (default: half the link's) is asked for again, ``retries`` times (a
+        command repeated is harmless: every command sets, none toggles)."""
+        timeout = self.timeout / 2 if timeout is None else timeout
+        for _ in range(retries):
+            self.seq = (self.seq + 1) % 256
+            frame = encode_command(name, self.seq, **kwargs)
+            try:
+                self.serial.write(frame)
+                self.serial.flush()
+            except OSError as e:
+                raise BoardError(f"{self.port}: write failed: {e}") from None
+            start = self.clock()
+            while self.clock() - start < timeout:
+                got = self._read()
+                for k, (ftype, seq, fields) in enumerate(got):
+                    if ftype == REPLY and fields["cmd_seq"] == self.seq:
+                        self.backlog += got[:k] + got[k + 1:]
+                        return {**fields, "result_name": RESULT_NAMES.get(fields["result"], "?")}
+                self.backlog += got
+                del self.backlog[:-1000]
+        raise BoardError(f"{self.port}: the board did not answer '{name}' ({retries} tries, "
+                         f"{timeout:g} s each)")
+
+    def check(self, reply, what):
+        if reply["result_name"] != "ok":
+            raise BoardError(f"{what}: the board refused it ({reply['result_name']})")
+        return reply
+
+    def identify(self):
+        """The board's (version word, register-map version); refuses a map this tool does
+        not know."""
+        reply = self.check(self.command("who"), "who are you")
+        if reply["addr"] != REGMAP_VERSION:
+            raise BoardError(f"{self.port}: register map version {reply['addr']}, this tool "
+                             f"knows {REGMAP_VERSION}: update one or the other")
+        return reply["value"], reply["addr"]
+
+    def close(self):
+        try:
+            self.serial.close()
+        finally:
+            if self.board is not None and self.board.port in SIM_BOARDS and self._own_board:
+                SIM_BOARDS.pop(self.board.port, None)
+                self.board.stop()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+def open_link(port, baud=921_600, *, timeout=1.0, board_kwargs=None):
+    """A ``Link`` on ``port`` ("sim": a simulated board started here). Raises ``BoardError``
+    for a missing or busy port."""
+    import serial
+    own = False
+    if port == "sim":
+        from ..sim.board import SimulatedBoard
+        board = SimulatedBoard(**(board_kwargs or {})).start()
+        SIM_BOARDS[board.port] = board
+        port, own = board.port, True
+    board = SIM_BOARDS.get(port)
+    try:
+        ser = serial.Serial(port, baud, timeout=0.02, exclusive=True)
+    except serial.SerialException as e:
+        code = getattr(e, "errno", None)
+        text = str(e)
+        if code == errno.ENOENT or "No such file" in text:
+            raise BoardError(f"{port}: no such serial port") from None
+        if code in (errno.EBUSY, errno.EAGAIN, errno.EWOULDBLOCK) or "lock" in text.lower() \
+                or "busy" in text.lower():
+            raise BoardError(f"{port}: busy (another program has it open)") from None
+        raise BoardError(f"{port}: cannot open: {text}") from None
+    except ValueError as e:
+        raise BoardError(f"{port}: {e}") from None
+    link = Link(ser, board=board, timeout=timeout)
+    link._own_board = own
+    return link

@@ -1,0 +1,141 @@
+"""``monitor``: decode the board's frames, show a live line, log every frame (CSV or HDF5)."""
+
+import csv
+import sys
+import time
+
+from ..hdl.frame_types import ATTITUDE, SENSOR
+from ..hdl.telemetry_scheduler import AttitudeFrame
+
+
+__all__ = ["COLUMNS", "flatten", "monitor", "read_log"]
+
+
+def flatten(fields, prefix=""):
+    """Nested frame fields -> {"sample.accel.0": v, ...}."""
+    out = {}
+    items = enumerate(fields) if isinstance(fields, list) else fields.items()
+    for key, value in items:
+        name = f"{prefix}{key}"
+        if isinstance(value, (dict, list)):
+            out.update(flatten(value, name + "."))
+        else:
+            out[name] = value
+    return out
+
+
+def _zero(layout):
+    from .protocol import unpack
+    return unpack(layout, 0)
+
+
+# Every frame type's fields fit these columns (a sensor frame's are an attitude frame's first).
+COLUMNS = ["host_time_s", "type", "seq", *flatten(_zero(AttitudeFrame)),
+           "roll_deg", "pitch_deg", "yaw_deg"]
+
+
+def _row(ftype, seq, fields, t):
+    row = {"host_time_s": round(t, 6), "type": ftype, "seq": seq, **flatten(fields)}
+    if ftype == ATTITUDE:
+        for name, bam in zip(("roll_deg", "pitch_deg", "yaw_deg"), fields["attitude"]["angles"]):
+            row[name] = round(bam * 360 / 2 ** 32, 4)
+    return row
+
+
+class _HDF5Log:
+    """Columns gathered in memory and written as one dataset each at the end."""
+    def __init__(self, path):
+        try:
+            import h5py  # noqa: F401
+        except ImportError:
+            raise RuntimeError("--hdf5 needs h5py (pip install h5py)") from None
+        self.path, self.rows = path, []
+
+    def writerow(self, row):
+        self.rows.append(row)
+
+    def close(self):
+        import h5py
+        import numpy as np
+        with h5py.File(self.path, "w") as f:
+            for name in COLUMNS:
+                values = [r.get(name, np.nan) for r in self.rows]
+                f.create_dataset(name, data=np.asarray(values, float))
+
+
+def monitor(link, *, frames=None, csv_path=None, hdf5_path=None, out=None,
+            live_every_s=0.5):
+    """Read frames until ``frames`` (None: until interrupted), log each; a live line on
+    ``out`` (stderr). Returns the summary (dict)."""
+    out = out or sys.stderr
+    log = None
+    handle = None
+    if csv_path:
+        handle = open(csv_path, "w", newline="")
+        log = csv.DictWriter(handle, COLUMNS, extrasaction="ignore")
+        log.writeheader()
+    elif hdf5_path:
+        log = _HDF5Log(hdf5_path)
+    start = time.monotonic()
+    first = None
+    count, shown = 0, 0.0
+    last = None
+    try:
+        for ftype, seq, fields in link.frames(frames, types=(SENSOR, ATTITUDE)):
+            t = time.monotonic() - start
+            first = t if first is None else first
+            count += 1
+            last = (ftype, fields)
+            if log is not None:
+                log.writerow(_row(ftype, seq, fields, t))
+            if t - shown >= live_every_s or count == frames:
+                shown = t
+                out.write("\r" + _live_line(link, count, t - first, ftype, fields))
+                out.flush()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        if handle is not None:
+            handle.close()
+        elif log is not None:
+            log.close()
+    out.write("\n")
+    elapsed = (time.monotonic() - start) - (first or 0)
+    stats = link.stats
+    return {"frames": count, "crc_errors": stats.crc_errors, "lost_frames": stats.lost,
+            "noise_bytes": stats.skipped_bytes,
+            "frame_rate_hz": round((count - 1) / elapsed, 3) if count > 1 and elapsed else None,
+            "last_type": None if last is None else last[0],
+            "log": csv_path or hdf5_path}
+
+
+def _live_line(link, count, elapsed, ftype, fields):
+    rate = (count - 1) / elapsed if elapsed > 0 else 0.0
+    status = fields["status"]
+    flags = [k for k, v in status.items() if v and k not in ("restarts", "who_am_i",
+                                                                "streaming", "mag_ok")]
+    text = f"{count} frames {rate:6.1f}/s"
+    if ftype == ATTITUDE:
+        roll, pitch, yaw = (v * 360 / 2 ** 32 for v in fields["attitude"]["angles"])
+        filt = ("kalman", "complementary", "flagship", "?")[fields["attitude"]["flags"]["filter"]]
+        text += f"  {filt} roll {roll:7.2f} pitch {pitch:7.2f} yaw {yaw:7.2f}"
+    else:
+        text += f"  raw accel {fields['sample']['accel']} gyro {fields['sample']['gyro']}"
+    stats = link.stats
+    return (text + f"  flags {','.join(flags) or '-'}  crc errors {stats.crc_errors}"
+            f"  lost {stats.lost}   ")
+
+
+def read_log(path):
+    """A ``monitor`` log (CSV or HDF5) -> {column: list of floats}."""
+    if str(path).endswith((".h5", ".hdf5")):
+        import h5py
+        with h5py.File(path, "r") as f:
+            return {name: list(f[name][()]) for name in f}
+    with open(path, newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    if not rows or "type" not in rows[0]:
+        raise ValueError(f"{path}: not a monitor log (no 'type' column)")
+    return {name: [float(r[name]) if r[name] not in ("", None) else float("nan") for r in rows]
+            for name in rows[0]}
+

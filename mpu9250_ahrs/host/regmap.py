@@ -1,0 +1,101 @@
+"""The register map by name, with formats and units: the host converts physical values to
+register words and back (``config get`` / ``config set``).
+
+Names are those of ``hdl/attitude_program.py`` (engine, space 0x00), ``BOARD_REGS`` (space
+0x01) and ``PWM_REGS`` (space 0x02); ``hdl/FRAMES.md`` lists them.
+"""
+
+import math
+from dataclasses import dataclass
+
+from ..hdl.attitude_program import CONFIG_REGS, CONTROL_ADDR, HOST_WRITABLE
+from ..hdl.command_decoder import BOARD_REGS
+from ..hdl.pwm import PWM_REGS
+
+
+__all__ = ["Register", "REGISTERS", "lookup", "to_word", "from_word"]
+
+
+@dataclass(frozen=True)
+class Register:
+    name: str
+    space: str             # "engine", "board", "pwm"
+    addr: int
+    format: str            # "int", "Q8.24", "Q0.24", "Q2.14", "Q0.30", "BAM32"
+    unit: str
+    writable: bool
+
+
+# The fraction bits of each format; BAM32: 2³² = 360°.
+_FRACTION = {"Q8.24": 24, "Q0.24": 24, "Q2.14": 14, "Q0.30": 30}
+
+_ENGINE_FORMATS = {
+    "T": ("Q0.24", "s"), "Q_ANGLE": ("Q8.24", "deg²"), "Q_BIAS": ("Q8.24", "(°/s)²"),
+    "R": ("Q8.24", "deg²"), "P0": ("Q8.24", ""), "BIAS_SCALE": ("Q8.24", ""),
+    "ONE_MINUS_A": ("Q0.24", ""), "INV_GAIN": ("Q0.30", ""), "GATE_NORM": ("Q0.30", ""),
+    "GATE_DIP": ("BAM32", "°"), "A_REF": ("Q0.30", ""),
+    **{f"ACC_SCALE{i}": ("Q2.14", "") for i in range(3)},
+    **{f"SOFT{i}{j}": ("Q2.14", "") for i in range(3) for j in range(3)},
+    **{f"{n}{i}": ("int", "counts") for n in ("GYRO_OFF", "ACC_OFF", "HARD") for i in range(3)},
+    **{n: ("Q0.30", "") for n in ("A_DET", "A_REST", "A_ACC", "A_MAG", "A_MAG_FAST")},
+    **{n: ("int", "samples") for n in ("K_REST", "K_REF", "K_FAST", "K_NEW")},
+    "REST_GYRO2": ("int", "counts²/4"), "REST_ACC2": ("int", "counts²/4"),
+    "TELEMETRY_DIV": ("int", "results"),
+}
+
+
+def _registers():
+    regs = {}
+    for name, addr in CONFIG_REGS.items():
+        fmt, unit = _ENGINE_FORMATS.get(name, ("int", ""))
+        regs[name] = Register(name, "engine", addr, fmt, unit, addr in HOST_WRITABLE)
+    regs["CONTROL"] = Register("CONTROL", "engine", CONTROL_ADDR, "int", "", True)
+    for name, addr in BOARD_REGS.items():
+        regs[name] = Register(name, "board", addr, "int", "", name == "RAW_MODE")
+    for name, addr in PWM_REGS.items():
+        unit = {"PWM_WATCHDOG_MS": "ms", "PWM_SERVO_PERIOD": "µs",
+                "PWM_MOTOR_PERIOD": "cycles"}.get(name, "µs (servo) or cycles (motor)"
+                                                   if name.startswith("PWM_HIGH") else "")
+        regs[name] = Register(name, "pwm", addr, "int", unit, name != "PWM_STATUS")
+    return regs
+
+
+REGISTERS = _registers()
+
+
+def lookup(name):
+    try:
+        return REGISTERS[name.upper()]
+    except KeyError:
+        raise ValueError(f"no register {name!r}; known: {', '.join(sorted(REGISTERS))}") from None
+
+
+def to_word(reg, value):
+    """A physical value (a number, or an int with ``0x``) -> the 32-bit register word."""
+    if isinstance(value, str):
+        text = value.strip()
+        value = int(text, 0) if reg.format == "int" else float(text)
+    if not math.isfinite(value):
+        raise ValueError(f"{reg.name}: {value} is not a finite number")
+    if reg.format == "int":
+        if value != int(value):
+            raise ValueError(f"{reg.name} takes an integer, not {value}")
+        word = int(value)
+    elif reg.format == "BAM32":
+        word = round(value / 360 * 2 ** 32)
+    else:
+        word = round(value * 2 ** _FRACTION[reg.format])
+    if not -2 ** 31 <= word < 2 ** 32:
+        raise ValueError(f"{reg.name}: {value} does not fit its format {reg.format}")
+    return word
+
+
+def from_word(reg, word):
+    """A register word (as read: signed 32 from the engine) -> the physical value."""
+    word = int(word)
+    if reg.format == "int":
+        return word
+    signed = word - 2 ** 32 if word >= 2 ** 31 else word
+    if reg.format == "BAM32":
+        return signed * 360 / 2 ** 32
+    return signed / 2 ** _FRACTION[reg.format]

@@ -1,0 +1,285 @@
+"""A simulated board on a real serial device: the whole ``AHRSCore`` (models, driver, engine,
+telemetry, command channel, PWM) co-simulated, its UART pins bridged to a pseudo-terminal.
+
+``SimulatedBoard.start()`` runs the simulation in a thread and gives ``port``: the path of the
+pseudo-terminal's far end (``/dev/pts/N``), which any program opens like a USB serial adapter
+(``monitor``, ``config`` ... with ``PORT`` = that path, or ``sim``, which starts a board in the
+same process). Bytes the design sends on ``uart_tx`` appear there; bytes written there are
+sent bit by bit into ``uart_rx``.
+
+Time is scaled (``board_setup``): a 4 MHz clock, a UART at a quarter of it (four cycles a bit:
+the receiver's minimum), sample periods of ``sample_cycles`` cycles. The pseudo-terminal has no
+baud rate of its own, so the bridge plays one: if the host sets its end to a baud other than
+``baud`` (the board's nominal 921,600), it gets what a UART at that rate would make of the
+board's bytes (garbage, framing errors), and the board gets the same of the host's.
+
+The sensor is held at a pose the caller sets (``set_pose``; ``tumble`` turns the field
+through every direction, as a user turning the board for the magnetometer calibration), with
+offsets the caller chooses (``SensorErrors``): what ``calibrate`` must find.
+"""
+
+import os
+import termios
+import threading
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..hdl import ak8963_regs as A
+from ..hdl.mpu9250_driver import MPU9250Config
+from ..reference.frames import body_to_mag, euler_to_quat, quat_to_matrix
+from .cosim import CosimHarness, SimSetup, attach_mpu9250
+from .sources import SensorSample
+from .uart import attach_uart_receiver
+
+
+__all__ = ["SensorErrors", "SimulatedBoard", "board_setup", "garble", "SIM_CLOCK_HZ"]
+
+
+SIM_CLOCK_HZ = 4e6
+NOMINAL_BAUD = 921_600
+
+
+@dataclass(frozen=True)
+class SensorErrors:
+    """The simulated sensor's errors, in counts: what a calibration should recover.
+    ``hard_iron``: body axes, after the AK8963's sensitivity adjustment (the engine's HARD)."""
+    gyro_offset: tuple = (35, -20, 12)
+    accel_offset: tuple = (120, -80, 200)
+    accel_scale: tuple = (1.02, 0.98, 1.01)
+    hard_iron: tuple = (150, -90, 60)
+    gyro_noise: float = 2.0
+    accel_noise: float = 6.0
+    mag_noise: float = 1.5
+    field_ut: float = 50.0
+    inclination_deg: float = 60.0
+
+
+def board_setup(config=None, sample_cycles=1600):
+    """The ``SimSetup`` of a simulated board: 4 MHz, 200 Hz nominal, one sample every
+    ``sample_cycles`` cycles (the period scaled to fit), delays scaled by 10⁻³. The AK8963's
+    clock runs at 2.2 times its 100 Hz here (a little faster than the samples), so that every
+    sample carries a new field and a magnetometer calibration needs fewer simulated samples."""
+    config = config or MPU9250Config(smplrt_div=4)                  # 200 Hz
+    odr_scale = sample_cycles / SIM_CLOCK_HZ * config.output_data_rate
+    return SimSetup(clk_freq=SIM_CLOCK_HZ, config=config, odr_scale=odr_scale,
+                    ak_clock_error=-0.55)
+
+
+def garble(data, ratio):
+    """The bytes a UART receiver at ``ratio`` × the sender's baud makes of ``data`` sent
+    back to back (8N1): wrong ones, and a 0x00 for each framing error (what Linux delivers
+    for a character with a low stop bit unless IGNPAR or PARMRK is set)."""
+    if abs(ratio - 1) < 0.03:
+        return bytes(data)
+    over = 16                                       # samples per sender bit
+    line = []
+    for byte in data:
+        bits = [0] + [(byte >> k) & 1 for k in range(8)] + [1]
+        for b in bits:
+            line += [b] * over
+    line += [1] * (over * 20)
+    step = over / ratio                             # samples per receiver bit
+    out = bytearray()
+    i = 0
+    while i < len(line):
+        if line[i]:
+            i += 1
+            continue
+        mid = i + step / 2
+        value, ok = 0, True
+        for k in range(1, 10):
+            pos = min(int(mid + k * step), len(line) - 1)
+            if k <= 8:
+                value |= line[pos] << (k - 1)
+            elif not line[pos]:
+                ok = False                          # framing error
+        out.append(value if ok else 0)
+        i = int(mid + 9.5 * step)
+    return bytes(out)
+
+
+class SimulatedBoard:
+    """The co-simulated board behind a pseudo-terminal (see the module's docstring).
+
+    Parameters
+        ``errors`` (``SensorErrors``): the sensor's offsets, scales, noise.
+        ``sample_cycles``: cycles per sample period (1,600: a raw frame, 36 bytes at four
+            cycles a bit, fits one).
+        ``core_kwargs``: more ``AHRSCore`` options.
+        ``seed``: the noise's.
+    Members
+        ``port``: the pseudo-terminal's path, once started. ``core``, ``model``: the design
+        and the MPU9250 model. ``cycles``: simulated so far. ``pwm_log``: (cycle, 4-bit value)
+        each time the PWM outputs change.
+    """
+    def __init__(self, *, errors=SensorErrors(), sample_cycles=1600, core_kwargs=None, seed=1,
+                 setup=None):
+        from ..hdl.top import AHRSCore
+        self.errors = errors
+        self.setup = setup or board_setup(sample_cycles=sample_cycles)
+        config = self.setup.config
+        self.rng = np.random.default_rng(seed)
+        self.pose = np.radians([0.0, 0.0, 0.0])
+        self.tumbling = False
+        self.core = AHRSCore(clk_freq=self.setup.clk_freq, config=config,
+                             timing=self.setup.driver_timing(), baud=self.setup.clk_freq / 4,
+                             command_timeout_s=2e-3, telemetry_divider=1,
+                             **(core_kwargs or {}))
+        self.lsb_g = 32768 / config.accel_fs_g
+        ak = self.setup.ak8963(source=self._field)
+        self.model = self.setup.model(source=self._sample, aux_devices={A.I2C_ADDRESS: ak})
+        self.asa_factor = np.array([(a + 128) / 256 for a in ak.asa])
+        self.port = None
+        self.cycles = 0
+        self.pwm_log = []
+        self.error = None
+        self._stop = threading.Event()
+        self._thread = None
+        self._fields = 0
+
+    # -- what the simulated user does -------------------------------------------------------
+    def set_pose(self, roll_deg, pitch_deg, yaw_deg):
+        """Hold the board still at this attitude (ZYX Euler angles, degrees)."""
+        self.tumbling = False
+        self.pose = np.radians([roll_deg, pitch_deg, yaw_deg])
+
+    def tumble(self):
+        """Turn the board through all orientations (each new AK8963 field in another
+        direction, spread over the sphere)."""
+        self.tumbling = True
+
+    def _rotation(self):
+        return quat_to_matrix(euler_to_quat(self.pose))             # body -> earth
+
+    def _sample(self, index, t):
+        e = self.errors
+        up_body = self._rotation().T @ np.array([0.0, 0.0, 1.0])
+        accel = np.array(e.accel_scale) * up_body * self.lsb_g + e.accel_offset + \
+            self.rng.normal(0, e.accel_noise, 3)
+        gyro = np.array(e.gyro_offset) + self.rng.normal(0, e.gyro_noise, 3)
+        clip = lambda v: tuple(int(np.clip(round(x), -32768, 32767)) for x in v)
+        return SensorSample(accel=clip(accel), temp=0, gyro=clip(gyro))
+
+    def _field(self, index, t):
+        e = self.errors
+        counts = e.field_ut / 0.15
+        inc = np.radians(e.inclination_deg)
+        if self.tumbling:
+            # the R2 low-discrepancy sequence mapped onto the sphere: the field's direction
+            # in body axes, spread evenly whatever the number of fields read
+            k = self._fields
+            self._fields += 1
+            z = 1 - 2 * ((0.5 + k * 0.7548776662) % 1)
+            phi = 2 * np.pi * ((0.5 + k * 0.5698402910) % 1)
+            body = counts * np.array([np.sqrt(1 - z * z) * np.cos(phi),
+                                      np.sqrt(1 - z * z) * np.sin(phi), z])
+        else:
+            earth = counts * np.array([0.0, np.cos(inc), -np.sin(inc)])
+            body = self._rotation().T @ earth
+        body = body + e.hard_iron + self.rng.normal(0, e.mag_noise, 3)
+        raw = body_to_mag(body) / self.asa_factor
+        return tuple(int(round(v)) for v in raw)
+
+    # -- the simulation ---------------------------------------------------------------------
+    def start(self, timeout=10.0):
+        """Start the simulation thread; returns once the pseudo-terminal exists."""
+        from amaranth.sim import Simulator
+        master, slave = os.openpty()
+        attrs = termios.tcgetattr(slave)
+        attrs[0] = attrs[1] = attrs[3] = 0                        # raw: no echo, no mapping
+        attrs[2] = termios.CS8 | termios.CREAD | termios.CLOCAL
+        attrs[4] = attrs[5] = termios.B921600
+        termios.tcsetattr(slave, termios.TCSANOW, attrs)
+        os.set_blocking(master, False)
+        self._master, self._slave = master, slave
+        self.port = os.ttyname(slave)
+        core = self.core
+        harness = CosimHarness(core, spi=core.imu, int_pin=core.imu_int)
+        sim = Simulator(harness)
+        sim.add_clock(1 / self.setup.clk_freq)
+        attach_mpu9250(sim, self.model, harness, self.setup.clk_freq)
+        sent = []
+        divisor = core.uart.divisor
+        attach_uart_receiver(sim, core.uart_tx, divisor, sent)
+        poll = 10 * divisor                         # a byte time
+
+        async def bridge(ctx):
+            ctx.set(core.uart_rx, 1)
+            pending = bytearray()
+            pwm = 0
+            while not self._stop.is_set():
+                await ctx.tick().repeat(poll)
+                self.cycles = ctx.get(harness.cycle)
+                ratio = self._host_baud() / NOMINAL_BAUD
+                if sent:
+                    out = garble(bytes(sent), ratio)
+                    sent.clear()
+                    try:
+                        os.write(master, out)
+                    except (BlockingIOError, OSError):
+                        pass                         # nobody reading: the bytes are lost
+                try:
+                    pending += garble(os.read(master, 4096), 1 / ratio)
+                except (BlockingIOError, OSError):
+                    pass
+                level = ctx.get(core.pwm)
+                if level != pwm:
+                    pwm = level
+                    self.pwm_log.append((self.cycles, level))
+                while pending and not self._stop.is_set():
+                    byte = pending.pop(0)
+                    for bit in [0] + [(byte >> k) & 1 for k in range(8)] + [1]:
+                        ctx.set(core.uart_rx, bit)
+                        await ctx.tick().repeat(divisor)
+                    if sent:
+                        os.write(master, garble(bytes(sent), ratio))
+                        sent.clear()
+        sim.add_testbench(bridge)
+
+        def run():
+            try:
+                sim.run()
+            except BaseException as e:                # reported by stop()
+                self.error = e
+        self._thread = threading.Thread(target=run, name="simulated-board", daemon=True)
+        self._thread.start()
+        return self
+
+    def _host_baud(self):
+        """The baud the host set on its end (the pseudo-terminal keeps the setting)."""
+        speed = termios.tcgetattr(self._master)[5]
+        return _SPEEDS.get(speed, NOMINAL_BAUD)
+
+    def wait_cycles(self, cycles, timeout=600):
+        """Block until the simulation has run ``cycles`` more cycles."""
+        end = self.cycles + cycles
+        start = time.monotonic()
+        while self.cycles < end:
+            if self.error is not None or time.monotonic() - start > timeout:
+                raise RuntimeError(f"simulated board stopped: {self.error!r}")
+            time.sleep(0.05)
+
+    def stop(self):
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=30)
+        for fd in (self._master, self._slave):
+            try:
+                os.close(fd)
+            except OSError:
+                pass
+        if self.error is not None:
+            raise RuntimeError("the simulated board failed") from self.error
+
+    def __enter__(self):
+        return self.start()
+
+    def __exit__(self, *exc):
+        self.stop()
+
+
+_SPEEDS = {getattr(termios, f"B{b}"): b for b in
+           (9600, 19200, 38400, 57600, 115200, 230400, 460800, 500000, 576000, 921600,
+            1000000, 1152000, 1500000, 2000000) if hasattr(termios, f"B{b}")}

@@ -1,0 +1,213 @@
+"""The host tool against the co-simulated board through a real serial device (a
+pseudo-terminal): every verb, bad input on the port, and the errors a user meets."""
+
+import csv
+import json
+import os
+import random
+import threading
+import time
+
+import pytest
+import serial
+
+from mpu9250_ahrs.cli import main
+from mpu9250_ahrs.hdl.frame_types import ATTITUDE, FRAME_TYPES
+from mpu9250_ahrs.hdl.telemetry import payload_bytes
+from mpu9250_ahrs.host.link import SIM_BOARDS, open_link
+from mpu9250_ahrs.host.protocol import encode_frame
+from mpu9250_ahrs.sim.board import SensorErrors, SimulatedBoard, garble
+
+
+def run_cli(capsys, *argv):
+    rc = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return rc, out, err
+
+
+@pytest.fixture(scope="module")
+def board():
+    """One simulated board for the configuration tests, served on a pseudo-terminal; the
+    tool opens its path like any serial device."""
+    b = SimulatedBoard().start()
+    SIM_BOARDS[b.port] = b                 # time-outs in the board's time (it is slow)
+    yield b
+    SIM_BOARDS.pop(b.port, None)
+    b.stop()
+
+
+def test_monitor_sim_logs_frames_without_crc_errors(capsys, tmp_path):
+    log = tmp_path / "x.csv"
+    rc, out, err = run_cli(capsys, "monitor", "sim", "--frames", 20, "--csv", log)
+    assert rc == 0, err
+    summary = json.loads(out)
+    assert summary["frames"] == 20 and summary["crc_errors"] == 0 and summary["lost_frames"] == 0
+    with open(log) as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == 20 and {r["type"] for r in rows} == {str(ATTITUDE)}
+    assert "crc errors 0" in err and "lost 0" in err                    # the live line
+    counters = [int(r["sample.counter"]) for r in rows]
+    assert counters == sorted(counters)
+    rc, out, err = run_cli(capsys, "plot", log, "--out", tmp_path / "x.png")
+    assert rc == 0 and (tmp_path / "x.png").stat().st_size > 10_000
+
+
+def frames_after(board, n=3):
+    with open_link(board.port) as link:
+        return [f for _, _, f in link.frames(n, types=(ATTITUDE,))]
+
+
+def test_config_filter_select_shows_in_the_frames(board, capsys):
+    rc, out, err = run_cli(capsys, "config", board.port, "filter", "complementary")
+    assert rc == 0, err
+    assert all(f["attitude"]["flags"]["filter"] == 1 for f in frames_after(board))
+    rc, out, err = run_cli(capsys, "config", board.port, "filter", "flagship")
+    assert rc == 0 and json.loads(out) == {"filter": "flagship"}
+    assert all(f["attitude"]["flags"]["filter"] == 2 for f in frames_after(board))
+
+
+def test_config_set_reads_back_and_refuses_what_it_must(board, capsys):
+    rc, out, err = run_cli(capsys, "config", board.port, "set", "R", "3.5")
+    assert rc == 0, err
+    assert json.loads(out)["value"] == 3.5
+    rc, out, err = run_cli(capsys, "config", board.port, "get", "R")
+    assert rc == 0 and json.loads(out) == {"name": "R", "value": 3.5, "unit": "deg²",
+                                           "word": 3.5 * 2 ** 24, "format": "Q8.24"}
+    rc, out, err = run_cli(capsys, "config", board.port, "set", "GATE_DIP", "12.5")
+    assert rc == 0 and abs(json.loads(out)["value"] - 12.5) < 1e-6
+    for args, message in [(("set", "ZERO", "1"), "read-only"),
+                          (("set", "NOPE", "1"), "no register"),
+                          (("set", "PWM_SERVO_PERIOD", "100"), "refused"),  # 2500..20000
+                          (("set", "R", "1e12"), "does not fit"),
+                          (("get",), "takes 1 argument")]:
+        rc, out, err = run_cli(capsys, "config", board.port, *args)
+        assert rc != 0 and message in err and len(err.strip().splitlines()) == 1, err
+
+
+def test_config_rate_and_reset(board, capsys):
+    rc, out, err = run_cli(capsys, "config", board.port, "rate", "50")
+    assert rc == 0, err
+    result = json.loads(out)
+    assert result["divider"] == 4 and result["sample_rate_hz"] == pytest.approx(200, rel=1e-6)
+    filtered = [f["counters"]["filtered"] for f in frames_after(board, 3)]
+    assert [b - a for a, b in zip(filtered, filtered[1:])] == [4, 4]
+    rc, out, err = run_cli(capsys, "config", board.port, "rate", "200")
+    assert rc == 0
+    rc, out, err = run_cli(capsys, "config", board.port, "reset")
+    assert rc == 0 and json.loads(out) == {"reset": True}
+
+
+def test_garbage_on_the_port_is_counted_and_changes_nothing(board):
+    from mpu9250_ahrs.host.config import get
+    names = ("CMD_DISCARDED", "CMD_CRC_ERRORS", "R", "CONTROL")
+    rng = random.Random(7)
+    junk = rng.randbytes(300).replace(b"\xa5", b"\x00")            # noise ...
+    bad = bytearray(encode_frame(0x10, 1, bytes(6)))
+    bad[7] ^= 0x10                                                   # ... and a corrupt write
+    with open_link(board.port) as link:
+        before = {n: get(link, n)["value"] for n in names}
+        link.serial.write(junk + bytes(bad))
+        link.serial.flush()
+        board.wait_cycles(320 * 40 * 2)                              # the bytes' time on the line
+        after = {n: get(link, n)["value"] for n in names}
+        assert len(list(link.frames(2, types=(ATTITUDE,)))) == 2    # and it goes on
+    assert after["CMD_DISCARDED"] >= before["CMD_DISCARDED"] + 300
+    assert after["CMD_CRC_ERRORS"] == before["CMD_CRC_ERRORS"] + 1
+    assert after["R"] == before["R"] and after["CONTROL"] == before["CONTROL"]
+
+
+def test_calibrate_recovers_the_offsets_the_model_was_given(board, capsys, tmp_path):
+    """On the simulated board (its path: the tool finds the board in this process and plays
+    the user who turns it; ``calibrate sim`` does the same with a board of its own)."""
+    out_json = tmp_path / "cal.json"
+    rc, out, err = run_cli(capsys, "calibrate", board.port, "--quick", "--out", out_json)
+    assert rc == 0, err
+    result = json.loads(out_json.read_text())
+    truth = SensorErrors()
+    assert result["gyro_offset"] == pytest.approx(truth.gyro_offset, abs=1.5)
+    assert result["accel_offset"] == pytest.approx(truth.accel_offset, abs=8)
+    assert [1 / s for s in result["accel_scale"]] == pytest.approx(truth.accel_scale, abs=0.01)
+    assert result["hard_iron"] == pytest.approx(truth.hard_iron, abs=4)
+    assert result["checks"]["mag_spread_percent"] < 3
+    # baked in by build: the calibration's registers become reset values
+    rc, _, err = run_cli(capsys, "build", "--verilog-only", "--out", tmp_path / "v",
+                         "--calibration", out_json)
+    assert rc == 0, err
+
+
+# -- errors a user meets --------------------------------------------------------------------
+
+class FakeBoard:
+    """A pseudo-terminal with a thread writing attitude frames at 921,600 baud's pace (the
+    bytes garbled as a UART at the host's baud would see them), and no command channel."""
+    def __init__(self, send=True):
+        self.master, slave = os.openpty()
+        self.port = os.ttyname(slave)
+        self.slave = slave
+        self.stop = threading.Event()
+        self.thread = threading.Thread(target=self.run if send else lambda: None, daemon=True)
+        self.thread.start()
+
+    def run(self):
+        import termios
+        from mpu9250_ahrs.sim.board import _SPEEDS
+        seq = 0
+        n = payload_bytes(FRAME_TYPES[ATTITUDE])
+        while not self.stop.is_set():
+            baud = _SPEEDS.get(termios.tcgetattr(self.master)[5], 921_600)
+            frame = encode_frame(ATTITUDE, seq, random.randbytes(n))
+            try:
+                os.write(self.master, garble(frame, baud / 921_600))
+            except OSError:
+                pass
+            seq += 1
+            time.sleep(0.01)
+
+    def close(self):
+        self.stop.set()
+        self.thread.join()
+        os.close(self.master)
+        os.close(self.slave)
+
+
+@pytest.fixture
+def fake():
+    boards = []
+
+    def make(**kw):
+        boards.append(FakeBoard(**kw))
+        return boards[-1]
+    yield make
+    for b in boards:
+        b.close()
+
+
+def one_line_error(capsys, *argv):
+    rc, out, err = run_cli(capsys, *argv)
+    assert rc != 0 and len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
+    return err
+
+
+def test_missing_port(capsys):
+    assert "no such serial port" in one_line_error(capsys, "monitor", "/dev/no-such-tty")
+
+
+def test_busy_port(capsys, fake):
+    b = fake()
+    holder = serial.Serial(b.port, exclusive=True)
+    try:
+        assert "busy" in one_line_error(capsys, "monitor", b.port, "--frames", "1")
+    finally:
+        holder.close()
+
+
+def test_wrong_baud_and_silent_board(capsys, fake):
+    b = fake()
+    rc, out, err = run_cli(capsys, "monitor", b.port, "--frames", 5)          # right baud
+    assert rc == 0 and json.loads(out)["frames"] == 5, err
+    err = one_line_error(capsys, "monitor", b.port, "--baud", 115200, "--frames", 5)
+    assert "wrong baud rate" in err
+    silent = fake(send=False)
+    assert "nothing received" in one_line_error(capsys, "monitor", silent.port, "--frames", 1)
+    assert "did not answer" in one_line_error(capsys, "config", silent.port, "get", "R",
+                                              "--timeout", "0.4")
