@@ -11,6 +11,7 @@ from .attitude_isa import REG_BITS
 from .attitude_program import (CONTROL_ADDR, CONTROL_KEEP, CONTROL_RESET, FILTER_CODES,
                                TELEMETRY_DIV_ADDR)
 from .board_bus import BoardBusSignature
+from .host_port import address_in
 from .sample import ConfigWrite
 from .telemetry import CRC, SYNC
 
@@ -65,21 +66,6 @@ class CommandStats(data.Struct):
     malformed: 16      # too long, cut off (no byte for ``timeout`` cycles), bad type or length
     ok: 16             # commands done
     refused: 16        # well-formed commands refused (read-only, out of range, no address)
-
-
-def _member(value, members):
-    """``value`` is in ``members`` (a set of ints), as comparisons with its runs of
-    consecutive members: a few comparators rather than a 256-way decode."""
-    runs = []
-    for a in sorted(members):
-        if runs and a == runs[-1][1] + 1:
-            runs[-1][1] = a
-        else:
-            runs.append([a, a])
-    hit = C(0)
-    for first, last in runs:
-        hit = hit | ((value == first) if first == last else (value >= first) & (value <= last))
-    return hit
 
 
 class CommandDecoder(wiring.Component):
@@ -174,7 +160,7 @@ class CommandDecoder(wiring.Component):
             BOARD_REGS["CMD_REFUSED"]: stats.refused,
             BOARD_REGS["FRAMES_SENT"]: self.frames_sent,
         }
-        writable = _member(low, self.writable)
+        writable = address_in(low, self.writable)
         m.d.comb += [self.pwm.addr.eq(low), self.pwm.w_data.eq(value)]
 
         parsing = ("HUNT", "SYNC1", "TYPE", "SEQ", "LENGTH", "PAYLOAD", "CRC_HIGH", "CRC_LOW")
@@ -267,7 +253,7 @@ class CommandDecoder(wiring.Component):
                         with m.If(low == BOARD_REGS["RAW_MODE"]):
                             m.d.sync += self.raw_mode.eq(value[0])
                             answer(RESULTS["ok"])
-                        with m.Elif(low < len(BOARD_REGS)):
+                        with m.Elif(address_in(low, BOARD_REGS.values())):
                             answer(RESULTS["refused"])
                         with m.Else():
                             answer(RESULTS["bad_address"])

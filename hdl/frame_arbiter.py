@@ -51,18 +51,15 @@ class FrameArbiter(wiring.Component):
             with m.If(inputs[k].valid):
                 m.d.comb += choice.eq(k)
         grant = Mux(busy, held, choice)
+        last = Signal()
         with m.Switch(grant):
             for k, port in enumerate(inputs):
                 with m.Case(k):
                     m.d.comb += [self.o_stream.valid.eq(port.valid),
                                  self.o_stream.payload.eq(port.payload.data),
+                                 last.eq(port.payload.last),
                                  port.ready.eq(self.o_stream.ready)]
         sent = self.o_stream.valid & self.o_stream.ready
-        last = Signal()
-        with m.Switch(grant):
-            for k, port in enumerate(inputs):
-                with m.Case(k):
-                    m.d.comb += last.eq(port.payload.last)
         with m.If(sent):
             m.d.sync += [busy.eq(~last), held.eq(grant)]
             with m.If(last):

@@ -10,7 +10,14 @@ from .attitude_program import CONTROL_ADDR, CONTROL_KEEP, CONTROL_RESET
 from .sample import ConfigWrite
 
 
-__all__ = ["HostPort"]
+__all__ = ["HostPort", "address_in"]
+
+
+def address_in(addr, addresses):
+    """1 where ``addr`` (an 8-bit value) is one of ``addresses``: a 256-entry decode of the
+    address (one LUT tree), not a comparator per address. The engine's write check and the
+    command decoder's (which answers "refused" before it sends a write) both use it."""
+    return Const(sum(1 << a for a in addresses), 256).bit_select(addr, 1)
 
 
 class HostPort(wiring.Component):
@@ -25,8 +32,8 @@ class HostPort(wiring.Component):
     Members
         ``cfg`` (in, stream of ``ConfigWrite``): a write per transfer, taken in one cycle while
             ``open``. ``CONTROL_ADDR`` sets ``select`` (bits 1:0, unless bit 3 says keep it)
-            and, with bit 2, pulses ``reset``; another filter than the present one pulses ``switched``. Any other
-            writable address writes the register file.
+            and, with bit 2, pulses ``reset``; another filter than the present one pulses
+            ``switched``. Any other writable address writes the register file.
         ``refused`` (out, 16): writes refused since reset (saturating at 65535).
         ``cfg_read`` (in, stream of addresses) / ``cfg_read_data`` (out, stream of signed 32):
             a read per transfer, taken while ``open`` and no read is outstanding; the word
@@ -57,9 +64,7 @@ class HostPort(wiring.Component):
         m.d.comb += self.cfg.ready.eq(self.open)
         allowed = Signal(init=1)
         if self.writable is not None:
-            # a 256-entry decode of the address (one LUT tree), not a comparator per address
-            m.d.comb += allowed.eq(Const(sum(1 << a for a in self.writable), 256)
-                                   .bit_select(write.addr, 1))
+            m.d.comb += allowed.eq(address_in(write.addr, self.writable))
         with m.If(self.cfg.valid & self.open & ~allowed):
             with m.If(self.refused != 0xFFFF):
                 m.d.sync += self.refused.eq(self.refused + 1)

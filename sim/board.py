@@ -34,7 +34,8 @@ from .sources import SensorSample
 from .uart import attach_uart_receiver
 
 
-__all__ = ["SensorErrors", "SimulatedBoard", "board_setup", "garble", "SIM_CLOCK_HZ"]
+__all__ = ["SensorErrors", "SimulatedBoard", "board_setup", "garble", "pty_baud",
+           "SIM_CLOCK_HZ"]
 
 
 SIM_CLOCK_HZ = 4e6
@@ -111,8 +112,7 @@ class SimulatedBoard:
         ``seed``: the noise's.
     Members
         ``port``: the pseudo-terminal's path, once started. ``core``, ``model``: the design
-        and the MPU9250 model. ``cycles``: simulated so far. ``pwm_log``: (cycle, 4-bit value)
-        each time the PWM outputs change.
+        and the MPU9250 model. ``cycles``: simulated so far.
     """
     def __init__(self, *, errors=SensorErrors(), sample_cycles=1600, core_kwargs=None, seed=1,
                  setup=None):
@@ -133,7 +133,6 @@ class SimulatedBoard:
         self.asa_factor = np.array([(a + 128) / 256 for a in ak.asa])
         self.port = None
         self.cycles = 0
-        self.pwm_log = []
         self.error = None
         self._stop = threading.Event()
         self._thread = None
@@ -183,7 +182,7 @@ class SimulatedBoard:
         return tuple(int(round(v)) for v in raw)
 
     # -- the simulation ---------------------------------------------------------------------
-    def start(self, timeout=10.0):
+    def start(self):
         """Start the simulation thread; returns once the pseudo-terminal exists."""
         from amaranth.sim import Simulator
         master, slave = os.openpty()
@@ -205,37 +204,34 @@ class SimulatedBoard:
         attach_uart_receiver(sim, core.uart_tx, divisor, sent)
         poll = 10 * divisor                         # a byte time
 
+        def flush(ratio):
+            """The design's bytes so far to the host, as a UART at its baud sees them."""
+            if sent:
+                out = garble(bytes(sent), ratio)
+                sent.clear()
+                try:
+                    os.write(master, out)
+                except OSError:                      # nobody reading: the bytes are lost
+                    pass
+
         async def bridge(ctx):
             ctx.set(core.uart_rx, 1)
             pending = bytearray()
-            pwm = 0
             while not self._stop.is_set():
                 await ctx.tick().repeat(poll)
                 self.cycles = ctx.get(harness.cycle)
-                ratio = self._host_baud() / NOMINAL_BAUD
-                if sent:
-                    out = garble(bytes(sent), ratio)
-                    sent.clear()
-                    try:
-                        os.write(master, out)
-                    except (BlockingIOError, OSError):
-                        pass                         # nobody reading: the bytes are lost
+                ratio = pty_baud(master) / NOMINAL_BAUD
+                flush(ratio)
                 try:
                     pending += garble(os.read(master, 4096), 1 / ratio)
-                except (BlockingIOError, OSError):
+                except OSError:                      # nothing written
                     pass
-                level = ctx.get(core.pwm)
-                if level != pwm:
-                    pwm = level
-                    self.pwm_log.append((self.cycles, level))
                 while pending and not self._stop.is_set():
                     byte = pending.pop(0)
                     for bit in [0] + [(byte >> k) & 1 for k in range(8)] + [1]:
                         ctx.set(core.uart_rx, bit)
                         await ctx.tick().repeat(divisor)
-                    if sent:
-                        os.write(master, garble(bytes(sent), ratio))
-                        sent.clear()
+                    flush(ratio)
         sim.add_testbench(bridge)
 
         def run():
@@ -247,18 +243,15 @@ class SimulatedBoard:
         self._thread.start()
         return self
 
-    def _host_baud(self):
-        """The baud the host set on its end (the pseudo-terminal keeps the setting)."""
-        speed = termios.tcgetattr(self._master)[5]
-        return _SPEEDS.get(speed, NOMINAL_BAUD)
-
     def wait_cycles(self, cycles, timeout=600):
         """Block until the simulation has run ``cycles`` more cycles."""
         end = self.cycles + cycles
         start = time.monotonic()
         while self.cycles < end:
-            if self.error is not None or time.monotonic() - start > timeout:
+            if self.error is not None:
                 raise RuntimeError(f"simulated board stopped: {self.error!r}")
+            if time.monotonic() - start > timeout:
+                raise RuntimeError(f"simulated board: {cycles} cycles took over {timeout} s")
             time.sleep(0.05)
 
     def stop(self):
@@ -283,3 +276,9 @@ class SimulatedBoard:
 _SPEEDS = {getattr(termios, f"B{b}"): b for b in
            (9600, 19200, 38400, 57600, 115200, 230400, 460800, 500000, 576000, 921600,
             1000000, 1152000, 1500000, 2000000) if hasattr(termios, f"B{b}")}
+
+
+def pty_baud(fd):
+    """The baud the host set on its end of a pseudo-terminal (``fd``: either end; they share
+    the setting); 921,600 for a speed not in the table."""
+    return _SPEEDS.get(termios.tcgetattr(fd)[5], NOMINAL_BAUD)

@@ -206,12 +206,13 @@ def load_calibration(path):
         if value.shape != shape or not np.all(np.isfinite(value)):
             raise ValueError(f"{path}: '{key}' must be {shape} finite numbers")
     cal = _fixed(result)
-    for name, word in calibration_registers(cal).items():
+    registers = calibration_registers(cal)
+    for name, word in registers.items():
         limit = 2 ** 31 if name.startswith(("SOFT", "ACC_SCALE")) else 2 ** 15
         if not -limit <= word < limit:
             raise ValueError(f"{path}: {name} = {word} is out of range")
     for name in ("ACC_SCALE0", "ACC_SCALE1", "ACC_SCALE2"):
-        word = calibration_registers(cal)[name]
+        word = registers[name]
         if not 0 < word < 2 ** 15:
             raise ValueError(f"{path}: {name} = {word / 2 ** 14:g} is not a scale in (0, 2)")
     return cal

@@ -12,13 +12,14 @@ import time
 
 from ..hdl.command_decoder import REGMAP_VERSION
 from ..hdl.frame_types import REPLY
-from .protocol import FrameDecoder, RESULT_NAMES, encode_command
+from .protocol import FrameDecoder, encode_command, reply_of
 
 
 __all__ = ["BoardError", "Link", "open_link", "SIM_BOARDS"]
 
 
-# Simulated boards running in this process, by port path (``sim.board`` registers them).
+# Simulated boards running in this process, by port path (``open_link`` registers the ones it
+# starts; a test may register its own).
 SIM_BOARDS = {}
 
 
@@ -33,9 +34,10 @@ class Link:
     sends a command and returns its reply's fields, retrying a lost one. ``stats`` (the
     decoder's ``LinkStats``): frames, CRC errors, lost frames, noise bytes.
     """
-    def __init__(self, serial, *, board=None, timeout=1.0):
+    def __init__(self, serial, *, board=None, own_board=False, timeout=1.0):
         self.serial = serial
         self.board = board
+        self.own_board = own_board    # started for this link: stopped when it closes
         self.timeout = timeout
         self.decoder = FrameDecoder()
         self.seq = 0
@@ -115,7 +117,7 @@ class Link:
                 for k, (ftype, seq, fields) in enumerate(got):
                     if ftype == REPLY and fields["cmd_seq"] == self.seq:
                         self.backlog += got[:k] + got[k + 1:]
-                        return {**fields, "result_name": RESULT_NAMES.get(fields["result"], "?")}
+                        return reply_of(fields)
                 self.backlog += got
                 del self.backlog[:-1000]
         raise BoardError(f"{self.port}: the board did not answer '{name}' ({retries} tries, "
@@ -139,7 +141,7 @@ class Link:
         try:
             self.serial.close()
         finally:
-            if self.board is not None and self.board.port in SIM_BOARDS and self._own_board:
+            if self.own_board:
                 SIM_BOARDS.pop(self.board.port, None)
                 self.board.stop()
 
@@ -174,6 +176,4 @@ def open_link(port, baud=921_600, *, timeout=1.0, board_kwargs=None):
         raise BoardError(f"{port}: cannot open: {text}") from None
     except ValueError as e:
         raise BoardError(f"{port}: {e}") from None
-    link = Link(ser, board=board, timeout=timeout)
-    link._own_board = own
-    return link
+    return Link(ser, board=board, own_board=own, timeout=timeout)

@@ -6,6 +6,7 @@ import time
 
 from ..hdl.frame_types import ATTITUDE, SENSOR
 from ..hdl.telemetry_scheduler import AttitudeFrame
+from .protocol import unpack
 
 
 __all__ = ["COLUMNS", "flatten", "monitor", "read_log"]
@@ -24,13 +25,8 @@ def flatten(fields, prefix=""):
     return out
 
 
-def _zero(layout):
-    from .protocol import unpack
-    return unpack(layout, 0)
-
-
 # Every frame type's fields fit these columns (a sensor frame's are an attitude frame's first).
-COLUMNS = ["host_time_s", "type", "seq", *flatten(_zero(AttitudeFrame)),
+COLUMNS = ["host_time_s", "type", "seq", *flatten(unpack(AttitudeFrame, 0)),
            "roll_deg", "pitch_deg", "yaw_deg"]
 
 

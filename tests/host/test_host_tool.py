@@ -16,7 +16,7 @@ from mpu9250_ahrs.hdl.frame_types import ATTITUDE, FRAME_TYPES
 from mpu9250_ahrs.hdl.telemetry import payload_bytes
 from mpu9250_ahrs.host.link import SIM_BOARDS, open_link
 from mpu9250_ahrs.host.protocol import encode_frame
-from mpu9250_ahrs.sim.board import SensorErrors, SimulatedBoard, garble
+from mpu9250_ahrs.sim.board import SensorErrors, SimulatedBoard, garble, pty_baud
 
 
 def run_cli(capsys, *argv):
@@ -149,12 +149,10 @@ class FakeBoard:
         self.thread.start()
 
     def run(self):
-        import termios
-        from mpu9250_ahrs.sim.board import _SPEEDS
         seq = 0
         n = payload_bytes(FRAME_TYPES[ATTITUDE])
         while not self.stop.is_set():
-            baud = _SPEEDS.get(termios.tcgetattr(self.master)[5], 921_600)
+            baud = pty_baud(self.master)
             frame = encode_frame(ATTITUDE, seq, random.randbytes(n))
             try:
                 os.write(self.master, garble(frame, baud / 921_600))
