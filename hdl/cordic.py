@@ -12,6 +12,10 @@ Interface
         (√(x² + y²)·K saturated to 32 bits; ``saturated`` set if it was clamped).
     Rotation results: ``cos``, ``sin`` in Q1.30 (on ``magnitude``/``angle``'s neighbours
         ``x_out``, ``y_out``).
+Parameters (the datapath's by default; the formal check, ``tests/formal/test_cordic.py``, proves
+the same logic at a reduced width): ``width`` (32: inputs, results and the angle's BAM bits),
+``atan_table`` (one entry per iteration, BAM of ``width`` bits), ``inv_gain`` (1/K in
+Q1.(``width`` − 2)).
 Latency: ``done`` ``CORDIC_ITERATIONS`` + 1 cycles after ``start``; throughput one operation per
 that many cycles. Internal width 34 bits: a 32-bit vector's length times K (1.647) is below 2³³,
 so any 32-bit input converges without overflow.
@@ -21,47 +25,47 @@ from amaranth import *
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
-from ..reference.fixed_point import ATAN_TABLE, CORDIC_ITERATIONS, INV_GAIN_Q30
+from ..reference.fixed_point import ATAN_TABLE, INV_GAIN_Q30
 
 
 __all__ = ["CORDIC"]
 
-WIDTH = 34
-ATAN_SUM = sum(ATAN_TABLE)
-
-
 class CORDIC(wiring.Component):
-    start: In(1)
-    mode: In(1)                 # 0: vectoring, 1: rotation
-    x_in: In(signed(32))
-    y_in: In(signed(32))
-    angle_in: In(signed(32))
-
-    busy: Out(1)
-    done: Out(1)
-    angle: Out(signed(32))      # vectoring: atan2(y, x)
-    magnitude: Out(signed(32))  # vectoring: |(x, y)|·K, saturated
-    saturated: Out(1)
-    cos: Out(signed(32))        # rotation, Q1.30
-    sin: Out(signed(32))
+    def __init__(self, *, width=32, atan_table=ATAN_TABLE, inv_gain=INV_GAIN_Q30):
+        self.width, self.atan_table, self.inv_gain = width, tuple(atan_table), inv_gain
+        n = width
+        super().__init__({
+            "start": In(1),
+            "mode": In(1),                  # 0: vectoring, 1: rotation
+            "x_in": In(signed(n)), "y_in": In(signed(n)), "angle_in": In(signed(n)),
+            "busy": Out(1), "done": Out(1),
+            "angle": Out(signed(n)),        # vectoring: atan2(y, x)
+            "magnitude": Out(signed(n)),    # vectoring: |(x, y)|·K, saturated
+            "saturated": Out(1),
+            "cos": Out(signed(n)),          # rotation, Q1.(n − 2)
+            "sin": Out(signed(n)),
+        })
 
     def elaborate(self, platform):
         m = Module()
+        n = self.width
+        iterations = len(self.atan_table)
+        inner = n + 2           # a vector's length times K (< 1.65) fits: no overflow inside
         # reset-less: loaded by every start (a reset would cost a LUT per bit)
-        x = Signal(signed(WIDTH), reset_less=True)
-        y = Signal(signed(WIDTH), reset_less=True)
-        # angle accumulator: BAM32 wraps by itself, and in rotation |z| stays below 100°, so
+        x = Signal(signed(inner), reset_less=True)
+        y = Signal(signed(inner), reset_less=True)
+        # angle accumulator: BAM wraps by itself, and in rotation |z| stays below 100°, so
         # its sign is the direction
-        z = Signal(signed(32), reset_less=True)
-        i = Signal(range(CORDIC_ITERATIONS), reset_less=True)
+        z = Signal(signed(n), reset_less=True)
+        i = Signal(range(iterations), reset_less=True)
         rotate = Signal(reset_less=True)
 
-        atan = Array(Const(v, signed(32)) for v in ATAN_TABLE)
+        atan = Array(Const(v, signed(n)) for v in self.atan_table)
         # σ = +1: x −= σ·(y >> i) … written out for both directions
         up = Signal()
         # the signs alone (y ≥ 0 rather than y > 0: no zero test)
         m.d.comb += up.eq(Mux(rotate, z[-1], ~y[-1]))
-        xs, ys = Signal(signed(WIDTH)), Signal(signed(WIDTH))
+        xs, ys = Signal(signed(inner)), Signal(signed(inner))
         m.d.comb += [xs.eq(x >> i), ys.eq(y >> i)]
 
         with m.FSM():
@@ -71,19 +75,20 @@ class CORDIC(wiring.Component):
                     with m.If(self.mode):
                         a = self.angle_in
                         # beyond ±90°: turn by 180° (wrapping add of 2³¹), start from (−1/K, 0)
-                        beyond = (a > (1 << 30)) | (a < -(1 << 30))
-                        m.d.sync += [x.eq(Mux(beyond, -INV_GAIN_Q30, INV_GAIN_Q30)), y.eq(0),
-                                     z.eq(Cat(a[:31], a[31] ^ beyond))]
+                        beyond = (a > (1 << (n - 2))) | (a < -(1 << (n - 2)))
+                        m.d.sync += [x.eq(Mux(beyond, -self.inv_gain, self.inv_gain)), y.eq(0),
+                                     z.eq(Cat(a[:n - 1], a[n - 1] ^ beyond))]
                     with m.Else():
                         xi, yi = self.x_in, self.y_in
                         # left half-plane: invert (−v − 1: no adder), start at 180°
-                        left = xi[31]
+                        left = xi[n - 1]
                         # (0, 0) stays (0, 0) and turns the same way (y ≥ 0) every iteration,
                         # so starting it at −Σ atan ends it at angle 0: no output multiplexer
                         zero = (xi == 0) & (yi == 0)
-                        m.d.sync += [x.eq(xi ^ left.replicate(32).as_signed()),
-                                     y.eq(yi ^ left.replicate(32).as_signed()),
-                                     z.eq(Mux(zero, -ATAN_SUM, Cat(C(0, 31), left)))]
+                        m.d.sync += [x.eq(xi ^ left.replicate(n).as_signed()),
+                                     y.eq(yi ^ left.replicate(n).as_signed()),
+                                     z.eq(Mux(zero, -sum(self.atan_table),
+                                              Cat(C(0, n - 1), left)))]
                     m.next = "RUN"
             with m.State("RUN"):
                 m.d.comb += self.busy.eq(1)
@@ -95,17 +100,17 @@ class CORDIC(wiring.Component):
                     z.eq(z + Mux(up, atan[i], ~atan[i]) + ~up),
                 ]
                 m.d.sync += i.eq(i + 1)
-                with m.If(i == CORDIC_ITERATIONS - 1):
+                with m.If(i == iterations - 1):
                     m.next = "DONE"
             with m.State("DONE"):
                 m.d.comb += self.done.eq(1)
                 m.next = "IDLE"
 
-        max32 = (1 << 31) - 1
+        top = (1 << (n - 1)) - 1
         m.d.comb += [
             self.angle.eq(z),
-            self.magnitude.eq(Mux(x > max32, max32, x)),
-            self.saturated.eq(x > max32),
+            self.magnitude.eq(Mux(x > top, top, x)),
+            self.saturated.eq(x > top),
             self.cos.eq(x),
             self.sin.eq(y),
         ]

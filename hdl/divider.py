@@ -14,11 +14,17 @@ first quotient bit (2³¹) is set by the first trial anyway, and a set bit 31 me
 either way. One register holds the dividend's low bits, shifted out at the top, and the
 quotient, shifted in at the bottom.
 
+Parameters
+    ``width`` (32), ``frac`` (24): q = ⌊num·2^frac / den⌋ on ``width``-bit operands. The
+    datapath uses 32/24; the formal check (``tests/formal/test_divider.py``) proves the same
+    logic at a reduced width over every input.
+
 Interface
     ``start`` (in): pulse with ``num``, ``den`` (signed 32) valid; ignored while ``busy``.
     ``done`` (out): one-cycle pulse; ``quotient`` and ``saturated`` hold until the next start.
 Latency: ``done`` 32 / ``BITS_PER_CYCLE`` + 1 cycles after ``start`` (33 with one bit per
-cycle); throughput one division per 32 / ``BITS_PER_CYCLE`` + 2 cycles (34).
+cycle; 1 cycle for a denominator ≤ 0); throughput one division per 32 / ``BITS_PER_CYCLE`` + 2
+cycles (34).
 """
 
 from amaranth import *
@@ -32,51 +38,53 @@ BITS_PER_CYCLE = 1
 
 
 class Divider(wiring.Component):
-    start: In(1)
-    num: In(signed(32))
-    den: In(signed(32))
-
-    busy: Out(1)
-    done: Out(1)
-    quotient: Out(signed(32))
-    saturated: Out(1)
+    def __init__(self, *, width=32, frac=24):
+        if not 0 < frac < width:
+            raise ValueError(f"Divider needs 0 < frac < width, not frac={frac}, width={width}")
+        self.width, self.frac = width, frac
+        super().__init__({
+            "start": In(1), "num": In(signed(width)), "den": In(signed(width)),
+            "busy": Out(1), "done": Out(1), "quotient": Out(signed(width)),
+            "saturated": Out(1),
+        })
 
     def elaborate(self, platform):
         m = Module()
+        w, f = self.width, self.frac
         # reset-less: loaded by every start (a reset would cost a LUT per bit)
-        rem = Signal(31, reset_less=True)    # < den ≤ 2³¹ − 1
-        shreg = Signal(32, reset_less=True)  # dividend bits (top) / quotient bits (bottom)
-        den = Signal(31, reset_less=True)
+        rem = Signal(w - 1, reset_less=True)    # < den ≤ 2^(w−1) − 1
+        shreg = Signal(w, reset_less=True)      # dividend bits (top) / quotient bits (bottom)
+        den = Signal(w - 1, reset_less=True)
         negative = Signal(reset_less=True)
         den_bad = Signal(reset_less=True)
-        count = Signal(range(32 // BITS_PER_CYCLE), reset_less=True)
+        count = Signal(range(w // BITS_PER_CYCLE), reset_less=True)
 
         r, q = rem, shreg
         for _ in range(BITS_PER_CYCLE):
-            trial = Cat(q[31], r)                            # (r << 1) | next bit, 32 bits
-            diff = Signal(signed(33))
+            trial = Cat(q[w - 1], r)                         # (r << 1) | next bit, w bits
+            diff = Signal(signed(w + 1))
             m.d.comb += diff.eq(trial - den)                 # its sign is the comparison
-            ge = ~diff[32]
-            r = Mux(ge, diff[:31], trial[:31])
-            q = Cat(ge, q[:31])
+            ge = ~diff[w]
+            r = Mux(ge, diff[:w - 1], trial[:w - 1])
+            q = Cat(ge, q[:w - 1])
 
         num = self.num
-        inverted = (num ^ num[31].replicate(32))[:31]        # num ≥ 0: num; else ~num ≥ 0
-        overflow = shreg[31]                                 # quotient ≥ 2³¹
-        magnitude = Mux(overflow, C((1 << 31) - 1, 32), shreg)
+        inverted = (num ^ num[w - 1].replicate(w))[:w - 1]   # num ≥ 0: num; else ~num ≥ 0
+        overflow = shreg[w - 1]                              # quotient ≥ 2^(w−1)
+        magnitude = Mux(overflow, C((1 << (w - 1)) - 1, w), shreg)
         m.d.comb += [
-            self.quotient.eq(Mux(den_bad, 0, magnitude ^ negative.replicate(32))),
+            self.quotient.eq(Mux(den_bad, 0, magnitude ^ negative.replicate(w))),
             self.saturated.eq(den_bad | overflow),
         ]
         with m.FSM():
             with m.State("IDLE"):
                 with m.If(self.start):
-                    bad = self.den[31] | (self.den == 0)
+                    bad = self.den[w - 1] | (self.den == 0)
                     m.d.sync += [
-                        negative.eq(num[31]), den.eq(self.den[:31]), den_bad.eq(bad),
-                        rem.eq(inverted >> 8),
-                        # the dividend's low 32 bits: the numerator's low 8, then 24 fill bits
-                        shreg.eq(Cat(num[31].replicate(24), inverted[:8])),
+                        negative.eq(num[w - 1]), den.eq(self.den[:w - 1]), den_bad.eq(bad),
+                        rem.eq(inverted >> (w - f)),
+                        # the dividend's low w bits: the numerator's low w − f, then f fill bits
+                        shreg.eq(Cat(num[w - 1].replicate(f), inverted[:w - f])),
                         count.eq(0),
                     ]
                     with m.If(bad):
@@ -86,7 +94,7 @@ class Divider(wiring.Component):
             with m.State("RUN"):
                 m.d.comb += self.busy.eq(1)
                 m.d.sync += [rem.eq(r), shreg.eq(q), count.eq(count + 1)]
-                with m.If(count == 32 // BITS_PER_CYCLE - 1):
+                with m.If(count == w // BITS_PER_CYCLE - 1):
                     m.next = "DONE"
             with m.State("DONE"):
                 m.d.comb += self.done.eq(1)

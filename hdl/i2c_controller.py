@@ -4,7 +4,8 @@ Interface
     ``i_stream`` (in, ``I2COperation``): ``op`` START (a repeated start if the controller holds
         the bus), STOP, WRITE (``data``), READ (answer with ``ack``: 1 = ACK, 0 = NACK).
     ``o_stream`` (out, ``I2CResult``): one per operation, in order: ``data`` (READ), ``ack``
-        (WRITE: the device acknowledged), ``error`` (the operation failed: see below).
+        (WRITE: the device acknowledged), ``error`` (the operation failed: see below; a WRITE
+        or READ without a START holding the bus is refused with ``error`` and no clock).
     ``pins``: ``scl_oe``/``sda_oe`` (1 = pull the line low; never driven high), ``scl_i``/``sda_i``
         (line levels, raw: synchronised here).
     ``status``: ``timeout``, ``bus_stuck``, ``arbitration``: the last failure, set by the
@@ -179,16 +180,22 @@ class I2CController(wiring.Component):
                                 m.next = "STOP_HOLD"
                             with m.Else():
                                 respond()
-                        with m.Case(I2COp.WRITE):
-                            # Data MSB first, then a released bit for the device's ACK.
-                            m.d.sync += [shreg.eq(Cat(Const(1, 1), p.data)), bit.eq(0)]
-                            wait(t.low // 2)
-                            m.next = "BIT_HOLD"
-                        with m.Case(I2COp.READ):
-                            # Eight released bits for the device's data, then our ACK/NACK.
-                            m.d.sync += [shreg.eq(Cat(~p.ack, Const(0xFF, 8))), bit.eq(0)]
-                            wait(t.low // 2)
-                            m.next = "BIT_HOLD"
+                        with m.Case(I2COp.WRITE, I2COp.READ):
+                            with m.If(~held):
+                                # No START before it (or the bus was lost): clocking a byte on
+                                # an idle bus would change SDA while SCL is high, a START or
+                                # STOP nobody asked for. Refused (found by the formal check).
+                                respond(error=1)
+                            with m.Elif(p.op == I2COp.WRITE):
+                                # Data MSB first, then a released bit for the device's ACK.
+                                m.d.sync += [shreg.eq(Cat(Const(1, 1), p.data)), bit.eq(0)]
+                                wait(t.low // 2)
+                                m.next = "BIT_HOLD"
+                            with m.Else():
+                                # Eight released bits for the device's data, then our ACK/NACK.
+                                m.d.sync += [shreg.eq(Cat(~p.ack, Const(0xFF, 8))), bit.eq(0)]
+                                wait(t.low // 2)
+                                m.next = "BIT_HOLD"
 
             # -- START on an idle bus: SDA falls while SCL is high ------------------------------
             with m.State("START_IDLE"):

@@ -35,3 +35,16 @@ def require_tool(name, install):
     if os.environ.get("CI"):
         pytest.fail(message)
     pytest.skip(message)
+
+
+def pytest_terminal_summary(terminalreporter):
+    """The formal checks' method, depth and solver time (``formal`` fixture, tests/formal)."""
+    lines = []
+    for report in terminalreporter.stats.get("passed", []) + terminalreporter.stats.get("failed", []):
+        if report.when != "call":
+            continue
+        lines += [value for key, value in report.user_properties if key == "formal"]
+    if lines:
+        terminalreporter.section("formal checks")
+        for line in sorted(lines):
+            terminalreporter.write_line(line)

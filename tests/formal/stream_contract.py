@@ -1,0 +1,92 @@
+"""The ``lib.stream`` rules as properties, one call per stream.
+
+The rules (Amaranth RFC 61, and this project's FRAMES.md and block docstrings):
+
+1. ``valid`` is not withdrawn before a transfer: once raised, it stays up until a cycle with
+   ``ready`` (the transfer).
+2. The payload holds still while ``valid & ~ready``: what the consumer sees when it finally
+   takes it is what was offered.
+
+On a stream the block under test drives (an output) the rules are asserted; on a stream it
+receives (an input) they are assumed, so the proof covers every producer that keeps them, and
+the consumer side (``ready`` of an output) is left free (``AnySeq``): any back-pressure.
+
+Rule 3, ``valid`` does not depend combinationally on ``ready``, is not checked yet.
+"""
+
+from amaranth import *
+from amaranth.asserts import AnySeq
+from amaranth.lib import stream, wiring
+from amaranth.hdl import Assert, Assume, Cover
+
+from .harness import Past
+
+
+__all__ = ["stream_output", "stream_input", "contract_harness"]
+
+
+def _rules(m, s, statement, name, cover):
+    started = Signal(name=f"{name}_started")
+    m.d.sync += started.eq(1)
+    payload = s.payload.as_value() if hasattr(s.payload, "as_value") else s.payload
+    was_waiting = Past(m, s.valid & ~s.ready)
+    was_payload = Past(m, payload)
+    with m.If(started & was_waiting):
+        m.d.comb += [statement(s.valid, f"{name}_valid_held"),
+                     statement(payload == was_payload, f"{name}_payload_held")]
+    if cover:
+        # a transfer after back-pressure: the rules had something to bite on
+        m.d.comb += Cover(started & was_waiting & s.valid & s.ready, f"{name}_waited")
+
+
+def stream_output(m, s, name="out", *, ready=None, cover=True):
+    """Assert the rules on ``s``, a stream the block drives; ``ready`` is free unless given."""
+    if ready is None:
+        ready = AnySeq(1)
+    m.d.comb += s.ready.eq(ready)
+    _rules(m, s, Assert, name, cover)
+
+
+def stream_input(m, s, name="in", *, valid=None, payload=None):
+    """Drive ``s``, a stream the block receives, from any producer that keeps the rules."""
+    m.d.comb += [
+        s.valid.eq(AnySeq(1) if valid is None else valid),
+        s.payload.eq(AnySeq(len(s.payload.as_value() if hasattr(s.payload, "as_value")
+                                else s.payload)) if payload is None else payload),
+    ]
+    _rules(m, s, Assume, name, cover=False)
+
+
+def _walk(m, obj, signature, flipped, prefix, streams):
+    for name, member in signature.members.items():
+        value = getattr(obj, name)
+        path = f"{prefix}{name}"
+        inward = (member.flow == wiring.In) != flipped
+        if member.is_signature:
+            if isinstance(member.signature, stream.Signature):
+                streams.append((path, value, inward))
+            else:
+                _walk(m, value, member.signature, inward, f"{path}.", streams)
+        elif inward:
+            m.d.comb += value.eq(AnySeq(Shape.cast(member.shape).width))
+
+
+def contract_harness(component, *, skip=()):
+    """A harness for ``component`` alone: every input port free (``AnySeq``), every input stream
+    from any producer that keeps the rules, every output stream's rules asserted against any
+    consumer. One line per component: ``formal(contract_harness(Block()), ...)``. ``skip``
+    names output streams left out (with a reason in the caller)."""
+    from .harness import harness_module
+    m = harness_module()
+    m.submodules.dut = component
+    streams = []
+    _walk(m, component, component.signature, False, "", streams)
+    for path, s, inward in streams:
+        name = path.replace(".", "_")
+        if inward:
+            stream_input(m, s, name)
+        elif path not in skip:
+            stream_output(m, s, name, cover=False)
+        else:
+            m.d.comb += s.ready.eq(AnySeq(1))
+    return m
