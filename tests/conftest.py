@@ -40,7 +40,8 @@ def require_tool(name, install):
 def pytest_terminal_summary(terminalreporter):
     """The formal checks' method, depth and solver time (``formal`` fixture, tests/formal)."""
     lines = []
-    for report in terminalreporter.stats.get("passed", []) + terminalreporter.stats.get("failed", []):
+    stats = terminalreporter.stats
+    for report in stats.get("passed", []) + stats.get("failed", []):
         if report.when != "call":
             continue
         lines += [value for key, value in report.user_properties if key == "formal"]

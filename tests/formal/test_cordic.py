@@ -23,7 +23,7 @@ from amaranth.sim import Simulator
 from mpu9250_ahrs.hdl.cordic import CORDIC
 from mpu9250_ahrs.reference import fixed_point as fx
 
-from .harness import harness_module
+from .harness import counter, harness_module
 
 
 WIDTH, ITERATIONS = 8, 6
@@ -88,9 +88,7 @@ def cordic_harness(width=WIDTH, iterations=ITERATIONS, dut=None):
     m.submodules.dut = dut = dut or CORDIC(width=width, atan_table=atan, inv_gain=gain)
     x, y, a = AnyConst(signed(width)), AnyConst(signed(width)), AnyConst(signed(width))
     mode = AnyConst(1)
-    cycle = Signal(range(iterations + 4))
-    with m.If(cycle != iterations + 3):
-        m.d.sync += cycle.eq(cycle + 1)
+    cycle = counter(m, range(iterations + 4), name="cycle")  # the start is at cycle 0
     m.d.comb += [dut.x_in.eq(x), dut.y_in.eq(y), dut.angle_in.eq(a), dut.mode.eq(mode),
                  dut.start.eq(cycle == 0)]
     angle, magnitude, saturated = vector_model(m, x, y, width=width, atan=atan)

@@ -15,7 +15,7 @@ from amaranth.hdl import Assert, Cover
 from mpu9250_ahrs.hdl.divider import Divider
 from mpu9250_ahrs.reference.fixed_point import div_q24
 
-from .harness import harness_module
+from .harness import counter, harness_module
 
 
 pytestmark = pytest.mark.formal
@@ -27,9 +27,7 @@ def divider_harness(width=WIDTH, frac=FRAC, dut=None):
     m = harness_module()
     m.submodules.dut = dut = dut or Divider(width=width, frac=frac)
     num, den = AnyConst(signed(width)), AnyConst(signed(width))
-    cycle = Signal(range(width + 8))
-    with m.If(cycle != width + 7):
-        m.d.sync += cycle.eq(cycle + 1)
+    cycle = counter(m, range(width + 8), name="cycle")     # the start is at cycle 0
     m.d.comb += [dut.num.eq(num), dut.den.eq(den), dut.start.eq(cycle == 0)]
 
     lo, hi = -(1 << (width - 1)), (1 << (width - 1)) - 1

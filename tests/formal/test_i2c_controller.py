@@ -17,23 +17,13 @@ from amaranth.hdl import Assert, Assume, Cover
 
 from mpu9250_ahrs.hdl.i2c_controller import I2CController, I2COp, I2CTiming
 
-from .harness import Past, harness_module
+from .harness import Past, counter, harness_module
 from .stream_contract import stream_input, stream_output
 
 
 pytestmark = pytest.mark.formal
 
 TIMING = I2CTiming(low=4, high=2, timeout=5)
-
-
-def counter(m, width, *, count, clear, name):
-    """Consecutive cycles with ``count`` (saturating), restarted by ``clear``."""
-    c = Signal(width, name=name)
-    with m.If(clear | ~count):
-        m.d.sync += c.eq(0)
-    with m.Elif(c != (1 << width) - 1):
-        m.d.sync += c.eq(c + 1)
-    return c
 
 
 def i2c_harness(t=TIMING, dut=None):
@@ -63,9 +53,9 @@ def i2c_harness(t=TIMING, dut=None):
 
     scl_oe_was, sda_oe_was = Past(m, pins.scl_oe), Past(m, pins.sda_oe)
     pull, release = pins.scl_oe & ~scl_oe_was, ~pins.scl_oe & scl_oe_was
-    low_for = counter(m, 4, count=pins.scl_oe, clear=0, name="low_for")
-    high_for = counter(m, 4, count=scl, clear=0, name="high_for")
-    stretched = counter(m, 4, count=busy & ~pins.scl_oe & ~scl, clear=0, name="stretched")
+    low_for = counter(m, 4, count=pins.scl_oe, name="low_for")
+    high_for = counter(m, 4, count=scl, name="high_for")
+    stretched = counter(m, 4, count=busy & ~pins.scl_oe & ~scl, name="stretched")
     was_stretched = Signal()             # a device stretched SCL in this operation
     with m.If(take):
         m.d.sync += was_stretched.eq(0)

@@ -12,7 +12,7 @@ from amaranth.hdl import Assert, Cover
 
 from mpu9250_ahrs.hdl.spi_controller import SPIController, SPITiming
 
-from .harness import Past, harness_module
+from .harness import Past, counter, harness_module
 from .stream_contract import stream_input, stream_output
 
 
@@ -21,16 +21,6 @@ pytestmark = pytest.mark.formal
 TIMING = SPITiming(slow_half=3, fast_half=2, cs_hold=2, cs_gap=3, cipo_delay=1)
 # the smallest timing: SCLK levels of 2 (slow) and 1 (fast) cycles
 SMALL = SPITiming(slow_half=2, fast_half=1, cs_hold=1, cs_gap=2, cipo_delay=0)
-
-
-def saturating_counter(m, width, *, clear, init=0, name):
-    """Cycles since ``clear`` was last high (this cycle's value: 0 in the cycle after it)."""
-    c = Signal(width, init=init, name=name)
-    with m.If(clear):
-        m.d.sync += c.eq(0)
-    with m.Elif(c != (1 << width) - 1):
-        m.d.sync += c.eq(c + 1)
-    return c
 
 
 def spi_harness(t=TIMING, dut=None, *, counting=True):
@@ -68,10 +58,11 @@ def spi_harness(t=TIMING, dut=None, *, counting=True):
     # harness's copy to the controller's, so the proof uses the shorter of the two
     half = Mux(fast, t.fast_half, t.slow_half) if counting else min(t.fast_half, t.slow_half)
 
-    level = saturating_counter(m, 5, clear=sclk != sclk_was, name="level")   # SCLK held
-    since_cs = saturating_counter(m, 5, clear=cs_fell, name="since_cs")
-    since_rise = saturating_counter(m, 5, clear=rose, name="since_rise")
-    cs_high = saturating_counter(m, 5, clear=cs_rose, init=31, name="cs_high")
+    # cycles since each event (0 in the cycle after it)
+    level = counter(m, 5, clear=sclk != sclk_was, name="level")   # SCLK held
+    since_cs = counter(m, 5, clear=cs_fell, name="since_cs")
+    since_rise = counter(m, 5, clear=rose, name="since_rise")
+    cs_high = counter(m, 5, clear=cs_rose, init=31, name="cs_high")
     first_fall = Signal()               # no falling edge yet in this transaction
     with m.If(cs_fell):
         m.d.sync += first_fall.eq(1)

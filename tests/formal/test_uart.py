@@ -13,7 +13,7 @@ from amaranth.hdl import Assert, Cover
 from mpu9250_ahrs.hdl.uart_rx import UARTReceiver
 from mpu9250_ahrs.hdl.uart_tx import UARTTransmitter
 
-from .harness import Past, harness_module
+from .harness import harness_module
 from .stream_contract import stream_input, stream_output
 
 
