@@ -237,9 +237,14 @@ class BringUpSequencer(wiring.Component):
             # reading it, and asks for the set-up after its time-out)
             m.d.sync += [self.mag_absent.eq(1), self.mag_ok.eq(0)]
 
+        # a command once offered stays offered until taken (a stream's rule): a restart
+        # requested meanwhile waits for it like for any step under way
+        offered = Signal()
+        m.d.sync += offered.eq(port.cmd.valid & ~port.cmd.ready)
+
         with m.FSM():
             with m.State("FETCH"):
-                with m.If(restart_pending):
+                with m.If(restart_pending & ~offered):
                     restart()
                 with m.Else():
                     self._fetch(m, step, command, timer, next_step)

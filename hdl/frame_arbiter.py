@@ -25,7 +25,9 @@ class FrameArbiter(wiring.Component):
             they send their seq byte, which is after they were granted the link.
         ``frames`` (out, 32): frames sent since reset (wrapping).
     Latency: none; a grant is decided combinationally in a cycle with no frame in progress
-    and held until that frame's last byte is taken. Throughput: the UART's.
+    and held from the cycle its first byte is offered until that frame's last byte is taken:
+    a higher-priority frame arriving while a first byte waits for the UART does not replace
+    it (that would change the byte under ``valid``). Throughput: the UART's.
     """
     def __init__(self, n):
         self.n = n
@@ -43,7 +45,7 @@ class FrameArbiter(wiring.Component):
     def elaborate(self, platform):
         m = Module()
         inputs = self.inputs
-        busy = Signal()                          # a frame is in progress
+        busy = Signal()                          # a frame is offered or in progress
         held = Signal(range(self.n))             # ... from this input
         choice = Signal(range(self.n))
         # the highest-priority valid input, or the one holding the link
@@ -62,6 +64,10 @@ class FrameArbiter(wiring.Component):
         sent = self.o_stream.valid & self.o_stream.ready
         with m.If(sent):
             m.d.sync += [busy.eq(~last), held.eq(grant)]
+        with m.Elif(self.o_stream.valid):
+            # a first byte waits: the choice is made
+            m.d.sync += [busy.eq(1), held.eq(grant)]
+        with m.If(sent):
             with m.If(last):
                 m.d.sync += [self.seq.eq(self.seq + 1), self.frames.eq(self.frames + 1)]
         return m

@@ -116,11 +116,15 @@ class I2CController(wiring.Component):
         then_start = Signal()       # a recovery STOP, to be followed by the requested START
 
         res = self.o_stream
+        # A result is offered only in IDLE, which is left only once it was taken. (It is never
+        # pending elsewhere; gating it costs a gate and lets the stream contract be proven by
+        # induction.)
+        pending = Signal()
         with m.If(res.valid & res.ready):
-            m.d.sync += res.valid.eq(0)
+            m.d.sync += pending.eq(0)
 
         def respond(*, error=0, ack=0):
-            m.d.sync += [res.valid.eq(1), res.payload.error.eq(error), res.payload.ack.eq(ack),
+            m.d.sync += [pending.eq(1), res.payload.error.eq(error), res.payload.ack.eq(ack),
                          res.payload.data.eq(rx)]
             m.next = "IDLE"
 
@@ -158,7 +162,8 @@ class I2CController(wiring.Component):
                 with m.Elif(timer == 0):
                     abort(self.status.timeout)
 
-        with m.FSM():
+        with m.FSM() as fsm:
+            m.d.comb += res.valid.eq(pending & fsm.ongoing("IDLE"))
             with m.State("IDLE"):
                 m.d.comb += self.i_stream.ready.eq(~res.valid)
                 with m.If(self.i_stream.valid & ~res.valid):

@@ -6,13 +6,15 @@ The driver speaks only this interface, so one sequencer serves both wirings.
     ``cmd`` (in stream, ``RegisterCommand``): ``device`` (0 = MPU9250, 1 = AK8963 reached
         directly: I2C wiring only), ``reg``, ``write``, ``data`` (the byte to write), ``length``
         (bytes to read, 1..32), ``fast`` (SPI only: the fast clock, for sensor registers).
-    ``rx`` (out stream, bytes): the bytes read, in order; the driver is always ready.
+    ``rx`` (out stream, bytes): the bytes read, in order. The driver is always ready; a
+        consumer that is not holds the bus controller back (its result waits), so no byte is
+        lost.
     ``rsp`` (out stream, ``RegisterResponse``): one per command, after its last ``rx`` byte;
         ``error`` = the device did not acknowledge (I2C NACK) or the bus failed.
 
 ``SPIRegisterPort`` turns commands into SPI transactions for an ``SPIController``:
-header byte (bit 7 = read), then the data byte or ``length`` dummy bytes. Latency: the
-transaction, plus one cycle.
+header byte (bit 7 = read), then the data byte or ``length`` dummy bytes. A result byte
+counts only for a byte already sent. Latency: the transaction, plus one cycle.
 
 ``I2CRegisterPort`` turns them into I2C operations for an ``I2CController``:
 write: START, address+W, register, data, STOP; read: START, address+W, register, repeated
@@ -66,6 +68,8 @@ class SPIRegisterPort(wiring.Component):
         tx_index = Signal.like(total)
         rx_index = Signal.like(total)
         busy = Signal()
+        expected = Signal()         # the byte coming in answers one sent
+        data_byte = Signal()        # ... and is one the command asked for
 
         m.d.comb += self.port.cmd.ready.eq(~busy & ~self.port.rsp.valid)
         with m.If(self.port.cmd.valid & self.port.cmd.ready):
@@ -80,18 +84,24 @@ class SPIRegisterPort(wiring.Component):
                                            Mux(cmd.write, cmd.data, 0))),
             self.spi_o.payload.fast.eq(cmd.fast & ~cmd.write),
             self.spi_o.payload.last.eq(tx_index == total - 1),
-            self.spi_i.ready.eq(1),
-            # Bytes clocked in during the header and during writes mean nothing.
-            self.port.rx.valid.eq(self.spi_i.valid & (rx_index != 0) & ~cmd.write),
+            # A result counts only for a byte already sent (the controller never sends one
+            # otherwise; a stray one cannot end the command early). Bytes clocked in during
+            # the header and during writes mean nothing: they are taken and dropped. A data
+            # byte waits for ``rx.ready`` (back-pressure reaches the SPI controller), so it is
+            # never lost, whatever the consumer does.
+            expected.eq(busy & (rx_index < tx_index)),
+            data_byte.eq(expected & (rx_index != 0) & ~cmd.write),
+            self.port.rx.valid.eq(self.spi_i.valid & data_byte),
             self.port.rx.payload.eq(self.spi_i.payload),
+            self.spi_i.ready.eq(~data_byte | self.port.rx.ready),
+            self.port.rsp.payload.error.eq(0),      # SPI has no acknowledge to miss
         ]
         with m.If(self.spi_o.valid & self.spi_o.ready):
             m.d.sync += tx_index.eq(tx_index + 1)
-        with m.If(self.spi_i.valid):
+        with m.If(expected & self.spi_i.valid & self.spi_i.ready):
             m.d.sync += rx_index.eq(rx_index + 1)
             with m.If(rx_index == total - 1):
-                m.d.sync += [busy.eq(0), self.port.rsp.valid.eq(1),
-                             self.port.rsp.payload.error.eq(0)]
+                m.d.sync += [busy.eq(0), self.port.rsp.valid.eq(1)]
         with m.If(self.port.rsp.valid & self.port.rsp.ready):
             m.d.sync += self.port.rsp.valid.eq(0)
         return m
@@ -172,24 +182,27 @@ class I2CRegisterPort(wiring.Component):
                     with m.If(op.ready):
                         m.d.sync += issued.eq(1)
                 with m.Else():
-                    m.d.comb += res.ready.eq(1)
-                    with m.If(res.valid):
+                    # a byte read waits for ``rx.ready`` (back-pressure reaches the controller)
+                    good = ~res.payload.error
+                    m.d.comb += [self.port.rx.valid.eq(res.valid & good),
+                                 res.ready.eq(~good | self.port.rx.ready)]
+                    with m.If(res.valid & res.ready):
                         m.d.sync += [issued.eq(0), remaining.eq(remaining - 1)]
-                        with m.If(res.payload.error):
+                        with m.If(~good):
                             m.d.sync += error.eq(1)
                             m.next = "STOP"
-                        with m.Else():
-                            m.d.comb += self.port.rx.valid.eq(1)
-                            with m.If(remaining == 1):
-                                m.next = "STOP"
+                        with m.Elif(remaining == 1):
+                            m.next = "STOP"
             with m.State("STOP"):
                 with m.If(~issued):
                     issue(I2COp.STOP)
                     with m.If(op.ready):
                         m.d.sync += issued.eq(1)
                 with m.Else():
-                    m.d.comb += res.ready.eq(1)
-                    with m.If(res.valid):
+                    # (``rsp`` is never valid here: IDLE waits for it to be taken. Waiting
+                    # anyway costs a gate and lets the stream contract be proven by induction.)
+                    m.d.comb += res.ready.eq(~self.port.rsp.valid)
+                    with m.If(res.valid & res.ready):
                         m.d.sync += [issued.eq(0), self.port.rsp.valid.eq(1),
                                      self.port.rsp.payload.error.eq(error |
                                                                     res.payload.error)]

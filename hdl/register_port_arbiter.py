@@ -18,10 +18,12 @@ class RegisterPortArbiter(wiring.Component):
         ``second`` (in, likewise): gets the port when ``first`` offers no command.
         ``port`` (out, to the register port).
 
-    A client owns the port from the cycle its command is taken until its response is taken;
-    its ``rx`` bytes and its response go to it alone. The choice is made combinationally when
-    the port is free (no latency); a client whose command is waiting keeps it valid and still
-    (a stream's rule), so ``first`` can only overtake ``second`` between commands.
+    A client owns the port from the cycle its command is taken until its response is taken
+    (and no ``rx`` byte is offered beside it); its ``rx`` bytes and its response go to it
+    alone. The choice is made combinationally when
+    the port is free (no latency) and then held while the chosen command waits for the port's
+    ``ready``: ``first`` can only overtake ``second`` before ``second``'s command is offered,
+    never under it (that would change the payload under ``valid``).
     Throughput: back-to-back commands, as the port allows.
     """
 
@@ -37,7 +39,11 @@ class RegisterPortArbiter(wiring.Component):
         busy = Signal()             # a command was taken and its response is not yet
         owner = Signal()            # 0 first, 1 second: whose command it was
         grant = Signal()            # whose command is offered now (when not busy)
-        m.d.comb += grant.eq(~self.first.cmd.valid)
+        waiting = Signal()          # a command was offered and not taken last cycle ...
+        waiting_grant = Signal()    # ... from this client
+        m.d.comb += grant.eq(Mux(waiting, waiting_grant, ~self.first.cmd.valid))
+        m.d.sync += [waiting.eq(~busy & self.port.cmd.valid & ~self.port.cmd.ready),
+                     waiting_grant.eq(grant)]
         clients = (self.first, self.second)
         port = self.port
 
@@ -57,6 +63,8 @@ class RegisterPortArbiter(wiring.Component):
                              client.rsp.valid.eq(port.rsp.valid),
                              client.rsp.payload.eq(port.rsp.payload),
                              port.rsp.ready.eq(client.rsp.ready)]
-        with m.If(port.rsp.valid & port.rsp.ready):
+        # The response ends the ownership, unless an ``rx`` byte still waits beside it (a port
+        # that broke its order): that byte goes to the owner, never to the next client.
+        with m.If(port.rsp.valid & port.rsp.ready & ~port.rx.valid):
             m.d.sync += busy.eq(0)
         return m

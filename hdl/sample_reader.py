@@ -178,10 +178,16 @@ class SampleReader(wiring.Component):
             m.d.comb += [port.cmd.valid.eq(1), p.device.eq(device), p.reg.eq(reg),
                          p.length.eq(length), p.fast.eq(1)]
 
+        # A command once offered stays offered until taken (a stream's rule), even if
+        # ``enable`` drops or ``start`` clears the pending edge meanwhile: its sample is then
+        # read and passed on as usual.
+        offered = Signal()
+        m.d.sync += offered.eq(port.cmd.valid & ~port.cmd.ready)
+
         with m.FSM():
             with m.State("IDLE"):
                 m.d.sync += rx_index.eq(0)
-                with m.If(self.enable & int_pending):
+                with m.If(offered | (self.enable & int_pending)):
                     command(0, R.INT_STATUS, SAMPLE_BYTES if spi else MPU_BYTES)
                     with m.If(port.cmd.ready):
                         m.d.sync += [int_pending.eq(int_edge), mag_read_failed.eq(0)]

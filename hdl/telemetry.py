@@ -85,7 +85,8 @@ class TelemetryFramer(wiring.Component):
     Members
         ``i_stream`` (in, stream of ``layout``); ``o_stream`` (out, stream of ``FrameByte``:
             to a ``FrameArbiter``, or a UART taking ``data``).
-        ``seq`` (in, 8): the sequence number, read when the seq byte is sent.
+        ``seq`` (in, 8): the sequence number, read when the type byte (the one before it)
+            is sent, and held for the seq byte.
         ``short`` (in): see above; sampled when the copy starts.
         ``idle`` (out): buffered: no frame is being copied or sent (a frame offered now is
             copied at once). Unbuffered: no frame is being sent.
@@ -168,6 +169,12 @@ class TelemetryFramer(wiring.Component):
             # straight from the payload: the stream keeps it still until ``ready``
             payload_byte = payload_bytes[index - 5]
 
+        # ``seq`` is taken a byte early, so the seq byte holds still while it waits for
+        # ``ready`` whatever the input does (the arbiter's changes only between frames anyway)
+        seq = Signal(8)
+        with m.If(sent & (index == 2)):
+            m.d.sync += seq.eq(self.seq)
+
         byte = Signal(8)
         with m.If(index == 0):
             m.d.comb += byte.eq(SYNC[0])
@@ -176,7 +183,7 @@ class TelemetryFramer(wiring.Component):
         with m.Elif(index == 2):
             m.d.comb += byte.eq(ftype)
         with m.Elif(index == 3):
-            m.d.comb += byte.eq(self.seq)
+            m.d.comb += byte.eq(seq)
         with m.Elif(index == 4):
             m.d.comb += byte.eq(length)
         with m.Elif(index == length + 5):

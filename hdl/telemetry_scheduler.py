@@ -64,7 +64,9 @@ class TelemetryScheduler(wiring.Component):
             present result came from and the driver status latched with it; they hold while
             the result is valid (the engine takes no new sample before its result is taken).
         ``divider`` (in, 16): frame every ``divider``-th result (0 is taken as 1).
-        ``cfg_refused`` (in, 16): the engine's count of refused host writes, framed as is.
+        ``cfg_refused`` (in, 16): the engine's count of refused host writes, framed as it is
+            when the frame is offered (it may change while the frame waits: the frame keeps
+            the value it was offered with).
         ``framer_idle`` (in): the framer would copy a frame at once. A due result that finds
             it busy (still sending the last frame) is not framed, and counted.
         ``frames`` (out, stream of ``AttitudeFrame``): the result, its sample and status and
@@ -96,18 +98,27 @@ class TelemetryScheduler(wiring.Component):
         start = self.results.valid & ~offering & due & self.framer_idle
         done = self.frames.valid & self.frames.ready
         take_now = self.results.valid & ~offering & ~start
-        m.d.comb += [self.frames.valid.eq(offering | start),
+        # ``offering`` implies ``results.valid`` (a result with the framer is not taken before
+        # ``done``); saying so here lets the stream contract be proven by induction
+        m.d.comb += [self.frames.valid.eq(self.results.valid & (offering | start)),
                      self.results.ready.eq(take_now | done)]
         with m.If(start & ~self.frames.ready):
             m.d.sync += offering.eq(1)
         with m.If(done):
             m.d.sync += offering.eq(0)
 
+        # the count as offered, frozen while the frame waits to be copied
+        waited = Signal()
+        refused = Signal(16)
+        m.d.sync += waited.eq(self.frames.valid & ~self.frames.ready)
+        with m.If(~waited):
+            m.d.sync += refused.eq(self.cfg_refused)
+
         p = self.frames.payload
         result = self.results.payload
         m.d.comb += [*(p.attitude[name].eq(result[name]) for name, _ in FramedAttitude),
                      p.sample.eq(self.sample),
-                     p.status.eq(self.status), p.cfg_refused.eq(self.cfg_refused),
+                     p.status.eq(self.status), p.cfg_refused.eq(Mux(waited, refused, self.cfg_refused)),
                      p.counters.filtered.eq(c.filtered + 1),
                      p.counters.lost.eq(c.lost + self.sample.skipped),
                      p.counters.not_sent.eq(c.not_sent)]

@@ -113,7 +113,9 @@ def harness_module():
 
 def Past(m, value, cycles=1):
     """``value`` as it was ``cycles`` clock edges ago (its init value before that): Amaranth
-    0.5 has no ``Past``, so the harness keeps the registers itself."""
+    0.5 has no ``Past``, so the harness keeps the registers itself. Call it outside any
+    ``m.If``/``m.Switch`` body (a condition is fine): inside, its registers would load only in
+    cycles where the body's condition holds."""
     for _ in range(cycles):
         prev = Signal.like(value, name="past") if isinstance(value, Signal) else \
             Signal(Shape.cast(value.shape()), name="past")

@@ -11,7 +11,8 @@ On a stream the block under test drives (an output) the rules are asserted; on a
 receives (an input) they are assumed, so the proof covers every producer that keeps them, and
 the consumer side (``ready`` of an output) is left free (``AnySeq``): any back-pressure.
 
-Rule 3, ``valid`` does not depend combinationally on ``ready``, is not checked yet.
+Rule 3, ``valid`` does not depend combinationally on ``ready``, is a property of the netlist,
+not of a run: ``comb_paths.py`` checks it.
 """
 
 from amaranth import *
@@ -36,9 +37,13 @@ def _rules(m, s, statement, name, cover):
     payload = _bits(s.payload)
     was_waiting = Past(m, s.valid & ~s.ready)
     was_payload = Past(m, payload)
+    # named, so a counterexample trace shows which rule of which stream broke
+    valid_held = Signal(name=f"{name}_valid_held")
+    payload_held = Signal(name=f"{name}_payload_held")
+    m.d.comb += [valid_held.eq(s.valid), payload_held.eq(payload == was_payload)]
     with m.If(started & was_waiting):
-        m.d.comb += [statement(s.valid, f"{name}_valid_held"),
-                     statement(payload == was_payload, f"{name}_payload_held")]
+        m.d.comb += [statement(valid_held, f"{name}_valid_held"),
+                     statement(payload_held, f"{name}_payload_held")]
     if cover:
         # a transfer after back-pressure: the rules had something to bite on
         m.d.comb += Cover(started & was_waiting & s.valid & s.ready, f"{name}_waited")
@@ -72,14 +77,27 @@ def _walk(m, obj, signature, flipped, prefix, streams):
             m.d.comb += value.eq(AnySeq(Shape.cast(member.shape).width))
 
 
-def contract_harness(component):
+def contract_harness(component, held=None):
     """A harness for ``component`` alone: every input port free (``AnySeq``), every input stream
     from any producer that keeps the rules, every output stream's rules asserted against any
-    consumer. One line per component: ``formal(contract_harness(Block()), ...)``."""
+    consumer. One line per component: ``formal(contract_harness(Block()), ...)``.
+
+    ``held`` maps input ports to the input stream they travel with, for ports a component's
+    documentation says hold still while that stream's transfer waits (as its payload does):
+    ``held={"sample": "results"}`` assumes ``sample`` keeps its value in every cycle after one
+    with ``results.valid & ~results.ready``."""
     m = harness_module()
     m.submodules.dut = component
     streams = []
     _walk(m, component, component.signature, False, "", streams)
+    for port, stream_name in (held or {}).items():
+        value, s = _bits(getattr(component, port)), getattr(component, stream_name)
+        started = Signal(name=f"{port}_held_started")
+        m.d.sync += started.eq(1)
+        # the Past registers outside the If: inside, they would load only when it holds
+        was_waiting, was_value = Past(m, s.valid & ~s.ready), Past(m, value)
+        with m.If(started & was_waiting):
+            m.d.comb += Assume(value == was_value, f"{port}_held")
     for path, s, inward in streams:
         name = path.replace(".", "_")
         if inward:
