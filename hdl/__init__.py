@@ -1,1 +1,15 @@
-"""Gateware: SPI controller, MPU9250 driver, platform and top level."""
+"""Gateware of the MPU9250 attitude and heading reference, one block per module.
+
+Sensor side: ``spi_controller``, ``i2c_controller``, ``register_port`` (and its arbiter),
+``bring_up_sequencer``, ``sample_reader``, ``mpu9250_driver``, ``sensor_frontend``.
+Attitude engine: ``attitude_engine`` on ``alu``, ``multiplier``, ``multiply_accumulate``,
+``cordic``, ``divider``, ``memories``, ``host_port``; its instruction set ``attitude_isa`` and
+microcode ``attitude_program`` / ``flagship_microcode``. Link: ``telemetry_scheduler``,
+``telemetry`` (the framer), ``frame_arbiter``, ``uart_tx``, ``uart_rx``, ``command_decoder``,
+``pwm``, ``board_bus``. Top levels and board: ``top``, ``platform``, ``clocking``.
+Layouts: ``sample``, ``driver_status``, ``attitude_result``, ``config_write``, ``frame_types``;
+the numeric contract with ``reference/``: ``numeric_contract``; register maps:
+``mpu9250_regs``, ``ak8963_regs``.
+
+Nothing here imports ``sim/`` or ``reference/`` (``tests/test_imports.py``).
+"""

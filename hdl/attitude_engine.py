@@ -12,27 +12,6 @@ Pipeline: fetch (instruction ROM, synchronous) → read (register file, two sync
 ports, transparent to the write port) → execute and write back. A result is visible to the
 next instruction without stalls; multi-cycle operations (MUL 2, DIV 34, VEC/ROT 19 cycles)
 hold the pipeline; a taken branch costs two bubbles.
-
-Interface
-    ``samples`` (in, stream of ``Sample``): one update per sample. Taken when the engine is
-        idle and the previous result has been taken; the sample is read from the payload while
-        it is loaded (12 cycles), then acknowledged.
-    ``asa`` (in, 3 × 8 bits): the AK8963's fuse-ROM sensitivity bytes (from the driver).
-    ``cfg`` (in, stream of ``ConfigWrite``): register writes (``attitude_program`` has the
-        map); accepted while the engine is idle. Only ``HOST_WRITABLE`` addresses are written:
-        a write to a constant or to the filter state is taken, ignored and counted in
-        ``cfg_refused`` (out, 16, saturating). ``CONTROL_ADDR`` (0xFF) is the control
-        register: bits 1:0 select the filter (0 Kalman, 1 complementary, 2 flagship), bit 2
-        resets the filter state; selecting another filter makes the next sample a first one.
-    ``cfg_read`` (in, stream of 8-bit addresses) / ``cfg_read_data`` (out, stream of signed
-        32): register read-back, accepted while idle, the word one cycle later (0xFF reads the
-        filter select; any other address reads the register file, state included).
-    ``results`` (out, stream of ``Attitude``): one per sample — quaternion, angles, bias,
-        counter, flags — valid (and unchanging) until taken.
-    ``busy`` (out): an update or a filter reset is running.
-Latency (sample valid to result valid) and throughput (one sample per update): ``report``'s
-``cycles_per_update`` per filter; every instruction has a fixed time, so only the branches
-taken (measurements skipped or rejected) make an update shorter.
 """
 
 import math
@@ -41,9 +20,6 @@ from amaranth import *
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
-from ..reference.fixed_point import (INV_GAIN_Q30, CalibrationFixed, FilterRates,
-                                     KalmanFixedConfig, calibration_registers)
-from ..reference.flagship_fixed import FlagshipFixedConfig
 from .alu import ALU
 from .attitude_isa import REG_BITS, REG_COUNT, Cond, Flag, Instr, Op
 from .attitude_program import (FILTER_CODES, HOST_WRITABLE, LOAD_BASE, LOAD_ORDER, REGS,
@@ -54,7 +30,11 @@ from .cordic import CORDIC
 from .divider import Divider
 from .memories import MicrocodeROM, RegisterFile
 from .multiplier import Multiplier
-from .sample import Attitude, ConfigWrite, Sample
+from .numeric_contract import (INV_GAIN_Q30, CalibrationFixed, FilterRates, FlagshipFixedConfig,
+                               KalmanFixedConfig, calibration_registers)
+from .attitude_result import Attitude
+from .config_write import ConfigWrite
+from .sample import Sample
 
 
 __all__ = ["AttitudeEngine", "default_filter_config", "default_flagship_config"]
@@ -85,26 +65,51 @@ def default_flagship_config(sensor):
 
 
 class AttitudeEngine(wiring.Component):
-    """``config`` (``KalmanFixedConfig``), ``cal`` (``CalibrationFixed``) and ``flagship``
-    (``FlagshipFixedConfig``) give the register file's reset values; ``filter`` the filter
-    selected at reset (a ``FILTER_CODES`` name: the flagship unless told); ``extra_registers``
-    (name: value) more reset values of the register map, e.g. ``TELEMETRY_DIV``."""
+    """Calibration and the three attitude filters, one sample at a time, on one microcoded
+    fixed-point datapath (the module's docstring has the pipeline).
+
+    Parameters
+        ``config`` (``KalmanFixedConfig``), ``cal`` (``CalibrationFixed``) and ``flagship``
+            (``FlagshipFixedConfig``): the register file's reset values. ``filter``: the filter
+            selected at reset (a ``FILTER_CODES`` name: the flagship unless told).
+            ``extra_registers`` (name: value): more reset values of the register map, e.g.
+            ``TELEMETRY_DIV``.
+    Members
+        ``samples`` (in, stream of ``Sample``): one update per sample. Taken when the engine is
+            idle and the previous result has been taken; the sample is read from the payload while
+            it is loaded (12 cycles), then acknowledged.
+        ``asa`` (in, 3 × 8 bits): the AK8963's fuse-ROM sensitivity bytes (from the driver).
+        ``cfg`` (in, stream of ``ConfigWrite``): register writes (``attitude_program`` has the
+            map); accepted while the engine is idle. Only ``HOST_WRITABLE`` addresses are written:
+            a write to a constant or to the filter state is taken, ignored and counted in
+            ``cfg_refused`` (out, 16, saturating). ``CONTROL_ADDR`` (0xFF) is the control
+            register: bits 1:0 select the filter (0 Kalman, 1 complementary, 2 flagship), bit 2
+            resets the filter state; selecting another filter makes the next sample a first one.
+        ``cfg_read`` (in, stream of 8-bit addresses) / ``cfg_read_data`` (out, stream of signed
+            32): register read-back, accepted while idle, the word one cycle later (0xFF reads the
+            filter select; any other address reads the register file, state included).
+        ``results`` (out, stream of ``Attitude``): one per sample — quaternion, angles, bias,
+            counter, flags — valid (and unchanging) until taken.
+        ``busy`` (out): an update or a filter reset is running.
+    Latency (sample valid to result valid) and throughput (one sample per update): ``report``'s
+    ``cycles_per_update`` per filter; every instruction has a fixed time, so only the branches
+    taken (measurements skipped or rejected) make an update shorter.
+    """
 
     def __init__(self, config=KalmanFixedConfig(), cal=None, flagship=None, *,
-                 filter="flagship", extra_registers=None, blackbox_hard_blocks=False):
+                 filter="flagship", extra_registers=None):
         self.config = config
         self.cal = CalibrationFixed() if cal is None else cal
         self.flagship = FlagshipFixedConfig.matching(config) if flagship is None else flagship
         self.filter_at_reset = FILTER_CODES[filter]
         self.program, self.entry = build_program()
-        # hard blocks (multiplier, memories) as empty modules: for ``report``'s synthesis
-        self.multiplier = Multiplier(blackbox=blackbox_hard_blocks)
+        # the hard blocks, kept as attributes: ``report`` substitutes them for its synthesis
+        self.multiplier = Multiplier()
         registers = {**config.registers(), **self.flagship.registers(),
                      **calibration_registers(self.cal), **(extra_registers or {})}
-        self.regfile = RegisterFile(REG_COUNT, config_init(registers, INV_GAIN_Q30),
-                                    blackbox=blackbox_hard_blocks)
+        self.regfile = RegisterFile(REG_COUNT, config_init(registers, INV_GAIN_Q30))
         self.rom = MicrocodeROM([i.encode() for i in self.program],
-                                data.Layout.cast(Instr).size, blackbox=blackbox_hard_blocks)
+                                data.Layout.cast(Instr).size)
         super().__init__({
             "samples": In(stream.Signature(Sample)),
             "asa": In(data.ArrayLayout(8, 3)),

@@ -152,6 +152,8 @@ class BringUpSequencer(wiring.Component):
     command (or none), POLL repeats its read until the bit is set, a NACK or ``poll_cycles``;
     WAIT counts its cycles. Failures: ``Fail.RESTART`` restarts the program, ``Fail.MAG`` flags
     the magnetometer and jumps past its part (samples flow without it).
+    Latency: a step's command is offered in the cycle the step is fetched, and the next step
+    is fetched the cycle after the response; a restart waits for the step under way.
     """
 
     def __init__(self, program, *, accepted_who_am_i, poll_cycles):

@@ -61,6 +61,8 @@ class SystemPLL(wiring.Component):
         reset through a ``ResetSynchronizer`` until it rises.
 
     Only Quartus can elaborate the instance; simulations drive the system clock directly.
+    Latency: none (a clock source); ``locked`` rises after the PLL's lock time, which Quartus'
+    device data gives (there is no Quartus here).
     """
     def __init__(self, *, in_hz=OSCILLATOR_HZ, out_hz=SYSTEM_CLOCK_HZ):
         self.multiply, self.divide = pll_ratio(in_hz, out_hz)

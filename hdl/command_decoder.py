@@ -12,7 +12,7 @@ from .attitude_program import (CONTROL_ADDR, CONTROL_KEEP, CONTROL_RESET, FILTER
                                TELEMETRY_DIV_ADDR)
 from .board_bus import BoardBusSignature
 from .host_port import address_in
-from .sample import ConfigWrite
+from .config_write import ConfigWrite
 from .telemetry import CRC, SYNC
 
 
@@ -91,6 +91,9 @@ class CommandDecoder(wiring.Component):
         ``kick`` (out): a pulse per good command (the PWM watchdog).
         ``stats`` (out, ``CommandStats``); ``rx_framing_errors``, ``rx_overruns``,
         ``frames_sent`` (in): read back as board registers.
+    Latency: a board command's reply is offered two cycles after its last (CRC) byte is
+    taken; an engine write or read waits in addition until the engine takes it (at once while
+    it is idle, ``WORST_UPDATE_CYCLES`` at most) and, for a read, its word (one cycle).
     Throughput: a byte per cycle while parsing; a command then takes a few cycles, or until
     the engine is idle (``WORST_UPDATE_CYCLES`` at most), and its reply's time on the link.
     """

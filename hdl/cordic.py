@@ -1,36 +1,38 @@
-"""Iterative CORDIC: vectoring (atan2 and magnitude) and rotation (cos and sin), BAM32 angles.
-
-Computes exactly ``reference.fixed_point.cordic_vector`` / ``cordic_rotate``:
-``CORDIC_ITERATIONS`` (16) iterations, one per cycle, arctangent table ``ATAN_TABLE`` (BAM32,
-rounded), arithmetic shifts of the values before each iteration.
-
-Interface
-    ``start`` (in): pulse with ``mode`` (0 vectoring, 1 rotation), ``x_in``, ``y_in`` (signed
-        32, vectoring) or ``angle_in`` (BAM32, rotation) valid. Ignored while ``busy``.
-    ``done`` (out): one-cycle pulse when the results are valid; they hold until the next start.
-    Vectoring results: ``angle`` (BAM32, atan2(y, x); (0, 0) gives 0), ``magnitude``
-        (√(x² + y²)·K saturated to 32 bits; ``saturated`` set if it was clamped).
-    Rotation results: ``cos``, ``sin`` in Q1.30 (on ``magnitude``/``angle``'s neighbours
-        ``x_out``, ``y_out``).
-Parameters (the datapath's by default; the formal check, ``tests/formal/test_cordic.py``, proves
-the same logic at a reduced width): ``width`` (32: inputs, results and the angle's BAM bits),
-``atan_table`` (one entry per iteration, BAM of ``width`` bits), ``inv_gain`` (1/K in
-Q1.(``width`` − 2)).
-Latency: ``done`` ``CORDIC_ITERATIONS`` + 1 cycles after ``start``; throughput one operation per
-that many cycles. Internal width 34 bits: a 32-bit vector's length times K (1.647) is below 2³³,
-so any 32-bit input converges without overflow.
-"""
+"""Iterative CORDIC: vectoring (atan2 and magnitude) and rotation (cos and sin), BAM32 angles."""
 
 from amaranth import *
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
-from ..reference.fixed_point import ATAN_TABLE, INV_GAIN_Q30
+from .numeric_contract import ATAN_TABLE, INV_GAIN_Q30
 
 
 __all__ = ["CORDIC"]
 
 class CORDIC(wiring.Component):
+    """Iterative CORDIC: vectoring (atan2 and magnitude) and rotation (cos and sin), BAM32 angles.
+
+    Computes exactly ``reference.fixed_point.cordic_vector`` / ``cordic_rotate``:
+    ``CORDIC_ITERATIONS`` (16) iterations, one per cycle, arctangent table ``ATAN_TABLE`` (BAM32,
+    rounded), arithmetic shifts of the values before each iteration.
+
+    Interface
+        ``start`` (in): pulse with ``mode`` (0 vectoring, 1 rotation), ``x_in``, ``y_in`` (signed
+            32, vectoring) or ``angle_in`` (BAM32, rotation) valid. Ignored until the cycle after
+            ``done``.
+        ``done`` (out): one-cycle pulse when the results are valid; they hold until the next start.
+        Vectoring results: ``angle`` (BAM32, atan2(y, x); (0, 0) gives 0), ``magnitude``
+            (√(x² + y²)·K saturated to 32 bits; ``saturated`` set if it was clamped).
+        Rotation results: ``cos``, ``sin`` in Q1.30 (on ``magnitude``/``angle``'s neighbours
+            ``x_out``, ``y_out``).
+    Parameters (the datapath's by default; the formal check, ``tests/formal/test_cordic.py``, proves
+    the same logic at a reduced width): ``width`` (32: inputs, results and the angle's BAM bits),
+    ``atan_table`` (one entry per iteration, BAM of ``width`` bits), ``inv_gain`` (1/K in
+    Q1.(``width`` − 2)).
+    Latency: ``done`` ``CORDIC_ITERATIONS`` + 1 cycles after ``start``; throughput one operation per
+    that many cycles. Internal width 34 bits: a 32-bit vector's length times K (1.647) is below 2³³,
+    so any 32-bit input converges without overflow.
+    """
     def __init__(self, *, width=32, atan_table=ATAN_TABLE, inv_gain=INV_GAIN_Q30):
         self.width, self.atan_table, self.inv_gain = width, tuple(atan_table), inv_gain
         n = width
@@ -38,7 +40,7 @@ class CORDIC(wiring.Component):
             "start": In(1),
             "mode": In(1),                  # 0: vectoring, 1: rotation
             "x_in": In(signed(n)), "y_in": In(signed(n)), "angle_in": In(signed(n)),
-            "busy": Out(1), "done": Out(1),
+            "done": Out(1),
             "angle": Out(signed(n)),        # vectoring: atan2(y, x)
             "magnitude": Out(signed(n)),    # vectoring: |(x, y)|·K, saturated
             "saturated": Out(1),
@@ -91,7 +93,6 @@ class CORDIC(wiring.Component):
                                               Cat(C(0, n - 1), left)))]
                     m.next = "RUN"
             with m.State("RUN"):
-                m.d.comb += self.busy.eq(1)
                 # x ∓ (y >> i), y ± (x >> i), z ∓ atan: one adder each, the operand inverted
                 # (plus one) to subtract
                 m.d.sync += [

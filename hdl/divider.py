@@ -1,31 +1,4 @@
-"""Fixed-point divider for the Kalman gains: q = ⌊num·2²⁴ / den⌋, saturated to 32 bits.
-
-Computes exactly ``reference.fixed_point.div_q24``: a restoring divider, ``BITS_PER_CYCLE``
-quotient bits per cycle (one: a second bit per cycle costs another 33-bit subtractor and
-multiplexer, about 130 LEs of the whole design's count, for 16 cycles per division), 32
-quotient bits. A quotient that does not fit 32 bits saturates (2³¹ − 1, or −2³¹) and a
-denominator ≤ 0 gives 0; both set ``saturated``.
-
-Why it is small: there is no negation anywhere. The result rounds towards −∞ (floor), so for a
-negative numerator N = num·2²⁴ it divides ~N ≥ 0 (the inverted numerator followed by 24 ones)
-and inverts the quotient: ⌊N/d⌋ = ~⌊~N/d⌋. Why 32 iterations are enough: they start with the
-partial remainder at the numerator's top bits (``|num| >> 8``); if that is already ≥ den the
-first quotient bit (2³¹) is set by the first trial anyway, and a set bit 31 means "saturate"
-either way. One register holds the dividend's low bits, shifted out at the top, and the
-quotient, shifted in at the bottom.
-
-Parameters
-    ``width`` (32), ``frac`` (24): q = ⌊num·2^frac / den⌋ on ``width``-bit operands. The
-    datapath uses 32/24; the formal check (``tests/formal/test_divider.py``) proves the same
-    logic at a reduced width over every input.
-
-Interface
-    ``start`` (in): pulse with ``num``, ``den`` (signed 32) valid; ignored while ``busy``.
-    ``done`` (out): one-cycle pulse; ``quotient`` and ``saturated`` hold until the next start.
-Latency: ``done`` 32 / ``BITS_PER_CYCLE`` + 1 cycles after ``start`` (33 with one bit per
-cycle; 1 cycle for a denominator ≤ 0); throughput one division per 32 / ``BITS_PER_CYCLE`` + 2
-cycles (34).
-"""
+"""Fixed-point divider for the Kalman gains: q = ⌊num·2²⁴ / den⌋, saturated to 32 bits."""
 
 from amaranth import *
 from amaranth.lib import wiring
@@ -38,13 +11,42 @@ BITS_PER_CYCLE = 1
 
 
 class Divider(wiring.Component):
+    """Fixed-point divider for the Kalman gains: q = ⌊num·2²⁴ / den⌋, saturated to 32 bits.
+
+    Computes exactly ``reference.fixed_point.div_q24``: a restoring divider, ``BITS_PER_CYCLE``
+    quotient bits per cycle (one: a second bit per cycle costs another 33-bit subtractor and
+    multiplexer, about 130 LEs of the whole design's count, for 16 cycles per division), 32
+    quotient bits. A quotient that does not fit 32 bits saturates (2³¹ − 1, or −2³¹) and a
+    denominator ≤ 0 gives 0; both set ``saturated``.
+
+    Why it is small: there is no negation anywhere. The result rounds towards −∞ (floor), so for a
+    negative numerator N = num·2²⁴ it divides ~N ≥ 0 (the inverted numerator followed by 24 ones)
+    and inverts the quotient: ⌊N/d⌋ = ~⌊~N/d⌋. Why 32 iterations are enough: they start with the
+    partial remainder at the numerator's top bits (``|num| >> 8``); if that is already ≥ den the
+    first quotient bit (2³¹) is set by the first trial anyway, and a set bit 31 means "saturate"
+    either way. One register holds the dividend's low bits, shifted out at the top, and the
+    quotient, shifted in at the bottom.
+
+    Parameters
+        ``width`` (32), ``frac`` (24): q = ⌊num·2^frac / den⌋ on ``width``-bit operands. The
+        datapath uses 32/24; the formal check (``tests/formal/test_divider.py``) proves the same
+        logic at a reduced width over every input.
+
+    Interface
+        ``start`` (in): pulse with ``num``, ``den`` (signed 32) valid; ignored until the cycle after
+            ``done``.
+        ``done`` (out): one-cycle pulse; ``quotient`` and ``saturated`` hold until the next start.
+    Latency: ``done`` 32 / ``BITS_PER_CYCLE`` + 1 cycles after ``start`` (33 with one bit per
+    cycle; 1 cycle for a denominator ≤ 0); throughput one division per 32 / ``BITS_PER_CYCLE`` + 2
+    cycles (34).
+    """
     def __init__(self, *, width=32, frac=24):
         if not 0 < frac < width:
             raise ValueError(f"Divider needs 0 < frac < width, not frac={frac}, width={width}")
         self.width, self.frac = width, frac
         super().__init__({
             "start": In(1), "num": In(signed(width)), "den": In(signed(width)),
-            "busy": Out(1), "done": Out(1), "quotient": Out(signed(width)),
+            "done": Out(1), "quotient": Out(signed(width)),
             "saturated": Out(1),
         })
 
@@ -92,7 +94,6 @@ class Divider(wiring.Component):
                     with m.Else():
                         m.next = "RUN"
             with m.State("RUN"):
-                m.d.comb += self.busy.eq(1)
                 m.d.sync += [rem.eq(r), shreg.eq(q), count.eq(count + 1)]
                 with m.If(count == w // BITS_PER_CYCLE - 1):
                     m.next = "DONE"

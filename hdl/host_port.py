@@ -7,7 +7,7 @@ from amaranth.lib.wiring import In, Out
 
 from .attitude_isa import REG_BITS
 from .attitude_program import CONTROL_ADDR, CONTROL_KEEP, CONTROL_RESET
-from .sample import ConfigWrite
+from .config_write import ConfigWrite
 
 
 __all__ = ["HostPort", "address_in"]
@@ -42,6 +42,8 @@ class HostPort(wiring.Component):
         ``w_en``, ``w_addr``, ``w_data`` (out): the register-file write.
         ``r_en``, ``r_addr`` (out), ``r_data`` (in, signed 32): the read port, word next cycle.
         ``select`` (out, 2): the filter select; ``reset``, ``switched`` (out): one-cycle pulses.
+    Latency: a write reaches the register file's write port in the cycle it is taken; a
+    read's word is offered the cycle after its address is taken.
     """
 
     def __init__(self, filter_at_reset=0, writable=None):

@@ -1,36 +1,5 @@
-"""I2C controller (single master), 100 kHz or 400 kHz, open drain.
+"""I2C controller (single master), 100 kHz or 400 kHz, open drain."""
 
-Interface
-    ``i_stream`` (in, ``I2COperation``): ``op`` START (a repeated start if the controller holds
-        the bus), STOP, WRITE (``data``), READ (answer with ``ack``: 1 = ACK, 0 = NACK).
-    ``o_stream`` (out, ``I2CResult``): one per operation, in order: ``data`` (READ), ``ack``
-        (WRITE: the device acknowledged), ``error`` (the operation failed: see below; a WRITE
-        or READ without a START holding the bus is refused with ``error`` and no clock).
-    ``pins``: ``scl_oe``/``sda_oe`` (1 = pull the line low; never driven high), ``scl_i``/``sda_i``
-        (line levels, raw: synchronised here).
-    ``status``: ``timeout``, ``bus_stuck``, ``arbitration``: the last failure, set by the
-        operation that failed and cleared by the next START that gets the bus; ``recoveries``
-        (stuck-bus recoveries done since reset, saturating at 15).
-
-Errors (the controller then releases both lines and forgets the bus; before its next START it
-waits for SCL to be released, at most ``timeout``, and sends a START and a STOP, which puts a
-device cut off mid-transfer back to idle)
-    - time-out: SCL held low by a device (clock stretching) longer than ``timeout``;
-    - stuck bus: SDA low before a START and still low after nine recovery clocks;
-    - arbitration: SDA read low while the controller sent a 1 (another driver on the bus).
-
-Before each START on an idle bus, SDA low means a device was interrupted mid-byte (for example by
-an FPGA reset): the controller clocks SCL until SDA is released, at most nine times, then sends a
-STOP and goes on.
-
-Timing (``I2CTiming``, cycles): SCL low ``low``, high ``high`` (after the line is seen high, so
-clock stretching only lengthens it); SDA changes ``low // 2`` after SCL falls; START hold and
-STOP setup ``high``; repeated-START setup and bus-free time ``low``. ``for_clock`` meets the
-I2C-bus specification's fast-mode (≤ 400 kHz) or standard-mode minimums.
-Throughput: about (low + high + 3) cycles per bit, 9 bits per byte.
-"""
-
-import math
 from contextlib import contextmanager
 from dataclasses import dataclass
 
@@ -38,6 +7,8 @@ from amaranth import *
 from amaranth.lib import data, enum, stream, wiring
 from amaranth.lib.cdc import FFSynchronizer
 from amaranth.lib.wiring import In, Out
+
+from .clocking import cycles
 
 
 __all__ = ["I2CTiming", "I2COp", "I2COperation", "I2CResult", "I2CPinsSignature",
@@ -59,9 +30,9 @@ class I2CTiming:
         if scl_hz > 400e3:
             raise ValueError("the MPU9250 and AK8963 take at most 400 kHz")
         t_low, t_high = (1.3e-6, 0.6e-6) if scl_hz > 100e3 else (4.7e-6, 4.0e-6)
-        low = max(4, math.ceil(max(t_low, 0.5 / scl_hz) * clk_freq))
-        high = max(2, math.ceil(t_high * clk_freq), math.ceil(clk_freq / scl_hz) - low)
-        return cls(low=low, high=high, timeout=max(1, math.ceil(timeout_s * clk_freq)))
+        low = cycles(max(t_low, 0.5 / scl_hz), clk_freq, minimum=4)
+        high = max(cycles(t_high, clk_freq, minimum=2), cycles(1 / scl_hz, clk_freq) - low)
+        return cls(low=low, high=high, timeout=cycles(timeout_s, clk_freq))
 
     def scl_hz(self, clk_freq):
         return clk_freq / (self.low + self.high)
@@ -87,6 +58,40 @@ class I2CPinsSignature(wiring.Signature):
 
 
 class I2CController(wiring.Component):
+    """I2C controller (single master), 100 kHz or 400 kHz, open drain.
+
+    Interface
+        ``i_stream`` (in, ``I2COperation``): ``op`` START (a repeated start if the controller holds
+            the bus), STOP, WRITE (``data``), READ (answer with ``ack``: 1 = ACK, 0 = NACK).
+        ``o_stream`` (out, ``I2CResult``): one per operation, in order: ``data`` (READ), ``ack``
+            (WRITE: the device acknowledged), ``error`` (the operation failed: see below; a WRITE
+            or READ without a START holding the bus is refused with ``error`` and no clock).
+        ``pins``: ``scl_oe``/``sda_oe`` (1 = pull the line low; never driven high),
+            ``scl_i``/``sda_i`` (line levels, raw: synchronised here).
+        ``status``: ``timeout``, ``bus_stuck``, ``arbitration``: the last failure, set by the
+            operation that failed and cleared by the next START that gets the bus; ``recoveries``
+            (stuck-bus recoveries done since reset, saturating at 15).
+
+    Errors (the controller then releases both lines and forgets the bus; before its next START it
+    waits for SCL to be released, at most ``timeout``, and sends a START and a STOP, which puts a
+    device cut off mid-transfer back to idle)
+        - time-out: SCL held low by a device (clock stretching) longer than ``timeout``;
+        - stuck bus: SDA low before a START and still low after nine recovery clocks;
+        - arbitration: SDA read low while the controller sent a 1 (another driver on the bus).
+
+    Before each START on an idle bus, SDA low means a device was interrupted mid-byte (for example
+    by an FPGA reset): the controller clocks SCL until SDA is released, at most nine times, then
+    sends a STOP and goes on.
+
+    Timing (``I2CTiming``, cycles): SCL low ``low``, high ``high`` (after the line is seen high, so
+    clock stretching only lengthens it); SDA changes ``low // 2`` after SCL falls; START hold and
+    STOP setup ``high``; repeated-START setup and bus-free time ``low``. ``for_clock`` meets the
+    I2C-bus specification's fast-mode (≤ 400 kHz) or standard-mode minimums.
+    Throughput: about (low + high + 3) cycles per bit, 9 bits per byte.
+    Latency: a WRITE's or READ's result is offered at the end of its ninth bit, about
+    9 × (low + high + 3) cycles after it is taken, longer by any clock stretching; a START or
+    STOP's result once its last SCL or SDA edge has had its hold time.
+    """
     def __init__(self, timing):
         self.timing = timing
         super().__init__({

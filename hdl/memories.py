@@ -6,8 +6,9 @@ that holds its data while low. ``MicrocodeROM``: the program, one synchronous re
 enable. On a MAX10 both fit M9K blocks (the register file takes two, one per read port, as
 Quartus duplicates a RAM for a second read address).
 
-``blackbox=True`` instantiates empty modules (``blackbox_stub()`` gives their Verilog) in place
-of ``lib.memory.Memory``: Debian's Yosys 0.23 cannot map initialised RAM onto MAX10 M9K blocks,
+``blackbox`` (a class attribute, False; ``report`` sets it on the instances it synthesises)
+instantiates empty modules (``blackbox_stub()`` gives their Verilog) in place of
+``lib.memory.Memory``: Debian's Yosys 0.23 cannot map initialised RAM onto MAX10 M9K blocks,
 so ``report`` counts their bits and keeps them out of the logic-element count. The register
 file's blackbox reads old data, as an M9K does between its ports, and the logic Quartus adds for
 the transparent reads (the written word, a registered address match, a multiplexer per port)
@@ -24,10 +25,22 @@ __all__ = ["RegisterFile", "MicrocodeROM", "FrameRAM", "blackbox_stub"]
 
 
 class RegisterFile(wiring.Component):
-    def __init__(self, depth, init, *, blackbox=False):
+    """``depth`` × 32-bit words with initial values (``init``): one write port and two
+    synchronous read ports that see a write in the same cycle (transparent).
+
+    Members
+        ``w_en``, ``w_addr``, ``w_data`` (in): the write.
+        ``r_en`` (in): both read ports read (low: their data holds). ``ra_addr``, ``rb_addr``
+            (in) / ``ra_data``, ``rb_data`` (out, signed 32): the two reads.
+    Latency: a read's word is on ``ra_data``/``rb_data`` the cycle after its address (with
+    ``r_en``); a write in that same cycle is what it reads. Throughput: a write and two reads
+    per cycle.
+    """
+    blackbox = False                # ``report`` sets it: module docstring
+
+    def __init__(self, depth, init):
         self.depth = depth
         self.init = list(init)
-        self.blackbox = blackbox
         abits = (depth - 1).bit_length()
         super().__init__({
             "w_en": In(1), "w_addr": In(abits), "w_data": In(signed(32)),
@@ -72,10 +85,18 @@ class RegisterFile(wiring.Component):
 
 
 class MicrocodeROM(wiring.Component):
-    def __init__(self, words, width, *, blackbox=False):
+    """The program: ``words`` of ``width`` bits, one synchronous read port with enable.
+
+    Members
+        ``addr``, ``en`` (in); ``data`` (out): the word at ``addr`` of the last cycle with
+            ``en`` (it holds while ``en`` is low).
+    Latency: one cycle. Throughput: a word per cycle.
+    """
+    blackbox = False                # ``report`` sets it: module docstring
+
+    def __init__(self, words, width):
         self.words = list(words)
         self.width = width
-        self.blackbox = blackbox
         self.abits = max(1, (len(self.words) - 1).bit_length())
         super().__init__({"addr": In(self.abits), "en": In(1), "data": Out(width)})
 
@@ -100,11 +121,16 @@ class MicrocodeROM(wiring.Component):
 class FrameRAM(wiring.Component):
     """``depth`` words of ``width`` bits, one write port and one synchronous read port with
     enable (the read data holds while ``r_en`` is low; a read of the address being written
-    returns the old word). One M9K on a MAX10: the telemetry framer's copy of a frame."""
-    def __init__(self, depth, width=8, *, blackbox=False):
+    returns the old word). One M9K on a MAX10: the telemetry framer's copy of a frame.
+
+    Latency: a read's word is on ``r_data`` the cycle after its address (with ``r_en``).
+    Throughput: a write and a read per cycle.
+    """
+    blackbox = False                # ``report`` sets it: module docstring
+
+    def __init__(self, depth, width=8):
         self.depth = depth
         self.width = width
-        self.blackbox = blackbox
         self.abits = max(1, (depth - 1).bit_length())
         super().__init__({"w_en": In(1), "w_addr": In(self.abits), "w_data": In(width),
                           "r_en": In(1), "r_addr": In(self.abits), "r_data": Out(width)})

@@ -10,7 +10,8 @@ Interface
         samples before this one that never came out: dropped so, or made by the sensor and
         never read (data-ready edges more than one sample period apart).
     ``status`` (out, ``DriverStatus``) and ``asa`` (out, 3 × 8 bits: the AK8963's fuse-ROM
-        sensitivity adjustment values, valid once ``status.mag_ok``). See ``hdl/sample.py``.
+        sensitivity adjustment values, valid once ``status.mag_ok``). See ``hdl/sample.py``
+        and ``hdl/driver_status.py``.
 
 Bring-up is a program (``bring_up_program``) run by a small sequencer: register writes, checked
 reads, stored reads, status polls and waits, each with what to do on failure. The sequence is the
@@ -63,13 +64,14 @@ from .bring_up_sequencer import BringUpSequencer, Fail, Op, Step, bring_up_progr
 from .clocking import cycles
 from .register_port import RegisterPortSignature
 from .register_port_arbiter import RegisterPortArbiter
-from .sample import DriverStatus, Sample
+from .driver_status import DriverStatus
+from .sample import Sample
 from .sample_reader import (BAD_BURST_LIMIT, MPU_BYTES, SAMPLE_BYTES, SampleReader,
                             burst_is_plausible)
 
 
 __all__ = ["MPU9250Config", "DriverTiming", "Op", "Fail", "Step", "bring_up_program",
-           "MPU9250Driver", "BAD_BURST_LIMIT", "burst_is_plausible", "SAMPLE_BYTES", "MPU_BYTES"]
+           "MPU9250Driver", "driver_members", "BAD_BURST_LIMIT", "burst_is_plausible", "SAMPLE_BYTES", "MPU_BYTES"]
 
 
 @dataclass(frozen=True)
@@ -155,8 +157,8 @@ class DriverTiming:
 
     ``time_scale`` multiplies the power-up and reset waits (simulations use ≪ 1; the sensor
     model's delays must be scaled alike). ``int_timeout_s`` is used as given; ``None`` means
-    ``stream_timeout_periods`` sample periods plus 50 ms for the gyro to wake. It also bounds
-    each SLV4 poll.
+    ``stream_timeout_periods`` sample periods plus 50 ms (times ``time_scale``) for the gyro
+    to wake. It also bounds each SLV4 poll.
     ``mag_power_down_s`` is the AK8963's power-down wait (not scaled). ``sample_period_s`` is
     the sensor's sample period the driver measures data-ready intervals against (``None``:
     1/ODR; simulations that compress the sensor's period give it here). Once samples flow, the
@@ -173,21 +175,33 @@ class DriverTiming:
     stream_timeout_periods: int = 4
     mag_timeout_s: float = 0.030
 
+    def period_s(self, config):
+        return self.sample_period_s or 1 / config.output_data_rate
+
     def period_cycles(self, clk_freq, config):
-        period = self.sample_period_s or 1 / config.output_data_rate
-        return cycles(period, clk_freq, minimum=2)
+        return cycles(self.period_s(config), clk_freq, minimum=2)
+
+    def int_timeout(self, config):
+        """The data-ready time-out before the first sample, in seconds."""
+        if self.int_timeout_s is not None:
+            return self.int_timeout_s
+        return self.stream_timeout_periods * self.period_s(config) + 0.050 * self.time_scale
 
     def cycles(self, clk_freq, config):
-        timeout = self.int_timeout_s
-        if timeout is None:
-            timeout = self.stream_timeout_periods / config.output_data_rate + 0.050
+        timeout = self.int_timeout(config)
         return (cycles(self.power_up_s * self.time_scale, clk_freq),
                 cycles(self.reset_s * self.time_scale, clk_freq), cycles(timeout, clk_freq))
 
     def mag_timeout_periods(self, config):
         """``mag_timeout_s`` in whole sample periods (at least two)."""
-        period = self.sample_period_s or 1 / config.output_data_rate
-        return max(2, math.ceil(self.mag_timeout_s / period - 1e-9))
+        return max(2, math.ceil(self.mag_timeout_s / self.period_s(config) - 1e-9))
+
+
+def driver_members():
+    """The driver's ports towards the sensor's INT pin and downstream, which the sensor front
+    end passes on unchanged: ``int_pin``, ``samples``, ``status``, ``asa``."""
+    return {"int_pin": In(1), "samples": Out(stream.Signature(Sample)),
+            "status": Out(DriverStatus), "asa": Out(data.ArrayLayout(8, 3))}
 
 
 class MPU9250Driver(wiring.Component):
@@ -217,13 +231,7 @@ class MPU9250Driver(wiring.Component):
         self.mag_timeout_periods = timing.mag_timeout_periods(config)
         self.program = bring_up_program(config, self.power_up_cycles, self.reset_cycles,
                                         self.mag_wait_cycles)
-        super().__init__({
-            "port": Out(RegisterPortSignature().flip()),
-            "int_pin": In(1),
-            "samples": Out(stream.Signature(Sample)),
-            "status": Out(DriverStatus),
-            "asa": Out(data.ArrayLayout(8, 3)),
-        })
+        super().__init__({"port": Out(RegisterPortSignature().flip()), **driver_members()})
 
     def elaborate(self, platform):
         m = Module()

@@ -1,23 +1,4 @@
-"""Signed 32 × 32 → 64-bit multiplier, combinational.
-
-On a MAX10 it takes four embedded 18 × 18 multipliers: with a = a_h·2¹⁷ + a_l (a_l the low 17
-bits, unsigned; a_h the top 15, signed) and b likewise,
-
-    a·b = a_h·b_h·2³⁴ + (a_h·b_l + a_l·b_h)·2¹⁷ + a_l·b_l,
-
-where a_l·b_l < 2³⁴, so the first and last terms are just placed side by side and the logic
-adds only the two middle products and the sum into bits 17 up (the MAX10's blocks have no
-adders; Quartus puts these in logic elements too).
-
-``blackbox=True`` instantiates the four blocks as empty modules (``BLACKBOX_NAME``) with that
-adder logic around them, so that a synthesis tool which cannot map multipliers (Debian's
-Yosys 0.23 for MAX10) counts the blocks apart and the adders as logic; ``report`` uses it.
-``split=True`` builds the same structure with real 18 × 18 products, for simulation (the test
-that the decomposition is exact).
-
-Interface: ``a``, ``b`` (in, signed 32), ``p`` (out, signed 64); latency 0 (the engine registers
-the product).
-"""
+"""Signed 32 × 32 → 64-bit multiplier, combinational."""
 
 from amaranth import *
 from amaranth.lib import wiring
@@ -32,18 +13,40 @@ BLACKBOX_STUB = (f"(* blackbox *) module {BLACKBOX_NAME}(input signed [17:0] a, 
 
 
 class Multiplier(wiring.Component):
+    """Signed 32 × 32 → 64-bit multiplier, combinational.
+
+    On a MAX10 it takes four embedded 18 × 18 multipliers: with a = a_h·2¹⁷ + a_l (a_l the low 17
+    bits, unsigned; a_h the top 15, signed) and b likewise,
+
+        a·b = a_h·b_h·2³⁴ + (a_h·b_l + a_l·b_h)·2¹⁷ + a_l·b_l,
+
+    where a_l·b_l < 2³⁴, so the first and last terms are just placed side by side and the logic
+    adds only the two middle products and the sum into bits 17 up (the MAX10's blocks have no
+    adders; Quartus puts these in logic elements too).
+
+    ``blackbox`` (an attribute ``report`` sets before elaborating; False otherwise) instantiates the
+    four blocks as empty modules (``BLACKBOX_NAME``) with that adder logic around them, so that a
+    synthesis tool which cannot map multipliers (Debian's Yosys 0.23 for MAX10) counts the blocks
+    apart and the adders as logic.
+    ``split=True`` builds the same structure with real 18 × 18 products, for simulation (the test
+    that the decomposition is exact).
+
+    Interface: ``a``, ``b`` (in, signed 32), ``p`` (out, signed 64); latency 0 (the engine registers
+    the product).
+    """
     a: In(signed(32))
     b: In(signed(32))
     p: Out(signed(64))
 
-    def __init__(self, *, blackbox=False, split=False):
-        self.blackbox = blackbox
-        self.split = split or blackbox
+    blackbox = False
+
+    def __init__(self, *, split=False):
+        self.split = split
         super().__init__()
 
     def elaborate(self, platform):
         m = Module()
-        if not self.split:
+        if not (self.split or self.blackbox):
             m.d.comb += self.p.eq(self.a * self.b)
             return m
 

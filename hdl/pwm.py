@@ -5,7 +5,7 @@ watchdog when the host goes silent."""
 import math
 
 from amaranth import *
-from amaranth.lib import data, wiring
+from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
 from .board_bus import BoardBusSignature
@@ -70,6 +70,8 @@ class PWMOutputs(wiring.Component):
         ``kick`` (in): a pulse per good command: restarts the watchdog.
         ``pwm`` (out, 4): the outputs.
         ``tripped`` (out): the watchdog disabled the outputs (cleared by a PWM_ENABLE write).
+    Latency: a register write is acknowledged in the cycle it is made and takes effect at the
+    start of its group's next period (above).
     """
     def __init__(self, *, clk_freq):
         self.clk_freq = clk_freq

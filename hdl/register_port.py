@@ -23,6 +23,8 @@ ends the command with a STOP and ``error`` = 1. ``device`` 0 is the MPU9250 at `
 (0x68 or 0x69), 1 the AK8963 at 0x0C (reachable once the MPU9250's bypass is on).
 """
 
+from contextlib import contextmanager
+
 from amaranth import *
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
@@ -54,6 +56,19 @@ class RegisterPortSignature(wiring.Signature):
 
 
 class SPIRegisterPort(wiring.Component):
+    """Register commands as SPI transactions for an ``SPIController``.
+
+    Members
+        ``port`` (a ``RegisterPortSignature``): the commands, bytes read and responses.
+        ``spi_o`` (out, stream of ``SPIByte``) / ``spi_i`` (in, byte stream): to and from the
+            controller.
+    A command is a transaction: the header byte (bit 7 = read, the register in bits 6:0),
+    then the data byte (write) or ``length`` dummy bytes whose answers are the ``rx`` bytes.
+    A result byte counts only for a byte already sent. ``rsp.error`` is always 0 (SPI has no
+    acknowledge).
+    Latency: the command's first byte is offered the cycle after it is taken; its response
+    one cycle after the transaction's last byte. Throughput: one command at a time.
+    """
     def __init__(self):
         super().__init__({
             "port": Out(RegisterPortSignature()),
@@ -108,6 +123,21 @@ class SPIRegisterPort(wiring.Component):
 
 
 class I2CRegisterPort(wiring.Component):
+    """Register commands as I2C operations for an ``I2CController``.
+
+    Parameters
+        ``mpu_address``: the MPU9250's 7-bit address (0x68, or 0x69 with AD0 high).
+    Members
+        ``port`` (a ``RegisterPortSignature``): the commands, bytes read and responses.
+        ``i2c_o`` (out, stream of ``I2COperation``) / ``i2c_i`` (in, stream of ``I2CResult``):
+            to and from the controller.
+    Write: START, address+W, register, data, STOP. Read: START, address+W, register, repeated
+    START, address+R, ``length`` bytes (ACK on all but the last), STOP. A NACK or a controller
+    error ends the command with a STOP and ``rsp.error`` = 1. ``device`` 1 is the AK8963 at
+    0x0C (reachable once the MPU9250's bypass is on).
+    Latency: one operation at a time, each offered the cycle after the last one's result; the
+    response the cycle after the STOP's result. Throughput: one command at a time.
+    """
     def __init__(self, *, mpu_address=0x68):
         self.mpu_address = mpu_address
         super().__init__({
@@ -130,20 +160,25 @@ class I2CRegisterPort(wiring.Component):
         with m.If(self.port.rsp.valid & self.port.rsp.ready):
             m.d.sync += self.port.rsp.valid.eq(0)
 
-        def issue(kind, data=0, ack=0):
-            m.d.comb += [op.valid.eq(1), op.payload.op.eq(kind), op.payload.data.eq(data),
-                         op.payload.ack.eq(ack)]
-
-        def step(kind, next_state, data=0, ack=0, *, acked=False):
-            """Send one operation, wait for its result; on failure, STOP and report."""
+        @contextmanager
+        def operation(kind, data=0, ack=0):
+            """Offer one operation until it is taken, then run the body (which sets
+            ``res.ready``) each cycle until its result is taken."""
             with m.If(~issued):
-                issue(kind, data, ack)
+                m.d.comb += [op.valid.eq(1), op.payload.op.eq(kind), op.payload.data.eq(data),
+                             op.payload.ack.eq(ack)]
                 with m.If(op.ready):
                     m.d.sync += issued.eq(1)
             with m.Else():
+                yield
+                with m.If(res.valid & res.ready):
+                    m.d.sync += issued.eq(0)
+
+        def step(kind, next_state, data=0, ack=0, *, acked=False):
+            """Send one operation, wait for its result; on failure, STOP and report."""
+            with operation(kind, data, ack):
                 m.d.comb += res.ready.eq(1)
                 with m.If(res.valid):
-                    m.d.sync += issued.eq(0)
                     bad = res.payload.error | (~res.payload.ack if acked else 0)
                     with m.If(bad):
                         m.d.sync += error.eq(1)
@@ -177,33 +212,25 @@ class I2CRegisterPort(wiring.Component):
             with m.State("ADDR_R"):
                 step(I2COp.WRITE, "READ", Cat(Const(1, 1), address), acked=True)
             with m.State("READ"):
-                with m.If(~issued):
-                    issue(I2COp.READ, ack=remaining != 1)
-                    with m.If(op.ready):
-                        m.d.sync += issued.eq(1)
-                with m.Else():
+                with operation(I2COp.READ, ack=remaining != 1):
                     # a byte read waits for ``rx.ready`` (back-pressure reaches the controller)
                     good = ~res.payload.error
                     m.d.comb += [self.port.rx.valid.eq(res.valid & good),
                                  res.ready.eq(~good | self.port.rx.ready)]
                     with m.If(res.valid & res.ready):
-                        m.d.sync += [issued.eq(0), remaining.eq(remaining - 1)]
+                        m.d.sync += remaining.eq(remaining - 1)
                         with m.If(~good):
                             m.d.sync += error.eq(1)
                             m.next = "STOP"
                         with m.Elif(remaining == 1):
                             m.next = "STOP"
             with m.State("STOP"):
-                with m.If(~issued):
-                    issue(I2COp.STOP)
-                    with m.If(op.ready):
-                        m.d.sync += issued.eq(1)
-                with m.Else():
+                with operation(I2COp.STOP):
                     # (``rsp`` is never valid here: IDLE waits for it to be taken. Waiting
                     # anyway costs a gate and lets the stream contract be proven by induction.)
                     m.d.comb += res.ready.eq(~self.port.rsp.valid)
                     with m.If(res.valid & res.ready):
-                        m.d.sync += [issued.eq(0), self.port.rsp.valid.eq(1),
+                        m.d.sync += [self.port.rsp.valid.eq(1),
                                      self.port.rsp.payload.error.eq(error |
                                                                     res.payload.error)]
                         m.next = "IDLE"

@@ -1,4 +1,4 @@
-"""Data layouts shared by the sensor driver and everything downstream.
+"""The sample layout: what the sensor driver passes downstream, one per reading.
 
 ``Sample`` is one nine-axis reading in raw sensor counts, MPU9250 body axes:
 
@@ -47,40 +47,13 @@ several LSB — and that field was just delivered.)
 The checks on every burst (``hdl/FAULTS.md``): INT_STATUS must have RAW_RDY and must not read
 0xFF, and the fourteen accel/temp/gyro bytes must not all be 0xFF. A burst that fails is not
 passed on (no sample; the next one counts it in ``skipped``).
-
-``DriverStatus`` (the driver's ``status`` port, always valid):
-- ``streaming``: bring-up finished and the driver is reading samples.
-- ``whoami_error``: the last WHO_AM_I check read a value not in the accepted list.
-- ``no_response``: that value was 0x00 or 0xFF: MISO stuck or the sensor absent.
-- ``int_timeout``: no data-ready interrupt came within the timeout; the driver restarted
-  bring-up. Cleared by the next sample.
-- ``restarts``: bring-up restarts since power-on (after a failed check, a time-out or stuck
-  data), saturating at 255.
-- ``who_am_i``: the last WHO_AM_I value read.
-- ``mag_ok``: the AK8963 is up (WIA right, fuse ROM read, continuous 100 Hz 16-bit mode).
-- ``mag_absent``: the AK8963 did not acknowledge (I2C NACK, SLV4_NACK) or an SLV4 transfer
-  timed out, at bring-up or at a re-initialisation, or (I2C wiring) a per-sample read failed;
-  ``mag_ok`` is 0 meanwhile. Cleared when a re-initialisation brings it up again.
-- ``mag_wia_error``: the AK8963 answered with a WIA other than 0x48; cleared likewise.
-- ``mag_stale``: no new field for ``DriverTiming.mag_timeout_s`` (three AK8963 periods by
-  default) while streaming: the AK8963 was lost, reset or stopped measuring. ``mag_ok`` drops
-  and the driver re-initialises the AK8963 (the magnetometer part of bring-up, between
-  samples, accel/gyro still flowing), again every time-out until it answers. Cleared by the
-  next new field.
-- ``bad_burst``: the last sample burst failed its checks (data line stuck, no data ready);
-  after ``BAD_BURST_LIMIT`` in a row the driver restarts bring-up. Cleared by a good burst.
-- ``bus_timeout``, ``bus_stuck``, ``bus_arbitration`` (I2C wiring; 0 with SPI): the I2C
-  controller's last failure: a device held SCL low past the time-out, SDA stayed low through
-  nine recovery clocks, or SDA read low while the controller sent a 1. Set by the failing
-  operation, cleared by the next START that gets the bus.
 """
 
 from amaranth.hdl import signed
 from amaranth.lib import data
 
 
-__all__ = ["Vector3", "SampleFlags", "Sample", "DriverStatus", "AttitudeFlags", "Attitude",
-           "ConfigWrite"]
+__all__ = ["Vector3", "SampleFlags", "Sample"]
 
 
 Vector3 = data.ArrayLayout(signed(16), 3)
@@ -104,75 +77,3 @@ class Sample(data.Struct):
     counter: 32
     flags: SampleFlags
     skipped: 4
-
-
-class DriverStatus(data.Struct):
-    streaming: 1
-    whoami_error: 1
-    no_response: 1
-    int_timeout: 1
-    restarts: 8
-    who_am_i: 8
-    mag_ok: 1
-    mag_absent: 1
-    mag_wia_error: 1
-    mag_stale: 1
-    bad_burst: 1
-    bus_timeout: 1
-    bus_stuck: 1
-    bus_arbitration: 1
-
-
-class AttitudeFlags(data.Struct):
-    """Per-result status of the attitude engine: what this update did.
-
-    - ``acc_used``: the accelerometer corrected the tilt (0: the calibrated vector was zero,
-      e.g. free fall, or — flagship — had no horizontal part to correct; tilt is gyro-only).
-    - ``mag_used``: the magnetometer corrected the heading (0: no new valid field this sample —
-      ``mag_valid`` was 0, e.g. between the AK8963's 100 Hz measurements, on overflow, or with
-      the magnetometer down — a zero field, or the field was rejected).
-    - ``mag_disturbed``: (flagship) a valid field was rejected: its norm or dip is off the
-      reference (a magnet, iron nearby).
-    - ``mag_new_ref``: (flagship) a magnetic reference was adopted: the one learnt after start,
-      or a disturbed field that stayed steady long enough (K_NEW samples).
-    - ``at_rest``: (flagship) the rest detector holds (gyro and accelerometer still for K_REST
-      samples).
-    - ``bias_updated``: the gyro bias estimate changed (flagship: at rest; Kalman: with every
-      measurement update).
-    - ``saturated``: some intermediate result of this update was clamped (a calibrated value
-      beyond 16 bits, a covariance or gain beyond its format, R ≤ 0): check the coefficients.
-    - ``filter``: the filter that produced this result: 0 per-axis Kalman, 1 complementary,
-      2 flagship.
-    - ``overrun``: the sample's own ``overrun`` flag: samples were dropped before it.
-    """
-    acc_used: 1
-    mag_used: 1
-    mag_disturbed: 1
-    mag_new_ref: 1
-    at_rest: 1
-    bias_updated: 1
-    saturated: 1
-    filter: 2
-    overrun: 1
-
-
-class Attitude(data.Struct):
-    """One result of the attitude engine.
-
-    ``quat``: the attitude quaternion w, x, y, z (body to East-North-Up, Hamilton, Q2.30:
-    signed 32 bits, 2³⁰ = 1), for every filter. ``angles``: roll, pitch, yaw derived from it
-    (ZYX Euler, body axes of the MPU9250, yaw from East towards North) in BAM32: signed 32 bits,
-    2³² = 360°. ``bias``: the gyro bias estimate in gyro counts, Q16.16 (the Kalman filter's
-    and the flagship's; held while the complementary filter runs). ``counter``: the sample's
-    counter."""
-    quat: data.ArrayLayout(signed(32), 4)
-    angles: data.ArrayLayout(signed(32), 3)
-    bias: data.ArrayLayout(signed(32), 3)
-    counter: 32
-    flags: AttitudeFlags
-
-
-class ConfigWrite(data.Struct):
-    """A write to the attitude engine's register map (``hdl/attitude_program.py``)."""
-    addr: 8
-    data: signed(32)

@@ -1,26 +1,10 @@
-"""Sensor front end: the MPU9250 driver, its register port and bus controller.
-
-``config.wiring`` picks the bus: "spi" (``SPIRegisterPort`` + ``SPIController``, the AK8963
-through the MPU9250's I2C master) or "i2c" (``I2CRegisterPort`` + ``I2CController``, the AK8963
-through the bypass multiplexer).
-
-Interface
-    ``pins``: ``SPIPinsSignature`` (SCLK, COPI, CS_n out; CIPO in, raw) or ``I2CPinsSignature``
-        (SCL/SDA pull-down enables out; line levels in, raw).
-    ``int_pin`` (in): sensor INT, raw.
-    ``samples`` (out, ``Sample`` stream) and ``status`` (out, ``DriverStatus``): from the driver;
-        with I2C wiring ``status.bus_*`` come from the I2C controller.
-
-This is the unit the simulations drive and the one ``build --verilog-only`` exports; the board
-top level adds I/O buffers around it.
-"""
+"""Sensor front end: the MPU9250 driver, its register port and bus controller."""
 
 from amaranth import *
-from amaranth.lib import data, stream, wiring
-from amaranth.lib.wiring import In, Out, connect, flipped
+from amaranth.lib import wiring
+from amaranth.lib.wiring import Out, connect, flipped
 
-from .mpu9250_driver import DriverTiming, MPU9250Config, MPU9250Driver
-from .sample import DriverStatus, Sample
+from .mpu9250_driver import DriverTiming, MPU9250Config, MPU9250Driver, driver_members
 from .i2c_controller import I2CController, I2CPinsSignature, I2CTiming
 from .register_port import I2CRegisterPort, SPIRegisterPort
 from .sample_reader import MPU_BYTES, SAMPLE_BYTES
@@ -50,6 +34,24 @@ def sample_read_cycles(config, clk_freq, bus_timing=None):
 
 
 class SensorFrontEnd(wiring.Component):
+    """Sensor front end: the MPU9250 driver, its register port and bus controller.
+
+    ``config.wiring`` picks the bus: "spi" (``SPIRegisterPort`` + ``SPIController``, the AK8963
+    through the MPU9250's I2C master) or "i2c" (``I2CRegisterPort`` + ``I2CController``, the AK8963
+    through the bypass multiplexer).
+
+    Interface
+        ``pins``: ``SPIPinsSignature`` (SCLK, COPI, CS_n out; CIPO in, raw) or ``I2CPinsSignature``
+            (SCL/SDA pull-down enables out; line levels in, raw).
+        ``int_pin`` (in): sensor INT, raw.
+        ``samples`` (out, ``Sample`` stream) and ``status`` (out, ``DriverStatus``): from the
+            driver; with I2C wiring ``status.bus_*`` come from the I2C controller.
+
+    This is the unit the simulations drive and the one ``build --verilog-only`` exports; the board
+    top level adds I/O buffers around it.
+    Latency: a sample leaves at most ``sample_read_cycles(config, clk_freq)`` cycles after its
+    data-ready edge (the bus read dominates). Throughput: one sample per data-ready edge.
+    """
     def __init__(self, *, clk_freq, config=MPU9250Config(), timing=DriverTiming(),
                  spi_timing=None, i2c_timing=None):
         self.clk_freq = clk_freq
@@ -65,13 +67,7 @@ class SensorFrontEnd(wiring.Component):
             self.bus = I2CController(self.bus_timing)
             self.port = I2CRegisterPort(mpu_address=config.i2c_address)
             pins = I2CPinsSignature()
-        super().__init__({
-            "pins": Out(pins),
-            "int_pin": In(1),
-            "samples": Out(stream.Signature(Sample)),
-            "status": Out(DriverStatus),
-            "asa": Out(data.ArrayLayout(8, 3)),
-        })
+        super().__init__({"pins": Out(pins), **driver_members()})
 
     def elaborate(self, platform):
         m = Module()

@@ -1,29 +1,4 @@
-"""SPI controller for the MPU9250: mode 3, MSB first, two clock rates chosen per byte.
-
-Interface
-    ``i_stream`` (in):  bytes to send. Payload ``data`` (8), ``fast`` (1: use the fast clock),
-                        ``last`` (1: raise chip select after this byte). ``fast`` is taken from
-                        the first byte of a transaction and holds for the whole transaction.
-    ``o_stream`` (out): one received byte for every byte sent (full duplex), in order.
-    ``pins``:           ``sclk``, ``copi``, ``cs_n`` outputs (registered), ``cipo`` input
-                        (raw: it goes through an ``FFSynchronizer`` here).
-    ``busy`` (out):     chip select is active.
-
-Timing (``SPITiming``, all in system clock cycles)
-    Each SCLK level lasts ``half`` cycles (``slow_half`` or ``fast_half``). Chip select falls
-    ``half`` cycles before the first falling SCLK edge (setup) and rises at least ``cs_hold``
-    cycles after the last rising edge; it then stays high for ``cs_gap`` cycles.
-    Mode 3: SCLK idles high, COPI changes on the falling edge. CIPO's pin is sampled (the
-    synchroniser's first flip-flop) ``cipo_delay`` cycles after the rising edge leaves its
-    register, so ``half + cipo_delay`` cycles after the falling edge the device answers: late
-    enough for its output delay (``SPITiming.for_clock``'s ``sdo_window_s``), early enough that
-    the bit has not yet changed; the bit is shifted in ``capture_delay`` = 2 + ``cipo_delay``
-    cycles after the rising edge.
-
-Throughput: 8 bits take ``16 * half`` cycles, plus ``capture_delay`` cycles between bytes
-(the controller waits for a byte's last bit before shifting the next one, which keeps the
-receive path a plain shift register) and one cycle per byte hand-off.
-"""
+"""SPI controller for the MPU9250: mode 3, MSB first, two clock rates chosen per byte."""
 
 import math
 from dataclasses import dataclass
@@ -115,13 +90,39 @@ SPIByte = data.StructLayout({"data": 8, "fast": 1, "last": 1})
 
 
 class SPIController(wiring.Component):
+    """SPI controller for the MPU9250: mode 3, MSB first, two clock rates chosen per byte.
+
+    Interface
+        ``i_stream`` (in):  bytes to send. Payload ``data`` (8), ``fast`` (1: use the fast clock),
+                            ``last`` (1: raise chip select after this byte). ``fast`` is taken from
+                            the first byte of a transaction and holds for the whole transaction.
+        ``o_stream`` (out): one received byte for every byte sent (full duplex), in order.
+        ``pins``:           ``sclk``, ``copi``, ``cs_n`` outputs (registered), ``cipo`` input
+                            (raw: it goes through an ``FFSynchronizer`` here).
+
+    Timing (``SPITiming``, all in system clock cycles)
+        Each SCLK level lasts ``half`` cycles (``slow_half`` or ``fast_half``). Chip select falls
+        ``half`` cycles before the first falling SCLK edge (setup) and rises at least ``cs_hold``
+        cycles after the last rising edge; it then stays high for ``cs_gap`` cycles.
+        Mode 3: SCLK idles high, COPI changes on the falling edge. CIPO's pin is sampled (the
+        synchroniser's first flip-flop) ``cipo_delay`` cycles after the rising edge leaves its
+        register, so ``half + cipo_delay`` cycles after the falling edge the device answers: late
+        enough for its output delay (``SPITiming.for_clock``'s ``sdo_window_s``), early enough that
+        the bit has not yet changed; the bit is shifted in ``capture_delay`` = 2 + ``cipo_delay``
+        cycles after the rising edge.
+
+    Throughput: 8 bits take ``16 * half`` cycles, plus ``capture_delay`` cycles between bytes
+    (the controller waits for a byte's last bit before shifting the next one, which keeps the
+    receive path a plain shift register) and one cycle per byte hand-off.
+    Latency: a byte's result is offered 16·``half`` + 2 or 3 cycles after the byte is taken;
+    the first byte of a transaction adds the chip-select setup (``half``).
+    """
     def __init__(self, timing):
         self.timing = timing
         super().__init__({
             "i_stream": In(stream.Signature(SPIByte)),
             "o_stream": Out(stream.Signature(8)),
             "pins": Out(SPIPinsSignature()),
-            "busy": Out(1),
         })
 
     def elaborate(self, platform):
@@ -155,7 +156,6 @@ class SPIController(wiring.Component):
         def start_bit(value):
             m.d.sync += [self.pins.sclk.eq(0), self.pins.copi.eq(value[7]), timer.eq(half - 1)]
 
-        m.d.comb += self.busy.eq(~self.pins.cs_n)
 
         with m.FSM():
             with m.State("IDLE"):

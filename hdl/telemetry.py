@@ -28,7 +28,8 @@ from amaranth.lib.crc.catalog import CRC16_IBM_3740
 from amaranth.lib.wiring import In, Out
 
 from .memories import FrameRAM
-from .sample import DriverStatus, Sample
+from .driver_status import DriverStatus
+from .sample import Sample
 
 
 __all__ = ["SYNC", "CRC", "HEADER_BYTES", "FrameByte", "SensorFrame", "payload_bytes",
@@ -81,7 +82,6 @@ class TelemetryFramer(wiring.Component):
             bits of ``layout``, in whole bytes). A frame offered while the ``short`` input is
             high is sent as that type, cut to that length (raw-sample mode sends the sample
             and status of an attitude frame so).
-        ``blackbox``: the RAM as an empty module (``report``'s synthesis).
     Members
         ``i_stream`` (in, stream of ``layout``); ``o_stream`` (out, stream of ``FrameByte``:
             to a ``FrameArbiter``, or a UART taking ``data``).
@@ -91,9 +91,10 @@ class TelemetryFramer(wiring.Component):
         ``idle`` (out): buffered: no frame is being copied or sent (a frame offered now is
             copied at once). Unbuffered: no frame is being sent.
     Throughput: ``length + 7`` bytes per frame.
+    Latency: the first sync byte is offered in the cycle the payload is (unbuffered), or once
+    the copy ends, ⌈``length``/4⌉ cycles after it (buffered).
     """
-    def __init__(self, layout=SensorFrame, frame_type=0x01, *, buffered=False, short=None,
-                 blackbox=False):
+    def __init__(self, layout=SensorFrame, frame_type=0x01, *, buffered=False, short=None):
         self.layout = layout
         self.frame_type = frame_type
         self.buffered = buffered
@@ -108,7 +109,7 @@ class TelemetryFramer(wiring.Component):
         # the copy goes a 32-bit word per cycle: a 23-way multiplexer of words costs fewer
         # LUTs than a 92-way one of bytes
         self.words = (self.length + 3) // 4
-        self.ram = FrameRAM(self.words, 32, blackbox=blackbox) if buffered else None
+        self.ram = FrameRAM(self.words, 32) if buffered else None
         super().__init__({
             "i_stream": In(stream.Signature(layout)),
             "o_stream": Out(stream.Signature(FrameByte)),

@@ -10,7 +10,9 @@ from amaranth import *
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
-from .sample import Attitude, DriverStatus, Sample
+from .attitude_result import Attitude
+from .driver_status import DriverStatus
+from .sample import Sample
 
 
 __all__ = ["TelemetryCounters", "FramedAttitude", "AttitudeFrame", "TelemetryScheduler"]

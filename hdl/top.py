@@ -43,13 +43,15 @@ from amaranth.lib.cdc import ResetSynchronizer
 from amaranth.lib.fifo import SyncFIFOBuffered
 from amaranth.lib.wiring import In, Out, connect, flipped
 
-from .clocking import SYSTEM_CLOCK_HZ, SystemPLL
+from .clocking import SYSTEM_CLOCK_HZ, SystemPLL, cycles
 from .mpu9250_driver import DriverTiming, MPU9250Config
 from .attitude_isa import REG_BITS
 from .attitude_program import TELEMETRY_DIV_ADDR
 from .attitude_engine import (WORST_UPDATE_CYCLES, AttitudeEngine, default_filter_config,
                               default_flagship_config)
-from .sample import ConfigWrite, DriverStatus, Sample
+from .config_write import ConfigWrite
+from .driver_status import DriverStatus
+from .sample import Sample
 from .sensor_frontend import SensorFrontEnd, sample_read_cycles
 from .i2c_controller import I2CPinsSignature
 from .spi_controller import SPIPinsSignature
@@ -138,11 +140,15 @@ class AHRSCore(wiring.Component):
     soon as its previous update is done (``WORST_UPDATE_CYCLES`` at most) and the
     ``TelemetryScheduler`` takes every result at once, or after the framer's 21-cycle copy of
     a result it frames; the UART never holds the filter up.
+
+    Latency: data-ready edge to result: at most ``sample_read_cycles`` plus the engine's update
+    (``report`` prints both, and their sum as the latency in µs); the result then waits for
+    its frame's turn on the UART.
     """
     def __init__(self, *, clk_freq=SYSTEM_CLOCK_HZ, config=MPU9250Config(),
                  timing=DriverTiming(), baud=921_600, attitude=True, filter_config=None,
                  calibration=None, flagship_config=None, filter="flagship",
-                 telemetry_divider=None, command_timeout_s=0.005, blackbox_hard_blocks=False):
+                 telemetry_divider=None, command_timeout_s=0.005):
         self.clk_freq = clk_freq
         self.config = config
         self.attitude = attitude
@@ -157,13 +163,11 @@ class AHRSCore(wiring.Component):
             if flagship_config is None:
                 flagship_config = default_flagship_config(config)
             self.framer = TelemetryFramer(AttitudeFrame, ATTITUDE, buffered=True,
-                                          short=(SENSOR, SensorFrame),
-                                          blackbox=blackbox_hard_blocks)
+                                          short=(SENSOR, SensorFrame))
             self.telemetry_divider = telemetry_divider
             self.engine = AttitudeEngine(filter_config, calibration, flagship_config,
                                          filter=filter,
-                                         extra_registers={"TELEMETRY_DIV": telemetry_divider},
-                                         blackbox_hard_blocks=blackbox_hard_blocks)
+                                         extra_registers={"TELEMETRY_DIV": telemetry_divider})
             self.scheduler = TelemetryScheduler()
             self.version = version_word(clk_freq=clk_freq, baud=baud, config=repr(config),
                                         filter=filter)
@@ -171,7 +175,7 @@ class AHRSCore(wiring.Component):
             # a command is at most 13 bytes: 16 hold a whole one while the last executes
             self.rx_fifo = SyncFIFOBuffered(width=8, depth=16)
             self.decoder = CommandDecoder(writable=HOST_WRITABLE, version=self.version,
-                                          timeout=max(1, round(command_timeout_s * clk_freq)))
+                                          timeout=cycles(command_timeout_s, clk_freq))
             self.pwm_block = PWMOutputs(clk_freq=clk_freq)
             self.reply_framer = TelemetryFramer(Reply, REPLY)
             self.arbiter = FrameArbiter(2)             # replies first, then telemetry

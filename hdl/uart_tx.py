@@ -1,12 +1,4 @@
-"""UART transmitter, 8N1, LSB first.
-
-Interface
-    ``i_stream`` (in, byte stream): bytes to send; ``ready`` is high while idle.
-    ``tx`` (out): line, idles high.
-
-Timing: one bit every ``divisor`` cycles (``divisor = round(clk_freq / baud)``); a byte takes
-``10 * divisor`` cycles and the next byte is accepted in the cycle after its stop bit ends.
-"""
+"""UART transmitter, 8N1, LSB first."""
 
 from amaranth import *
 from amaranth.lib import stream, wiring
@@ -17,6 +9,16 @@ __all__ = ["UARTTransmitter"]
 
 
 class UARTTransmitter(wiring.Component):
+    """UART transmitter, 8N1, LSB first.
+
+    Interface
+        ``i_stream`` (in, byte stream): bytes to send; ``ready`` is high while idle.
+        ``tx`` (out): line, idles high.
+
+    Timing: one bit every ``divisor`` cycles (``divisor = round(clk_freq / baud)``); a byte takes
+    ``10 * divisor`` cycles and the next byte is accepted in the cycle after its stop bit ends.
+    Latency: the start bit goes out the cycle after a byte is taken.
+    """
     def __init__(self, *, divisor):
         if divisor < 2:
             raise ValueError(f"UART divisor must be at least 2 cycles per bit, not {divisor}")

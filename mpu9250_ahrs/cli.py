@@ -293,7 +293,7 @@ def _pose_sources(pose, samples, config, setup):
     the sensor error model's noise: MPU9250 and AK8963 values in counts."""
     from .hdl import ak8963_regs as A
     from .sim.motion import SensorModel, accel_gyro_source, mag_source, static
-    from .sim.recording import Scales
+    from .reference.recording import Scales
     euler = [float(v) for v in pose.split(",")]
     if len(euler) != 3:
         raise ValueError("--pose takes roll,pitch,yaw in degrees, e.g. 30,-10,45")
@@ -319,7 +319,7 @@ def sample_read_time(result, setup):
 def cmd_replay(args):
     import numpy as np
     from .reference.evaluate import FIXED_FILTERS, run_filter, run_fixed, score
-    from .sim.recording import Scales, load_broad, quantise, to_units
+    from .reference.recording import Scales, load_broad, quantise, to_units
 
     engine = "fixed" if args.fixed else args.engine
     if engine != "float" and args.filter not in FIXED_FILTERS:

@@ -1,9 +1,9 @@
 """``report``: what the design costs on a 10M08, from Yosys, and how many cycles an update takes.
 
 Synthesis is Debian's Yosys 0.23 (``apt-get install yosys``), ``synth_intel -family max10``.
-It cannot map multipliers or initialised RAM onto the MAX10's hard blocks, so the engine is
-elaborated with those as empty modules (``blackbox_hard_blocks``) and they are counted from
-their sizes:
+It cannot map multipliers or initialised RAM onto the MAX10's hard blocks, so before
+synthesis ``report`` swaps those blocks for empty modules (``hard_blocks_as_blackboxes``: the
+gateware has no option for it) and counts them from their sizes:
 
 - ``multipliers_18x18``: the engine's 32×32 multiplier is built from four 18×18 blocks (empty
   modules here) and the adders that combine their products, in logic as on a MAX10 (its blocks
@@ -32,13 +32,20 @@ import tempfile
 from amaranth.back import verilog
 
 
-__all__ = ["DEVICE", "synthesize", "cycles_per_update", "report"]
+__all__ = ["DEVICE", "hard_blocks_as_blackboxes", "synthesize", "cycles_per_update", "report"]
 
 # Intel MAX10 10M08SCU169: the budget the figures are read against.
 DEVICE = {"name": "10M08SCU169C8G", "logic_elements": 8064, "multipliers_18x18": 24,
           "memory_bits": 387072, "m9k_blocks": 42}
 
 YOSYS_HINT = "install it with: apt-get install yosys (Debian's 0.23 has synth_intel)"
+
+
+def hard_blocks_as_blackboxes(engine, rams=()):
+    """Mark the engine's multiplier, register file and ROM and the ``FrameRAM``s ``rams`` to
+    elaborate as empty modules (with the logic Quartus adds around them), for Yosys 0.23."""
+    for block in (engine.multiplier, engine.regfile, engine.rom, *rams):
+        block.blackbox = True
 
 
 def _stubs(engine, rams):
@@ -65,9 +72,10 @@ def _count(stat_text, cell):
 
 
 def synthesize(top, name, engine, rams=()):
-    """Figures for one elaboratable (``engine``: the AttitudeEngine inside it, elaborated with
-    ``blackbox_hard_blocks=True``; ``rams``: other ``FrameRAM``s in it, blackboxed too)."""
+    """Figures for one elaboratable (``engine``: the AttitudeEngine inside it; ``rams``: other
+    ``FrameRAM``s in it); their hard blocks are synthesised as empty modules."""
     from .hdl.multiplier import BLACKBOX_NAME
+    hard_blocks_as_blackboxes(engine, rams)
     with tempfile.TemporaryDirectory() as tmp:
         with open(os.path.join(tmp, "design.v"), "w") as f:
             f.write(verilog.convert(top, name=name))
@@ -161,9 +169,9 @@ def report(*, clk_freq=None, config=None, latency=True):
 
     config = MPU9250Config() if config is None else config
     clk_freq = SYSTEM_CLOCK_HZ if clk_freq is None else clk_freq
-    engine = AttitudeEngine(blackbox_hard_blocks=True)
+    engine = AttitudeEngine()
     datapath = synthesize(engine, "attitude_engine", engine)
-    core = AHRSCore(clk_freq=clk_freq, config=config, blackbox_hard_blocks=True)
+    core = AHRSCore(clk_freq=clk_freq, config=config)
     design = synthesize(core, "mpu9250_ahrs_core", core.engine, rams=[core.framer.ram])
     cycles, first = cycles_per_update()
     mhz = clk_freq / 1e6

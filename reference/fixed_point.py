@@ -33,8 +33,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+# the register encodings are the gateware's contract; the CORDIC table below is computed here,
+# independently of the one the gateware holds (a test checks that they agree)
+from ..hdl.numeric_contract import (CalibrationFixed, FilterRates, KalmanFixedConfig,
+                                    calibration_of, calibration_registers)
 
-__all__ = ["BAM_BITS", "CORDIC_ITERATIONS", "ATAN_TABLE", "CORDIC_GAIN", "rshift_round", "sat",
+
+__all__ = ["CORDIC_ITERATIONS", "ATAN_TABLE", "CORDIC_GAIN", "rshift_round", "sat",
            "wrap32", "div_floor", "cordic_vector", "cordic_rotate", "bam_to_deg", "deg_to_bam",
            "div_q24", "Status", "KalmanFixedConfig", "CalibrationFixed", "calibrate_fixed",
            "kalman_fixed", "complementary_fixed", "attitude_fixed", "AttitudeFixed", "FilterRates",
@@ -43,7 +48,6 @@ __all__ = ["BAM_BITS", "CORDIC_ITERATIONS", "ATAN_TABLE", "CORDIC_GAIN", "rshift
            "RESULT_FIELDS",
            "calibration_registers"]
 
-BAM_BITS = 32                     # angles: signed 32-bit, 2³² = 360°, 1 LSB = 8.38e-8°
 # 16 iterations leave at most atan(2⁻¹⁵) = 0.0018° of angle: far below the sensors' noise, and
 # a shift amount of 4 bits and a 16-entry table in the gateware
 CORDIC_ITERATIONS = 16
@@ -195,35 +199,7 @@ def cordic_rotate(angle):
     return x, y
 
 
-# -- calibration ---------------------------------------------------------------------------------
-
-Q14 = 1 << 14
-
-
-@dataclass(frozen=True)
-class CalibrationFixed:
-    """Run-time calibration registers (integers; FIXED_POINT.md, "Calibration").
-
-    gyro_offset: counts; accel_offset: counts; accel_scale: Q2.14 (16384 = 1);
-    hard_iron: counts in body axes, after the ASA adjustment; soft_iron: 3×3 row-major, Q2.14.
-    """
-    gyro_offset: tuple = (0, 0, 0)
-    accel_offset: tuple = (0, 0, 0)
-    accel_scale: tuple = (Q14, Q14, Q14)
-    hard_iron: tuple = (0, 0, 0)
-    soft_iron: tuple = (Q14, 0, 0, 0, Q14, 0, 0, 0, Q14)
-
-    @classmethod
-    def from_units(cls, *, gyro_offset=(0, 0, 0), accel_offset=(0, 0, 0),
-                   accel_scale=(1, 1, 1), hard_iron=(0, 0, 0), soft_iron=np.eye(3)):
-        """From calibration results in counts (``reference.calibration``): offsets rounded,
-        scale factors and the soft-iron matrix to Q2.14. ``accel_scale`` multiplies (use
-        1/scale from ``accel_six_pose``)."""
-        r = lambda v: tuple(int(round(x)) for x in np.ravel(v))
-        return cls(gyro_offset=r(gyro_offset), accel_offset=r(accel_offset),
-                   accel_scale=r(np.asarray(accel_scale, float) * Q14),
-                   hard_iron=r(hard_iron), soft_iron=r(np.asarray(soft_iron, float) * Q14))
-
+# -- calibration (``CalibrationFixed``: hdl/numeric_contract.py) ----------------------------------
 
 def _calibrate_one(g, a, h, asa, cal, st):
     """One sample: raw gyro/accel counts, raw AK8963 counts (AK axes), raw ASA fuse bytes."""
@@ -249,82 +225,7 @@ def calibrate_fixed(gyr_raw, acc_raw, mag_ak_raw, asa=(128, 128, 128), cal=Calib
     return tuple(out)
 
 
-# -- filters -----------------------------------------------------------------------------------
-
-@dataclass(frozen=True)
-class KalmanFixedConfig:
-    """Run-time registers of the filters (values in real units; ``registers`` gives their
-    integer encodings, see FIXED_POINT.md)."""
-    dt: float = 0.01
-    gyro_lsb_per_dps: float = 16.4
-    q_angle: float = 0.2         # deg²
-    q_bias: float = 0.1          # (deg/s)²
-    r: float = 2.0               # deg²
-    p0: float = 1.0
-    a: float = 0.98              # complementary filter coefficient
-    euler_rates: bool = False    # propagate with Euler-angle rates, not body rates (the preset)
-
-    def registers(self):
-        q24 = 1 << 24
-        regs = {
-            # BAM per gyro count per sample period, Q14: Δθ = (ω_counts · RATE) >> 14
-            "RATE": int(round(self.dt * 2 ** 32 / (360.0 * self.gyro_lsb_per_dps) * 2 ** 14)),
-            "T": int(round(self.dt * q24)),                          # Q0.24 seconds
-            "Q_ANGLE": int(round(self.q_angle * q24)),               # Q8.24 deg²
-            "Q_BIAS": int(round(self.q_bias * q24)),                 # Q8.24 (deg/s)²
-            "R": int(round(self.r * q24)),                           # Q8.24 deg²
-            "P0": int(round(self.p0 * q24)),
-            # Δb [Q16 counts] = (t [BAM/s] · BIAS_SCALE) >> 24: 360/2³² deg/BAM · LSB · 2¹⁶
-            "BIAS_SCALE": int(round(360.0 * self.gyro_lsb_per_dps / 2 ** 16 * q24)),
-            "ONE_MINUS_A": int(round((1 - self.a) * q24)),          # Q0.24
-            "EULER_RATES": int(bool(self.euler_rates)),
-        }
-        if not 0 < regs["RATE"] < 2 ** 31:
-            raise ValueError(f"RATE {regs['RATE']} does not fit 31 bits: dt "
-                             f"{self.dt} s is too long for {self.gyro_lsb_per_dps} LSB/(°/s)")
-        return regs
-
-
-@dataclass(frozen=True)
-class FilterRates:
-    """The per-axis filters' coefficients in physical units, valid at any sample rate.
-
-    ``q_angle`` (deg²/s) and ``q_bias`` ((°/s)²/s) are the process-noise densities of the
-    Kalman filter's angle and gyro-bias states: per step they are multiplied by the sample
-    period. ``r`` (deg²) is the variance of one accelerometer angle measurement and ``p0``
-    (deg², (°/s)²) the initial covariance: both per measurement, whatever the rate. ``tau``
-    (s) is the complementary filter's time constant: a = τ / (τ + dt).
-
-    The defaults are the published per-step preset (Q angle 0.2 deg², Q bias 0.1 (°/s)²,
-    R 2 deg², a = 0.98) at the rate it was published for, 100 Hz: ``at(0.01, ...)`` gives its
-    registers exactly. ``euler_rates``: the per-axis filters propagate their angles with
-    Euler-angle rates (right at any attitude short of ±90° pitch) instead of the published
-    body rates.
-    """
-    q_angle: float = 20.0
-    q_bias: float = 10.0
-    r: float = 2.0
-    p0: float = 1.0
-    tau: float = 0.49
-    euler_rates: bool = False
-
-    def at(self, dt, gyro_lsb_per_dps=16.4):
-        """The ``KalmanFixedConfig`` (per-step values) for sample period ``dt``."""
-        if dt <= 0 or self.tau <= 0:
-            raise ValueError("FilterRates.at: dt and tau must be positive")
-        return KalmanFixedConfig(dt=dt, gyro_lsb_per_dps=gyro_lsb_per_dps,
-                                 q_angle=self.q_angle * dt, q_bias=self.q_bias * dt, r=self.r,
-                                 p0=self.p0, a=self.tau / (self.tau + dt),
-                                 euler_rates=self.euler_rates)
-
-    @classmethod
-    def from_step(cls, config):
-        """The physical values a per-step ``KalmanFixedConfig`` stands for at its own dt."""
-        dt = config.dt
-        return cls(q_angle=config.q_angle / dt, q_bias=config.q_bias / dt, r=config.r,
-                   p0=config.p0, tau=config.a * dt / (1 - config.a),
-                   euler_rates=config.euler_rates)
-
+# -- filters (their registers: ``KalmanFixedConfig``, ``FilterRates`` in hdl/numeric_contract.py)
 
 def tilt_angles(x, y, z, st=None):
     """(roll, pitch) BAM32 of a specific-force vector in any scale: atan2(y, z),
@@ -490,26 +391,6 @@ class AttitudeFixed:
                                for f in dataclasses.fields(self)))
 
 
-def calibration_registers(cal):
-    """A ``CalibrationFixed`` as register values by name (the engine's register map)."""
-    regs = {}
-    for i in range(3):
-        regs[f"GYRO_OFF{i}"], regs[f"ACC_OFF{i}"] = cal.gyro_offset[i], cal.accel_offset[i]
-        regs[f"ACC_SCALE{i}"], regs[f"HARD{i}"] = cal.accel_scale[i], cal.hard_iron[i]
-        for j in range(3):
-            regs[f"SOFT{i}{j}"] = cal.soft_iron[3 * i + j]
-    return regs
-
-
-def _calibration_of(reg):
-    return CalibrationFixed(
-        gyro_offset=tuple(reg[f"GYRO_OFF{i}"] for i in range(3)),
-        accel_offset=tuple(reg[f"ACC_OFF{i}"] for i in range(3)),
-        accel_scale=tuple(reg[f"ACC_SCALE{i}"] for i in range(3)),
-        hard_iron=tuple(reg[f"HARD{i}"] for i in range(3)),
-        soft_iron=tuple(reg[f"SOFT{i}{j}"] for i in range(3) for j in range(3)))
-
-
 class EngineModel:
     """The attitude engine in integers, one sample at a time: run-time registers by name
     (filter coefficients, flagship parameters, calibration), the filter select, a filter
@@ -555,7 +436,7 @@ class EngineModel:
         from .flagship_fixed import euler_quat_fixed
         st = Status()
         g, a, m = _calibrate_one(list(g_raw), list(a_raw), list(m_raw), asa,
-                                 _calibration_of(self.reg), st)
+                                 calibration_of(self.reg), st)
         kf = self.kf
         flags = set()
         if self.filter == _FLAGSHIP:

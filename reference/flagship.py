@@ -32,30 +32,14 @@ runs, operation for operation, is ``reference/flagship_fixed.py`` (its cost:
 """
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
+from ..hdl.numeric_contract import FlagshipParams, sample_counts
 from .frames import filter_inputs
 
 
 __all__ = ["FlagshipParams", "flagship_filter", "sample_counts"]
-
-
-@dataclass(frozen=True)
-class FlagshipParams:
-    tau_acc: float = 5.0            # s, low-pass of the specific force in the inertial frame
-    tau_mag: float = 15.0           # s, heading correction
-    mag_fast_s: float = 3.0         # s of fast heading convergence at start-up
-    mag_ref_s: float = 2.0          # s over which the reference field is learnt
-    tau_ref: float = 0.5            # s, low-pass of the field's norm and dip while it is learnt
-    mag_norm_gate: float = 0.1
-    mag_dip_gate: float = 10.0      # degrees
-    mag_new_s: float = 20.0
-    rest_gyro: float = math.radians(2.0)   # rad/s
-    rest_acc: float = 0.5           # m/s²
-    rest_s: float = 1.5
-    tau_rest: float = 3.0
 
 
 def _qmul(p, q):
@@ -85,13 +69,6 @@ def _rot(q, v):
     return ((1 - 2 * (y * y + z * z)) * vx + 2 * (x * y - w * z) * vy + 2 * (x * z + w * y) * vz,
             2 * (x * y + w * z) * vx + (1 - 2 * (x * x + z * z)) * vy + 2 * (y * z - w * x) * vz,
             2 * (x * z - w * y) * vx + 2 * (y * z + w * x) * vy + (1 - 2 * (x * x + y * y)) * vz)
-
-
-def sample_counts(params, dt):
-    """The flagship's times as whole sample counts, shared by the float and the fixed-point
-    filter so that both switch at the same sample: (K_REST, K_REF, K_FAST, K_NEW)."""
-    k = lambda seconds: max(1, int(round(seconds / dt)))
-    return k(params.rest_s), k(params.mag_ref_s), k(params.mag_fast_s), k(params.mag_new_s)
 
 
 def flagship_filter(gyr, acc, mag, dt, params=FlagshipParams(), *, mag_valid=None,

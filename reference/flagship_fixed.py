@@ -17,14 +17,13 @@ over arrays; ``engine_outputs`` gives what the engine reports for any filter (qu
 angles), so that the per-axis filters' results carry a quaternion too.
 """
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..hdl.numeric_contract import FlagshipFixedConfig
 from .fixed_point import (INV_GAIN_Q30, Status, cordic_rotate, cordic_vector, mac, mul, sat32,
                           step_n, tilt_angles, wrap32)
-from .flagship import FlagshipParams, sample_counts
 
 
 __all__ = ["FlagshipFixedConfig", "FlagshipFixed", "flagship_fixed", "q30_to_float",
@@ -42,47 +41,6 @@ FLAGSHIP_CONSTANTS = {
     "SHR10": 1 << 20,          # mul(x, SHR10, 30) = x / 2¹⁰ rounded
     "INT1": 1,
 }
-
-
-@dataclass(frozen=True)
-class FlagshipFixedConfig:
-    """Run-time registers of the fixed-point flagship, from the float parameters."""
-    dt: float = 0.01
-    gyro_lsb_per_rad: float = 16.4 * 180 / math.pi
-    accel_lsb_per_ms2: float = 2048 / 9.80665
-    params: FlagshipParams = FlagshipParams()
-
-    @classmethod
-    def matching(cls, kalman):
-        """The published parameters at a ``KalmanFixedConfig``'s sample period and gyro LSB
-        (the default beside a per-axis configuration)."""
-        return cls(dt=kalman.dt, gyro_lsb_per_rad=kalman.gyro_lsb_per_dps * 180 / math.pi)
-
-    def registers(self):
-        p, dt = self.params, self.dt
-        gain = lambda tau: int(round((1 - math.exp(-dt / tau)) * ONE))      # Q0.30
-        # rest tests: deviations in Q.6 counts (x / 2¹⁰ of Q16.16), squared and summed with
-        # shift 14: thresholds in counts² / 4
-        rest_gyro = p.rest_gyro * self.gyro_lsb_per_rad
-        rest_acc = p.rest_acc * self.accel_lsb_per_ms2
-        k_rest, k_ref, k_fast, k_new = sample_counts(p, dt)
-        regs = {
-            # v [Q2.30 rad] = mul(ω·2¹⁶ − b, K_RAD, 30): T / LSB_per_rad · 2⁴⁴
-            "K_RAD": int(round(dt / self.gyro_lsb_per_rad * 2 ** 44)),
-            "A_DET": gain(0.5), "A_REST": gain(p.tau_rest), "A_ACC": gain(p.tau_acc),
-            "A_MAG": gain(p.tau_mag), "A_MAG_FAST": gain(min(p.tau_mag, 0.2)),
-            "A_REF": gain(p.tau_ref),
-            "REST_GYRO2": int(round(rest_gyro ** 2 / 4)),
-            "REST_ACC2": int(round(rest_acc ** 2 / 4)),
-            "GATE_NORM": int(round(p.mag_norm_gate * ONE)),
-            "GATE_DIP": int(round(p.mag_dip_gate / 360 * 2 ** 32)),
-            "K_REST": k_rest, "K_REF": k_ref, "K_FAST": k_fast, "K_NEW": k_new,
-        }
-        for name, value in regs.items():
-            if not 0 <= value < 2 ** 31:
-                raise ValueError(f"flagship register {name} = {value} does not fit 31 bits "
-                                 f"(dt {dt} s, {self.gyro_lsb_per_rad:.1f} LSB/rad)")
-        return regs
 
 
 def _qmul(p, q, st):

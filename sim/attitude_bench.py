@@ -12,13 +12,11 @@ from dataclasses import dataclass, field
 import numpy as np
 from amaranth.sim import Simulator
 
-from ..hdl.attitude_program import CONTROL_ADDR, control_word
 from ..reference.fixed_point import RESULT_FIELDS, RESULT_FLAGS
 from .streams import stream_put
 
 
-__all__ = ["EngineRun", "RESULT_FIELDS", "run_engine", "first_mismatch", "control_word",
-           "random_inputs"]
+__all__ = ["EngineRun", "RESULT_FIELDS", "run_engine", "first_mismatch", "random_inputs"]
 
 
 @dataclass

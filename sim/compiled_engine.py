@@ -35,7 +35,7 @@ from amaranth.lib import data, wiring
 from amaranth.lib.wiring import In, Out
 
 from ..hdl.attitude_isa import REG_BITS
-from ..hdl.sample import AttitudeFlags
+from ..hdl.attitude_result import AttitudeFlags
 from .attitude_bench import EngineRun
 
 

@@ -24,6 +24,7 @@ from .mpu9250_model import MPU9250Model, MPU9250Timing
 from ..hdl import ak8963_regs as A
 from .ak8963_model import AK8963Model, AK8963Timing
 from .sources import counting_field, counting_source
+from .streams import StreamMonitor
 from ..host.protocol import to_python
 
 
@@ -55,10 +56,22 @@ class CosimHarness(Elaboratable):
         self.sda_model_low = Signal()
         self.scl = Signal(init=1)
         self.sda = Signal(init=1)
+        self.monitors = []
+
+    def monitor(self, stream, name):
+        """Watch ``stream`` of the design for the stream rules (``StreamMonitor``); call
+        ``check_monitors`` at the end of the run. Before the simulator is made."""
+        self.monitors.append(StreamMonitor(stream, name))
+
+    def check_monitors(self, ctx):
+        for monitor in self.monitors:
+            monitor.check(ctx)
 
     def elaborate(self, platform):
         m = Module()
         m.submodules.dut = self.dut
+        for index, monitor in enumerate(self.monitors):
+            m.submodules[f"monitor{index}"] = monitor
         m.d.sync += self.cycle.eq(self.cycle + 1)
         m.d.comb += self.wake.eq(self.cycle == self.wake_at)
         if self.spi is not None:
@@ -203,7 +216,6 @@ class SimSetup:
 
     def driver_timing(self):
         return DriverTiming(time_scale=self.delay_scale, mag_power_down_s=self.mag_power_down_s,
-                            int_timeout_s=4 * self.sample_period_s + 0.05 * self.delay_scale,
                             sample_period_s=self.sample_period_s,
                             # the AK8963's period is scaled like the MPU9250's
                             mag_timeout_s=DriverTiming.mag_timeout_s * self.odr_scale)
@@ -315,6 +327,7 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
         bus = I2CBusModel(lookup, **(bus_kw or {}))
     if injector is not None:
         injector.mpu, injector.bus = model, bus
+    harness.monitor(dut.samples, "samples")
     sim = Simulator(harness)
     sim.add_clock(1 / setup.clk_freq)
     if model is not None or bus is not None:
@@ -372,6 +385,7 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
                     observe(cycle + 1, taken, payload, status)
         except Done:
             out["asa"] = to_python(ctx.get(dut.asa))
+            harness.check_monitors(ctx)
     sim.add_testbench(testbench)
 
     start = time.perf_counter()
@@ -461,6 +475,8 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
         max_cycles = int(setup.bring_up_budget_cycles() + 40_000 +
                          (samples + 3) * period * 1.5)
     harness = CosimHarness(core, spi=core.imu, int_pin=core.imu_int)
+    harness.monitor(core.engine.results, "results")
+    harness.monitor(core.arbiter.o_stream, "frame bytes")
     sim = Simulator(harness)
     sim.add_clock(1 / setup.clk_freq)
     attach_mpu9250(sim, model, harness, setup.clk_freq)
@@ -505,6 +521,7 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
             await ctx.changed(results.valid, core.imu_int).delay((max_cycles - cycle) * period)
         out["end"] = (ctx.get(harness.cycle), to_python(ctx.get(core.counters)),
                       to_python(ctx.get(core.status)), to_python(ctx.get(core.asa)))
+        harness.check_monitors(ctx)
     sim.add_testbench(testbench)
     start = time.perf_counter()
     if vcd:

@@ -9,24 +9,20 @@ import pathlib
 
 import numpy as np
 import pytest
-from amaranth.sim import Simulator
 from hypothesis import given, settings, strategies as st
 
 from mpu9250_ahrs.hdl.attitude_engine import WORST_UPDATE_CYCLES, AttitudeEngine
-from mpu9250_ahrs.hdl.attitude_program import CONFIG_REGS, CONTROL_ADDR, REGS
-from mpu9250_ahrs.hdl.cordic import CORDIC
-from mpu9250_ahrs.hdl.divider import Divider
-from mpu9250_ahrs.hdl.multiplier import Multiplier
+from mpu9250_ahrs.hdl.attitude_program import CONFIG_REGS, CONTROL_ADDR, REGS, control_word
 from mpu9250_ahrs.reference.fixed_point import (CalibrationFixed, KalmanFixedConfig,
-                                                attitude_fixed, bam_to_deg, cordic_rotate,
-                                                cordic_vector, div_q24, Status)
+                                                attitude_fixed, bam_to_deg)
 from mpu9250_ahrs.reference.frames import body_to_mag
 from mpu9250_ahrs.reference.kalman import KalmanParams, kalman_filter
-from mpu9250_ahrs.sim.attitude_bench import (control_word, first_mismatch, random_inputs,
-                                             run_engine)
+from mpu9250_ahrs.sim.attitude_bench import first_mismatch, random_inputs, run_engine
 from mpu9250_ahrs.sim.motion import SensorModel, concat, static, turntable
-from mpu9250_ahrs.sim.recording import load_broad, quantise
+from mpu9250_ahrs.reference.recording import load_broad, quantise
 from mpu9250_ahrs.sim.streams import stream_put
+
+from .start_done import run_unit
 
 
 REG_NAMES = {addr: name for name, addr in CONFIG_REGS.items()}
@@ -55,90 +51,6 @@ def angle_diff(a, b):
 
 SENSOR = SensorModel(gyro_noise=np.radians(0.05), accel_noise=0.02, mag_noise=0.3,
                      gyro_bias=np.radians([0.3, -0.2, 0.1]), seed=3)
-
-
-# -- units -----------------------------------------------------------------------------------
-
-def _run_unit(dut, testbench):
-    sim = Simulator(dut)
-    sim.add_clock(1e-6)
-    sim.add_testbench(testbench)
-    sim.run()
-
-
-async def _operate(ctx, dut, **inputs):
-    """Set the inputs, pulse ``start``, wait for ``done``."""
-    for name, value in inputs.items():
-        ctx.set(getattr(dut, name), value)
-    ctx.set(dut.start, 1)
-    await ctx.tick()
-    ctx.set(dut.start, 0)
-    await ctx.tick().until(dut.done)
-
-
-def test_cordic_against_reference():
-    rng = np.random.default_rng(5)
-    vectors = [(0, 0), (-5, 0), (0, -7), (-(2 ** 31), -(2 ** 31)), (2 ** 31 - 1, 2 ** 31 - 1),
-               (-(2 ** 31), 2 ** 31 - 1), (1, 0), (-1, -1)]
-    vectors += [tuple(int(v) for v in rng.integers(-2 ** 31, 2 ** 31, 2)) for _ in range(12)]
-    angles = [0, 2 ** 30, -2 ** 30, 2 ** 30 + 1, -(2 ** 31), 2 ** 31 - 1]
-    angles += [int(v) for v in rng.integers(-2 ** 31, 2 ** 31, 10)]
-    dut = CORDIC()
-
-    async def testbench(ctx):
-        for x, y in vectors:
-            await _operate(ctx, dut, x_in=x, y_in=y, mode=0)
-            st = Status()
-            want = cordic_vector(x, y, st)
-            got = (ctx.get(dut.angle), ctx.get(dut.magnitude))
-            assert got == want, f"vector({x}, {y}): {got} != {want}"
-            assert ctx.get(dut.saturated) == st.saturated
-        for a in angles:
-            await _operate(ctx, dut, angle_in=a, mode=1)
-            got = (ctx.get(dut.cos), ctx.get(dut.sin))
-            assert got == cordic_rotate(a), f"rotate({a}): {got} != {cordic_rotate(a)}"
-    _run_unit(dut, testbench)
-
-
-def test_divider_against_reference():
-    rng = np.random.default_rng(6)
-    cases = [(1, 0), (5, -3), (-(2 ** 31), 1), (2 ** 31 - 1, 1), (2 ** 31 - 1, 2 ** 31 - 1),
-             (-(2 ** 31), 2 ** 31 - 1), (0, 5), (-7, 3), (3, 7), (2 ** 24, 2 ** 17),
-             (2 ** 24, 2 ** 17 + 1), (-(2 ** 24), 2 ** 17 + 1),
-             # the saturation edges: 127·2²⁴ fits, 128·2²⁴ = 2³¹ does not; −128·2²⁴ = −2³¹ fits
-             (127, 1), (128, 1), (-128, 1), (-129, 1), (-1, 1), (-1, 2 ** 31 - 1), (-6, 3)]
-    cases += [tuple(int(v) for v in (rng.integers(-2 ** 31, 2 ** 31), rng.integers(1, 2 ** 31)))
-              for _ in range(15)]
-    cases += [(int(rng.integers(-2 ** 26, 2 ** 26)), int(rng.integers(2 ** 20, 2 ** 28)))
-              for _ in range(15)]
-    dut = Divider()
-
-    async def testbench(ctx):
-        for num, den in cases:
-            await _operate(ctx, dut, num=num, den=den)
-            st = Status()
-            want = div_q24(num, den, st)
-            assert ctx.get(dut.quotient) == want, f"div({num}, {den})"
-            assert ctx.get(dut.saturated) == st.saturated, f"div({num}, {den}) flag"
-    _run_unit(dut, testbench)
-
-
-@settings(max_examples=200, deadline=None)
-@given(st.lists(st.tuples(st.integers(-2 ** 31, 2 ** 31 - 1), st.integers(-2 ** 31, 2 ** 31 - 1)),
-                min_size=1, max_size=8))
-def test_multiplier_from_18x18_blocks(pairs):
-    """The four-block decomposition ``report`` synthesises is exact, extremes included."""
-    pairs = pairs + [(-2 ** 31, -2 ** 31), (-2 ** 31, 2 ** 31 - 1), (2 ** 17 - 1, -1)]
-    dut = Multiplier(split=True)
-
-    async def testbench(ctx):
-        for a, b in pairs:
-            ctx.set(dut.a, a)
-            ctx.set(dut.b, b)
-            assert ctx.get(dut.p) == a * b, f"{a} × {b}"
-    sim = Simulator(dut)
-    sim.add_testbench(testbench)
-    sim.run()
 
 
 # -- the engine ---------------------------------------------------------------------------------
@@ -273,7 +185,7 @@ def test_register_read_back():
         got["R2"] = await read(ctx, CONFIG_REGS["R"])
         got["control"] = await read(ctx, CONTROL_ADDR)
         got["p00"] = await read(ctx, REGS["P0_00"])
-    _run_unit(dut, testbench)
+    run_unit(dut, testbench)
     assert got == {"R": KalmanFixedConfig().registers()["R"], "R2": 12345, "control": 1,
                    "p00": KalmanFixedConfig().registers()["P0"]}
 
@@ -305,7 +217,7 @@ def test_result_holds_still_through_a_reset_and_state_writes():
         ctx.set(dut.results.ready, 0)
         await ctx.tick()
         seen["busy_after_take"] = ctx.get(dut.busy)
-    _run_unit(dut, testbench)
+    run_unit(dut, testbench)
     assert seen == {"refused": 4, "busy_after_take": 1}
 
 

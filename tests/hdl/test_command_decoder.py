@@ -15,6 +15,7 @@ from mpu9250_ahrs.hdl.command_decoder import (BOARD_REGS, COMMANDS, REGMAP_VERSI
                                               CommandDecoder)
 from mpu9250_ahrs.hdl.pwm import PWM_REGS, PWMOutputs
 from mpu9250_ahrs.host.protocol import encode_command, encode_frame, to_python
+from mpu9250_ahrs.sim.streams import check_stream_rules
 
 TIMEOUT = 200
 VERSION = 0x0002ABCD
@@ -42,6 +43,8 @@ def run(data, *, gaps=None, busy_cycles=3):
     dec = h.decoder
     sim = Simulator(h)
     sim.add_clock(1e-6)
+    for name in ("replies", "cfg", "cfg_read"):
+        check_stream_rules(sim, getattr(dec, name), name)
     writes, replies = [], []
     out = {}
 

@@ -11,6 +11,7 @@ from mpu9250_ahrs.hdl.command_decoder import Reply
 from mpu9250_ahrs.hdl.frame_arbiter import FrameArbiter
 from mpu9250_ahrs.hdl.telemetry import SensorFrame, TelemetryFramer
 from mpu9250_ahrs.host.protocol import decode_frames, unpack
+from mpu9250_ahrs.sim.streams import check_stream_rules
 
 
 class Pair(Elaboratable):
@@ -34,6 +35,7 @@ def test_frames_whole_replies_first_sequence_numbered():
     dut = Pair()
     sim = Simulator(dut)
     sim.add_clock(1e-6)
+    check_stream_rules(sim, dut.arbiter.o_stream, "link bytes")
     out = []
     sensor = [unpack(SensorFrame, rng.getrandbits(data.Layout.cast(SensorFrame).size))
               for _ in range(4)]

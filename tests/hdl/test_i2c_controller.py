@@ -7,7 +7,7 @@ from amaranth.sim import Simulator
 from mpu9250_ahrs.hdl.i2c_controller import I2CController, I2COp, I2CTiming
 from mpu9250_ahrs.sim.cosim import CosimHarness, attach_models
 from mpu9250_ahrs.sim.i2c_bus import I2CBusModel
-from mpu9250_ahrs.sim.streams import stream_put
+from mpu9250_ahrs.sim.streams import check_stream_rules, stream_get, stream_put
 
 
 CLK = 12e6
@@ -50,12 +50,12 @@ def run(ops, *, timing=None, bus_kw=None, before=None):
                       **(bus_kw or {}))
     sim = Simulator(harness)
     sim.add_clock(1 / CLK)
+    check_stream_rules(sim, dut.o_stream, "results")
     attach_models(sim, harness, CLK, mpu=None, bus=bus)
     results = []
     status = {}
 
     async def tb(ctx):
-        ctx.set(dut.o_stream.ready, 1)
         await ctx.tick().repeat(10)          # let the lines settle through the synchronisers
         for index, (op, data, ack) in enumerate(ops):
             if before and index in before:
@@ -63,15 +63,8 @@ def run(ops, *, timing=None, bus_kw=None, before=None):
                 if pause:
                     await ctx.tick().repeat(pause)
             await stream_put(ctx, dut.i_stream, {"op": op, "data": data, "ack": ack})
-            for _ in range(200_000):
-                _, _, valid, payload = await ctx.tick().sample(dut.o_stream.valid,
-                                                               dut.o_stream.payload)
-                if valid:
-                    results.append({"data": payload.data, "ack": payload.ack,
-                                    "error": payload.error})
-                    break
-            else:
-                raise AssertionError(f"no result for {op}")
+            payload = await stream_get(ctx, dut.o_stream, timeout=200_000)
+            results.append({"data": payload.data, "ack": payload.ack, "error": payload.error})
         await ctx.tick().repeat(50)
         st = ctx.get(dut.status)
         status.update(timeout=st.timeout, bus_stuck=st.bus_stuck,

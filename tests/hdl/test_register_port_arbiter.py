@@ -4,6 +4,7 @@ response, bytes and responses go to the owner only."""
 from amaranth.sim import Simulator
 
 from mpu9250_ahrs.hdl.register_port_arbiter import RegisterPortArbiter
+from mpu9250_ahrs.sim.streams import check_stream_rules
 
 
 def test_priority_and_ownership():
@@ -52,6 +53,10 @@ def test_priority_and_ownership():
 
     sim = Simulator(dut)
     sim.add_clock(1e-6)
+    for name in ("first", "second"):
+        for member in ("rx", "rsp"):
+            check_stream_rules(sim, getattr(getattr(dut, name), member), f"{name}.{member}")
+    check_stream_rules(sim, dut.port.cmd, "port.cmd")
     sim.add_testbench(port_model)
     # both offer in the same cycle: the first goes first, and again when it offers its next
     # command at once; the second's command waits, whole

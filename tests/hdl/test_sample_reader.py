@@ -4,6 +4,7 @@ freshness (DRDY after a read without it, or new bytes), restarts and the stale t
 from amaranth.sim import Simulator
 
 from mpu9250_ahrs.hdl.sample_reader import BAD_BURST_LIMIT, SampleReader
+from mpu9250_ahrs.sim.streams import check_stream_rules
 
 from .register_port_model import RegisterPortModel
 
@@ -53,6 +54,8 @@ def run(bursts, *, mag_ok=1, extra_periods=0):
                         "int_timeout": ctx.get(dut.int_timeout), **pulses})
     sim = Simulator(dut)
     sim.add_clock(1e-6)
+    check_stream_rules(sim, dut.samples, "samples")
+    check_stream_rules(sim, dut.port.cmd, "commands")
     sim.add_testbench(testbench)
     sim.run()
     return samples, log

@@ -4,7 +4,7 @@ import pytest
 from amaranth.sim import Simulator
 
 from mpu9250_ahrs.hdl.spi_controller import SPIController, SPITiming
-from mpu9250_ahrs.sim.streams import stream_put
+from mpu9250_ahrs.sim.streams import check_stream_rules, stream_put
 
 
 def response_byte(index):
@@ -17,6 +17,7 @@ def run(timing, transactions, *, consumer_stall=0, vcd=None):
     dut = SPIController(timing)
     sim = Simulator(dut)
     sim.add_clock(1e-6)
+    check_stream_rules(sim, dut.o_stream, "received bytes")
     dev = {"rx": [], "events": [], "byte_in": 0, "bits": 0, "sent": 0, "done": False}
     got = []
     total = sum(len(b) for b, _ in transactions)

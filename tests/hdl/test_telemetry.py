@@ -12,7 +12,7 @@ from mpu9250_ahrs.reference.fixed_point import attitude_fixed
 from mpu9250_ahrs.sim.attitude_bench import EngineRun, first_mismatch
 from mpu9250_ahrs.sim.cosim import SimSetup, sample_matches
 from mpu9250_ahrs.sim.cosim import run_core as cosim_run_core
-from mpu9250_ahrs.sim.streams import stream_put
+from mpu9250_ahrs.sim.streams import check_stream_rules, stream_put
 from mpu9250_ahrs.host.protocol import (FrameDecoder, FrameError, crc16, decode_frames,
                                         encode_frame, unpack)
 from mpu9250_ahrs.sim.uart import attach_uart_receiver
@@ -56,6 +56,7 @@ def test_framer_against_decoder(buffered):
     dut = TelemetryFramer(buffered=buffered)
     sim = Simulator(dut)
     sim.add_clock(1e-6)
+    check_stream_rules(sim, dut.o_stream, "frame bytes")
     out = []
     copy_cycles = []
 

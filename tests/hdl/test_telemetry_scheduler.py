@@ -4,6 +4,7 @@ import pytest
 from amaranth.sim import Simulator
 
 from mpu9250_ahrs.hdl.telemetry_scheduler import TelemetryScheduler
+from mpu9250_ahrs.sim.streams import check_stream_rules
 
 
 @pytest.mark.parametrize("divider", [1, 3])
@@ -15,6 +16,7 @@ def test_every_nth_result_framed_when_the_framer_is_idle(divider):
     dut = TelemetryScheduler()
     sim = Simulator(dut)
     sim.add_clock(1e-6)
+    check_stream_rules(sim, dut.frames, "frames")
     skipped = [0, 0, 2, 0, 1, 0, 0, 0, 3, 0]
     busy = {4, 5}
     framed, counters_seen = [], []

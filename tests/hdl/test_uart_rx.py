@@ -5,6 +5,7 @@ import pytest
 from amaranth.sim import Simulator
 
 from mpu9250_ahrs.hdl.uart_rx import UARTReceiver
+from mpu9250_ahrs.sim.streams import check_stream_rules
 
 
 def waveform(data, bit_cycles, *, stop=1):
@@ -25,6 +26,7 @@ def run(segments, *, divisor, ready=True):
     dut = UARTReceiver(divisor=divisor)
     sim = Simulator(dut)
     sim.add_clock(1e-6)
+    check_stream_rules(sim, dut.o_stream, "received bytes")
     got = []
 
     async def line(ctx):

@@ -14,7 +14,7 @@ from mpu9250_ahrs.reference.fixed_point import (ATAN_TABLE, CORDIC_GAIN, KalmanF
                                                 rshift_round, wrap32)
 from mpu9250_ahrs.reference.kalman import KalmanParams, kalman_filter
 from mpu9250_ahrs.sim.motion import SensorModel, concat, random_motion, static, turntable
-from mpu9250_ahrs.sim.recording import load_broad, quantise
+from mpu9250_ahrs.reference.recording import load_broad, quantise
 
 LSB = 16.4
 

@@ -12,7 +12,7 @@ from mpu9250_ahrs.reference.flagship_fixed import (FlagshipFixedConfig, flagship
                                                    q30_to_float)
 from mpu9250_ahrs.reference.frames import orientation_errors
 from mpu9250_ahrs.sim.motion import SensorModel, concat, random_motion, static, turn, turntable
-from mpu9250_ahrs.sim.recording import Scales, load_broad, quantise, to_units
+from mpu9250_ahrs.reference.recording import Scales, load_broad, quantise, to_units
 
 SCALES = Scales()
 SENSOR = SensorModel(gyro_noise=np.radians(0.05), accel_noise=0.02, mag_noise=0.3,

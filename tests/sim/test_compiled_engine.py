@@ -20,7 +20,7 @@ from mpu9250_ahrs.reference.frames import body_to_mag
 from mpu9250_ahrs.sim.attitude_bench import RESULT_FIELDS, first_mismatch, run_engine
 from mpu9250_ahrs.sim.compiled_engine import CompiledEngine, replay_gateware
 from mpu9250_ahrs.sim.motion import SensorModel, concat, random_motion, static
-from mpu9250_ahrs.sim.recording import Scales, load_broad, quantise
+from mpu9250_ahrs.reference.recording import Scales, load_broad, quantise
 
 from tests.conftest import require_tool
 

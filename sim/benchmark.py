@@ -1,6 +1,6 @@
 """The comparison table on BROAD recordings, and the figure.
 
-    python -m mpu9250_ahrs.reference.benchmark ../shared/data/broad/*.hdf5 \\
+    python -m mpu9250_ahrs.sim.benchmark ../shared/data/broad/*.hdf5 \\
         [--json results.json] [--figure trial.png] [--jobs 2]
 
 Every filter gets the same quantised inputs (MPU9250 ±2000 °/s, ±16 g; AK8963 0.15 µT/LSB) and
@@ -20,10 +20,10 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
-from ..sim.recording import Scales, load_broad, quantise, to_units
-from .compare import external_filters
-from .evaluate import run_filter, run_fixed, score
-from .kalman import KalmanParams
+from ..reference.recording import Scales, load_broad, quantise, to_units
+from ..reference.compare import external_filters
+from ..reference.evaluate import run_filter, run_fixed, score
+from ..reference.kalman import KalmanParams
 
 
 __all__ = ["FILTER_SET", "run_trial", "main"]
@@ -67,8 +67,8 @@ def run_trial(path, with_fixed=True):
         elif kind == "fixed":
             quat = fixed[name] = run_fixed(name, *counts, rec.dt, **units, **params)
         else:
-            from ..sim.compiled_engine import run_gateware
-            from .flagship_fixed import q30_to_float
+            from .compiled_engine import run_gateware
+            from ..reference.flagship_fixed import q30_to_float
             run = run_gateware(name, *counts, rec.dt, **units, **params)[0]
             quat = q30_to_float(run.quat)
             extra = {"bit_exact": bool(np.array_equal(quat, fixed.get(name))),
@@ -103,7 +103,7 @@ def figure(path, out_png, filter_name="flagship"):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from .frames import quat_to_euler
+    from ..reference.frames import quat_to_euler
 
     rec = load_broad(path)
     gyr, acc, mag = to_units(*quantise(rec.gyr, rec.acc, rec.mag))
@@ -124,7 +124,7 @@ def figure(path, out_png, filter_name="flagship"):
 
 
 def main(argv=None):
-    p = argparse.ArgumentParser(prog="python -m mpu9250_ahrs.reference.benchmark",
+    p = argparse.ArgumentParser(prog="python -m mpu9250_ahrs.sim.benchmark",
                                 description=__doc__.split("\n\n")[0])
     p.add_argument("files", nargs="+")
     p.add_argument("--json", help="write all figures as JSON")

@@ -1,0 +1,50 @@
+"""The driver's status layout (``MPU9250Driver.status``, framed with every sample).
+
+``DriverStatus`` (the driver's ``status`` port, always valid):
+- ``streaming``: bring-up finished and the driver is reading samples.
+- ``whoami_error``: the last WHO_AM_I check read a value not in the accepted list.
+- ``no_response``: that value was 0x00 or 0xFF: MISO stuck or the sensor absent.
+- ``int_timeout``: no data-ready interrupt came within the timeout; the driver restarted
+  bring-up. Cleared by the next sample.
+- ``restarts``: bring-up restarts since power-on (after a failed check, a time-out or stuck
+  data), saturating at 255.
+- ``who_am_i``: the last WHO_AM_I value read.
+- ``mag_ok``: the AK8963 is up (WIA right, fuse ROM read, continuous 100 Hz 16-bit mode).
+- ``mag_absent``: the AK8963 did not acknowledge (I2C NACK, SLV4_NACK) or an SLV4 transfer
+  timed out, at bring-up or at a re-initialisation, or (I2C wiring) a per-sample read failed;
+  ``mag_ok`` is 0 meanwhile. Cleared when a re-initialisation brings it up again.
+- ``mag_wia_error``: the AK8963 answered with a WIA other than 0x48; cleared likewise.
+- ``mag_stale``: no new field for ``DriverTiming.mag_timeout_s`` (three AK8963 periods by
+  default) while streaming: the AK8963 was lost, reset or stopped measuring. ``mag_ok`` drops
+  and the driver re-initialises the AK8963 (the magnetometer part of bring-up, between
+  samples, accel/gyro still flowing), again every time-out until it answers. Cleared by the
+  next new field.
+- ``bad_burst``: the last sample burst failed its checks (data line stuck, no data ready);
+  after ``BAD_BURST_LIMIT`` in a row the driver restarts bring-up. Cleared by a good burst.
+- ``bus_timeout``, ``bus_stuck``, ``bus_arbitration`` (I2C wiring; 0 with SPI): the I2C
+  controller's last failure: a device held SCL low past the time-out, SDA stayed low through
+  nine recovery clocks, or SDA read low while the controller sent a 1. Set by the failing
+  operation, cleared by the next START that gets the bus.
+"""
+
+from amaranth.lib import data
+
+
+__all__ = ["DriverStatus"]
+
+
+class DriverStatus(data.Struct):
+    streaming: 1
+    whoami_error: 1
+    no_response: 1
+    int_timeout: 1
+    restarts: 8
+    who_am_i: 8
+    mag_ok: 1
+    mag_absent: 1
+    mag_wia_error: 1
+    mag_stale: 1
+    bad_burst: 1
+    bus_timeout: 1
+    bus_stuck: 1
+    bus_arbitration: 1

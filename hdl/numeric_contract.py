@@ -1,0 +1,237 @@
+"""The numeric contract between the gateware and the reference: what both must agree on, in one
+place that both import (the gateware imports nothing else from ``reference/``).
+
+- The CORDIC's ROM: ``CORDIC_ITERATIONS``, ``ATAN_TABLE`` (atan 2⁻ⁱ in BAM32, rounded to
+  nearest) and ``INV_GAIN_Q30`` (1/K in Q1.30), written out as the gateware holds them. The
+  reference computes its own from ``math.atan`` (``reference.fixed_point``) and a test checks
+  that the two agree, so neither is a copy of the other.
+- The run-time registers of the filters and the calibration, from values in physical units:
+  ``KalmanFixedConfig`` (per-step values of the per-axis filters), ``FilterRates`` (the same in
+  rates, valid at any sample rate), ``FlagshipParams`` / ``FlagshipFixedConfig`` (the flagship
+  filter) and ``CalibrationFixed``. Each ``registers()`` gives the integer each register holds,
+  by its name in the engine's register map (``hdl/attitude_program.py``); the formats are
+  ``reference/FIXED_POINT.md``'s.
+
+Plain Python (no Amaranth): the host tools and the reference import it too.
+"""
+
+import math
+from dataclasses import dataclass
+
+
+__all__ = ["CORDIC_ITERATIONS", "ATAN_TABLE", "INV_GAIN_Q30", "CalibrationFixed",
+           "calibration_registers", "calibration_of",
+           "KalmanFixedConfig", "FilterRates", "FlagshipParams", "sample_counts",
+           "FlagshipFixedConfig"]
+
+
+# ones in the register formats Q2.14, Q8.24 and Q2.30
+_Q14, _Q24, _Q30 = 1 << 14, 1 << 24, 1 << 30
+
+# 16 iterations leave at most atan(2⁻¹⁵) = 0.0018° of angle: far below the sensors' noise, and
+# a shift amount of 4 bits and a 16-entry table in the gateware
+CORDIC_ITERATIONS = 16
+ATAN_TABLE = (0x20000000, 0x12e4051e, 0x09fb385b, 0x051111d4, 0x028b0d43, 0x0145d7e1,
+              0x00a2f61e, 0x00517c55, 0x0028be53, 0x00145f2f, 0x000a2f98, 0x000517cc,
+              0x00028be6, 0x000145f3, 0x0000a2fa, 0x0000517d)
+# 1/K, K = ∏ √(1 + 2⁻²ⁱ) over the 16 iterations: rotation mode starts from (1/K, 0) so cos and
+# sin come out unscaled; vectoring magnitudes are multiplied by it for the true length
+INV_GAIN_Q30 = 0x26dd3b6a
+
+
+# -- calibration ------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class CalibrationFixed:
+    """Run-time calibration registers (integers; FIXED_POINT.md, "Calibration").
+
+    gyro_offset: counts; accel_offset: counts; accel_scale: Q2.14 (16384 = 1);
+    hard_iron: counts in body axes, after the ASA adjustment; soft_iron: 3×3 row-major, Q2.14.
+    """
+    gyro_offset: tuple = (0, 0, 0)
+    accel_offset: tuple = (0, 0, 0)
+    accel_scale: tuple = (_Q14, _Q14, _Q14)
+    hard_iron: tuple = (0, 0, 0)
+    soft_iron: tuple = (_Q14, 0, 0, 0, _Q14, 0, 0, 0, _Q14)
+
+    @classmethod
+    def from_units(cls, *, gyro_offset=(0, 0, 0), accel_offset=(0, 0, 0),
+                   accel_scale=(1, 1, 1), hard_iron=(0, 0, 0),
+                   soft_iron=((1, 0, 0), (0, 1, 0), (0, 0, 1))):
+        """From calibration results in counts (``reference.calibration``): offsets rounded,
+        scale factors and the soft-iron matrix to Q2.14. ``accel_scale`` multiplies (use
+        1/scale from ``accel_six_pose``). Any nesting of numbers (a NumPy array too)."""
+        def flat(v):
+            try:
+                return [x for item in v for x in flat(item)]
+            except TypeError:
+                return [float(v)]
+        r = lambda v, scale=1: tuple(int(round(x * scale)) for x in flat(v))
+        return cls(gyro_offset=r(gyro_offset), accel_offset=r(accel_offset),
+                   accel_scale=r(accel_scale, _Q14), hard_iron=r(hard_iron),
+                   soft_iron=r(soft_iron, _Q14))
+
+
+def calibration_registers(cal):
+    """A ``CalibrationFixed`` as register values by name (the engine's register map)."""
+    regs = {}
+    for i in range(3):
+        regs[f"GYRO_OFF{i}"], regs[f"ACC_OFF{i}"] = cal.gyro_offset[i], cal.accel_offset[i]
+        regs[f"ACC_SCALE{i}"], regs[f"HARD{i}"] = cal.accel_scale[i], cal.hard_iron[i]
+        for j in range(3):
+            regs[f"SOFT{i}{j}"] = cal.soft_iron[3 * i + j]
+    return regs
+
+
+def calibration_of(regs):
+    """The ``CalibrationFixed`` that register values by name hold (``calibration_registers``
+    backwards)."""
+    return CalibrationFixed(
+        gyro_offset=tuple(regs[f"GYRO_OFF{i}"] for i in range(3)),
+        accel_offset=tuple(regs[f"ACC_OFF{i}"] for i in range(3)),
+        accel_scale=tuple(regs[f"ACC_SCALE{i}"] for i in range(3)),
+        hard_iron=tuple(regs[f"HARD{i}"] for i in range(3)),
+        soft_iron=tuple(regs[f"SOFT{i}{j}"] for i in range(3) for j in range(3)))
+
+
+# -- the per-axis filters ---------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class KalmanFixedConfig:
+    """Run-time registers of the filters (values in real units; ``registers`` gives their
+    integer encodings, see FIXED_POINT.md)."""
+    dt: float = 0.01
+    gyro_lsb_per_dps: float = 16.4
+    q_angle: float = 0.2         # deg²
+    q_bias: float = 0.1          # (deg/s)²
+    r: float = 2.0               # deg²
+    p0: float = 1.0
+    a: float = 0.98              # complementary filter coefficient
+    euler_rates: bool = False    # propagate with Euler-angle rates, not body rates (the preset)
+
+    def registers(self):
+        regs = {
+            # BAM per gyro count per sample period, Q14: Δθ = (ω_counts · RATE) >> 14
+            "RATE": int(round(self.dt * 2 ** 32 / (360.0 * self.gyro_lsb_per_dps) * 2 ** 14)),
+            "T": int(round(self.dt * _Q24)),                         # Q0.24 seconds
+            "Q_ANGLE": int(round(self.q_angle * _Q24)),              # Q8.24 deg²
+            "Q_BIAS": int(round(self.q_bias * _Q24)),                 # Q8.24 (deg/s)²
+            "R": int(round(self.r * _Q24)),                          # Q8.24 deg²
+            "P0": int(round(self.p0 * _Q24)),
+            # Δb [Q16 counts] = (t [BAM/s] · BIAS_SCALE) >> 24: 360/2³² deg/BAM · LSB · 2¹⁶
+            "BIAS_SCALE": int(round(360.0 * self.gyro_lsb_per_dps / 2 ** 16 * _Q24)),
+            "ONE_MINUS_A": int(round((1 - self.a) * _Q24)),         # Q0.24
+            "EULER_RATES": int(bool(self.euler_rates)),
+        }
+        if not 0 < regs["RATE"] < 2 ** 31:
+            raise ValueError(f"RATE {regs['RATE']} does not fit 31 bits: dt "
+                             f"{self.dt} s is too long for {self.gyro_lsb_per_dps} LSB/(°/s)")
+        return regs
+
+
+@dataclass(frozen=True)
+class FilterRates:
+    """The per-axis filters' coefficients in physical units, valid at any sample rate.
+
+    ``q_angle`` (deg²/s) and ``q_bias`` ((°/s)²/s) are the process-noise densities of the
+    Kalman filter's angle and gyro-bias states: per step they are multiplied by the sample
+    period. ``r`` (deg²) is the variance of one accelerometer angle measurement and ``p0``
+    (deg², (°/s)²) the initial covariance: both per measurement, whatever the rate. ``tau``
+    (s) is the complementary filter's time constant: a = τ / (τ + dt).
+
+    The defaults are the published per-step preset (Q angle 0.2 deg², Q bias 0.1 (°/s)²,
+    R 2 deg², a = 0.98) at the rate it was published for, 100 Hz: ``at(0.01, ...)`` gives its
+    registers exactly. ``euler_rates``: the per-axis filters propagate their angles with
+    Euler-angle rates (right at any attitude short of ±90° pitch) instead of the published
+    body rates.
+    """
+    q_angle: float = 20.0
+    q_bias: float = 10.0
+    r: float = 2.0
+    p0: float = 1.0
+    tau: float = 0.49
+    euler_rates: bool = False
+
+    def at(self, dt, gyro_lsb_per_dps=16.4):
+        """The ``KalmanFixedConfig`` (per-step values) for sample period ``dt``."""
+        if dt <= 0 or self.tau <= 0:
+            raise ValueError("FilterRates.at: dt and tau must be positive")
+        return KalmanFixedConfig(dt=dt, gyro_lsb_per_dps=gyro_lsb_per_dps,
+                                 q_angle=self.q_angle * dt, q_bias=self.q_bias * dt, r=self.r,
+                                 p0=self.p0, a=self.tau / (self.tau + dt),
+                                 euler_rates=self.euler_rates)
+
+    @classmethod
+    def from_step(cls, config):
+        """The physical values a per-step ``KalmanFixedConfig`` stands for at its own dt."""
+        dt = config.dt
+        return cls(q_angle=config.q_angle / dt, q_bias=config.q_bias / dt, r=config.r,
+                   p0=config.p0, tau=config.a * dt / (1 - config.a),
+                   euler_rates=config.euler_rates)
+
+
+# -- the flagship filter ----------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class FlagshipParams:
+    """The flagship filter's parameters (``reference.flagship`` says what each does)."""
+    tau_acc: float = 5.0            # s, low-pass of the specific force in the inertial frame
+    tau_mag: float = 15.0           # s, heading correction
+    mag_fast_s: float = 3.0         # s of fast heading convergence at start-up
+    mag_ref_s: float = 2.0          # s over which the reference field is learnt
+    tau_ref: float = 0.5            # s, low-pass of the field's norm and dip while it is learnt
+    mag_norm_gate: float = 0.1
+    mag_dip_gate: float = 10.0      # degrees
+    mag_new_s: float = 20.0
+    rest_gyro: float = math.radians(2.0)   # rad/s
+    rest_acc: float = 0.5           # m/s²
+    rest_s: float = 1.5
+    tau_rest: float = 3.0
+
+
+def sample_counts(params, dt):
+    """The flagship's times as whole sample counts, shared by the float and the fixed-point
+    filter so that both switch at the same sample: (K_REST, K_REF, K_FAST, K_NEW)."""
+    k = lambda seconds: max(1, int(round(seconds / dt)))
+    return k(params.rest_s), k(params.mag_ref_s), k(params.mag_fast_s), k(params.mag_new_s)
+
+
+@dataclass(frozen=True)
+class FlagshipFixedConfig:
+    """Run-time registers of the fixed-point flagship, from the float parameters."""
+    dt: float = 0.01
+    gyro_lsb_per_rad: float = 16.4 * 180 / math.pi
+    accel_lsb_per_ms2: float = 2048 / 9.80665
+    params: FlagshipParams = FlagshipParams()
+
+    @classmethod
+    def matching(cls, kalman):
+        """The published parameters at a ``KalmanFixedConfig``'s sample period and gyro LSB
+        (the default beside a per-axis configuration)."""
+        return cls(dt=kalman.dt, gyro_lsb_per_rad=kalman.gyro_lsb_per_dps * 180 / math.pi)
+
+    def registers(self):
+        p, dt = self.params, self.dt
+        gain = lambda tau: int(round((1 - math.exp(-dt / tau)) * _Q30))     # Q0.30
+        # rest tests: deviations in Q.6 counts (x / 2¹⁰ of Q16.16), squared and summed with
+        # shift 14: thresholds in counts² / 4
+        rest_gyro = p.rest_gyro * self.gyro_lsb_per_rad
+        rest_acc = p.rest_acc * self.accel_lsb_per_ms2
+        k_rest, k_ref, k_fast, k_new = sample_counts(p, dt)
+        regs = {
+            # v [Q2.30 rad] = mul(ω·2¹⁶ − b, K_RAD, 30): T / LSB_per_rad · 2⁴⁴
+            "K_RAD": int(round(dt / self.gyro_lsb_per_rad * 2 ** 44)),
+            "A_DET": gain(0.5), "A_REST": gain(p.tau_rest), "A_ACC": gain(p.tau_acc),
+            "A_MAG": gain(p.tau_mag), "A_MAG_FAST": gain(min(p.tau_mag, 0.2)),
+            "A_REF": gain(p.tau_ref),
+            "REST_GYRO2": int(round(rest_gyro ** 2 / 4)),
+            "REST_ACC2": int(round(rest_acc ** 2 / 4)),
+            "GATE_NORM": int(round(p.mag_norm_gate * _Q30)),
+            "GATE_DIP": int(round(p.mag_dip_gate / 360 * 2 ** 32)),
+            "K_REST": k_rest, "K_REF": k_ref, "K_FAST": k_fast, "K_NEW": k_new,
+        }
+        for name, value in regs.items():
+            if not 0 <= value < 2 ** 31:
+                raise ValueError(f"flagship register {name} = {value} does not fit 31 bits "
+                                 f"(dt {dt} s, {self.gyro_lsb_per_rad:.1f} LSB/rad)")
+        return regs
