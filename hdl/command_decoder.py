@@ -13,11 +13,11 @@ from .attitude_program import (CONTROL_ADDR, CONTROL_KEEP, CONTROL_RESET, FILTER
 from .board_bus import BoardBusSignature
 from .host_port import address_in
 from .config_write import ConfigWrite
-from .telemetry import CRC, SYNC
+from .frame_types import CRC, SYNC, Reply
 
 
 __all__ = ["COMMANDS", "RESULTS", "SPACES", "BOARD_REGS", "REGMAP_VERSION", "MAX_COMMAND_PAYLOAD",
-           "Reply", "CommandStats", "CommandDecoder"]
+           "CommandStats", "CommandDecoder"]
 
 
 # name: (type byte, payload bytes)
@@ -44,19 +44,6 @@ BOARD_REGS = {
 # Bumped whenever an address, a format or a meaning in the register map changes (engine,
 # board, PWM); the host tool refuses to configure a board whose map it does not know.
 REGMAP_VERSION = 2
-
-
-class Reply(data.Struct):
-    """Frame type 0x81: the answer to a command that arrived whole and with a good CRC.
-    ``command`` and ``cmd_seq`` are the command's type and sequence number; ``result`` a
-    ``RESULTS`` code; ``addr`` and ``value``: a read's address and word, a write's address
-    and the value written; for "who": ``addr`` the register-map version, ``value`` the
-    version/build word."""
-    command: 8
-    cmd_seq: 8
-    result: 8
-    addr: 16
-    value: 32
 
 
 class CommandStats(data.Struct):

@@ -5,7 +5,7 @@ from amaranth import *
 from amaranth.lib import stream, wiring
 from amaranth.lib.wiring import In, Out
 
-from .telemetry import FrameByte
+from .frame_types import FrameByte
 
 
 __all__ = ["FrameArbiter"]

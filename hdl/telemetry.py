@@ -1,67 +1,17 @@
 """Telemetry framer: packs a struct (a ``Sample`` plus the driver status, an attitude result,
-a reply to a command) into a frame of the link layer (``hdl/FRAMES.md``).
-
-Frame (all bytes on the wire in this order)
-    ``0xA5 0x5A``  sync
-    ``type``       frame type (``FRAME_TYPES``): 0x01 ``SensorFrame`` (a sample and the driver
-                   status), 0x02 ``AttitudeFrame`` (an attitude result, the sample it came
-                   from, the driver status latched with it, telemetry counters;
-                   ``hdl/telemetry_scheduler.py``), 0x81 ``Reply`` (to a host command,
-                   ``hdl/command_decoder.py``)
-    ``seq``        sequence number: the board's frames are numbered 0, 1, 2 ... (mod 256) in
-                   the order they leave (``FrameArbiter``), whatever their type, so a gap is a
-                   lost frame
-    ``length``     payload length in bytes
-    payload        the frame struct packed as its ``lib.data`` layout says, least significant
-                   byte first (padded with zeros to whole bytes)
-    ``crc``        CRC-16/IBM-3740 (polynomial 0x1021, initial 0xFFFF, no reflection, no final
-                   XOR) over type, seq, length and payload, most significant byte first; why
-                   this one: ``hdl/FRAMES.md``
-
-``mpu9250_ahrs.host.protocol`` decodes frames with the same layouts, so the gateware and the
-host never disagree on a field position.
+a reply to a command) into a frame of the link layer (``hdl/frame_types.py`` has the format and
+the layouts, ``hdl/FRAMES.md`` the reasons).
 """
 
 from amaranth import *
-from amaranth.lib import data, stream, wiring
-from amaranth.lib.crc.catalog import CRC16_IBM_3740
+from amaranth.lib import stream, wiring
 from amaranth.lib.wiring import In, Out
 
+from .frame_types import CRC, SYNC, FrameByte, SensorFrame, payload_bytes, frame_bytes
 from .memories import FrameRAM
-from .driver_status import DriverStatus
-from .sample import Sample
 
 
-__all__ = ["SYNC", "CRC", "HEADER_BYTES", "FrameByte", "SensorFrame", "payload_bytes",
-           "frame_bytes", "TelemetryFramer"]
-
-
-SYNC = (0xA5, 0x5A)
-# Every 1-, 2- and 3-bit error in any frame up to 4,095 bytes: hdl/FRAMES.md says why.
-CRC = CRC16_IBM_3740
-HEADER_BYTES = 5                       # sync (2), type, seq, length; then payload, CRC (2)
-
-
-class FrameByte(data.Struct):
-    """A byte of a frame on its way to the UART; ``last`` marks the frame's final byte (the
-    ``FrameArbiter`` hands the link to another framer only after it)."""
-    data: 8
-    last: 1
-
-
-class SensorFrame(data.Struct):
-    sample: Sample
-    status: DriverStatus
-
-
-def payload_bytes(layout):
-    return (data.Layout.cast(layout).size + 7) // 8
-
-
-def frame_bytes(layout):
-    """Bytes on the wire for a frame of ``layout``: sync (2), type, seq, length, payload,
-    CRC (2)."""
-    return payload_bytes(layout) + HEADER_BYTES + 2
+__all__ = ["TelemetryFramer"]
 
 
 class TelemetryFramer(wiring.Component):

@@ -7,52 +7,16 @@ while the telemetry carries the latest result at the rate the link allows.
 """
 
 from amaranth import *
-from amaranth.lib import data, stream, wiring
+from amaranth.lib import stream, wiring
 from amaranth.lib.wiring import In, Out
 
 from .attitude_result import Attitude
 from .driver_status import DriverStatus
+from .frame_types import AttitudeFrame, FramedAttitude, TelemetryCounters
 from .sample import Sample
 
 
-__all__ = ["TelemetryCounters", "FramedAttitude", "AttitudeFrame", "TelemetryScheduler"]
-
-
-class TelemetryCounters(data.Struct):
-    """Counters carried in every attitude frame (all since reset, wrapping at 2³²).
-
-    - ``filtered``: results the engine produced, this frame's included.
-    - ``lost``: sensor samples that were never filtered: the sum of ``Sample.skipped`` (made
-      by the sensor but never read, or read and dropped because the engine was busy). The
-      engine integrates the time they cover, so the attitude stays right; only their
-      measurements are missing.
-    - ``not_sent``: results that were due for telemetry (every ``divider``-th) while the
-      previous frame was still being sent.
-    """
-    filtered: 32
-    lost: 32
-    not_sent: 32
-
-
-# An ``Attitude`` without its counter, which is the sample's (framed beside it).
-FramedAttitude = data.StructLayout({name: field.shape
-                                    for name, field in data.Layout.cast(Attitude)
-                                    if name != "counter"})
-
-
-class AttitudeFrame(data.Struct):
-    """Frame type 0x02: the sample an attitude result came from and the driver status latched
-    with that sample (first, and padded to whole bytes: these 29 bytes are exactly a
-    ``SensorFrame``'s payload, which raw-sample mode sends alone as frame type 0x01), the
-    result (its counter is the sample's), the telemetry counters at the time the result was
-    taken, and the host writes the engine refused so far (``cfg_refused``: to read-only or
-    state registers)."""
-    sample: Sample
-    status: DriverStatus
-    reserved: 1
-    attitude: FramedAttitude
-    counters: TelemetryCounters
-    cfg_refused: 16
+__all__ = ["TelemetryScheduler"]
 
 
 class TelemetryScheduler(wiring.Component):

@@ -56,12 +56,14 @@ from .sensor_frontend import SensorFrontEnd, sample_read_cycles
 from .i2c_controller import I2CPinsSignature
 from .spi_controller import SPIPinsSignature
 from .attitude_program import HOST_WRITABLE
-from .command_decoder import CommandDecoder, CommandStats, Reply
+from .command_decoder import CommandDecoder, CommandStats
 from .frame_arbiter import FrameArbiter
 from .frame_types import ATTITUDE, REPLY, SENSOR
 from .pwm import PWM_CHANNELS, PWMOutputs
-from .telemetry import CRC, SensorFrame, TelemetryFramer, frame_bytes
-from .telemetry_scheduler import AttitudeFrame, TelemetryCounters, TelemetryScheduler
+from .frame_types import (CRC, AttitudeFrame, Reply, SensorFrame, TelemetryCounters,
+                          frame_bytes)
+from .telemetry import TelemetryFramer
+from .telemetry_scheduler import TelemetryScheduler
 from .uart_rx import UARTReceiver
 from .uart_tx import UARTTransmitter
 

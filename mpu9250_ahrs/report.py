@@ -206,7 +206,7 @@ def link_figures(config, baud):
     """The UART's frames: bytes per frame type, the most frames a second the link carries
     (10 bits a byte), and the default telemetry divider and frame rate for ``config``."""
     from .hdl.frame_types import FRAME_TYPES
-    from .hdl.telemetry import frame_bytes
+    from .hdl.frame_types import frame_bytes
     from .hdl.top import telemetry_divider_for
     names = {0x01: "sensor", 0x02: "attitude", 0x81: "reply"}
     sizes = {names[t]: frame_bytes(layout) for t, layout in FRAME_TYPES.items()}

@@ -13,7 +13,7 @@ import numpy as np
 from amaranth.sim import Simulator
 
 from ..reference.fixed_point import RESULT_FIELDS, RESULT_FLAGS
-from .streams import stream_put
+from .streams import Monitored, stream_put
 
 
 __all__ = ["EngineRun", "RESULT_FIELDS", "run_engine", "first_mismatch", "random_inputs"]
@@ -92,8 +92,10 @@ def run_engine(dut, gyro, accel, mag_ak, mag_valid=None, *, asa=(128, 128, 128),
             ctx.set(dut.results.ready, 1)
             await ctx.tick()
             ctx.set(dut.results.ready, 0)
+        top.check(ctx)
 
-    sim = Simulator(dut)
+    top = Monitored(dut, {"samples": dut.samples, "cfg": dut.cfg, "results": dut.results})
+    sim = Simulator(top)
     sim.add_clock(1e-6)
     sim.add_testbench(testbench)
     if vcd and gtkw is None:

@@ -6,7 +6,7 @@ simulated design: no Python per cycle, for long co-simulations that wake only on
 from amaranth.hdl import Const, Elaboratable, Module, Signal, Value
 
 
-__all__ = ["stream_put", "stream_get", "check_stream_rules", "StreamMonitor"]
+__all__ = ["stream_put", "stream_get", "check_stream_rules", "StreamMonitor", "Monitored"]
 
 
 async def stream_put(ctx, stream, payload):
@@ -80,3 +80,23 @@ class StreamMonitor(Elaboratable):
     def check(self, ctx):
         assert not ctx.get(self.withdrawn), f"{self.name}: valid withdrawn before a transfer"
         assert not ctx.get(self.changed), f"{self.name}: payload changed under valid"
+
+
+class Monitored(Elaboratable):
+    """``dut`` with a ``StreamMonitor`` on each of its ``streams`` (name: stream), for a
+    simulation of the design alone; ``check(ctx)`` at the end of the testbench."""
+
+    def __init__(self, dut, streams):
+        self.dut = dut
+        self.monitors = [StreamMonitor(s, name) for name, s in streams.items()]
+
+    def elaborate(self, platform):
+        m = Module()
+        m.submodules.dut = self.dut
+        for index, monitor in enumerate(self.monitors):
+            m.submodules[f"monitor{index}"] = monitor
+        return m
+
+    def check(self, ctx):
+        for monitor in self.monitors:
+            monitor.check(ctx)

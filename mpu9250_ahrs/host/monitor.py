@@ -5,7 +5,7 @@ import sys
 import time
 
 from ..hdl.frame_types import ATTITUDE, SENSOR
-from ..hdl.telemetry_scheduler import AttitudeFrame
+from ..hdl.frame_types import AttitudeFrame
 from .protocol import unpack
 
 

@@ -11,7 +11,7 @@ from amaranth.lib import data
 
 from ..hdl.command_decoder import COMMANDS, MAX_COMMAND_PAYLOAD, RESULTS, SPACES
 from ..hdl.frame_types import FRAME_TYPES
-from ..hdl.telemetry import CRC, HEADER_BYTES, SYNC, payload_bytes
+from ..hdl.frame_types import CRC, HEADER_BYTES, SYNC, payload_bytes
 
 
 __all__ = ["FrameError", "unpack", "to_python", "crc16", "encode_frame", "encode_command",

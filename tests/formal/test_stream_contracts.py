@@ -25,7 +25,7 @@ from amaranth.lib.wiring import Out
 from mpu9250_ahrs.hdl.attitude_engine import AttitudeEngine
 from mpu9250_ahrs.hdl.attitude_program import HOST_WRITABLE
 from mpu9250_ahrs.hdl.bring_up_sequencer import BringUpSequencer, bring_up_program
-from mpu9250_ahrs.hdl.command_decoder import CommandDecoder, Reply
+from mpu9250_ahrs.hdl.command_decoder import CommandDecoder
 from mpu9250_ahrs.hdl.frame_arbiter import FrameArbiter
 from mpu9250_ahrs.hdl.host_port import HostPort
 from mpu9250_ahrs.hdl.i2c_controller import I2CController, I2CTiming
@@ -35,8 +35,9 @@ from mpu9250_ahrs.hdl.register_port_arbiter import RegisterPortArbiter
 from mpu9250_ahrs.hdl.sample_reader import SampleReader
 from mpu9250_ahrs.hdl.sensor_frontend import SensorFrontEnd
 from mpu9250_ahrs.hdl.spi_controller import SPIController, SPITiming
-from mpu9250_ahrs.hdl.telemetry import SensorFrame, TelemetryFramer
-from mpu9250_ahrs.hdl.telemetry_scheduler import AttitudeFrame, TelemetryScheduler
+from mpu9250_ahrs.hdl.frame_types import AttitudeFrame, Reply, SensorFrame
+from mpu9250_ahrs.hdl.telemetry import TelemetryFramer
+from mpu9250_ahrs.hdl.telemetry_scheduler import TelemetryScheduler
 from mpu9250_ahrs.hdl.uart_rx import UARTReceiver
 
 from .comb_paths import valid_ready_paths

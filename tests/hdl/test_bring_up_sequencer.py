@@ -7,6 +7,7 @@ from mpu9250_ahrs.hdl import ak8963_regs as A
 from mpu9250_ahrs.hdl import mpu9250_regs as R
 from mpu9250_ahrs.hdl.bring_up_sequencer import BringUpSequencer, bring_up_program
 from mpu9250_ahrs.hdl.mpu9250_driver import MPU9250Config
+from mpu9250_ahrs.sim.streams import check_stream_rules
 
 from .register_port_model import RegisterPortModel
 from .test_mpu9250_driver import expected_writes
@@ -51,6 +52,7 @@ def run(dut, chip, body):
     sim = Simulator(dut)
     sim.add_clock(1e-6)
     sim.add_testbench(testbench)
+    check_stream_rules(sim, dut.port.cmd, "commands")
     sim.run()
     return model
 

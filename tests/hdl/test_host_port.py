@@ -5,6 +5,7 @@ from amaranth.sim import Simulator
 
 from mpu9250_ahrs.hdl.attitude_program import CONTROL_ADDR, FILTER_CODES, control_word
 from mpu9250_ahrs.hdl.host_port import HostPort
+from mpu9250_ahrs.sim.streams import check_stream_rules
 
 
 def test_writes_control_and_read_back():
@@ -55,6 +56,7 @@ def test_writes_control_and_read_back():
             assert not ctx.get(dut.cfg_read_data.valid)
     sim = Simulator(dut)
     sim.add_clock(1e-6)
+    check_stream_rules(sim, dut.cfg_read_data, "cfg_read_data")
     sim.add_testbench(testbench)
     sim.run()
     assert seen == {0x33: 777, CONTROL_ADDR: FILTER_CODES["kalman"]}
@@ -86,6 +88,7 @@ def test_read_only_and_state_registers_refuse_writes():
         log.append(("select", ctx.get(dut.select)))
     sim = Simulator(dut)
     sim.add_clock(1e-6)
+    check_stream_rules(sim, dut.cfg_read_data, "cfg_read_data")
     sim.add_testbench(testbench)
     sim.run()
     assert log[:len(refused)] == [(a, 1, 0) for a in refused]

@@ -6,7 +6,8 @@ import pytest
 from amaranth.lib import data
 from amaranth.sim import Simulator
 
-from mpu9250_ahrs.hdl.telemetry import SYNC, SensorFrame, TelemetryFramer
+from mpu9250_ahrs.hdl.frame_types import SYNC, SensorFrame
+from mpu9250_ahrs.hdl.telemetry import TelemetryFramer
 from mpu9250_ahrs.hdl.uart_tx import UARTTransmitter
 from mpu9250_ahrs.reference.fixed_point import attitude_fixed
 from mpu9250_ahrs.sim.attitude_bench import EngineRun, first_mismatch

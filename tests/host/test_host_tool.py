@@ -13,7 +13,7 @@ import serial
 
 from mpu9250_ahrs.cli import main
 from mpu9250_ahrs.hdl.frame_types import ATTITUDE, FRAME_TYPES
-from mpu9250_ahrs.hdl.telemetry import payload_bytes
+from mpu9250_ahrs.hdl.frame_types import payload_bytes
 from mpu9250_ahrs.host.link import SIM_BOARDS, open_link
 from mpu9250_ahrs.host.protocol import encode_frame
 from mpu9250_ahrs.sim.board import SensorErrors, SimulatedBoard, garble, pty_baud

@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from mpu9250_ahrs.hdl.frame_types import ATTITUDE, FRAME_TYPES, SENSOR
-from mpu9250_ahrs.hdl.telemetry import payload_bytes
+from mpu9250_ahrs.hdl.frame_types import payload_bytes
 from mpu9250_ahrs.host.protocol import (FrameDecoder, corrupted_share, crc16, decode_frames,
                                         encode_command, encode_frame, unpack)
 from tests.hdl.test_telemetry import crc16_ibm_3740
