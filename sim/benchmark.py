@@ -133,8 +133,13 @@ def main(argv=None):
                    help="skip the (slow) fixed-point and gateware rows")
     p.add_argument("--jobs", type=int, default=1)
     args = p.parse_args(argv)
-    with ProcessPoolExecutor(args.jobs) as pool:
-        results = dict(pool.map(run_trial, args.files, [not args.no_fixed] * len(args.files)))
+    try:
+        with ProcessPoolExecutor(args.jobs) as pool:
+            results = dict(pool.map(run_trial, args.files,
+                                    [not args.no_fixed] * len(args.files)))
+    except (OSError, ValueError) as e:          # a missing or malformed recording: one line
+        print(f"benchmark: error: {e}", file=sys.stderr)
+        return 2
     print(table(results))
     if args.json:
         with open(args.json, "w") as f:

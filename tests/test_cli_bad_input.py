@@ -197,3 +197,12 @@ def test_host_verbs_bad_input(capsys, tmp_path):
     for argv, words in cases:
         code, out, err = run(argv, capsys)
         assert_one_error(code, err, words)
+
+
+def test_benchmark_bad_recording(tmp_path, capsys):
+    from mpu9250_ahrs.sim.benchmark import main as benchmark
+    bad = tmp_path / "bad.hdf5"
+    bad.write_text("not HDF5")
+    for path in (str(tmp_path / "missing.hdf5"), str(bad)):
+        code = benchmark([path, "--no-fixed"])
+        assert_one_error(code, capsys.readouterr().err, "HDF5")
