@@ -64,10 +64,9 @@ class FrameArbiter(wiring.Component):
         sent = self.o_stream.valid & self.o_stream.ready
         with m.If(sent):
             m.d.sync += [busy.eq(~last), held.eq(grant)]
+            with m.If(last):
+                m.d.sync += [self.seq.eq(self.seq + 1), self.frames.eq(self.frames + 1)]
         with m.Elif(self.o_stream.valid):
             # a first byte waits: the choice is made
             m.d.sync += [busy.eq(1), held.eq(grant)]
-        with m.If(sent):
-            with m.If(last):
-                m.d.sync += [self.seq.eq(self.seq + 1), self.frames.eq(self.frames + 1)]
         return m

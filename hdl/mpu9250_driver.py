@@ -71,7 +71,8 @@ from .sample_reader import (BAD_BURST_LIMIT, MPU_BYTES, SAMPLE_BYTES, SampleRead
 
 
 __all__ = ["MPU9250Config", "DriverTiming", "Op", "Fail", "Step", "bring_up_program",
-           "MPU9250Driver", "driver_members", "BAD_BURST_LIMIT", "burst_is_plausible", "SAMPLE_BYTES", "MPU_BYTES"]
+           "MPU9250Driver", "driver_members", "BAD_BURST_LIMIT", "burst_is_plausible",
+           "SAMPLE_BYTES", "MPU_BYTES"]
 
 
 @dataclass(frozen=True)

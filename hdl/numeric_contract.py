@@ -56,20 +56,16 @@ class CalibrationFixed:
 
     @classmethod
     def from_units(cls, *, gyro_offset=(0, 0, 0), accel_offset=(0, 0, 0),
-                   accel_scale=(1, 1, 1), hard_iron=(0, 0, 0),
-                   soft_iron=((1, 0, 0), (0, 1, 0), (0, 0, 1))):
+                   accel_scale=(1, 1, 1), hard_iron=(0, 0, 0), soft_iron=None):
         """From calibration results in counts (``reference.calibration``): offsets rounded,
         scale factors and the soft-iron matrix to Q2.14. ``accel_scale`` multiplies (use
-        1/scale from ``accel_six_pose``). Any nesting of numbers (a NumPy array too)."""
-        def flat(v):
-            try:
-                return [x for item in v for x in flat(item)]
-            except TypeError:
-                return [float(v)]
-        r = lambda v, scale=1: tuple(int(round(x * scale)) for x in flat(v))
+        1/scale from ``accel_six_pose``); ``soft_iron`` 3 × 3, the identity if None."""
+        import numpy as np              # only here: the gateware's elaboration needs none
+        soft_iron = np.eye(3) if soft_iron is None else soft_iron
+        r = lambda v: tuple(int(round(x)) for x in np.ravel(v))
         return cls(gyro_offset=r(gyro_offset), accel_offset=r(accel_offset),
-                   accel_scale=r(accel_scale, _Q14), hard_iron=r(hard_iron),
-                   soft_iron=r(soft_iron, _Q14))
+                   accel_scale=r(np.asarray(accel_scale, float) * _Q14),
+                   hard_iron=r(hard_iron), soft_iron=r(np.asarray(soft_iron, float) * _Q14))
 
 
 def calibration_registers(cal):

@@ -37,13 +37,11 @@ class RegisterPortArbiter(wiring.Component):
     def elaborate(self, platform):
         m = Module()
         busy = Signal()             # a command was taken and its response is not yet
-        owner = Signal()            # 0 first, 1 second: whose command it was
+        owner = Signal()            # 0 first, 1 second: whose command is offered or taken
         grant = Signal()            # whose command is offered now (when not busy)
-        waiting = Signal()          # a command was offered and not taken last cycle ...
-        waiting_grant = Signal()    # ... from this client
-        m.d.comb += grant.eq(Mux(waiting, waiting_grant, ~self.first.cmd.valid))
-        m.d.sync += [waiting.eq(~busy & self.port.cmd.valid & ~self.port.cmd.ready),
-                     waiting_grant.eq(grant)]
+        waiting = Signal()          # the command offered last cycle was not taken
+        m.d.comb += grant.eq(Mux(waiting, owner, ~self.first.cmd.valid))
+        m.d.sync += waiting.eq(~busy & self.port.cmd.valid & ~self.port.cmd.ready)
         clients = (self.first, self.second)
         port = self.port
 
@@ -53,8 +51,9 @@ class RegisterPortArbiter(wiring.Component):
                     m.d.comb += [port.cmd.valid.eq(client.cmd.valid),
                                  port.cmd.payload.eq(client.cmd.payload),
                                  client.cmd.ready.eq(port.cmd.ready)]
+            m.d.sync += owner.eq(grant)
             with m.If(port.cmd.valid & port.cmd.ready):
-                m.d.sync += [busy.eq(1), owner.eq(grant)]
+                m.d.sync += busy.eq(1)
         for index, client in enumerate(clients):
             with m.If(busy & (owner == index)):
                 m.d.comb += [client.rx.valid.eq(port.rx.valid),

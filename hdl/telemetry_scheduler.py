@@ -73,18 +73,16 @@ class TelemetryScheduler(wiring.Component):
         with m.If(done):
             m.d.sync += offering.eq(0)
 
-        # the count as offered, frozen while the frame waits to be copied
-        waited = Signal()
+        # the count as offered, frozen while the frame waits to be copied (``offering``)
         refused = Signal(16)
-        m.d.sync += waited.eq(self.frames.valid & ~self.frames.ready)
-        with m.If(~waited):
+        with m.If(~offering):
             m.d.sync += refused.eq(self.cfg_refused)
 
         p = self.frames.payload
         result = self.results.payload
         m.d.comb += [*(p.attitude[name].eq(result[name]) for name, _ in FramedAttitude),
                      p.sample.eq(self.sample),
-                     p.status.eq(self.status), p.cfg_refused.eq(Mux(waited, refused, self.cfg_refused)),
+                     p.status.eq(self.status), p.cfg_refused.eq(Mux(offering, refused, self.cfg_refused)),
                      p.counters.filtered.eq(c.filtered + 1),
                      p.counters.lost.eq(c.lost + self.sample.skipped),
                      p.counters.not_sent.eq(c.not_sent)]

@@ -13,7 +13,7 @@ import time
 from dataclasses import dataclass, field
 from typing import List, Optional
 
-from amaranth import Elaboratable, Module, Signal
+from amaranth import Elaboratable, Signal
 from amaranth.sim import Simulator
 
 from ..hdl.clocking import SYSTEM_CLOCK_HZ
@@ -24,7 +24,7 @@ from .mpu9250_model import MPU9250Model, MPU9250Timing
 from ..hdl import ak8963_regs as A
 from .ak8963_model import AK8963Model, AK8963Timing
 from .sources import counting_field, counting_source
-from .streams import StreamMonitor
+from .streams import Monitored
 from ..host.protocol import to_python
 
 
@@ -33,7 +33,7 @@ __all__ = ["CosimHarness", "attach_models", "attach_mpu9250", "attach_stuck_miso
            "sample_matches", "expected_mag", "sample_read_cycles"]
 
 
-class CosimHarness(Elaboratable):
+class CosimHarness(Monitored):
     """Wraps a design for co-simulation with simulation-only helpers.
 
     ``cycle`` counts clock edges: the time base of the models. The model process drives
@@ -43,10 +43,12 @@ class CosimHarness(Elaboratable):
     design one clock later, so the process can run right after the edge it reacts to. The I2C
     lines ``scl``/``sda`` are the wired AND of the design's and the devices' drivers.
     ``wake_at`` is the cycle at which the models next want to run with
-    no pin change; ``wake`` is high in it.
+    no pin change; ``wake`` is high in it. ``monitor(stream, name)`` watches a stream of the
+    design for the stream rules; ``check(ctx)`` at the end of the run (``Monitored``).
     """
     def __init__(self, dut, *, spi=None, i2c=None, int_pin=None):
-        self.dut, self.spi, self.i2c, self.int_pin = dut, spi, i2c, int_pin
+        super().__init__(dut)
+        self.spi, self.i2c, self.int_pin = spi, i2c, int_pin
         self.cycle = Signal(40)
         self.wake_at = Signal(40, init=(1 << 40) - 1)
         self.wake = Signal()
@@ -56,22 +58,9 @@ class CosimHarness(Elaboratable):
         self.sda_model_low = Signal()
         self.scl = Signal(init=1)
         self.sda = Signal(init=1)
-        self.monitors = []
-
-    def monitor(self, stream, name):
-        """Watch ``stream`` of the design for the stream rules (``StreamMonitor``); call
-        ``check_monitors`` at the end of the run. Before the simulator is made."""
-        self.monitors.append(StreamMonitor(stream, name))
-
-    def check_monitors(self, ctx):
-        for monitor in self.monitors:
-            monitor.check(ctx)
 
     def elaborate(self, platform):
-        m = Module()
-        m.submodules.dut = self.dut
-        for index, monitor in enumerate(self.monitors):
-            m.submodules[f"monitor{index}"] = monitor
+        m = super().elaborate(platform)                 # the design and its monitors
         m.d.sync += self.cycle.eq(self.cycle + 1)
         m.d.comb += self.wake.eq(self.cycle == self.wake_at)
         if self.spi is not None:
@@ -385,7 +374,7 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
                     observe(cycle + 1, taken, payload, status)
         except Done:
             out["asa"] = to_python(ctx.get(dut.asa))
-            harness.check_monitors(ctx)
+            harness.check(ctx)
     sim.add_testbench(testbench)
 
     start = time.perf_counter()
@@ -521,7 +510,7 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
             await ctx.changed(results.valid, core.imu_int).delay((max_cycles - cycle) * period)
         out["end"] = (ctx.get(harness.cycle), to_python(ctx.get(core.counters)),
                       to_python(ctx.get(core.status)), to_python(ctx.get(core.asa)))
-        harness.check_monitors(ctx)
+        harness.check(ctx)
     sim.add_testbench(testbench)
     start = time.perf_counter()
     if vcd:

@@ -83,12 +83,15 @@ class StreamMonitor(Elaboratable):
 
 
 class Monitored(Elaboratable):
-    """``dut`` with a ``StreamMonitor`` on each of its ``streams`` (name: stream), for a
-    simulation of the design alone; ``check(ctx)`` at the end of the testbench."""
+    """``dut`` with a ``StreamMonitor`` on each of its ``streams`` (name: stream; ``monitor``
+    adds more before the simulator is made); ``check(ctx)`` at the end of the testbench."""
 
-    def __init__(self, dut, streams):
+    def __init__(self, dut, streams=None):
         self.dut = dut
-        self.monitors = [StreamMonitor(s, name) for name, s in streams.items()]
+        self.monitors = [StreamMonitor(s, name) for name, s in (streams or {}).items()]
+
+    def monitor(self, stream, name):
+        self.monitors.append(StreamMonitor(stream, name))
 
     def elaborate(self, platform):
         m = Module()
