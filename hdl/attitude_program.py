@@ -51,7 +51,10 @@ address  name            meaning, format                                        
                          default); bit 2: write 1 to reset the filter state
                          (angles 0, bias 0, P = P0·I, flagship afresh); bit 3: keep
                          the filter (bits 1:0 ignored: a reset alone). Selecting
-                         another filter makes the next sample a first one.
+                         another filter makes the next sample a first one. A word
+                         with a reserved bit (31:4) set, or without keep a code
+                         that names no filter (3), is refused and counted
+                         (``numeric_contract.control_fields``).
 =======  ==============  =========================================================  ===========
 
 From 0x20 (``REGS``): the loader's inputs, the filters' state, working registers and more
@@ -66,6 +69,8 @@ from typing import Callable
 
 from .attitude_isa import Q14, Q24, Q30, REG_COUNT, Assembler, Cond, Flag
 from .flagship_microcode import FLAGSHIP_REGISTERS, flagship_names, flagship_routine
+# the CONTROL word's bits are part of the numeric contract (the reference decodes them too)
+from .numeric_contract import CONTROL_KEEP, CONTROL_RESET
 
 
 __all__ = ["CONFIG_REGS", "CONTROL_ADDR", "CONTROL_RESET", "CONTROL_KEEP", "TELEMETRY_DIV_ADDR", "HOST_WRITABLE", "HOST_READ_ONLY", "REGS", "FILTERS",
@@ -74,8 +79,6 @@ __all__ = ["CONFIG_REGS", "CONTROL_ADDR", "CONTROL_RESET", "CONTROL_KEEP", "TELE
            "load_words", "control_word"]
 
 CONTROL_ADDR = REG_COUNT - 1
-CONTROL_RESET = 1 << 2
-CONTROL_KEEP = 1 << 3          # with it, bits 1:0 are ignored: the filter stays as selected
 
 
 @dataclass(frozen=True)

@@ -11,9 +11,10 @@ from .attitude_isa import REG_BITS
 from .attitude_program import (CONTROL_ADDR, CONTROL_KEEP, CONTROL_RESET, FILTER_CODES,
                                TELEMETRY_DIV_ADDR)
 from .board_bus import BoardBusSignature
-from .host_port import address_in
+from .host_port import address_in, control_accepted
 from .config_write import ConfigWrite
 from .frame_types import CRC, SYNC, Reply
+from .rewindable_fifo import RewindableFIFO
 
 
 __all__ = ["COMMANDS", "RESULTS", "SPACES", "BOARD_REGS", "REGMAP_VERSION", "MAX_COMMAND_PAYLOAD",
@@ -31,6 +32,9 @@ COMMANDS = {
     "who": (0x16, 0),          # who are you: version/build word and register-map version
 }
 MAX_COMMAND_PAYLOAD = max(n for _, n in COMMANDS.values())
+# the input FIFO: a whole frame kept (13 bytes at most) and room for the bytes that arrive
+# while a command waits for the engine and its reply is sent (about 17 byte times)
+FIFO_DEPTH = 32
 RESULTS = {"ok": 0, "refused": 1, "bad_address": 2, "bad_command": 3}
 # The high byte of a register address: which block it is in.
 SPACES = {"engine": 0x00, "board": 0x01, "pwm": 0x02}
@@ -64,18 +68,26 @@ class CommandDecoder(wiring.Component):
     engine write is one ``cfg`` transfer; a board write one cycle) and answered with a
     ``Reply``.
 
+    The bytes come through a ``RewindableFIFO`` (``FIFO_DEPTH``) that keeps a frame's bytes
+    until it is done: when a frame fails (bad CRC, a length over the longest), the search for
+    a header starts again at the byte after its first, so a good frame that began inside a
+    cut-off or corrupt one (half a frame, then a new one at once; a stray ``A5 A5 5A``) is
+    still found and executed. The bytes searched again that belong to no frame count in
+    ``discarded`` too. A frame that timed out is dropped whole (no byte of it is followed by
+    anything within the time-out, so none can start a good frame).
+
     Parameters
         ``writable``: engine addresses a host may write (``HOST_WRITABLE``).
         ``version``: the version/build word "who" returns and VERSION reads.
         ``timeout``: cycles without a byte after which a frame in progress is dropped.
     Members
-        ``i_stream`` (in, byte stream): from the UART receiver (through a FIFO: bytes that
-            arrive while a command executes wait there).
+        ``i_stream`` (in, byte stream): from the UART receiver; taken while the FIFO has room
+            (bytes that arrive while a command executes wait there).
         ``cfg``, ``cfg_read``, ``cfg_read_data``: to the engine's register port.
         ``pwm`` (out, ``BoardBusSignature``): the PWM block's registers (space 0x02).
         ``replies`` (out, stream of ``Reply``): to an unbuffered framer (held until sent).
         ``raw_mode`` (out): RAW_MODE bit 0.
-        ``kick`` (out): a pulse per good command (the PWM watchdog).
+        ``kick`` (out): a pulse per accepted command (result ``ok``; the PWM watchdog).
         ``stats`` (out, ``CommandStats``); ``rx_framing_errors``, ``rx_overruns``,
         ``frames_sent`` (in): read back as board registers.
     Latency: a board command's reply is offered two cycles after its last (CRC) byte is
@@ -106,9 +118,12 @@ class CommandDecoder(wiring.Component):
     def elaborate(self, platform):
         m = Module()
         m.submodules.crc = crc = CRC(data_width=8).create()
+        m.submodules.fifo = fifo = RewindableFIFO(FIFO_DEPTH)
+        wiring.connect(m, wiring.flipped(self.i_stream), fifo.w_stream)
+        src = fifo.r_stream
         stats = self.stats
-        byte = self.i_stream.payload
-        take = self.i_stream.valid & self.i_stream.ready
+        byte = src.payload
+        take = src.valid & src.ready
 
         ctype = Signal(8)
         seq = Signal(8)
@@ -131,6 +146,9 @@ class CommandDecoder(wiring.Component):
                          reply.addr.eq(addr if addr_ is None else addr_),
                          reply.value.eq(value if value_ is None else value_)]
             if result == RESULTS["ok"]:
+                # only an accepted command restarts the PWM watchdog: a host stuck sending
+                # refused or unknown commands is as good as a silent one
+                m.d.comb += self.kick.eq(1)
                 count_up(stats.ok)
             else:
                 count_up(stats.refused)
@@ -150,7 +168,10 @@ class CommandDecoder(wiring.Component):
             BOARD_REGS["CMD_REFUSED"]: stats.refused,
             BOARD_REGS["FRAMES_SENT"]: self.frames_sent,
         }
-        writable = address_in(low, self.writable)
+        # an engine write the engine would refuse is answered "refused" here (the host learns
+        # why): an address it may not write, or a CONTROL word with no meaning
+        writable = address_in(low, self.writable) & (
+            (low != CONTROL_ADDR) | control_accepted(value))
         m.d.comb += [self.pwm.addr.eq(low), self.pwm.w_data.eq(value)]
 
         parsing = ("HUNT", "SYNC1", "TYPE", "SEQ", "LENGTH", "PAYLOAD", "CRC_HIGH", "CRC_LOW")
@@ -158,11 +179,14 @@ class CommandDecoder(wiring.Component):
         timed_out = (gap == self.timeout) & ~take & in_frame
         with m.FSM() as fsm:
             with m.State("HUNT"):
-                m.d.comb += self.i_stream.ready.eq(1)
+                m.d.comb += src.ready.eq(1)
                 with m.If(take):
                     with m.If(byte == SYNC[0]):
+                        # a frame may start here: kept until it is done or failed
+                        m.d.comb += fifo.mark.eq(1)
                         m.next = "SYNC1"
                     with m.Else():
+                        m.d.comb += fifo.release.eq(1)
                         count_up(stats.discarded)
 
             @contextmanager
@@ -171,8 +195,9 @@ class CommandDecoder(wiring.Component):
                 on the frame at the time-out."""
                 with m.State(state):
                     with m.If(timed_out):
+                        m.d.comb += fifo.release.eq(1)
                         m.next = "HUNT"
-                    m.d.comb += self.i_stream.ready.eq(1)
+                    m.d.comb += src.ready.eq(1)
                     if checked:
                         m.d.comb += crc.valid.eq(take)
                     with m.If(take):
@@ -180,11 +205,12 @@ class CommandDecoder(wiring.Component):
 
             with m.State("SYNC1"):
                 with m.If(timed_out):
+                    m.d.comb += fifo.release.eq(1)
                     m.next = "HUNT"
                 # a byte other than the sync's second goes back to the hunt untaken (the hunt
                 # counts it, or starts on it if it is 0xA5); the 0xA5 before it began nothing
-                m.d.comb += self.i_stream.ready.eq(byte == SYNC[1])
-                with m.If(self.i_stream.valid):
+                m.d.comb += src.ready.eq(byte == SYNC[1])
+                with m.If(src.valid):
                     with m.If(byte == SYNC[1]):
                         m.next = "TYPE"
                     with m.Else():
@@ -201,6 +227,7 @@ class CommandDecoder(wiring.Component):
                 m.d.sync += [length.eq(byte), count.eq(0), payload.eq(0)]
                 with m.If(byte > MAX_COMMAND_PAYLOAD):
                     count_up(stats.malformed)
+                    m.d.comb += fifo.rewind.eq(1)           # search the rest for a header
                     m.next = "HUNT"
                 with m.Elif(byte == 0):
                     m.next = "CRC_HIGH"
@@ -215,13 +242,14 @@ class CommandDecoder(wiring.Component):
                 m.next = "CRC_LOW"
             with receiving("CRC_LOW", checked=False):
                 with m.If(Cat(byte, crc_high) == crc.crc):
+                    m.d.comb += fifo.release.eq(1)
                     m.next = "EXECUTE"
                 with m.Else():
                     count_up(stats.crc_errors)
+                    m.d.comb += fifo.rewind.eq(1)           # search the rest for a header
                     m.next = "HUNT"
 
             with m.State("EXECUTE"):
-                m.d.comb += self.kick.eq(1)
                 expected = Signal(8)
                 known = Signal()
                 with m.Switch(ctype):

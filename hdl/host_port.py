@@ -6,11 +6,12 @@ from amaranth.lib import stream, wiring
 from amaranth.lib.wiring import In, Out
 
 from .attitude_isa import REG_BITS
-from .attitude_program import CONTROL_ADDR, CONTROL_KEEP, CONTROL_RESET
+from .attitude_program import CONTROL_ADDR, CONTROL_KEEP, CONTROL_RESET, FILTERS
 from .config_write import ConfigWrite
+from .numeric_contract import CONTROL_BITS
 
 
-__all__ = ["HostPort", "address_in"]
+__all__ = ["HostPort", "address_in", "control_accepted"]
 
 
 def address_in(addr, addresses):
@@ -18,6 +19,15 @@ def address_in(addr, addresses):
     address (one LUT tree), not a comparator per address. The engine's write check and the
     command decoder's (which answers "refused" before it sends a write) both use it."""
     return Const(sum(1 << a for a in addresses), 256).bit_select(addr, 1)
+
+
+def control_accepted(data):
+    """1 where ``data`` (a 32-bit word written to CONTROL) is a word the engine takes: no
+    reserved bit set and, unless it keeps the filter, a code that names one of ``FILTERS``
+    (``numeric_contract.control_fields``, the reference's statement of the same rule)."""
+    data = Value.cast(data)
+    keep = data[CONTROL_KEEP.bit_length() - 1]
+    return (data[CONTROL_BITS:32] == 0) & (keep | (data[:2] < len(FILTERS)))
 
 
 class HostPort(wiring.Component):
@@ -28,7 +38,8 @@ class HostPort(wiring.Component):
         ``filter_at_reset``: the filter select code after reset.
         ``writable``: the addresses a host may write (``CONTROL_ADDR`` among them), or None for
             every address. The others (constants, filter state, working registers) are read
-            only to the host: a write to one is taken, changes nothing, and is counted.
+            only to the host: a write to one is taken, changes nothing, and is counted. So is
+            a CONTROL word the engine refuses (``control_accepted``).
     Members
         ``cfg`` (in, stream of ``ConfigWrite``): a write per transfer, taken in one cycle while
             ``open``. ``CONTROL_ADDR`` sets ``select`` (bits 1:0, unless bit 3 says keep it)
@@ -64,9 +75,10 @@ class HostPort(wiring.Component):
         m = Module()
         write = self.cfg.payload
         m.d.comb += self.cfg.ready.eq(self.open)
-        allowed = Signal(init=1)
-        if self.writable is not None:
-            m.d.comb += allowed.eq(address_in(write.addr, self.writable))
+        allowed = Signal()
+        in_map = C(1) if self.writable is None else address_in(write.addr, self.writable)
+        m.d.comb += allowed.eq(in_map & ((write.addr != CONTROL_ADDR) |
+                                         control_accepted(write.data)))
         with m.If(self.cfg.valid & self.open & ~allowed):
             with m.If(self.refused != 0xFFFF):
                 m.d.sync += self.refused.eq(self.refused + 1)

@@ -19,10 +19,34 @@ import math
 from dataclasses import dataclass
 
 
-__all__ = ["CORDIC_ITERATIONS", "ATAN_TABLE", "INV_GAIN_Q30", "CalibrationFixed",
+__all__ = ["CONTROL_RESET", "CONTROL_KEEP", "CONTROL_BITS", "control_fields",
+           "CORDIC_ITERATIONS", "ATAN_TABLE", "INV_GAIN_Q30", "CalibrationFixed",
            "calibration_registers", "calibration_of",
            "KalmanFixedConfig", "FilterRates", "FlagshipParams", "sample_counts",
            "FlagshipFixedConfig"]
+
+
+# The engine's CONTROL register (0xFF): bits 1:0 the filter's code, bit 2 reset the filter
+# state, bit 3 keep the filter (bits 1:0 ignored); bits 31:4 are reserved and must be 0.
+CONTROL_RESET = 1 << 2
+CONTROL_KEEP = 1 << 3
+CONTROL_BITS = 4
+
+
+def control_fields(value, filter_count):
+    """What the engine does with a CONTROL word ``value`` (an integer as the host writes it,
+    signed or not) when it has ``filter_count`` filters: ``(code, reset)`` with ``code`` the
+    filter selected (None: keep the present one), or None when the word is refused (counted
+    in ``cfg_refused``, nothing changes): a reserved bit set, or, without keep, a code that
+    names no filter. The gateware (``hdl/host_port.py``) implements the same rule."""
+    value &= 0xFFFF_FFFF
+    if value >> CONTROL_BITS:
+        return None
+    keep = bool(value & CONTROL_KEEP)
+    code = value & 0b11
+    if not keep and code >= filter_count:
+        return None
+    return (None if keep else code), bool(value & CONTROL_RESET)
 
 
 # ones in the register formats Q2.14, Q8.24 and Q2.30

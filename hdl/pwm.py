@@ -43,20 +43,29 @@ class PWMOutputs(wiring.Component):
     PWM_ENABLE (0x00)   bits 3:0: channel enabled. 0 at reset: every output low. Writing it
                         clears the watchdog's ``tripped``.
     PWM_MODE (0x01)     bits 3:0: 0 = servo (high time in µs), 1 = motor (in clock cycles). A
-                        change to the mode of an enabled channel is refused.
+                        change to the mode of an enabled channel is refused. A channel whose
+                        mode changes has its high time set to 0: the value it held was in the
+                        other unit (1,500 µs read as 1,500 cycles could exceed the motor
+                        period), so it stays low until a high time is written in its new unit.
     PWM_WATCHDOG_MS     0..65535: with a channel enabled, no command for this long disables
     (0x02)              every channel (outputs low) and sets ``tripped``; 0 = off. 500 at
                         reset.
     PWM_STATUS (0x03)   read only: bit 0 ``tripped``; bits 7:4 the channels enabled now.
     PWM_SERVO_PERIOD    the servo channels' frame: 2,500..20,000 µs (400..50 Hz); 20,000 at
-    (0x04)              reset.
+    (0x04)              reset. Refused if below the high time of any servo channel (enabled
+                        or not).
     PWM_MOTOR_PERIOD    the motor channels' period: ⌈clk/20 kHz⌉ .. 65,535 cycles; the
-    (0x05)              20 kHz one at reset.
+    (0x05)              20 kHz one at reset. Refused if below the high time of any motor
+                        channel.
     PWM_HIGHk (0x10+k)  channel k's high time per period in its unit, ≤ its group's period (a
                         motor duty d/1024 is round(period · d / 1024) cycles: the host
-                        converts). 0 at reset. A period written below a high time makes that
-                        output high for the whole period.
+                        converts). 0 at reset.
     ==================  =======================================================================
+
+    Safety invariant: every channel's high time is at most its group's period, whatever the
+    order of writes (the checks above keep it; ``tests/hdl/test_pwm.py`` drives random
+    register sequences against it). An output is therefore high for a whole period only when
+    a high time equal to the period was written in that channel's unit.
 
     A write outside these ranges is refused (``ok`` low: nothing changes). A new period or
     high time takes effect at the start of the group's next period (a period written while no
@@ -107,6 +116,10 @@ class PWMOutputs(wiring.Component):
         # a high time fits its channel's group period: one comparator for all channels (the
         # addressed channel's mode picks the period)
         high_fits = small & (low <= Mux(mode.bit_select(bus.addr[:2], 1), period[1], period[0]))
+        # a new period is refused below the high time of any channel of its group (enabled or
+        # not): the period shrinking under a high time would hold that output high
+        def period_fits(group):
+            return small & Cat(((mode[k] != group) | (high[k] <= low)) for k in range(n)).all()
         checks = {
             PWM_REGS["PWM_ENABLE"]: (enable, value < (1 << n)),
             # the mode of an enabled channel stays
@@ -114,9 +127,10 @@ class PWMOutputs(wiring.Component):
                                    (((value[:n] ^ mode) & enable) == 0)),
             PWM_REGS["PWM_WATCHDOG_MS"]: (watchdog_ms, small),
             PWM_REGS["PWM_STATUS"]: (Cat(self.tripped, C(0, 3), enable), C(0)),
-            PWM_REGS["PWM_SERVO_PERIOD"]: (period[0], small & (low >= SERVO_PERIOD_US[0]) &
+            PWM_REGS["PWM_SERVO_PERIOD"]: (period[0], period_fits(0) &
+                                           (low >= SERVO_PERIOD_US[0]) &
                                            (low <= SERVO_PERIOD_US[1])),
-            PWM_REGS["PWM_MOTOR_PERIOD"]: (period[1], small & (low >= self.motor_min)),
+            PWM_REGS["PWM_MOTOR_PERIOD"]: (period[1], period_fits(1) & (low >= self.motor_min)),
             **{PWM_REGS[f"PWM_HIGH{k}"]: (high[k], high_fits) for k in range(n)},
         }
         with m.Switch(bus.addr):
@@ -130,6 +144,10 @@ class PWMOutputs(wiring.Component):
                     m.d.sync += [enable.eq(value[:n]), self.tripped.eq(0)]
                 with m.Case(PWM_REGS["PWM_MODE"]):
                     m.d.sync += mode.eq(value[:n])
+                    # a high time is in its mode's unit: a channel changing mode drops it
+                    for k in range(n):
+                        with m.If(value[k] != mode[k]):
+                            m.d.sync += high[k].eq(0)
                 with m.Case(PWM_REGS["PWM_WATCHDOG_MS"]):
                     m.d.sync += watchdog_ms.eq(low)
                 with m.Case(PWM_REGS["PWM_SERVO_PERIOD"]):

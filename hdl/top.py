@@ -40,7 +40,6 @@ import math
 from amaranth import *
 from amaranth.lib import data, io, stream, wiring
 from amaranth.lib.cdc import ResetSynchronizer
-from amaranth.lib.fifo import SyncFIFOBuffered
 from amaranth.lib.wiring import In, Out, connect, flipped
 
 from .clocking import SYSTEM_CLOCK_HZ, SystemPLL, cycles
@@ -133,7 +132,7 @@ class AHRSCore(wiring.Component):
         ``cfg``, ``cfg_read``, ``cfg_read_data``: the engine's register port (with ``attitude``).
         ``counters`` (``TelemetryCounters``): results filtered, samples lost, results not sent.
         ``cfg_refused`` (16): host writes the engine refused (read-only or state registers).
-        ``uart_rx``: commands in (``UARTReceiver`` -> FIFO -> ``CommandDecoder``, replies out
+        ``uart_rx``: commands in (``UARTReceiver`` -> ``CommandDecoder``, replies out
             through the ``FrameArbiter`` before telemetry); ``pwm`` (4): ``PWMOutputs``;
             ``command_stats`` (``CommandStats``), ``raw_mode``: the command channel's.
         ``command_timeout_s``: a command frame with no byte for this long is dropped (5 ms).
@@ -174,8 +173,6 @@ class AHRSCore(wiring.Component):
             self.version = version_word(clk_freq=clk_freq, baud=baud, config=repr(config),
                                         filter=filter)
             self.receiver = UARTReceiver(divisor=UARTTransmitter.divisor_for(clk_freq, baud))
-            # a command is at most 13 bytes: 16 hold a whole one while the last executes
-            self.rx_fifo = SyncFIFOBuffered(width=8, depth=16)
             self.decoder = CommandDecoder(writable=HOST_WRITABLE, version=self.version,
                                           timeout=cycles(command_timeout_s, clk_freq))
             self.pwm_block = PWMOutputs(clk_freq=clk_freq)
@@ -232,16 +229,14 @@ class AHRSCore(wiring.Component):
             with m.If(fe.samples.valid & fe.samples.ready):
                 m.d.sync += [held.eq(fe.samples.payload), held_status.eq(fe.status)]
 
-            # Host -> UART receiver -> FIFO -> command decoder -> engine / board / PWM, and its
-            # replies -> framer -> arbiter (before telemetry) -> UART.
+            # Host -> UART receiver -> command decoder (its FIFO inside) -> engine / board /
+            # PWM, and its replies -> framer -> arbiter (before telemetry) -> UART.
             m.submodules.uart_rx = rx = self.receiver
-            m.submodules.rx_fifo = fifo = self.rx_fifo
             m.submodules.decoder = decoder = self.decoder
             m.submodules.pwm = pwm = self.pwm_block
             m.submodules.reply_framer = reply_framer = self.reply_framer
             m.d.comb += rx.rx.eq(self.uart_rx)
-            connect(m, rx.o_stream, fifo.w_stream)
-            connect(m, fifo.r_stream, decoder.i_stream)
+            connect(m, rx.o_stream, decoder.i_stream)
             connect(m, decoder.pwm, pwm.bus)
             connect(m, decoder.replies, reply_framer.i_stream)
             m.d.comb += [pwm.kick.eq(decoder.kick), self.pwm.eq(pwm.pwm),

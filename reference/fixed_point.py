@@ -36,7 +36,7 @@ import numpy as np
 # the register encodings are the gateware's contract; the CORDIC table below is computed here,
 # independently of the one the gateware holds (a test checks that they agree)
 from ..hdl.numeric_contract import (CalibrationFixed, FilterRates, KalmanFixedConfig,
-                                    calibration_of, calibration_registers)
+                                    calibration_of, calibration_registers, control_fields)
 
 
 __all__ = ["CORDIC_ITERATIONS", "ATAN_TABLE", "CORDIC_GAIN", "rshift_round", "sat",
@@ -421,8 +421,25 @@ class EngineModel:
     def write(self, name, value):
         self.reg[name] = int(value)
 
+    def control(self, value):
+        """A host's write of ``value`` to the CONTROL register, as the gateware takes it
+        (``numeric_contract.control_fields``): True if taken (the filter selected, the state
+        reset if asked), False if refused (nothing changes; the gateware counts it in
+        ``cfg_refused``)."""
+        fields = control_fields(value, len(FILTERS))
+        if fields is None:
+            return False
+        code, reset = fields
+        if code is not None:
+            self.select(code)
+        if reset:
+            self.reset()
+        return True
+
     def select(self, filter):
         code = FILTERS.index(filter) if isinstance(filter, str) else int(filter)
+        if not 0 <= code < len(FILTERS):
+            raise ValueError(f"filter code {code} names no filter (0..{len(FILTERS) - 1})")
         if code != self.filter:
             self.kf.prev = None                      # next sample is a first one
             self.flagship.first = True
@@ -461,13 +478,17 @@ class EngineModel:
 
 def attitude_fixed(gyr_raw, acc_raw, mag_ak_raw, mag_valid=None, *, asa=(128, 128, 128),
                    cal=CalibrationFixed(), config=KalmanFixedConfig(), flagship=None,
-                   select="kalman", registers=None, resets=(), writes=None, skipped=None):
+                   select="kalman", registers=None, resets=(), writes=None, skipped=None,
+                   controls=None):
     """The gateware's attitude engine in integers over arrays (``EngineModel`` per sample):
     calibration, then the filter ``select`` names (one name, or an array of names per
     sample). ``registers`` overrides register values by name (raw integers, e.g. {"R": 0});
     ``resets``: sample indices before which the filter state is reset; ``writes``:
     {sample index: {name: value}}, register writes applied before that sample (after a reset
-    there); ``skipped``: per sample, the sensor samples missed before it (0 if None)."""
+    there); ``skipped``: per sample, the sensor samples missed before it (0 if None);
+    ``controls``: {sample index: [words]}, CONTROL words a host writes before that sample (after
+    the writes), taken or refused as the gateware does (``EngineModel.control``); with them,
+    ``select`` names only the filter at the start."""
     n = len(gyr_raw)
     sel = [select] * n if isinstance(select, str) else list(select)
     valid = [True] * n if mag_valid is None else [bool(v) for v in mag_valid]
@@ -484,7 +505,10 @@ def attitude_fixed(gyr_raw, acc_raw, mag_ak_raw, mag_valid=None, *, asa=(128, 12
             model.reset()
         for name, value in (writes or {}).get(k, {}).items():
             model.write(name, value)
-        model.select(sel[k])
+        if controls is None:
+            model.select(sel[k])
+        for word in (controls or {}).get(k, ()):
+            model.control(word)
         r = model.sample(g, a, h, valid[k], asa, 0 if skipped is None else int(skipped[k]))
         for name in RESULT_FIELDS:
             getattr(out, name)[k] = r[name]

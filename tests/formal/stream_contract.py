@@ -77,7 +77,7 @@ def _walk(m, obj, signature, flipped, prefix, streams):
             m.d.comb += value.eq(AnySeq(Shape.cast(member.shape).width))
 
 
-def contract_harness(component, held=None):
+def contract_harness(component, held=None, assume=None):
     """A harness for ``component`` alone: every input port free (``AnySeq``), every input stream
     from any producer that keeps the rules, every output stream's rules asserted against any
     consumer. One line per component: ``formal(contract_harness(Block()), ...)``.
@@ -85,7 +85,11 @@ def contract_harness(component, held=None):
     ``held`` maps input ports to the input stream they travel with, for ports a component's
     documentation says hold still while that stream's transfer waits (as its payload does):
     ``held={"sample": "results"}`` assumes ``sample`` keeps its value in every cycle after one
-    with ``results.valid & ~results.ready``."""
+    with ``results.valid & ~results.ready``.
+
+    ``assume`` (a function of the component, giving a value) states what its documentation
+    asks of its user in every cycle, assumed: e.g. a FIFO's rewind only while no offered byte
+    waits."""
     m = harness_module()
     m.submodules.dut = component
     streams = []
@@ -98,6 +102,8 @@ def contract_harness(component, held=None):
         was_waiting, was_value = Past(m, s.valid & ~s.ready), Past(m, value)
         with m.If(started & was_waiting):
             m.d.comb += Assume(value == was_value, f"{port}_held")
+    if assume is not None:
+        m.d.comb += Assume(assume(component), "documented_use")
     for path, s, inward in streams:
         name = path.replace(".", "_")
         if inward:

@@ -94,3 +94,39 @@ def test_read_only_and_state_registers_refuse_writes():
     assert log[:len(refused)] == [(a, 1, 0) for a in refused]
     assert log[len(refused):len(refused) + len(allowed)] == [(a, 1, 1) for a in allowed]
     assert log[-2:] == [("refused", len(refused)), ("select", FILTER_CODES["kalman"])]
+
+
+def test_control_words_against_the_contract():
+    """Issue #25: every CONTROL word with bits 31:4 clear, and some with reserved bits set,
+    against ``numeric_contract.control_fields`` (the reference's rule): the select, the
+    reset pulse and the refusal count agree for each. Code 3 without keep is refused."""
+    from mpu9250_ahrs.hdl.attitude_program import FILTERS
+    from mpu9250_ahrs.hdl.numeric_contract import control_fields
+    words = list(range(16)) + [0x10, 0x13, 0x8000_0000, -1, -16, 0x7FFF_FFF0 | 0x2]
+    dut = HostPort(filter_at_reset=FILTER_CODES["flagship"])
+    got = []
+
+    async def testbench(ctx):
+        ctx.set(dut.open, 1)
+        for word in words:
+            before = ctx.get(dut.select), ctx.get(dut.refused)
+            ctx.set(dut.cfg.payload, {"addr": CONTROL_ADDR, "data": word})
+            ctx.set(dut.cfg.valid, 1)
+            reset = ctx.get(dut.reset)
+            await ctx.tick()
+            ctx.set(dut.cfg.valid, 0)
+            got.append((word, before[0], ctx.get(dut.select), reset,
+                        ctx.get(dut.refused) - before[1]))
+    sim = Simulator(dut)
+    sim.add_clock(1e-6)
+    sim.add_testbench(testbench)
+    sim.run()
+    for word, before, after, reset, refused in got:
+        fields = control_fields(word, len(FILTERS))
+        if fields is None:
+            assert (after, reset, refused) == (before, 0, 1), hex(word)
+        else:
+            code, want_reset = fields
+            assert after == (before if code is None else code), hex(word)
+            assert (reset, refused) == (want_reset, 0), hex(word)
+    assert control_fields(3, len(FILTERS)) is None

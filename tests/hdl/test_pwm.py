@@ -2,6 +2,7 @@
 reset and while disabled, the command watchdog."""
 
 from amaranth.sim import Simulator
+from hypothesis import example, given, settings, strategies as st
 
 from mpu9250_ahrs.hdl.pwm import PWM_REGS, PWMOutputs
 
@@ -113,3 +114,137 @@ def test_watchdog_disables_outputs_when_the_host_goes_quiet():
     out = bench(body)
     assert out["kept"] == (0, 2) and out["tripped"] == (1, 0)
     assert out["status"] & 1 == 1 and out["again"] == (0, 2)
+
+
+def test_a_mode_change_drops_the_high_time():
+    """The case of issue #25: a servo high time of 1,500 µs, the channel switched to motor
+    mode and enabled. The 1,500 is not read as cycles (longer than the motor period: 100 %
+    duty); the channel's high time is 0 after the change, so it stays low until a high time
+    is written in its new unit."""
+    async def body(ctx, dut, write, edges, out):
+        assert await write("PWM_HIGH0", 1_500)
+        assert await write("PWM_MODE", 1)
+        ctx.set(dut.bus.addr, PWM_REGS["PWM_HIGH0"])
+        out["high"] = ctx.get(dut.bus.r_data)
+        assert await write("PWM_ENABLE", 1)
+        out["level"] = await edges(0, 1_000)
+        assert await write("PWM_HIGH0", 50)                       # 25 % of the 200 cycles
+        rises, falls = await edges(0, 1_000)
+        out["pulses"] = [f - r for r, f in zip(rises, falls)]
+    out = bench(body)
+    assert out["high"] == 0 and out["level"] == ([], [])
+    assert out["pulses"] and set(out["pulses"]) == {50}
+
+
+def test_a_period_below_a_high_time_is_refused():
+    """A period written below the high time of a channel of its group (enabled or not) would
+    hold that output high for the whole period: refused; the other group is not concerned."""
+    async def body(ctx, dut, write, edges, out):
+        await write("PWM_HIGH0", 3_000)                           # servo, disabled
+        await write("PWM_MODE", 0b10)
+        await write("PWM_MOTOR_PERIOD", 1_000)
+        await write("PWM_HIGH1", 800)
+        out["servo"] = [await write("PWM_SERVO_PERIOD", 2_999),
+                        await write("PWM_SERVO_PERIOD", 3_000)]
+        out["motor"] = [await write("PWM_MOTOR_PERIOD", 799),
+                        await write("PWM_MOTOR_PERIOD", 800),
+                        await write("PWM_MOTOR_PERIOD", 5_000)]
+    out = bench(body)
+    assert out["servo"] == [0, 1] and out["motor"] == [0, 1, 1]
+
+
+# values around the edges of the ranges at CLK_PROP (one cycle a µs: a servo period of 2,500
+# cycles at the least, a motor one of 50)
+CLK_PROP = 1e6
+_VALUES = {"PWM_SERVO_PERIOD": (2_500, 2_600, 3_000),
+           "PWM_MOTOR_PERIOD": (50, 60, 100, 2_600),
+           "PWM_MODE": tuple(range(16)), "PWM_ENABLE": tuple(range(16)),
+           "PWM_WATCHDOG_MS": (0,),
+           **{f"PWM_HIGH{k}": (0, 1, 49, 50, 60, 100, 1_500, 2_500, 2_600, 3_000)
+              for k in range(4)}}
+
+
+def _op(name, value):
+    return name, _VALUES[name].index(value)
+
+
+@settings(max_examples=20, deadline=None)
+# the two ways today's checks let through: a high time read in the other unit, a period
+# shrunk under a high time
+@example([_op("PWM_HIGH0", 1_500), _op("PWM_MODE", 1), _op("PWM_ENABLE", 1), ("wait", 300)])
+@example([_op("PWM_SERVO_PERIOD", 3_000), _op("PWM_HIGH2", 3_000), _op("PWM_HIGH2", 2_600),
+          _op("PWM_SERVO_PERIOD", 2_500), _op("PWM_ENABLE", 4), ("wait", 3_200),
+          ("wait", 3_200)])
+@given(st.lists(st.one_of(st.tuples(st.sampled_from(sorted(_VALUES)), st.integers(0, 99)),
+                          st.tuples(st.just("wait"), st.integers(1, 3_200))),
+                min_size=4, max_size=14))
+def test_no_output_high_for_a_whole_period_unless_asked(ops):
+    """Random register sequences: no output is ever high for a whole period of its group
+    unless that channel was given a high time equal to the period in its own unit (written
+    while in its present mode). A model mirrors the accepted writes; a mode change leaves
+    nothing asked in the new unit."""
+    dut = PWMOutputs(clk_freq=CLK_PROP)
+    sim = Simulator(dut)
+    sim.add_clock(1 / CLK_PROP)
+    failures = []
+
+    async def tb(ctx):
+        period = [20_000, dut.motor_min]
+        mode, asked = 0, [0] * 4
+        run = [0] * 4                 # cycles high in a row
+        full = [False] * 4            # 100 % was asked during that run
+        shortest = [None] * 4         # the shortest group period (cycles) during the run
+
+        def group(k):
+            return (mode >> k) & 1
+
+        def note_asked():
+            for k in range(4):
+                p = period[group(k)]
+                full[k] |= asked[k] == p
+                shortest[k] = p if shortest[k] is None else min(shortest[k], p)
+
+        async def step(cycles):
+            for _ in range(cycles):
+                _, _, level = await ctx.tick().sample(dut.pwm)
+                for k in range(4):
+                    if (level >> k) & 1:
+                        run[k] += 1
+                        if run[k] >= shortest[k] and not full[k]:
+                            failures.append((k, run[k], shortest[k], asked[k]))
+                            return
+                    else:
+                        run[k], full[k], shortest[k] = 0, False, None
+                        note_asked()
+
+        note_asked()
+        for name, x in ops:
+            if name == "wait":
+                await step(x)
+            else:
+                values = _VALUES[name]
+                value = values[x % len(values)]
+                ctx.set(dut.bus.addr, PWM_REGS[name])
+                ctx.set(dut.bus.w_data, value)
+                ok = ctx.get(dut.bus.ok)
+                ctx.set(dut.bus.w_en, 1)
+                await step(1)
+                ctx.set(dut.bus.w_en, 0)
+                if ok:
+                    if name == "PWM_MODE":
+                        for k in range(4):
+                            if (value ^ mode) >> k & 1:
+                                asked[k] = 0          # nothing asked in the new unit yet
+                        mode = value
+                    elif name.startswith("PWM_HIGH"):
+                        asked[int(name[-1])] = value
+                    elif name == "PWM_SERVO_PERIOD":
+                        period[0] = value
+                    elif name == "PWM_MOTOR_PERIOD":
+                        period[1] = value
+                    note_asked()
+            if failures:
+                return
+    sim.add_testbench(tb)
+    sim.run()
+    assert not failures, failures

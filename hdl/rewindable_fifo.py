@@ -1,0 +1,89 @@
+"""A byte FIFO whose reader can go back: the command decoder's input, so that a frame that
+fails can be searched again for a header it swallowed."""
+
+from amaranth import *
+from amaranth.lib import memory, stream, wiring
+from amaranth.lib.wiring import In, Out
+
+
+__all__ = ["RewindableFIFO"]
+
+
+class RewindableFIFO(wiring.Component):
+    """A FIFO that keeps the bytes its reader has taken until told to let them go, and can
+    offer them again.
+
+    Three pointers: ``write`` (next free place), ``read`` (next byte offered) and ``keep``
+    (oldest byte kept). A byte taken is not freed while it is at or after ``keep``. The reader
+    says, in the cycle it takes a byte or any other cycle:
+
+    - ``mark``: the byte taken in this cycle becomes the oldest kept (a frame's first byte);
+      every byte before it is freed;
+    - ``release``: every byte taken, this cycle's included, is freed;
+    - ``rewind``: the bytes after the oldest kept one are offered again, from the one after
+      it, and the oldest kept one is freed (the frame that began there failed: search the rest
+      for the next header). Takes precedence over the other two. Said only in a cycle where
+      the byte offered is taken, or none is offered, so the offered byte never changes under
+      ``valid`` (the stream rules); a byte taken with it is offered again like the others.
+
+    Parameters
+        ``depth``: places (a power of two). Bytes kept count against it.
+    Members
+        ``w_stream`` (in, byte stream): taken while fewer than ``depth`` bytes are stored
+            (kept or waiting).
+        ``r_stream`` (out, byte stream): the byte at ``read``, held while not taken.
+        ``mark``, ``release``, ``rewind`` (in): above.
+    Latency: a byte written is offered the next cycle (the memory's read is registered, at
+    the pointer the reader will have; transparent for a byte written there); a rewind's
+    first byte likewise. Throughput: a byte per cycle in and out.
+    """
+    def __init__(self, depth=32):
+        if depth & (depth - 1) or depth < 2:
+            raise ValueError(f"depth {depth} is not a power of two")
+        self.depth = depth
+        super().__init__({
+            "w_stream": In(stream.Signature(8)),
+            "r_stream": Out(stream.Signature(8)),
+            "mark": In(1), "release": In(1), "rewind": In(1),
+        })
+
+    def elaborate(self, platform):
+        m = Module()
+        bits = self.depth.bit_length()           # one wrap bit above the address
+        m.submodules.mem = mem = memory.Memory(shape=8, depth=self.depth, init=[])
+        wr = mem.write_port()
+        # the read port reads at the pointer the next cycle will have, so its registered word
+        # is the byte at ``read`` in that cycle; transparent for a byte written there meanwhile
+        rd = mem.read_port(transparent_for=(wr,))
+
+        write = Signal(bits)
+        read = Signal(bits)
+        keep = Signal(bits)
+
+        stored = Signal(bits)
+        m.d.comb += stored.eq(write - keep)
+        m.d.comb += self.w_stream.ready.eq(stored < self.depth)
+        put = self.w_stream.valid & self.w_stream.ready
+        m.d.comb += [wr.addr.eq(write), wr.data.eq(self.w_stream.payload), wr.en.eq(put)]
+        with m.If(put):
+            m.d.sync += write.eq(write + 1)
+
+        # the read port read last cycle at the pointer ``read`` has now (below), so its word
+        # is the byte there: written before, or in that cycle (the port is transparent).
+        # ``read`` lies between ``keep`` and ``write``, so this is ``read != write``; written
+        # as a distance it says so to an induction proof, which starts anywhere
+        m.d.comb += [self.r_stream.valid.eq((read - keep)[:bits] < stored),
+                     self.r_stream.payload.eq(rd.data)]
+        take = self.r_stream.valid & self.r_stream.ready
+        read_next = Signal(bits)
+        keep_next = Signal(bits)
+        m.d.comb += [read_next.eq(read + take), keep_next.eq(keep)]
+        with m.If(self.rewind):
+            m.d.comb += [read_next.eq(keep + 1), keep_next.eq(keep + 1)]
+        with m.Elif(self.mark & take):
+            m.d.comb += keep_next.eq(read)
+        with m.Elif(self.release):
+            m.d.comb += keep_next.eq(read_next)
+        m.d.sync += [read.eq(read_next), keep.eq(keep_next)]
+        m.d.comb += rd.addr.eq(read_next)
+        return m
