@@ -17,7 +17,13 @@ from . import mpu9250_regs as R
 from .register_port import RegisterPortSignature
 
 
-__all__ = ["Op", "Fail", "Step", "bring_up_program", "BringUpSequencer"]
+__all__ = ["Op", "Fail", "Step", "bring_up_program", "BringUpSequencer", "BACKOFF_MAX_SHIFT"]
+
+
+# A restart doubles the waits marked ``backoff`` (the one after H_RESET), up to 2**this times
+# the datasheet's: a part whose reset takes longer than the driver's wait (each retry would
+# reset it again and read it too early, for ever) is brought up by a later retry. 4 x 100 ms.
+BACKOFF_MAX_SHIFT = 2
 
 
 class Op(enum.Enum, shape=3):
@@ -46,6 +52,7 @@ class Step:
     fail: Fail = Fail.RESTART
     check: str = ""             # "who_am_i" or "wia"
     mag: bool = False           # part of the magnetometer's set-up (run again from its first)
+    backoff: bool = False       # a WAIT that doubles with each restart (BACKOFF_MAX_SHIFT)
 
 
 def bring_up_program(config, power_up_cycles, reset_cycles, mag_wait_cycles):
@@ -55,7 +62,7 @@ def bring_up_program(config, power_up_cycles, reset_cycles, mag_wait_cycles):
     if spi:
         steps.append(Step(Op.WRITE, reg=R.USER_CTRL, value=R.USER_CTRL_I2C_IF_DIS))
     steps += [Step(Op.WRITE, reg=R.PWR_MGMT_1, value=R.PWR_MGMT_1_H_RESET),
-              Step(Op.WAIT, wait=reset_cycles)]
+              Step(Op.WAIT, wait=reset_cycles, backoff=True)]
     if spi:
         steps.append(Step(Op.WRITE, reg=R.USER_CTRL, value=R.USER_CTRL_I2C_IF_DIS))
     steps += [Step(Op.WRITE, reg=R.PWR_MGMT_1, value=R.PWR_MGMT_1_CLKSEL_AUTO),
@@ -140,10 +147,17 @@ class BringUpSequencer(wiring.Component):
             ``mag_ok`` and run the magnetometer's part again (``mag_setup`` while it runs).
         ``mag_nack`` (in, pulse): a per-sample read of the AK8963 failed (I2C wiring): it is
             flagged absent and ``mag_ok`` drops.
+        ``reconfigure`` (in, pulse): the part runs at a rate it was not told: write the
+            configuration again, from the step after the WHO_AM_I check through the interrupt
+            set-up, leaving out the magnetometer's part, while samples go on (taken while
+            streaming and idle; ignored while a set-up runs).
         ``streaming`` (out): the program reached its STREAM step; samples may be read. Drops
             on a restart. ``started`` (out, pulse): it just did, from the start of the program.
         ``restarted`` (out, pulse): a restart began (requested, or a failed MPU9250 step).
         ``mag_setup`` (out): the magnetometer's part is running while streaming.
+        ``backoff`` (out, range(BACKOFF_MAX_SHIFT + 1)): restarts since the program last
+            reached STREAM, at most ``BACKOFF_MAX_SHIFT``: the waits marked ``backoff`` last
+            ``2**backoff`` times their cycles (100, 200, 400, 400 ... ms after H_RESET).
         ``whoami_error``, ``no_response``, ``who_am_i``, ``restarts`` (8, saturating),
         ``mag_ok``, ``mag_absent``, ``mag_wia_error`` (out): as ``DriverStatus`` has them.
         ``asa`` (out, 3 × 8): the AK8963's sensitivity adjustment, stored by STORE steps.
@@ -162,12 +176,13 @@ class BringUpSequencer(wiring.Component):
         self.poll_cycles = poll_cycles
         super().__init__({
             "port": Out(RegisterPortSignature().flip()),
-            "restart": In(1), "mag_lost": In(1), "mag_nack": In(1),
+            "restart": In(1), "mag_lost": In(1), "mag_nack": In(1), "reconfigure": In(1),
             "streaming": Out(1), "started": Out(1), "restarted": Out(1), "mag_setup": Out(1),
             "whoami_error": Out(1), "no_response": Out(1), "who_am_i": Out(8),
             "restarts": Out(8), "mag_ok": Out(1), "mag_absent": Out(1),
             "mag_wia_error": Out(1),
             "asa": Out(data.ArrayLayout(8, 3)),
+            "backoff": Out(range(BACKOFF_MAX_SHIFT + 1)),
         })
 
     def elaborate(self, platform):
@@ -175,13 +190,14 @@ class BringUpSequencer(wiring.Component):
         program = self.program
         mark = next((i for i, s in enumerate(program) if s.op == Op.MARK), None)
         skip_mag = 0 if mark is None else mark + 1
-        mag_start = next((i for i, s in enumerate(program) if s.mag), 0)
+        mag_start = next((i for i, s in enumerate(program) if s.mag), None)
+        config_start = next(i + 1 for i, s in enumerate(program) if s.check == "who_am_i")
 
         # -- program ROM --------------------------------------------------------------------------
         pc = Signal(range(len(program)))
         step_layout = data.StructLayout({
             "op": Op, "device": 1, "reg": 8, "value": 8, "mask": 8, "fail": Fail,
-            "check_wia": 1, "wait": range(max(s.wait for s in program) + 1)})
+            "check_wia": 1, "backoff": 1, "wait": range(max(s.wait for s in program) + 1)})
         step = Signal(step_layout)
         with m.Switch(pc):
             for index, s in enumerate(program):
@@ -189,7 +205,7 @@ class BringUpSequencer(wiring.Component):
                     m.d.comb += step.eq(step_layout.const({
                         "op": s.op, "device": s.device, "reg": s.reg, "value": s.value,
                         "mask": s.mask, "fail": s.fail, "check_wia": s.check == "wia",
-                        "wait": s.wait}))
+                        "backoff": s.backoff, "wait": s.wait}))
 
         # -- the register port: every read here is one byte, kept as ``last`` -------------------
         port = self.port
@@ -203,20 +219,24 @@ class BringUpSequencer(wiring.Component):
             m.d.comb += [port.cmd.valid.eq(1), p.device.eq(step.device), p.reg.eq(step.reg),
                          p.write.eq(write), p.data.eq(step.value), p.length.eq(1)]
 
-        timer = Signal(range(max(self.poll_cycles, max(s.wait for s in program)) + 1))
+        longest = max(s.wait << (BACKOFF_MAX_SHIFT if s.backoff else 0) for s in program)
+        timer = Signal(range(max(self.poll_cycles, longest) + 1))
 
         # a requested restart waits for the step under way (at most a poll time-out), so that
         # no command is left half done on the port
         restart_pending = Signal()
+        reconfiguring = Signal()        # a reconfiguration: the magnetometer's part is left out
         with m.If(self.restart):
             m.d.sync += restart_pending.eq(1)
 
         def restart():
             m.d.sync += [pc.eq(0), self.streaming.eq(0), self.mag_ok.eq(0),
-                         self.mag_setup.eq(0), restart_pending.eq(0)]
+                         self.mag_setup.eq(0), restart_pending.eq(0), reconfiguring.eq(0)]
             m.d.comb += self.restarted.eq(1)
             with m.If(self.restarts != 255):
                 m.d.sync += self.restarts.eq(self.restarts + 1)
+            with m.If(self.backoff != BACKOFF_MAX_SHIFT):
+                m.d.sync += self.backoff.eq(self.backoff + 1)
             m.next = "FETCH"
 
         def fail(absent):
@@ -231,7 +251,10 @@ class BringUpSequencer(wiring.Component):
                 restart()
 
         def next_step():
-            m.d.sync += pc.eq(pc + 1)
+            if mag_start is None:
+                m.d.sync += pc.eq(pc + 1)
+            else:
+                m.d.sync += pc.eq(Mux(reconfiguring & (pc == mag_start - 1), skip_mag, pc + 1))
             m.next = "FETCH"
 
         with m.If(self.mag_nack):
@@ -249,7 +272,7 @@ class BringUpSequencer(wiring.Component):
                 with m.If(restart_pending & ~offered):
                     restart()
                 with m.Else():
-                    self._fetch(m, step, command, timer, next_step)
+                    self._fetch(m, step, command, timer, next_step, reconfiguring)
             with m.State("WAIT"):
                 m.d.sync += timer.eq(timer - 1)
                 with m.If(timer == 0):
@@ -301,16 +324,26 @@ class BringUpSequencer(wiring.Component):
                     restart()
                 with m.Elif(self.mag_lost):
                     m.d.sync += [self.mag_ok.eq(0), self.mag_setup.eq(1),
-                                 pc.eq(mag_start)]
+                                 pc.eq(mag_start or 0)]
+                    m.next = "FETCH"
+                with m.Elif(self.reconfigure):
+                    m.d.sync += [reconfiguring.eq(1), pc.eq(config_start)]
                     m.next = "FETCH"
         return m
 
-    def _fetch(self, m, step, command, timer, next_step):
+    def _fetch(self, m, step, command, timer, next_step, reconfiguring):
         """FETCH: start the step at ``pc``."""
         port = self.port
         with m.Switch(step.op):
             with m.Case(Op.WAIT):
-                m.d.sync += timer.eq(step.wait - 1)
+                with m.If(step.backoff):
+                    # ``step.wait << backoff`` as a choice of shifts (no shifter)
+                    with m.Switch(self.backoff):
+                        for shift in range(BACKOFF_MAX_SHIFT + 1):
+                            with m.Case(shift):
+                                m.d.sync += timer.eq((step.wait << shift) - 1)
+                with m.Else():
+                    m.d.sync += timer.eq(step.wait - 1)
                 m.next = "WAIT"
             with m.Case(Op.WRITE):
                 command(write=1)
@@ -330,5 +363,6 @@ class BringUpSequencer(wiring.Component):
             with m.Case(Op.STREAM):
                 with m.If(~self.streaming):
                     m.d.comb += self.started.eq(1)
-                m.d.sync += [self.streaming.eq(1), self.mag_setup.eq(0)]
+                m.d.sync += [self.streaming.eq(1), self.mag_setup.eq(0), self.backoff.eq(0),
+                             reconfiguring.eq(0)]
                 m.next = "RUNNING"

@@ -43,11 +43,11 @@ BOARD_REGS = {
     "RAW_MODE": 0x00, "VERSION": 0x01, "REGMAP_VERSION": 0x02,
     "RX_FRAMING_ERRORS": 0x03, "RX_OVERRUNS": 0x04, "CMD_DISCARDED": 0x05,
     "CMD_CRC_ERRORS": 0x06, "CMD_MALFORMED": 0x07, "CMD_OK": 0x08, "CMD_REFUSED": 0x09,
-    "FRAMES_SENT": 0x0A,
+    "FRAMES_SENT": 0x0A, "RATE_ERRORS": 0x0B,
 }
 # Bumped whenever an address, a format or a meaning in the register map changes (engine,
 # board, PWM); the host tool refuses to configure a board whose map it does not know.
-REGMAP_VERSION = 2
+REGMAP_VERSION = 3
 
 
 class CommandStats(data.Struct):
@@ -89,7 +89,7 @@ class CommandDecoder(wiring.Component):
         ``raw_mode`` (out): RAW_MODE bit 0.
         ``kick`` (out): a pulse per accepted command (result ``ok``; the PWM watchdog).
         ``stats`` (out, ``CommandStats``); ``rx_framing_errors``, ``rx_overruns``,
-        ``frames_sent`` (in): read back as board registers.
+        ``frames_sent``, ``rate_errors`` (in): read back as board registers.
     Latency: a board command's reply is offered two cycles after its last (CRC) byte is
     taken; an engine write or read waits in addition until the engine takes it (at once while
     it is idle, ``WORST_UPDATE_CYCLES`` at most) and, for a read, its word (one cycle).
@@ -113,6 +113,7 @@ class CommandDecoder(wiring.Component):
             "rx_framing_errors": In(16),
             "rx_overruns": In(16),
             "frames_sent": In(32),
+            "rate_errors": In(16),
         })
 
     def elaborate(self, platform):
@@ -167,6 +168,7 @@ class CommandDecoder(wiring.Component):
             BOARD_REGS["CMD_OK"]: stats.ok,
             BOARD_REGS["CMD_REFUSED"]: stats.refused,
             BOARD_REGS["FRAMES_SENT"]: self.frames_sent,
+            BOARD_REGS["RATE_ERRORS"]: self.rate_errors,
         }
         # an engine write the engine would refuse is answered "refused" here (the host learns
         # why): an address it may not write, or a CONTROL word with no meaning

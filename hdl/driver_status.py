@@ -21,6 +21,12 @@
   next new field.
 - ``bad_burst``: the last sample burst failed its checks (data line stuck, no data ready);
   after ``BAD_BURST_LIMIT`` in a row the driver restarts bring-up. Cleared by a good burst.
+- ``rate_error``: the last sample's data-ready came less than 3/4 of a period after the one
+  before (``sample_reader.EARLY_FRACTION``) with a new sample in it: the part runs faster than
+  configured (SMPLRT_DIV or CONFIG changed under the driver). The driver writes the
+  configuration again (``BringUpSequencer.reconfigure``); cleared by the next sample on time.
+  Counted in the board register RATE_ERRORS. A spurious INT pulse (no new sample) sets
+  ``bad_burst`` instead, and counts no lost sample.
 - ``bus_timeout``, ``bus_stuck``, ``bus_arbitration`` (I2C wiring; 0 with SPI): the I2C
   controller's last failure: a device held SCL low past the time-out, SDA stayed low through
   nine recovery clocks, or SDA read low while the controller sent a 1. Set by the failing
@@ -48,3 +54,4 @@ class DriverStatus(data.Struct):
     bus_timeout: 1
     bus_stuck: 1
     bus_arbitration: 1
+    rate_error: 1

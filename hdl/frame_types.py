@@ -94,7 +94,6 @@ class AttitudeFrame(data.Struct):
     state registers)."""
     sample: Sample
     status: DriverStatus
-    reserved: 1
     attitude: FramedAttitude
     counters: TelemetryCounters
     cfg_refused: 16
@@ -118,4 +117,4 @@ FRAME_TYPES = {SENSOR: SensorFrame, ATTITUDE: AttitudeFrame, REPLY: Reply}
 
 # raw-sample mode sends an attitude frame's first bytes as a sensor frame
 assert data.Layout.cast(AttitudeFrame).size >= 8 * payload_bytes(SensorFrame)
-assert (data.Layout.cast(SensorFrame).size + 1) % 8 == 0, "AttitudeFrame.reserved pads to a byte"
+assert data.Layout.cast(SensorFrame).size % 8 == 0, "a SensorFrame is whole bytes"

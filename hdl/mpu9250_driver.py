@@ -33,7 +33,9 @@ one well-known drivers use:
 
 Failures (the whole catalogue, with detection times: ``hdl/FAULTS.md``): a wrong WHO_AM_I or
 an MPU9250 that does not acknowledge (I2C) sets a flag and restarts from the power-up wait (the
-retry delay); so do no interrupt within the time-out and ``BAD_BURST_LIMIT`` sample bursts in a
+retry delay), and each restart doubles the wait after H_RESET, up to four times the datasheet's
+(``BACKOFF_MAX_SHIFT``: a part slower than its datasheet is brought up by a later retry instead
+of being reset again too early for ever; back to one time once streaming); so do no interrupt within the time-out and ``BAD_BURST_LIMIT`` sample bursts in a
 row that fail their checks (a stuck data line, a read that fails on the bus). A magnetometer
 failure (NACK, wrong WIA, SLV4 time-out) sets its flag and skips the rest of the magnetometer
 set-up: accel/gyro samples flow on with ``mag_valid`` = 0. While streaming, a magnetometer that
@@ -200,9 +202,11 @@ class DriverTiming:
 
 def driver_members():
     """The driver's ports towards the sensor's INT pin and downstream, which the sensor front
-    end passes on unchanged: ``int_pin``, ``samples``, ``status``, ``asa``."""
+    end passes on unchanged: ``int_pin``, ``samples``, ``status``, ``asa``, ``rate_errors``
+    (16, saturating: samples that came early, ``DriverStatus.rate_error``)."""
     return {"int_pin": In(1), "samples": Out(stream.Signature(Sample)),
-            "status": Out(DriverStatus), "asa": Out(data.ArrayLayout(8, 3))}
+            "status": Out(DriverStatus), "asa": Out(data.ArrayLayout(8, 3)),
+            "rate_errors": Out(16)}
 
 
 class MPU9250Driver(wiring.Component):
@@ -241,7 +245,7 @@ class MPU9250Driver(wiring.Component):
             self.program, accepted_who_am_i=cfg.accepted_who_am_i,
             poll_cycles=self.timeout_cycles)
         m.submodules.reader = reader = SampleReader(
-            wiring=cfg.wiring, int_active_low=cfg.int_active_low,
+            wiring=cfg.wiring, int_active_low=cfg.int_active_low, int_latched=cfg.int_latched,
             magnetometer=cfg.magnetometer, period_cycles=self.period_cycles,
             first_timeout_cycles=self.timeout_cycles, timeout_cycles=self.stream_timeout_cycles,
             mag_timeout_periods=self.mag_timeout_periods)
@@ -257,6 +261,8 @@ class MPU9250Driver(wiring.Component):
             reader.restarted.eq(seq.restarted), reader.mag_ok.eq(seq.mag_ok),
             reader.mag_setup.eq(seq.mag_setup),
             seq.restart.eq(reader.restart), seq.mag_lost.eq(reader.mag_lost),
+            seq.reconfigure.eq(reader.reconfigure), self.rate_errors.eq(reader.rate_errors),
+            status.rate_error.eq(reader.rate_error),
             seq.mag_nack.eq(reader.mag_nack),
             self.asa.eq(seq.asa),
             status.streaming.eq(seq.streaming), status.whoami_error.eq(seq.whoami_error),

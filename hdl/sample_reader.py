@@ -9,7 +9,14 @@ The rules it applies (``hdl/FAULTS.md`` has what each catches):
 - a magnetometer field is new only on ST1.DRDY after a read without it, or with bytes other
   than the last read's; no new field for ``mag_timeout_periods`` sample periods makes it stale
   (``mag_stale``) and asks for the magnetometer to be set up again (``mag_lost``);
-- data-ready intervals against the sample period give ``skipped`` (samples made and never read).
+- data-ready intervals against the sample period give ``skipped`` (samples made and never read);
+  they are measured from the edge of the last burst that held a sample, so a spurious INT
+  pulse (its burst has no RAW_RDY: nothing was made, nothing lost) moves nothing;
+- a data-ready interval shorter than ``EARLY_FRACTION`` (7/8) of the period whose burst holds a
+  new sample means the sensor runs faster than configured (SMPLRT_DIV or CONFIG changed under the
+  driver: a glitch, a brown-out of that register): ``rate_error`` is set, ``rate_errors``
+  counts it, and the reader asks for the configuration to be written again (``reconfigure``).
+  The sample itself is real and is passed on (flagged).
 """
 
 from amaranth import *
@@ -23,7 +30,8 @@ from .register_port import RegisterPortSignature
 from .sample import Sample
 
 
-__all__ = ["SAMPLE_BYTES", "MPU_BYTES", "BAD_BURST_LIMIT", "burst_is_plausible", "SampleReader"]
+__all__ = ["SAMPLE_BYTES", "MPU_BYTES", "BAD_BURST_LIMIT", "EARLY_FRACTION", "burst_is_plausible",
+           "SampleReader"]
 
 
 SAMPLE_BYTES = 1 + R.SENSOR_BYTES + A.SAMPLE_BYTES   # INT_STATUS, accel/temp/gyro, ST1..ST2
@@ -33,6 +41,14 @@ MPU_BYTES = 1 + R.SENSOR_BYTES
 # burst is dropped and flagged; four (four sample periods) mean the data line or the part is
 # gone, and bring-up's WHO_AM_I check then says which.
 BAD_BURST_LIMIT = 4
+
+# A data-ready interval below this fraction of the configured period is early. The sensor's
+# clock is within a few per cent of its nominal rate and an edge is seen within two cycles,
+# so 7/8 leaves margin against false alarms; a rate divider that lost its value (SMPLRT_DIV
+# n -> m < n: (m + 1)/(n + 1) of the period, at most 7/8 for n <= 7, or CONFIG's DLPF off:
+# 1/8) is caught, and with a latched INT a rate too fast for the read shows as edges one
+# read apart (read time < 7/8 of the period: ``rate_budget``'s bound is the period itself).
+EARLY_FRACTION = (7, 8)
 
 
 def burst_is_plausible(burst):
@@ -52,7 +68,8 @@ class SampleReader(wiring.Component):
     Parameters
         ``wiring``: "spi" (one fast burst of ``SAMPLE_BYTES`` from INT_STATUS: the AK8963's bytes
             are in EXT_SENS_DATA) or "i2c" (the MPU9250's ``MPU_BYTES``, then the AK8963's eight
-            from ST1 directly). ``int_active_low``: the INT pin's polarity.
+            from ST1 directly). ``int_active_low``: the INT pin's polarity; ``int_latched``:
+            INT is latched until INT_STATUS is read (else a 50 µs pulse).
         ``magnetometer``: the configuration has one (else no freshness check).
         ``period_cycles``: the sample period. ``first_timeout_cycles``: the data-ready time-out
             after streaming starts; ``timeout_cycles`` after each sample.
@@ -69,19 +86,23 @@ class SampleReader(wiring.Component):
         ``mag_ok`` (in): the magnetometer is up; ``mag_setup`` (in): it is being set up (its
             time-out waits).
         ``restart`` (out, pulse): no data-ready for the time-out, or ``BAD_BURST_LIMIT`` bad
-            bursts in a row. ``mag_lost`` (out, pulse): no new field for the time-out.
+            bursts in a row. ``reconfigure`` (out, pulse): a sample came early (above).
+            ``mag_lost`` (out, pulse): no new field for the time-out.
             ``mag_nack`` (out, pulse): the AK8963's read failed (I2C wiring).
-        ``int_timeout``, ``bad_burst``, ``mag_stale``, ``read_error`` (out): status, as
-            ``DriverStatus`` has them (``read_error``: the MPU9250's read failed, I2C).
+        ``int_timeout``, ``bad_burst``, ``mag_stale``, ``read_error``, ``rate_error`` (out):
+            status, as ``DriverStatus`` has them (``read_error``: the MPU9250's read failed,
+            I2C; ``rate_error``: the last sample came early, cleared by one on time).
+        ``rate_errors`` (out, 16): early samples since power-on, saturating.
 
     Latency: a sample is valid two cycles after its last byte. Throughput: one sample per
     data-ready edge, as fast as the bus reads them.
     """
 
-    def __init__(self, *, wiring="spi", int_active_low=False, magnetometer=True,
+    def __init__(self, *, wiring="spi", int_active_low=False, int_latched=True, magnetometer=True,
                  period_cycles, first_timeout_cycles, timeout_cycles, mag_timeout_periods):
         self.wiring = wiring
         self.int_active_low = int_active_low
+        self.int_latched = int_latched
         self.magnetometer = magnetometer
         self.period_cycles = period_cycles
         self.first_timeout_cycles = first_timeout_cycles
@@ -93,9 +114,9 @@ class SampleReader(wiring.Component):
             "samples": Out(stream.Signature(Sample)),
             "enable": In(1), "start": In(1), "restarted": In(1),
             "mag_ok": In(1), "mag_setup": In(1),
-            "restart": Out(1), "mag_lost": Out(1), "mag_nack": Out(1),
+            "restart": Out(1), "reconfigure": Out(1), "mag_lost": Out(1), "mag_nack": Out(1),
             "int_timeout": Out(1), "bad_burst": Out(1), "mag_stale": Out(1),
-            "read_error": Out(1),
+            "read_error": Out(1), "rate_error": Out(1), "rate_errors": Out(16),
         })
 
     def elaborate(self, platform):
@@ -121,24 +142,89 @@ class SampleReader(wiring.Component):
         with m.If(int_edge):
             m.d.sync += int_pending.eq(1)
 
-        # Sensor samples missed: data-ready edges are one sample period apart; an interval of
-        # n periods (rounded: the phase starts half a period in) means n - 1 samples the sensor
-        # made and the driver never read (e.g. a latched INT still high from the sample before).
+        # Sensor samples missed and samples too early, from data-ready edges: one sample period
+        # apart; an interval of n periods (rounded: a clock's phase starts half a period in)
+        # means n - 1 samples made and never read (e.g. a latched INT still high from the
+        # sample before); one under ``EARLY_FRACTION`` of a period means the part runs faster
+        # than it was told. Intervals are measured from the edge of the last burst that held a
+        # sample (``since_sample``), so a spurious pulse (its burst: RAW_RDY clear over real
+        # data) moves nothing. ``since_edge`` runs from the edge of the burst in flight (or the
+        # latest), ``since_next`` from an edge that came while a burst was being read: that
+        # one is judged at the burst's check, early if the burst held a sample (a read ends
+        # well within a period, ``rate_budget``), else against the base before it.
         period = self.period_cycles
-        phase = Signal(range(period))
+        counters = [(Signal(range(period), name=f"{n}_phase"), Signal(4, name=f"{n}_periods"))
+                    for n in ("sample", "edge", "next")]
+        since_sample, since_edge, since_next = counters
+        for phase, periods in counters:
+            with m.If(phase == period - 1):
+                m.d.sync += [phase.eq(0), periods.eq(Mux(periods == 15, 15, periods + 1))]
+            with m.Else():
+                m.d.sync += phase.eq(phase + 1)
+        phase, periods = since_sample
         tick = Signal()                         # a sample period has gone by
-        periods = Signal(4)                     # whole periods since the last edge, saturating
-        skipped = Signal(4)                     # for the sample this edge announces
-        seen_edge = Signal()                    # an edge since streaming began
-        dropped = Signal(4)                     # read but not passed on (consumer busy, checks)
         m.d.comb += tick.eq(phase == period - 1)
+        skipped = Signal(4)                     # for the sample this edge announces
+        early = Signal()                        # this edge came < EARLY_FRACTION of a period
+        seen_edge = Signal()                    # ``since_sample`` is a base
+        pending_edge = Signal()                 # ``int_pending`` came from an edge
+        read_edge = Signal()                    # the burst in flight was started by an edge
+        deferred = Signal()                     # an edge came while it was read
+        deferred_base = (Signal.like(phase), Signal.like(periods))   # ``since_sample`` then
+        dropped = Signal(4)                     # read but not passed on (consumer busy, checks)
+        num, den = EARLY_FRACTION
+        early_phase = period * (2 * num - den) // (2 * den)     # t < f*P with periods == 1
+        reading = Signal()                      # a burst in flight, before its check
+
+        def restart_clock(counter):
+            m.d.sync += [counter[0].eq(period // 2), counter[1].eq(0)]
+
+        def copy_clock(dst, src):
+            """``dst`` takes ``src``'s value, advanced by this cycle's count."""
+            m.d.sync += [dst[0].eq(Mux(src[0] == period - 1, 0, src[0] + 1)),
+                         dst[1].eq(Mux(src[0] == period - 1, Mux(src[1] == 15, 15, src[1] + 1),
+                                       src[1]))]
+
+        def judge(interval, base_ok):
+            """(skipped, early) for an edge ``interval`` (phase, periods) after a base."""
+            ph, pe = interval
+            m.d.sync += [skipped.eq(Mux(base_ok & (pe > 1), pe - 1, 0)),
+                         early.eq(base_ok & ((pe == 0) | ((pe == 1) & (ph < early_phase))))]
+
+        snap_edge = (Signal.like(phase), Signal.like(periods))      # ``since_edge`` then
         with m.If(int_edge):
-            m.d.sync += [phase.eq(period // 2), periods.eq(0), seen_edge.eq(1),
-                         skipped.eq(Mux(seen_edge & (periods > 1), periods - 1, 0))]
-        with m.Elif(tick):
-            m.d.sync += [phase.eq(0), periods.eq(Mux(periods == 15, 15, periods + 1))]
-        with m.Else():
-            m.d.sync += phase.eq(phase + 1)
+            m.d.sync += [int_pending.eq(1), pending_edge.eq(1)]
+            with m.If(reading):
+                restart_clock(since_next)
+                m.d.sync += [deferred.eq(1), deferred_base[0].eq(phase),
+                             deferred_base[1].eq(periods), snap_edge[0].eq(since_edge[0]),
+                             snap_edge[1].eq(since_edge[1])]
+            with m.Else():
+                restart_clock(since_edge)
+                judge(since_sample, seen_edge)
+
+        def read_started():
+            m.d.sync += [read_edge.eq(pending_edge), pending_edge.eq(int_edge)]
+
+        def checked(spurious):
+            """A burst's check. If it held a sample, intervals are measured from its edge
+            (a base only if an edge started its read: the one at ``start``, or one made again
+            for a level still high, has no known edge). An edge that came during its read is
+            judged now: from this burst's edge if it held a sample, else from the base."""
+            with m.If(~spurious):
+                m.d.sync += seen_edge.eq(read_edge)
+                copy_clock(since_sample, since_edge)
+            base_ok = Mux(~spurious, read_edge, seen_edge)
+            with m.If(int_edge):                    # an edge in this very cycle
+                restart_clock(since_edge)
+                m.d.sync += deferred.eq(0)
+                judge([Mux(~spurious, e, b) for e, b in zip(since_edge, since_sample)],
+                      base_ok)
+            with m.Elif(deferred):
+                copy_clock(since_edge, since_next)
+                m.d.sync += deferred.eq(0)
+                judge([Mux(~spurious, e, b) for e, b in zip(snap_edge, deferred_base)],
+                      base_ok)
 
         timer = Signal(range(max(self.first_timeout_cycles, self.timeout_cycles) + 1))
         m.d.sync += timer.eq(timer - (timer != 0))
@@ -151,7 +237,8 @@ class SampleReader(wiring.Component):
         with m.If(self.start):
             # a latched INT already active gives no edge: it counts as one
             m.d.sync += [timer.eq(self.first_timeout_cycles - 1), int_pending.eq(int_active),
-                         seen_edge.eq(0), skipped.eq(0), bad_bursts.eq(0)]
+                         seen_edge.eq(0), pending_edge.eq(0), deferred.eq(0), skipped.eq(0),
+                         early.eq(0), bad_bursts.eq(0)]
 
         # -- magnetometer freshness ---------------------------------------------------------------
         limit = self.mag_timeout_periods
@@ -184,13 +271,16 @@ class SampleReader(wiring.Component):
         offered = Signal()
         m.d.sync += offered.eq(port.cmd.valid & ~port.cmd.ready)
 
-        with m.FSM():
+        with m.FSM() as fsm:
+            m.d.comb += reading.eq(fsm.ongoing("READ_MPU") | fsm.ongoing("MAG_CMD") |
+                                   fsm.ongoing("READ_MAG"))
             with m.State("IDLE"):
                 m.d.sync += rx_index.eq(0)
                 with m.If(offered | (self.enable & int_pending)):
                     command(0, R.INT_STATUS, SAMPLE_BYTES if spi else MPU_BYTES)
                     with m.If(port.cmd.ready):
                         m.d.sync += [int_pending.eq(int_edge), mag_read_failed.eq(0)]
+                        read_started()
                         m.next = "READ_MPU"
                 with m.Elif(self.enable & ~self.start & (timer == 0)):
                     m.d.sync += self.int_timeout.eq(1)
@@ -231,15 +321,33 @@ class SampleReader(wiring.Component):
                 m.next = "IDLE"
                 data_ones = Cat(buf[k] == 0xFF for k in range(1, MPU_BYTES)).all()
                 plausible = buf[0][0] & (buf[0] != 0xFF) & ~data_ones
+                # no RAW_RDY over real data: no sample was made (a spurious INT pulse, or a
+                # read made again), none lost; all zeros is a line stuck low: a lost sample
+                data_zeros = Cat(buf[k] == 0 for k in range(1, MPU_BYTES)).all()
+                spurious = ~buf[0][0] & ~data_zeros
+                checked(spurious)
+                if self.int_latched:
+                    # after a spurious pulse's burst, a latched INT still active means a
+                    # sample is waiting that gave no edge (it rose under the pulse): read
+                    # again (once per such burst: a line stuck high still times out)
+                    with m.If(spurious & int_active & ~int_pending & ~int_edge):
+                        m.d.sync += [int_pending.eq(1), pending_edge.eq(0)]
                 with m.If(~plausible):
-                    m.d.sync += [self.bad_burst.eq(1), bad_bursts.eq(bad_bursts + 1),
-                                 dropped.eq(Mux(dropped == 15, 15, dropped + 1))]
+                    m.d.sync += [self.bad_burst.eq(1), bad_bursts.eq(bad_bursts + 1)]
+                    with m.If(~spurious):     # a sample was made and lost
+                        m.d.sync += dropped.eq(Mux(dropped == 15, 15, dropped + 1))
                     with m.If(bad_bursts == BAD_BURST_LIMIT - 1):
                         m.d.comb += self.restart.eq(1)
                         m.d.sync += bad_bursts.eq(0)
                         m.next = "HALT"
                 with m.Else():
-                    m.d.sync += [self.bad_burst.eq(0), bad_bursts.eq(0)]
+                    m.d.sync += [self.bad_burst.eq(0), bad_bursts.eq(0),
+                                 self.rate_error.eq(early)]
+                    with m.If(early):
+                        # a new sample too soon: the part runs faster than it was told
+                        m.d.comb += self.reconfigure.eq(1)
+                        with m.If(~self.rate_errors.all()):
+                            m.d.sync += self.rate_errors.eq(self.rate_errors + 1)
                     if not spi:
                         m.d.sync += self.read_error.eq(0)
                     self._emit(m, buf, counter, overrun, dropped, skipped, resumed,

@@ -243,6 +243,7 @@ class AHRSCore(wiring.Component):
                          decoder.rx_framing_errors.eq(rx.framing_errors),
                          decoder.rx_overruns.eq(rx.overruns),
                          decoder.frames_sent.eq(arbiter.frames),
+                         decoder.rate_errors.eq(fe.rate_errors),
                          self.command_stats.eq(decoder.stats), self.raw_mode.eq(decoder.raw_mode),
                          framer.short.eq(decoder.raw_mode)]
             # The engine's register port: the ``cfg`` ports (a test bench, or tied off) first,

@@ -249,6 +249,7 @@ class CosimResult:
     status_log: List[tuple] = field(default_factory=list)   # (cycle, status dict) on change
     asa: List[int] = field(default_factory=list)            # the driver's asa port at the end
     sample_cycles: List[int] = field(default_factory=list)  # when each sample was taken
+    rate_errors: int = 0                                    # the driver's count at the end
 
     @property
     def cycles_per_s(self):
@@ -325,7 +326,7 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
         attach_stuck_miso(sim, harness, stuck_miso)
 
     out = {"samples": [], "status": None, "cycles": 0, "bring_up": None, "log": [], "asa": [],
-           "sample_cycles": []}
+           "sample_cycles": [], "rate_errors": 0}
 
     class Done(Exception):
         pass
@@ -374,6 +375,7 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
                     observe(cycle + 1, taken, payload, status)
         except Done:
             out["asa"] = to_python(ctx.get(dut.asa))
+            out["rate_errors"] = ctx.get(dut.rate_errors)
             harness.check(ctx)
     sim.add_testbench(testbench)
 
@@ -391,7 +393,8 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
         sim.run()
     wall = time.perf_counter() - start
     return CosimResult(out["samples"], out["status"], out["cycles"], out["bring_up"], wall,
-                       model, bus, out["log"], out["asa"], out["sample_cycles"])
+                       model, bus, out["log"], out["asa"], out["sample_cycles"],
+                       out["rate_errors"])
 
 
 def sample_read_cycles(result, setup):

@@ -35,7 +35,8 @@ __all__ = ["Fault", "FAULTS", "FaultInjector", "run_fault", "fault_names", "ERRO
 
 # DriverStatus bits that say something is wrong (``restarts`` is reported when it goes up)
 ERROR_FLAGS = ("whoami_error", "no_response", "int_timeout", "mag_absent", "mag_wia_error",
-               "mag_stale", "bad_burst", "bus_timeout", "bus_stuck", "bus_arbitration")
+               "mag_stale", "bad_burst", "bus_timeout", "bus_stuck", "bus_arbitration",
+               "rate_error")
 SAMPLE_FLAGS = ("overrun", "mag_overflow", "mag_dor", "resumed")
 
 
@@ -189,6 +190,26 @@ def _nothing(inj, t):
     pass
 
 
+def _rate_glitch(inj, t):
+    # SMPLRT_DIV loses its value (a glitch, a brown-out of that register): 0, the fastest rate
+    # the DLPF setting allows (200 Hz -> 1 kHz); the part reschedules as for a write
+    mpu = inj.mpu
+    mpu.advance(t)
+    mpu.now = t
+    mpu.regs[R.SMPLRT_DIV] = 0
+    mpu._reschedule(t)
+
+
+def _int_high(inj, t):
+    # a spurious pulse on INT between two samples (cross-talk, a glitch): the pin override
+    # raises INT now; ``remove`` lets it go a fraction of a period later
+    inj.int_level = 1
+
+
+def _int_free(inj, t):
+    inj.int_level = None
+
+
 FAULTS = {f.name: f for f in [
     Fault("mpu_absent", "no MPU9250 at power-up (SPI: CIPO floats high, no INT; I2C: no ACK); "
           "plugged in later", _set("mpu_absent", True), _set("mpu_absent", False),
@@ -235,6 +256,10 @@ FAULTS = {f.name: f for f in [
     Fault("sensor_overrun", "the consumer stops taking samples for a while (samples made and "
           "read faster than taken)", _nothing, _nothing, duration=3,
           flags=("overrun",), stall=True),
+    Fault("rate_change", "SMPLRT_DIV changes under the driver (a register glitch): the part "
+          "samples five times faster", _rate_glitch, duration=None, flags=("rate_error",)),
+    Fault("spurious_int", "one spurious INT pulse between two samples (no new sample)",
+          _int_high, _int_free, duration=0.02, flags=("bad_burst",), recovers="remains"),
 ]}
 
 
@@ -279,11 +304,11 @@ def run_host_garbage(setup, *, n_results=4, baud=None):
 
 
 def run_fault(name, setup=None, *, at=20, duration=None, after=None, max_cycles=None,
-              vcd=None):
+              vcd=None, keep_result=False):
     """Co-simulate the front end of ``setup`` (``SimSetup``) with fault ``name``; return the
     summary dict (module docstring). ``at``: samples read before a mid-run fault; ``duration``:
     sample periods until it is removed (default: the fault's); ``after``: samples to see once
-    it is removed (default 12)."""
+    it is removed (default 12). ``keep_result``: return (summary, the ``CosimResult``)."""
     from .cosim import SimSetup, run_frontend
     setup = setup or SimSetup()
     if name not in FAULTS:
@@ -348,7 +373,8 @@ def run_fault(name, setup=None, *, at=20, duration=None, after=None, max_cycles=
     result = run_frontend(setup, model=model, injector=inj, stop=stop, max_cycles=max_cycles,
                           vcd=vcd, ready=ready if fault.stall else None,
                           until=lambda st: False)
-    return summarise(fault, inj, result, setup, after)
+    summary = summarise(fault, inj, result, setup, after)
+    return (summary, result) if keep_result else summary
 
 
 def summarise(fault, inj, result, setup, after):

@@ -24,7 +24,8 @@ def burst(k, *, int_status=0x01, drdy=1, field=(100, -200, 300), data=None):
 def run(bursts, *, mag_ok=1, extra_periods=0):
     """One data-ready edge per entry of ``bursts`` (None: no edge that period), a period apart;
     returns the samples taken and, per period, the status and pulses seen."""
-    dut = SampleReader(period_cycles=PERIOD, first_timeout_cycles=4 * PERIOD,
+    # the INT here is a pulse (high for half a period), not latched
+    dut = SampleReader(int_latched=False, period_cycles=PERIOD, first_timeout_cycles=4 * PERIOD,
                        timeout_cycles=4 * PERIOD, mag_timeout_periods=3)
     queue = []
     model = RegisterPortModel(dut.port, lambda device, reg, length: queue.pop(0))
@@ -78,9 +79,12 @@ def test_decoding_and_magnetometer_freshness():
 
 def test_bad_bursts_are_dropped_counted_and_restart():
     good = [burst(k) for k in range(2)]
-    bad = [burst(2, int_status=0x00), burst(3, data=b"\xff" * 14), burst(4, int_status=0xFF)]
+    # a line stuck low (all zeros), stuck high (data all ones), INT_STATUS 0xFF
+    bad = [burst(2, int_status=0x00, data=bytes(14)), burst(3, data=b"\xff" * 14),
+           burst(4, int_status=0xFF)]
     samples, log = run(good + bad[:1] + [burst(5)] + bad + [burst(9, int_status=0)])
-    # one bad burst: no sample, flagged, counted in the next sample's skipped
+    # one bad burst: no sample, flagged, counted in the next sample's skipped (the sample
+    # was made: the line lost it)
     assert [s.counter for s in samples] == [0, 1, 3]
     assert samples[2].skipped == 1
     assert [e["bad_burst"] for e in log[:4]] == [0, 0, 1, 0]
@@ -98,3 +102,4 @@ def test_magnetometer_time_out_and_no_data_ready():
     assert lost[:6] == [0, 0, 1, 0, 0, 1] and log[2]["mag_stale"] == 1
     # no data-ready edge for four periods: a time-out and a restart asked for
     assert any(e["restart"] and e["int_timeout"] for e in log[6:])
+

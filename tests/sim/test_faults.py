@@ -33,18 +33,22 @@ def bound(name, setup):
         "mag_overflow": ak_period + 1,
         "cipo_stuck_high": 1, "cipo_stuck_low": 1,
         "int_stuck_low": timing.stream_timeout_periods + 1.5,
-        "int_stuck_high": timing.stream_timeout_periods + 1.5,
+        # the edge of the line going high is read as a spurious pulse's, and the sample
+        # latched behind it is read once more before the time-out starts
+        "int_stuck_high": timing.stream_timeout_periods + 2.5,
         "mpu_reset": timing.stream_timeout_periods + 1.5,
         "i2c_bus_stuck": 1, "clock_stretch_timeout": i2c_timeout + 1,
         "nack_mid_transfer": 1,
         "sensor_overrun": FAULTS["sensor_overrun"].duration + 1,
         "host_garbage": 0,
+        # the first samples of the faster rate come early: the read of one sets the flag
+        "rate_change": 2, "spurious_int": 1,
     }[name]
 
 
 KEEPS_STREAMING = {"ak8963_absent", "wia_wrong", "ak8963_lost", "ak8963_reset", "mag_overflow",
                    "nack_mid_transfer", "sensor_overrun",
-                   "host_garbage"}
+                   "host_garbage", "rate_change", "spurious_int"}
 CASES = [(name, wiring) for wiring in ("spi", "i2c") for name in fault_names(wiring)]
 
 
@@ -52,7 +56,8 @@ CASES = [(name, wiring) for wiring in ("spi", "i2c") for name in fault_names(wir
 def test_fault(name, wiring):
     setup = catalogue_setup(wiring, fault=name)
     fault = FAULTS[name]
-    removable = not (fault.stall or fault.duration is None)
+    # a glitch (a fraction of a period) keeps its own length
+    removable = not (fault.stall or fault.duration is None or fault.duration < 1)
     r = run_fault(name, setup, at=AT, after=AFTER, duration=DURATION if removable else None)
     assert r["stale_valid_samples"] == 0, r
     assert set(fault.flags) & set(r["flags"]), r
@@ -99,3 +104,32 @@ def test_injector_timing():
     assert inj.removed_at is None
     inj.advance(4.5)
     assert inj.removed_at == 4.5 and inj.int_level is None
+
+
+@pytest.mark.parametrize("wiring", ["spi", "i2c"])
+def test_rate_change_is_written_back(wiring):
+    """Issue #25: SMPLRT_DIV changes under the driver (200 Hz -> 1 kHz). Before, four of five
+    samples went unread with ``skipped`` 0 and no flag, for ever. Now the first early sample
+    sets ``rate_error``, the configuration is written again (SMPLRT_DIV back to its value,
+    no restart of bring-up), and the flag clears with the samples on time."""
+    from mpu9250_ahrs.hdl import mpu9250_regs as R
+    setup = catalogue_setup(wiring, fault="rate_change")
+    r, result = run_fault("rate_change", setup, at=AT, after=12, keep_result=True)
+    assert "rate_error" in r["flags"] and "restarts" not in r["flags"], r
+    model = result.model
+    assert model.regs[R.SMPLRT_DIV] == setup.config.smplrt_div
+    assert result.status["rate_error"] == 0 and result.rate_errors >= 1
+    late = result.samples[-AFTER:]
+    assert all(s["skipped"] == 0 for s in late[1:]), [s["skipped"] for s in late]
+
+
+@pytest.mark.parametrize("wiring", ["spi", "i2c"])
+def test_spurious_int_loses_no_sample(wiring):
+    """Issue #25: a spurious INT pulse is dropped (its burst has no RAW_RDY: ``bad_burst``),
+    and the next sample no longer claims a lost one (``skipped`` stayed 0; it was 1, and the
+    engine integrated two periods of gyro for it); no early-rate alarm either."""
+    setup = catalogue_setup(wiring, fault="spurious_int")
+    r, result = run_fault("spurious_int", setup, at=AT, after=AFTER, keep_result=True)
+    assert "bad_burst" in r["flags"] and "rate_error" not in r["flags"], r
+    assert [s["skipped"] for s in result.samples[1:]] == [0] * (len(result.samples) - 1)
+    assert result.rate_errors == 0
