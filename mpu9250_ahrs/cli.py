@@ -332,6 +332,9 @@ def cmd_replay(args):
     if rec.held:
         print(f"mpu9250-ahrs replay: warning: {rec.held} samples with NaN or infinite sensor "
               f"values were held at the previous sample's values", file=sys.stderr)
+    if rec.truth_rejected:
+        print(f"mpu9250-ahrs replay: warning: {rec.truth_rejected} truth quaternions not of "
+              f"unit norm were left out of the score", file=sys.stderr)
     scales = Scales(gyro_fs_dps=args.gyro_fs, accel_fs_g=args.accel_fs)
     counts = quantise(rec.gyr, rec.acc, rec.mag, scales)
     params = {"beta": args.beta} if args.beta is not None else {}
@@ -360,7 +363,7 @@ def cmd_replay(args):
     result = {"file": rec.name, "filter": args.filter, "engine": engine,
               "fixed": engine != "float", **score(quat, rec.quat, rec.movement),
               "filter_s": round(elapsed, 3), "samples_total": len(quat),
-              "samples_held": rec.held, **extra}
+              "samples_held": rec.held, "truth_rejected": rec.truth_rejected, **extra}
     if args.out:
         np.savetxt(args.out, np.column_stack([np.arange(len(quat)) * rec.dt, quat]),
                    delimiter=",", header="t_s,w,x,y,z", comments="", fmt="%.9g")

@@ -31,6 +31,7 @@ class Recording:
     quat: np.ndarray     # truth, sensor->ENU (w, x, y, z); NaN rows where unknown
     movement: np.ndarray
     held: int = 0        # samples whose sensor values were NaN or infinite: held (see below)
+    truth_rejected: int = 0   # truth rows not of unit norm: set unknown (NaN), not scored
 
     @property
     def dt(self):
@@ -53,11 +54,20 @@ def _hold_bad_rows(*arrays):
     return tuple(a[source] for a in arrays), int(bad.sum())
 
 
+# A truth quaternion further than this from unit norm is no rotation: the optical system's
+# output is normalised to ~1e-6, so 1 % only catches rows that are not quaternions at all
+# (scaled, zero, garbage).
+TRUTH_NORM_TOLERANCE = 0.01
+
+
 def load_broad(path):
     """A BROAD-format HDF5 file, checked: the datasets and the ``sampling_rate`` attribute
     there, N × 3 sensor arrays, N × 4 truth and N movement flags with N ≥ 2, a finite
-    positive rate. NaN or infinite sensor values are held (``Recording.held`` counts them;
-    ``replay`` says so). Anything else is a ValueError with one line."""
+    positive rate, each dataset's shape before its data is read. NaN or infinite sensor values
+    are held (``Recording.held`` counts them; ``replay`` says so). Truth rows whose norm is
+    not 1 within ``TRUTH_NORM_TOLERANCE`` are set unknown (``Recording.truth_rejected``
+    counts them; ``replay`` says so); a file whose known truth is all of that kind is
+    refused. Anything else is a ValueError with one line."""
     import h5py
     from pathlib import Path
     try:
@@ -70,6 +80,21 @@ def load_broad(path):
             missing.append("attribute sampling_rate")
         if missing:
             raise ValueError(f"{path}: not a BROAD-format file (missing {', '.join(missing)})")
+        # shapes first, from the datasets' headers: a small file may declare huge datasets
+        shapes = {}
+        for name, width in (("movement", None), ("imu_gyr", 3), ("imu_acc", 3),
+                            ("imu_mag", 3), ("opt_quat", 4)):
+            shape = getattr(f[name], "shape", None)
+            if shape is None:
+                raise ValueError(f"{path}: {name} is a group, not a dataset")
+            shapes[name] = shape
+        n = shapes["movement"][0] if len(shapes["movement"]) >= 1 else 0
+        for name, width in (("imu_gyr", 3), ("imu_acc", 3), ("imu_mag", 3), ("opt_quat", 4)):
+            if shapes[name] != (n, width):
+                raise ValueError(f"{path}: {name} has shape {shapes[name]}, expected "
+                                 f"({n}, {width}) like movement")
+        if len(shapes["movement"]) != 1:
+            raise ValueError(f"{path}: movement has shape {shapes['movement']}, expected (N,)")
         try:
             rate = float(np.asarray(f.attrs["sampling_rate"]).reshape(-1)[0])
             arrays = {k: np.asarray(f[k][()], float) for k in
@@ -89,8 +114,17 @@ def load_broad(path):
         raise ValueError(f"{path}: {n} samples; a recording needs at least 2")
     (gyr, acc, mag), held = _hold_bad_rows(arrays["imu_gyr"], arrays["imu_acc"],
                                            arrays["imu_mag"])
-    return Recording(Path(path).stem, rate, gyr, acc, mag, arrays["opt_quat"],
-                     movement.reshape(-1), held)
+    quat = arrays["opt_quat"].copy()
+    known = np.all(np.isfinite(quat), axis=1)
+    off = known & (np.abs(np.linalg.norm(np.where(known[:, None], quat, 0), axis=1) - 1)
+                   > TRUTH_NORM_TOLERANCE)
+    if known.any() and off[known].all():
+        norms = np.linalg.norm(quat[known], axis=1)
+        raise ValueError(f"{path}: opt_quat is not a unit quaternion in any row (norms "
+                         f"{norms.min():.3g} .. {norms.max():.3g}): no truth to score against")
+    quat[off] = np.nan
+    return Recording(Path(path).stem, rate, gyr, acc, mag, quat, movement.reshape(-1), held,
+                     int(off.sum()))
 
 
 @dataclass(frozen=True)

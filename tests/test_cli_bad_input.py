@@ -22,7 +22,14 @@ def broad_file(path, n=50, rate=100.0, **override):
     data.update({k: v for k, v in override.items() if k != "sampling_rate"})
     with h5py.File(path, "w") as f:
         for k, v in data.items():
-            if v is not None:
+            if isinstance(v, dict):             # a group in place of a dataset
+                group = f.create_group(k)
+                for kk, vv in v.items():
+                    group[kk] = vv
+            elif isinstance(v, str) and v == "huge":
+                # declared 10^9 x 3 (24 GB), nothing written: its shape is checked first
+                f.create_dataset(k, shape=(10 ** 9, 3), dtype=float)
+            elif v is not None:
                 f[k] = v
         f.attrs["sampling_rate"] = override.get("sampling_rate", rate)
     return str(path)
@@ -123,6 +130,14 @@ def _replay_cases(tmp_path):
         (broad_file(tmp_path / "ok4.hdf5"), ["--engine", "fixed", "--filter", "madgwick"],
          "runs kalman"),
         (broad_file(tmp_path / "ok5.hdf5"), ["--beta", "-1"], "more than 0"),
+        # issue #25: truth that is no rotation (scaled x10^6, all zero) is refused, not
+        # scored 0.0 or 180 degrees
+        (broad_file(tmp_path / "scaled.hdf5", opt_quat=np.tile([1e6, 0, 0, 0], (n, 1))), [],
+         "not a unit quaternion"),
+        (broad_file(tmp_path / "zero.hdf5", opt_quat=np.zeros((n, 4))), [],
+         "not a unit quaternion"),
+        (broad_file(tmp_path / "group.hdf5", imu_gyr={"x": np.zeros(3)}), [], "group"),
+        (broad_file(tmp_path / "huge.hdf5", imu_acc="huge"), [], "shape"),
     ]
 
 
@@ -147,6 +162,20 @@ def test_replay_nan_samples_are_held_and_counted(capsys, tmp_path):
         assert result["samples_held"] == 3
         assert "3 samples" in err and "held" in err
         assert result["inclination_rmse_deg"] < 5
+
+
+def test_replay_leaves_out_truth_that_is_no_rotation(capsys, tmp_path):
+    """Some truth rows not of unit norm: left out of the score, counted and announced."""
+    n = 60
+    truth = np.tile([1.0, 0.0, 0.0, 0.0], (n, 1))
+    truth[5:9] *= 1e6
+    truth[20] = 0
+    path = broad_file(tmp_path / "partly.hdf5", n=n, opt_quat=truth)
+    code, out, err = run(["replay", path, "--filter", "flagship"], capsys)
+    assert code == 0, err
+    result = json.loads(out)
+    assert result["truth_rejected"] == 5 and result["samples"] == n - 5
+    assert "5 truth quaternions" in err
 
 
 def test_replay_without_scored_samples_prints_null(capsys, tmp_path):
@@ -181,6 +210,28 @@ def test_host_verbs_bad_input(capsys, tmp_path):
                                 "soft_iron": [[1, 0, 0], [0, 1, 0], [0, 0, 1]]}))
     not_a_log = tmp_path / "x.csv"
     not_a_log.write_text("a,b\n1,2\n")
+    # issue #25: each of these gave a traceback
+    cal = {"gyro_offset": [0, 0, 0], "accel_offset": [0, 0, 0], "accel_scale": [1, 1, 1],
+           "hard_iron": [0, 0, 0], "soft_iron": [[1, 0, 0], [0, 1, 0], [0, 0, 1]]}
+    strings = tmp_path / "strings.json"
+    strings.write_text(json.dumps({**cal, "gyro_offset": ["1", "2", "3"]}))
+    singular = tmp_path / "singular.json"
+    singular.write_text(json.dumps({**cal, "soft_iron": [[1, 0, 0], [0, 1, 0], [0, 0, 0]]}))
+    mirrored = tmp_path / "mirrored.json"
+    mirrored.write_text(json.dumps({**cal, "soft_iron": [[1, 0, 0], [0, 1, 0], [0, 0, -1]]}))
+    header = "type,host_time_s,roll_deg,pitch_deg,yaw_deg,sample.gyro.0,sample.gyro.1"
+    no_column = tmp_path / "nocol.csv"
+    no_column.write_text(header + "\n2,0.1,1,2,3,4,5\n")
+    extra = tmp_path / "extra.csv"
+    extra.write_text(header + ",sample.gyro.2\n2,0.1,1,2,3,4,5,6,7\n")
+    import h5py
+    empty_h5 = tmp_path / "empty.h5"
+    with h5py.File(empty_h5, "w"):
+        pass
+    groups_h5 = tmp_path / "groups.h5"
+    with h5py.File(groups_h5, "w") as f:
+        f.create_group("type")
+    png = str(tmp_path / "p.png")
     cases = [
         (["monitor", "/dev/no-such-tty"], "no such serial port"),
         (["monitor", "sim", "--frames", "0"], "less than 1"),
@@ -193,6 +244,13 @@ def test_host_verbs_bad_input(capsys, tmp_path):
         (["build", "--calibration", str(bad_json)], "not json"),
         (["build", "--calibration", str(wrong)], "gyro_offset"),
         (["build", "--calibration", str(huge)], "out of range"),
+        (["build", "--calibration", str(strings)], "not numbers"),
+        (["build", "--calibration", str(singular)], "singular"),
+        (["build", "--calibration", str(mirrored)], "mirrored"),
+        (["plot", str(no_column), "--out", png], "sample.gyro.2"),
+        (["plot", str(extra), "--out", png], "more fields"),
+        (["plot", str(empty_h5), "--out", png], "not a monitor log"),
+        (["plot", str(groups_h5), "--out", png], "not a monitor log"),
     ]
     for argv, words in cases:
         code, out, err = run(argv, capsys)

@@ -196,15 +196,33 @@ def load_calibration(path):
               "hard_iron": (3,), "soft_iron": (3, 3)}
     if not isinstance(result, dict):
         raise ValueError(f"{path}: not a calibration (a JSON object expected)")
+    def numbers(x):
+        """JSON numbers only (a string such as "1.0" is refused, not converted)."""
+        if isinstance(x, list):
+            return all(numbers(v) for v in x)
+        return isinstance(x, (int, float)) and not isinstance(x, bool)
+
     for key, shape in shapes.items():
+        if key not in result:
+            raise ValueError(f"{path}: no '{key}'")
+        if not numbers(result[key]):
+            raise ValueError(f"{path}: '{key}' is not numbers (JSON numbers, not strings)")
         try:
             value = np.array(result[key], float)
-        except KeyError:
-            raise ValueError(f"{path}: no '{key}'") from None
         except (TypeError, ValueError):
-            raise ValueError(f"{path}: '{key}' is not numbers") from None
+            raise ValueError(f"{path}: '{key}' must be {shape} finite numbers") from None
         if value.shape != shape or not np.all(np.isfinite(value)):
             raise ValueError(f"{path}: '{key}' must be {shape} finite numbers")
+    # a soft-iron correction maps the measured ellipsoid onto a sphere: invertible, not a
+    # mirror (det > 0) and not near singular (it would blow one axis up)
+    soft = np.array(result["soft_iron"], float)
+    det = float(np.linalg.det(soft))
+    if det <= 0:
+        raise ValueError(f"{path}: 'soft_iron' is {'singular' if det == 0 else 'mirrored'} "
+                         f"(determinant {det:.3g}): not a soft-iron correction")
+    if np.linalg.cond(soft) > 100:
+        raise ValueError(f"{path}: 'soft_iron' is near singular (condition number "
+                         f"{np.linalg.cond(soft):.3g} > 100): not a soft-iron correction")
     cal = _fixed(result)
     registers = calibration_registers(cal)
     for name, word in registers.items():

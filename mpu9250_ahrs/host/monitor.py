@@ -122,16 +122,52 @@ def _live_line(link, count, elapsed, ftype, fields):
             f"  lost {stats.lost}   ")
 
 
-def read_log(path):
-    """A ``monitor`` log (CSV or HDF5) -> {column: list of floats}."""
+def read_log(path, required=("type",)):
+    """A ``monitor`` log (CSV or HDF5) -> {column: list of floats}. Checked before use: the
+    ``required`` columns there, every column of one length (HDF5: one-dimensional datasets,
+    their shapes read before their data), every CSV row as long as the header and numeric;
+    anything else is a ValueError with one line."""
+    required = tuple(required)
     if str(path).endswith((".h5", ".hdf5")):
         import h5py
-        with h5py.File(path, "r") as f:
-            return {name: list(f[name][()]) for name in f}
+        try:
+            f = h5py.File(path, "r")
+        except OSError as e:
+            raise ValueError(f"{path}: cannot be read as HDF5 ({e})") from None
+        with f:
+            columns = {name: f[name] for name in f if isinstance(f[name], h5py.Dataset)}
+            missing = [c for c in required if c not in columns]
+            if not columns or missing:
+                raise ValueError(f"{path}: not a monitor log (no column "
+                                 f"{', '.join(missing or required)})")
+            lengths = {name: d.shape for name, d in columns.items()}
+            n = lengths[required[0]]
+            bad = [name for name, shape in lengths.items() if len(shape) != 1 or shape != n]
+            if bad:
+                raise ValueError(f"{path}: column {bad[0]} has shape {lengths[bad[0]]}, "
+                                 f"expected {n} like {required[0]}")
+            try:
+                return {name: [float(v) for v in d[()]] for name, d in columns.items()}
+            except (TypeError, ValueError) as e:
+                raise ValueError(f"{path}: a column is not numbers ({e})") from None
     with open(path, newline="") as handle:
-        rows = list(csv.DictReader(handle))
-    if not rows or "type" not in rows[0]:
-        raise ValueError(f"{path}: not a monitor log (no 'type' column)")
-    return {name: [float(r[name]) if r[name] not in ("", None) else float("nan") for r in rows]
-            for name in rows[0]}
+        reader = csv.DictReader(handle)
+        rows = list(reader)
+        header = reader.fieldnames or []
+    missing = [c for c in required if c not in header]
+    if not rows or missing:
+        raise ValueError(f"{path}: not a monitor log (no "
+                         f"{'rows' if not missing else 'column ' + ', '.join(missing)})")
+    out = {name: [] for name in header}
+    for line, r in enumerate(rows, start=2):
+        if None in r:
+            raise ValueError(f"{path}: line {line} has more fields than the header")
+        for name in header:
+            text = r[name]
+            try:
+                out[name].append(float(text) if text not in ("", None) else float("nan"))
+            except ValueError:
+                raise ValueError(f"{path}: line {line}, column {name}: {text!r} is not a "
+                                 f"number") from None
+    return out
 

@@ -22,7 +22,8 @@ def plot_log(log_path, out_path):
         import matplotlib.pyplot as plt
     except ImportError:
         raise RuntimeError("plot needs matplotlib (pip install matplotlib)") from None
-    log = read_log(log_path)
+    log = read_log(log_path, required=("host_time_s", "roll_deg", "pitch_deg", "yaw_deg",
+                                        *(f"sample.gyro.{i}" for i in range(3))))
     t = np.asarray(log["host_time_s"], float)
     if len(t) == 0:
         raise ValueError(f"{log_path}: no frames in the log")

@@ -13,7 +13,7 @@ from ..hdl.command_decoder import BOARD_REGS
 from ..hdl.pwm import PWM_REGS
 
 
-__all__ = ["Register", "REGISTERS", "lookup", "to_word", "from_word"]
+__all__ = ["Register", "REGISTERS", "lookup", "to_word", "from_word", "value_range"]
 
 
 @dataclass(frozen=True)
@@ -70,8 +70,41 @@ def lookup(name):
         raise ValueError(f"no register {name!r}; known: {', '.join(sorted(REGISTERS))}") from None
 
 
+# Physical ranges of the engine registers whose meaning bounds them (inclusive), beyond their
+# format: a value outside is refused before anything is sent (a sample period of 200 s would
+# wrap to -56 s in Q0.24's signed word).
+_RANGES = {
+    "T": (1 / 32_000, 1.0), "TELEMETRY_DIV": (1, 65_535), "EULER_RATES": (0, 1),
+    "CONTROL": (0, 15),
+    **{n: (0.0, None) for n in ("Q_ANGLE", "Q_BIAS", "R", "P0")},
+    **{n: (0.0, 1.0) for n in ("ONE_MINUS_A", "A_DET", "A_REST", "A_ACC", "A_MAG",
+                               "A_MAG_FAST", "A_REF")},
+    **{n: (0, None) for n in ("K_REST", "K_REF", "K_FAST", "K_NEW", "REST_GYRO2",
+                              "REST_ACC2")},
+}
+
+
+def value_range(reg):
+    """(lowest, highest) physical value ``reg`` takes (None: no bound but its format's)."""
+    if reg.space != "engine":
+        return 0, 2 ** 32 - 1
+    if reg.format == "int":
+        lo, hi = -2 ** 31, 2 ** 31 - 1                      # the engine's words are signed 32
+    elif reg.format == "BAM32":
+        lo, hi = -180.0, 180.0 - 360 / 2 ** 32           # 180° is -180°
+    else:
+        # Qm.f: m integer bits with the sign (signed, [-2^(m-1), 2^(m-1))), or with m = 0 an
+        # unsigned fraction [0, 1)
+        whole = int(reg.format[1:].split(".")[0])
+        ulp = 2.0 ** -_FRACTION[reg.format]
+        lo, hi = (-2.0 ** (whole - 1), 2.0 ** (whole - 1) - ulp) if whole else (0.0, 1 - ulp)
+    own_lo, own_hi = _RANGES.get(reg.name, (None, None))
+    return (lo if own_lo is None else max(lo, own_lo)), (hi if own_hi is None else min(hi, own_hi))
+
+
 def to_word(reg, value):
-    """A physical value (a number, or an int with ``0x``) -> the 32-bit register word."""
+    """A physical value (a number, or an int with ``0x``) -> the 32-bit register word; a value
+    out of the register's range (``value_range``) is refused with the range."""
     if isinstance(value, str):
         text = value.strip()
         value = int(text, 0) if reg.format == "int" else float(text)
@@ -85,6 +118,11 @@ def to_word(reg, value):
         word = round(value / 360 * 2 ** 32)
     else:
         word = round(value * 2 ** _FRACTION[reg.format])
+    lo, hi = value_range(reg)
+    if not lo <= value <= hi:
+        unit = f" {reg.unit}" if reg.unit and reg.format != "int" else ""
+        raise ValueError(f"{reg.name}: {value:g} is out of range {lo:.6g} .. {hi:.6g}{unit} "
+                         f"({reg.format})")
     if not -2 ** 31 <= word < 2 ** 32:
         raise ValueError(f"{reg.name}: {value} does not fit its format {reg.format}")
     return word
