@@ -88,6 +88,7 @@ class CommandDecoder(wiring.Component):
         ``replies`` (out, stream of ``Reply``): to an unbuffered framer (held until sent).
         ``raw_mode`` (out): RAW_MODE bit 0.
         ``kick`` (out): a pulse per accepted command (result ``ok``; the PWM watchdog).
+        ``fifo``: the ``RewindableFIFO`` (its ``ram``, one M9K, for ``report``).
         ``stats`` (out, ``CommandStats``); ``rx_framing_errors``, ``rx_overruns``,
         ``frames_sent``, ``rate_errors`` (in): read back as board registers.
     Latency: a board command's reply is offered two cycles after its last (CRC) byte is
@@ -100,6 +101,7 @@ class CommandDecoder(wiring.Component):
         self.writable = frozenset(writable)
         self.version = version
         self.timeout = timeout
+        self.fifo = RewindableFIFO(FIFO_DEPTH)
         super().__init__({
             "i_stream": In(stream.Signature(8)),
             "cfg": Out(stream.Signature(ConfigWrite)),
@@ -119,7 +121,7 @@ class CommandDecoder(wiring.Component):
     def elaborate(self, platform):
         m = Module()
         m.submodules.crc = crc = CRC(data_width=8).create()
-        m.submodules.fifo = fifo = RewindableFIFO(FIFO_DEPTH)
+        m.submodules.fifo = fifo = self.fifo
         wiring.connect(m, wiring.flipped(self.i_stream), fifo.w_stream)
         src = fifo.r_stream
         stats = self.stats

@@ -52,11 +52,11 @@ class PWMOutputs(wiring.Component):
                         reset.
     PWM_STATUS (0x03)   read only: bit 0 ``tripped``; bits 7:4 the channels enabled now.
     PWM_SERVO_PERIOD    the servo channels' frame: 2,500..20,000 µs (400..50 Hz); 20,000 at
-    (0x04)              reset. Refused if below the high time of any servo channel (enabled
-                        or not).
+    (0x04)              reset. Writing it sets the high time of every servo channel (enabled
+                        or not) to 0: write the period first, then the high times.
     PWM_MOTOR_PERIOD    the motor channels' period: ⌈clk/20 kHz⌉ .. 65,535 cycles; the
-    (0x05)              20 kHz one at reset. Refused if below the high time of any motor
-                        channel.
+    (0x05)              20 kHz one at reset. Writing it sets every motor channel's high time
+                        to 0, likewise.
     PWM_HIGHk (0x10+k)  channel k's high time per period in its unit, ≤ its group's period (a
                         motor duty d/1024 is round(period · d / 1024) cycles: the host
                         converts). 0 at reset.
@@ -116,10 +116,6 @@ class PWMOutputs(wiring.Component):
         # a high time fits its channel's group period: one comparator for all channels (the
         # addressed channel's mode picks the period)
         high_fits = small & (low <= Mux(mode.bit_select(bus.addr[:2], 1), period[1], period[0]))
-        # a new period is refused below the high time of any channel of its group (enabled or
-        # not): the period shrinking under a high time would hold that output high
-        def period_fits(group):
-            return small & Cat(((mode[k] != group) | (high[k] <= low)) for k in range(n)).all()
         checks = {
             PWM_REGS["PWM_ENABLE"]: (enable, value < (1 << n)),
             # the mode of an enabled channel stays
@@ -127,10 +123,9 @@ class PWMOutputs(wiring.Component):
                                    (((value[:n] ^ mode) & enable) == 0)),
             PWM_REGS["PWM_WATCHDOG_MS"]: (watchdog_ms, small),
             PWM_REGS["PWM_STATUS"]: (Cat(self.tripped, C(0, 3), enable), C(0)),
-            PWM_REGS["PWM_SERVO_PERIOD"]: (period[0], period_fits(0) &
-                                           (low >= SERVO_PERIOD_US[0]) &
+            PWM_REGS["PWM_SERVO_PERIOD"]: (period[0], small & (low >= SERVO_PERIOD_US[0]) &
                                            (low <= SERVO_PERIOD_US[1])),
-            PWM_REGS["PWM_MOTOR_PERIOD"]: (period[1], period_fits(1) & (low >= self.motor_min)),
+            PWM_REGS["PWM_MOTOR_PERIOD"]: (period[1], small & (low >= self.motor_min)),
             **{PWM_REGS[f"PWM_HIGH{k}"]: (high[k], high_fits) for k in range(n)},
         }
         with m.Switch(bus.addr):
@@ -150,10 +145,14 @@ class PWMOutputs(wiring.Component):
                             m.d.sync += high[k].eq(0)
                 with m.Case(PWM_REGS["PWM_WATCHDOG_MS"]):
                     m.d.sync += watchdog_ms.eq(low)
-                with m.Case(PWM_REGS["PWM_SERVO_PERIOD"]):
-                    m.d.sync += period[0].eq(low)
-                with m.Case(PWM_REGS["PWM_MOTOR_PERIOD"]):
-                    m.d.sync += period[1].eq(low)
+                for g, name in enumerate(("PWM_SERVO_PERIOD", "PWM_MOTOR_PERIOD")):
+                    with m.Case(PWM_REGS[name]):
+                        m.d.sync += period[g].eq(low)
+                        # a high time was a duty of the old period: the group's channels drop
+                        # theirs (a period shrunk under one would hold that output high)
+                        for k in range(n):
+                            with m.If(mode[k] == g):
+                                m.d.sync += high[k].eq(0)
                 for k in range(n):
                     with m.Case(PWM_REGS[f"PWM_HIGH{k}"]):
                         m.d.sync += high[k].eq(low)

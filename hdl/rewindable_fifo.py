@@ -2,8 +2,10 @@
 fails can be searched again for a header it swallowed."""
 
 from amaranth import *
-from amaranth.lib import memory, stream, wiring
+from amaranth.lib import stream, wiring
 from amaranth.lib.wiring import In, Out
+
+from .memories import FrameRAM
 
 
 __all__ = ["RewindableFIFO"]
@@ -34,13 +36,15 @@ class RewindableFIFO(wiring.Component):
         ``r_stream`` (out, byte stream): the byte at ``read``, held while not taken.
         ``mark``, ``release``, ``rewind`` (in): above.
     Latency: a byte written is offered the next cycle (the memory's read is registered, at
-    the pointer the reader will have; transparent for a byte written there); a rewind's
-    first byte likewise. Throughput: a byte per cycle in and out.
+    the pointer the reader will have; a byte written there in the same cycle comes through a
+    bypass register); a rewind's first byte likewise. The bytes are in a ``FrameRAM`` (one
+    M9K on a MAX10: ``ram``). Throughput: a byte per cycle in and out.
     """
     def __init__(self, depth=32):
         if depth & (depth - 1) or depth < 2:
             raise ValueError(f"depth {depth} is not a power of two")
         self.depth = depth
+        self.ram = FrameRAM(depth, 8)
         super().__init__({
             "w_stream": In(stream.Signature(8)),
             "r_stream": Out(stream.Signature(8)),
@@ -50,12 +54,7 @@ class RewindableFIFO(wiring.Component):
     def elaborate(self, platform):
         m = Module()
         bits = self.depth.bit_length()           # one wrap bit above the address
-        m.submodules.mem = mem = memory.Memory(shape=8, depth=self.depth, init=[])
-        wr = mem.write_port()
-        # the read port reads at the pointer the next cycle will have, so its registered word
-        # is the byte at ``read`` in that cycle; transparent for a byte written there meanwhile
-        rd = mem.read_port(transparent_for=(wr,))
-
+        m.submodules.ram = ram = self.ram
         write = Signal(bits)
         read = Signal(bits)
         keep = Signal(bits)
@@ -64,7 +63,8 @@ class RewindableFIFO(wiring.Component):
         m.d.comb += stored.eq(write - keep)
         m.d.comb += self.w_stream.ready.eq(stored < self.depth)
         put = self.w_stream.valid & self.w_stream.ready
-        m.d.comb += [wr.addr.eq(write), wr.data.eq(self.w_stream.payload), wr.en.eq(put)]
+        m.d.comb += [ram.w_addr.eq(write), ram.w_data.eq(self.w_stream.payload),
+                     ram.w_en.eq(put)]
         with m.If(put):
             m.d.sync += write.eq(write + 1)
 
@@ -72,8 +72,9 @@ class RewindableFIFO(wiring.Component):
         # is the byte there: written before, or in that cycle (the port is transparent).
         # ``read`` lies between ``keep`` and ``write``, so this is ``read != write``; written
         # as a distance it says so to an induction proof, which starts anywhere
+        bypass, bypass_data = Signal(), Signal(8)
         m.d.comb += [self.r_stream.valid.eq((read - keep)[:bits] < stored),
-                     self.r_stream.payload.eq(rd.data)]
+                     self.r_stream.payload.eq(Mux(bypass, bypass_data, ram.r_data))]
         take = self.r_stream.valid & self.r_stream.ready
         read_next = Signal(bits)
         keep_next = Signal(bits)
@@ -85,5 +86,9 @@ class RewindableFIFO(wiring.Component):
         with m.Elif(self.release):
             m.d.comb += keep_next.eq(read_next)
         m.d.sync += [read.eq(read_next), keep.eq(keep_next)]
-        m.d.comb += rd.addr.eq(read_next)
+        # the RAM reads the old word at an address written in the same cycle: the byte written
+        # there is taken from a register instead
+        m.d.comb += [ram.r_en.eq(1), ram.r_addr.eq(read_next[:bits - 1])]
+        m.d.sync += [bypass.eq(put & (write[:bits - 1] == read_next[:bits - 1])),
+                     bypass_data.eq(self.w_stream.payload)]
         return m

@@ -152,18 +152,31 @@ class SampleReader(wiring.Component):
         # latest), ``since_next`` from an edge that came while a burst was being read: that
         # one is judged at the burst's check, early if the burst held a sample (a read ends
         # well within a period, ``rate_budget``), else against the base before it.
-        period = self.period_cycles
-        counters = [(Signal(range(period), name=f"{n}_phase"), Signal(4, name=f"{n}_periods"))
+        # The clocks count in ticks of about 1/64 of a period (one prescaler for all): the
+        # rounding to whole periods and the 7/8 threshold need no finer time, and a clock is
+        # then 10 bits, not 20. ``steps`` ticks make a period, within half a tick.
+        tick_len = max(1, self.period_cycles // 64)
+        steps = max(2, round(self.period_cycles / tick_len))
+        prescale = Signal(range(tick_len))
+        step = Signal()                         # a tick of the clocks
+        m.d.comb += step.eq(prescale == tick_len - 1)
+        m.d.sync += prescale.eq(Mux(step, 0, prescale + 1))
+        counters = [(Signal(range(steps), name=f"{n}_phase"), Signal(4, name=f"{n}_periods"))
                     for n in ("sample", "edge", "next")]
         since_sample, since_edge, since_next = counters
-        for phase, periods in counters:
-            with m.If(phase == period - 1):
-                m.d.sync += [phase.eq(0), periods.eq(Mux(periods == 15, 15, periods + 1))]
-            with m.Else():
-                m.d.sync += phase.eq(phase + 1)
+
+        def advanced(clock):
+            """``clock``'s value after this cycle's count."""
+            ph, pe = clock
+            wrap = step & (ph == steps - 1)
+            return (Mux(wrap, 0, ph + step),
+                    Mux(wrap & (pe != 15), pe + 1, pe))
+
+        for clock in counters:
+            m.d.sync += [c.eq(v) for c, v in zip(clock, advanced(clock))]
         phase, periods = since_sample
         tick = Signal()                         # a sample period has gone by
-        m.d.comb += tick.eq(phase == period - 1)
+        m.d.comb += tick.eq(step & (phase == steps - 1))
         skipped = Signal(4)                     # for the sample this edge announces
         early = Signal()                        # this edge came < EARLY_FRACTION of a period
         seen_edge = Signal()                    # ``since_sample`` is a base
@@ -173,17 +186,15 @@ class SampleReader(wiring.Component):
         deferred_base = (Signal.like(phase), Signal.like(periods))   # ``since_sample`` then
         dropped = Signal(4)                     # read but not passed on (consumer busy, checks)
         num, den = EARLY_FRACTION
-        early_phase = period * (2 * num - den) // (2 * den)     # t < f*P with periods == 1
+        early_phase = steps * (2 * num - den) // (2 * den)      # t < f*P with periods == 1
         reading = Signal()                      # a burst in flight, before its check
 
-        def restart_clock(counter):
-            m.d.sync += [counter[0].eq(period // 2), counter[1].eq(0)]
+        def restart_clock(clock):
+            m.d.sync += [clock[0].eq(steps // 2), clock[1].eq(0)]
 
         def copy_clock(dst, src):
             """``dst`` takes ``src``'s value, advanced by this cycle's count."""
-            m.d.sync += [dst[0].eq(Mux(src[0] == period - 1, 0, src[0] + 1)),
-                         dst[1].eq(Mux(src[0] == period - 1, Mux(src[1] == 15, 15, src[1] + 1),
-                                       src[1]))]
+            m.d.sync += [d.eq(v) for d, v in zip(dst, advanced(src))]
 
         def judge(interval, base_ok):
             """(skipped, early) for an edge ``interval`` (phase, periods) after a base."""

@@ -172,7 +172,8 @@ def report(*, clk_freq=None, config=None, latency=True):
     engine = AttitudeEngine()
     datapath = synthesize(engine, "attitude_engine", engine)
     core = AHRSCore(clk_freq=clk_freq, config=config)
-    design = synthesize(core, "mpu9250_ahrs_core", core.engine, rams=[core.framer.ram])
+    design = synthesize(core, "mpu9250_ahrs_core", core.engine,
+                        rams=[core.framer.ram, core.decoder.fifo.ram])
     cycles, first = cycles_per_update()
     mhz = clk_freq / 1e6
     budget = rate_budget(config, clk_freq)

@@ -136,21 +136,26 @@ def test_a_mode_change_drops_the_high_time():
     assert out["pulses"] and set(out["pulses"]) == {50}
 
 
-def test_a_period_below_a_high_time_is_refused():
-    """A period written below the high time of a channel of its group (enabled or not) would
-    hold that output high for the whole period: refused; the other group is not concerned."""
+def test_a_new_period_drops_the_groups_high_times():
+    """A period written under a high time of its group (enabled or not) would hold that
+    output high for the whole period: a new period sets the group's high times to 0 (write
+    the period first); the other group keeps its own."""
     async def body(ctx, dut, write, edges, out):
         await write("PWM_HIGH0", 3_000)                           # servo, disabled
         await write("PWM_MODE", 0b10)
         await write("PWM_MOTOR_PERIOD", 1_000)
         await write("PWM_HIGH1", 800)
-        out["servo"] = [await write("PWM_SERVO_PERIOD", 2_999),
-                        await write("PWM_SERVO_PERIOD", 3_000)]
-        out["motor"] = [await write("PWM_MOTOR_PERIOD", 799),
-                        await write("PWM_MOTOR_PERIOD", 800),
-                        await write("PWM_MOTOR_PERIOD", 5_000)]
+        assert await write("PWM_SERVO_PERIOD", 2_500)
+        highs = []
+        for k in range(2):
+            ctx.set(dut.bus.addr, PWM_REGS[f"PWM_HIGH{k}"])
+            highs.append(ctx.get(dut.bus.r_data))
+        out["after_servo"] = highs
+        assert await write("PWM_MOTOR_PERIOD", 700)
+        ctx.set(dut.bus.addr, PWM_REGS["PWM_HIGH1"])
+        out["after_motor"] = ctx.get(dut.bus.r_data)
     out = bench(body)
-    assert out["servo"] == [0, 1] and out["motor"] == [0, 1, 1]
+    assert out["after_servo"] == [0, 800] and out["after_motor"] == 0
 
 
 # values around the edges of the ranges at CLK_PROP (one cycle a µs: a servo period of 2,500
@@ -181,8 +186,8 @@ def _op(name, value):
 def test_no_output_high_for_a_whole_period_unless_asked(ops):
     """Random register sequences: no output is ever high for a whole period of its group
     unless that channel was given a high time equal to the period in its own unit (written
-    while in its present mode). A model mirrors the accepted writes; a mode change leaves
-    nothing asked in the new unit."""
+    while in its present mode and period). A model mirrors the accepted writes; a mode or
+    period change leaves nothing asked."""
     dut = PWMOutputs(clk_freq=CLK_PROP)
     sim = Simulator(dut)
     sim.add_clock(1 / CLK_PROP)
@@ -238,10 +243,12 @@ def test_no_output_high_for_a_whole_period_unless_asked(ops):
                         mode = value
                     elif name.startswith("PWM_HIGH"):
                         asked[int(name[-1])] = value
-                    elif name == "PWM_SERVO_PERIOD":
-                        period[0] = value
-                    elif name == "PWM_MOTOR_PERIOD":
-                        period[1] = value
+                    elif name in ("PWM_SERVO_PERIOD", "PWM_MOTOR_PERIOD"):
+                        g = int(name == "PWM_MOTOR_PERIOD")
+                        period[g] = value
+                        for k in range(4):            # a duty of the old period: dropped
+                            if group(k) == g:
+                                asked[k] = 0
                     note_asked()
             if failures:
                 return

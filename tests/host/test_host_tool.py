@@ -78,7 +78,9 @@ def test_config_set_reads_back_and_refuses_what_it_must(board, capsys):
     for args, message in [(("set", "ZERO", "1"), "read-only"),
                           (("set", "NOPE", "1"), "no register"),
                           (("set", "PWM_SERVO_PERIOD", "100"), "refused"),  # 2500..20000
-                          (("set", "R", "1e12"), "does not fit"),
+                          (("set", "R", "1e12"), "out of range 0 .. 128"),
+                          # issue #25: 200 s wrapped to -56 s and its read-back passed
+                          (("set", "T", "200"), "out of range 3.125e-05 .. 1 s"),
                           (("get",), "takes 1 argument")]:
         rc, out, err = run_cli(capsys, "config", board.port, *args)
         assert rc != 0 and message in err and len(err.strip().splitlines()) == 1, err
