@@ -113,6 +113,12 @@ class Fault:
     recovers: str = "stream"
     stall: bool = False             # the consumer stops taking samples (sensor overrun)
 
+    @property
+    def removable(self):
+        """A fault that lasts a while and then goes, whose length a test may choose: not a
+        one-off event, a stall, or a glitch shorter than a period (those keep their own)."""
+        return not (self.stall or self.duration is None or self.duration < 1)
+
 
 def _set(attr, value):
     def apply(inj, t):
@@ -192,11 +198,15 @@ def _nothing(inj, t):
 
 def _rate_glitch(inj, t):
     # SMPLRT_DIV loses its value (a glitch, a brown-out of that register): 0, the fastest rate
-    # the DLPF setting allows (200 Hz -> 1 kHz); the part reschedules as for a write
+    # the DLPF setting allows (200 Hz -> 1 kHz); already 0 (1 kHz), CONFIG's DLPF_CFG loses
+    # its instead (0: the 8 kHz internal rate). The part reschedules as for a write.
     mpu = inj.mpu
     mpu.advance(t)
     mpu.now = t
-    mpu.regs[R.SMPLRT_DIV] = 0
+    if mpu.regs[R.SMPLRT_DIV]:
+        mpu.regs[R.SMPLRT_DIV] = 0
+    else:
+        mpu.regs[R.CONFIG] &= ~0x07
     mpu._reschedule(t)
 
 
@@ -256,8 +266,9 @@ FAULTS = {f.name: f for f in [
     Fault("sensor_overrun", "the consumer stops taking samples for a while (samples made and "
           "read faster than taken)", _nothing, _nothing, duration=3,
           flags=("overrun",), stall=True),
-    Fault("rate_change", "SMPLRT_DIV changes under the driver (a register glitch): the part "
-          "samples five times faster", _rate_glitch, duration=None, flags=("rate_error",)),
+    Fault("rate_change", "SMPLRT_DIV (at 1 kHz: CONFIG's DLPF_CFG) loses its value under the "
+          "driver (a register glitch): the part samples 5 or 8 times faster", _rate_glitch,
+          duration=None, flags=("rate_error",)),
     Fault("spurious_int", "one spurious INT pulse between two samples (no new sample)",
           _int_high, _int_free, duration=0.02, flags=("bad_burst",), recovers="remains"),
 ]}
@@ -480,11 +491,7 @@ def catalogue_table(wirings=("spi", "i2c"), *, at=3, after=4, duration=8, out=No
     print("|---|---|---|---|---|---|", file=out)
     for wiring in wirings:
         for name in fault_names(wiring):
-            fault = FAULTS[name]
-            if fault.stall or fault.duration is None:
-                d = None
-            else:
-                d = duration
+            d = duration if FAULTS[name].removable else None
             r = run_fault(name, catalogue_setup(wiring, fault=name), at=at, after=after,
                           duration=d)
             rows.append(r)

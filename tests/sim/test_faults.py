@@ -56,9 +56,8 @@ CASES = [(name, wiring) for wiring in ("spi", "i2c") for name in fault_names(wir
 def test_fault(name, wiring):
     setup = catalogue_setup(wiring, fault=name)
     fault = FAULTS[name]
-    # a glitch (a fraction of a period) keeps its own length
-    removable = not (fault.stall or fault.duration is None or fault.duration < 1)
-    r = run_fault(name, setup, at=AT, after=AFTER, duration=DURATION if removable else None)
+    r = run_fault(name, setup, at=AT, after=AFTER,
+                  duration=DURATION if fault.removable else None)
     assert r["stale_valid_samples"] == 0, r
     assert set(fault.flags) & set(r["flags"]), r
     assert r["detected_after_samples"] is not None and \
