@@ -35,8 +35,11 @@ Failures (the whole catalogue, with detection times: ``hdl/FAULTS.md``): a wrong
 an MPU9250 that does not acknowledge (I2C) sets a flag and restarts from the power-up wait (the
 retry delay), and each restart doubles the wait after H_RESET, up to four times the datasheet's
 (``BACKOFF_MAX_SHIFT``: a part slower than its datasheet is brought up by a later retry instead
-of being reset again too early for ever; back to one time once streaming); so do no interrupt within the time-out and ``BAD_BURST_LIMIT`` sample bursts in a
-row that fail their checks (a stuck data line, a read that fails on the bus). A magnetometer
+of being reset again too early for ever; back to one time once streaming); so do no interrupt
+within the time-out and ``BAD_BURST_LIMIT`` sample bursts in a row that fail their checks (a
+stuck data line, a read that fails on the bus, a gyro jump no motion makes: a flipped bit). A
+sample that came too early (the part runs faster than configured) has the configuration
+written again, without a restart. A magnetometer
 failure (NACK, wrong WIA, SLV4 time-out) sets its flag and skips the rest of the magnetometer
 set-up: accel/gyro samples flow on with ``mag_valid`` = 0. While streaming, a magnetometer that
 gives no new field for ``mag_timeout_s`` is flagged stale and set up again between samples.
@@ -69,7 +72,7 @@ from .register_port_arbiter import RegisterPortArbiter
 from .driver_status import DriverStatus
 from .sample import Sample
 from .sample_reader import (BAD_BURST_LIMIT, MPU_BYTES, SAMPLE_BYTES, SampleReader,
-                            burst_is_plausible)
+                            burst_is_plausible, gyro_jump_limit)
 
 
 __all__ = ["MPU9250Config", "DriverTiming", "Op", "Fail", "Step", "bring_up_program",
@@ -246,6 +249,7 @@ class MPU9250Driver(wiring.Component):
             poll_cycles=self.timeout_cycles)
         m.submodules.reader = reader = SampleReader(
             wiring=cfg.wiring, int_active_low=cfg.int_active_low, int_latched=cfg.int_latched,
+            gyro_jump=gyro_jump_limit(cfg.gyro_fs_dps),
             magnetometer=cfg.magnetometer, period_cycles=self.period_cycles,
             first_timeout_cycles=self.timeout_cycles, timeout_cycles=self.stream_timeout_cycles,
             mag_timeout_periods=self.mag_timeout_periods)

@@ -2,7 +2,8 @@
 
 The rules it applies (``hdl/FAULTS.md`` has what each catches):
 
-- every burst is checked (``burst_is_plausible``): one that fails is not passed on, sets
+- every burst is checked (``burst_is_plausible``, and a gyro jump of ``GYRO_JUMP_DPS`` from the
+  last sample passed on: ``gyro_jumps``): one that fails is not passed on, sets
   ``bad_burst`` and counts in the next sample's ``skipped``; ``BAD_BURST_LIMIT`` in a row ask
   for a restart of bring-up;
 - no data-ready edge for the time-out asks for a restart (``int_timeout``);
@@ -31,7 +32,7 @@ from .sample import Sample
 
 
 __all__ = ["SAMPLE_BYTES", "MPU_BYTES", "BAD_BURST_LIMIT", "EARLY_FRACTION", "burst_is_plausible",
-           "SampleReader"]
+           "GYRO_JUMP_DPS", "gyro_jump_limit", "gyro_jumps", "SampleReader"]
 
 
 SAMPLE_BYTES = 1 + R.SENSOR_BYTES + A.SAMPLE_BYTES   # INT_STATUS, accel/temp/gyro, ST1..ST2
@@ -62,6 +63,33 @@ def burst_is_plausible(burst):
         not all(b == 0xFF for b in data_bytes)
 
 
+# A change of angular rate no rigid body behind the gyro's low-pass makes within one sample:
+# 1000 °/s from one sample to the next. The shared BROAD trials change by 274 °/s at most
+# (trial 24, tapping, at 286 Hz: 4,497 counts at ±2000 °/s). A bit flipped on the data line in
+# the top bits of a gyro word (the flips whose rate error, integrated, would tilt the attitude
+# by a degree or more at 1 kHz) is a larger jump; lower bits do not matter to the attitude.
+GYRO_JUMP_DPS = 1000
+
+
+def gyro_jump_limit(gyro_fs_dps):
+    """The jump, in counts at the full scale ``gyro_fs_dps``, that fails a burst: a power of
+    two (the gateware tests the bits above it), or None where it is beyond the words' range
+    (±500 °/s and less: no check). ±2000 °/s: 16,384 counts (1000 °/s); ±1000: 32,768."""
+    counts = GYRO_JUMP_DPS * 32768 / gyro_fs_dps
+    limit = 1 << (round(counts) - 1).bit_length()
+    return limit if limit <= 32768 else None
+
+
+def gyro_jumps(previous, gyro, limit):
+    """True where a gyro triple (counts) jumped by ``limit`` or more on some axis from the
+    ``previous`` one (the gateware's check, for arrays of N × 3)."""
+    import numpy as np
+    if limit is None:
+        return np.zeros(len(gyro), bool)
+    delta = np.asarray(gyro, np.int64) - np.asarray(previous, np.int64)
+    return np.any(np.abs(delta) >= limit, axis=-1)
+
+
 class SampleReader(wiring.Component):
     """Reads a nine-axis sample per data-ready edge while ``enable``.
 
@@ -69,7 +97,9 @@ class SampleReader(wiring.Component):
         ``wiring``: "spi" (one fast burst of ``SAMPLE_BYTES`` from INT_STATUS: the AK8963's bytes
             are in EXT_SENS_DATA) or "i2c" (the MPU9250's ``MPU_BYTES``, then the AK8963's eight
             from ST1 directly). ``int_active_low``: the INT pin's polarity; ``int_latched``:
-            INT is latched until INT_STATUS is read (else a 50 µs pulse).
+            INT is latched until INT_STATUS is read (else a 50 µs pulse). ``gyro_jump``:
+            ``gyro_jump_limit`` of the full scale (None: no check): a burst whose gyro moved
+            that far on an axis from the last sample passed on fails its checks.
         ``magnetometer``: the configuration has one (else no freshness check).
         ``period_cycles``: the sample period. ``first_timeout_cycles``: the data-ready time-out
             after streaming starts; ``timeout_cycles`` after each sample.
@@ -99,10 +129,11 @@ class SampleReader(wiring.Component):
     """
 
     def __init__(self, *, wiring="spi", int_active_low=False, int_latched=True, magnetometer=True,
-                 period_cycles, first_timeout_cycles, timeout_cycles, mag_timeout_periods):
+                 gyro_jump=None, period_cycles, first_timeout_cycles, timeout_cycles, mag_timeout_periods):
         self.wiring = wiring
         self.int_active_low = int_active_low
         self.int_latched = int_latched
+        self.gyro_jump = gyro_jump
         self.magnetometer = magnetometer
         self.period_cycles = period_cycles
         self.first_timeout_cycles = first_timeout_cycles
@@ -237,6 +268,8 @@ class SampleReader(wiring.Component):
                 judge([Mux(~spurious, e, b) for e, b in zip(snap_edge, deferred_base)],
                       base_ok)
 
+        gyro_jumped = Signal()                  # the gyro moved too far (``gyro_jump``)
+        have_base = Signal()                    # a sample was passed on since ``start``
         timer = Signal(range(max(self.first_timeout_cycles, self.timeout_cycles) + 1))
         m.d.sync += timer.eq(timer - (timer != 0))
         counter = Signal(32)                    # samples read since power-on
@@ -249,7 +282,7 @@ class SampleReader(wiring.Component):
             # a latched INT already active gives no edge: it counts as one
             m.d.sync += [timer.eq(self.first_timeout_cycles - 1), int_pending.eq(int_active),
                          seen_edge.eq(0), pending_edge.eq(0), deferred.eq(0), skipped.eq(0),
-                         early.eq(0), bad_bursts.eq(0)]
+                         early.eq(0), bad_bursts.eq(0), have_base.eq(0)]
 
         # -- magnetometer freshness ---------------------------------------------------------------
         limit = self.mag_timeout_periods
@@ -332,6 +365,19 @@ class SampleReader(wiring.Component):
                 m.next = "IDLE"
                 data_ones = Cat(buf[k] == 0xFF for k in range(1, MPU_BYTES)).all()
                 plausible = buf[0][0] & (buf[0] != 0xFF) & ~data_ones
+                if self.gyro_jump is not None:
+                    # |new - last passed on| >= 2**b: the 17-bit difference's bits b..16 are
+                    # not all its sign
+                    b = self.gyro_jump.bit_length() - 1
+                    jumps = []
+                    for axis in range(3):
+                        new = Cat(buf[1 + 8 + 2 * axis + 1], buf[1 + 8 + 2 * axis]).as_signed()
+                        delta = Signal(signed(17), name=f"gyro_delta{axis}")
+                        m.d.comb += delta.eq(new - self.samples.payload.gyro[axis])
+                        top = delta[b:17]
+                        jumps.append(~((top == 0) | top.all()))
+                    m.d.comb += gyro_jumped.eq(have_base & Cat(*jumps).any())
+                    plausible = plausible & ~gyro_jumped
                 # no RAW_RDY over real data: no sample was made (a spurious INT pulse, or a
                 # read made again), none lost; all zeros is a line stuck low: a lost sample
                 data_zeros = Cat(buf[k] == 0 for k in range(1, MPU_BYTES)).all()
@@ -363,6 +409,8 @@ class SampleReader(wiring.Component):
                         m.d.sync += self.read_error.eq(0)
                     self._emit(m, buf, counter, overrun, dropped, skipped, resumed,
                                prev_field, prev_drdy, mag_age, mag_read_failed)
+                    with m.If(~self.samples.valid):
+                        m.d.sync += have_base.eq(1)      # this one is the payload now
         return m
 
     def _emit(self, m, buf, counter, overrun, dropped, skipped, resumed, prev_field, prev_drdy,

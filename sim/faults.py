@@ -210,6 +210,11 @@ def _rate_glitch(inj, t):
     mpu._reschedule(t)
 
 
+def _gyro_bit_flip(inj, t):
+    # the data line inverts the top bit of gyro x in the next burst (a glitch, cross-talk)
+    inj.mpu.line_flips[R.GYRO_XOUT_H] = 0x80
+
+
 def _int_high(inj, t):
     # a spurious pulse on INT between two samples (cross-talk, a glitch): the pin override
     # raises INT now; ``remove`` lets it go a fraction of a period later
@@ -269,6 +274,8 @@ FAULTS = {f.name: f for f in [
     Fault("rate_change", "SMPLRT_DIV (at 1 kHz: CONFIG's DLPF_CFG) loses its value under the "
           "driver (a register glitch): the part samples 5 or 8 times faster", _rate_glitch,
           duration=None, flags=("rate_error",)),
+    Fault("data_bit_flip", "the data line flips the top bit of one gyro word in one burst",
+          _gyro_bit_flip, duration=None, flags=("bad_burst",), recovers="remains"),
     Fault("spurious_int", "one spurious INT pulse between two samples (no new sample)",
           _int_high, _int_free, duration=0.02, flags=("bad_burst",), recovers="remains"),
 ]}

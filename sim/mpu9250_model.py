@@ -123,6 +123,7 @@ class MPU9250Model:
         self.ext_reads = []         # EXT_SENS_DATA_00..07 as that same read saw them
         self.transactions = []      # SPI: (t CS fell, t CS rose, first register, bytes, read)
         self.resets = 0
+        self.line_flips = {}
 
         self.now = 0.0
         self.regs = bytearray(128)
@@ -354,7 +355,9 @@ class MPU9250Model:
         return (addr + 1) & 0x7F
 
     def read_reg(self, addr):
-        value = self._snapshot[addr]
+        # ``line_flips`` {register: mask}: bits the data line inverts on the next read of that
+        # register (a glitch in transit: the register itself keeps its value)
+        value = self._snapshot[addr] ^ self.line_flips.pop(addr, 0)
         if addr == R.ACCEL_XOUT_H:
             self.sample_reads.append(self._snapshot_sample)
             self.ext_reads.append(self._snapshot[R.EXT_SENS_DATA_00:R.EXT_SENS_DATA_00 + 8])

@@ -26,6 +26,15 @@ def vcd(request):
     return path
 
 
+def broad_files():
+    """The shared BROAD recordings (``../shared/data/broad/*.hdf5`` beside the checkout, or
+    from the working folder), sorted; [] where they are not there."""
+    import glob
+    import pathlib
+    return sorted(glob.glob("../shared/data/broad/*.hdf5")) or sorted(glob.glob(
+        str(pathlib.Path(__file__).resolve().parents[2] / "shared/data/broad/*.hdf5")))
+
+
 def require_tool(name, install):
     """Path of a system tool. Missing: a skip on a developer machine, a failure in CI."""
     found = shutil.which(name)
