@@ -11,13 +11,42 @@ from amaranth.lib.wiring import In, Out
 from .clocking import cycles
 
 
-__all__ = ["SPITiming", "SPIPinsSignature", "SPIByte", "SPIController"]
+__all__ = ["IOBudget", "IO_BUDGET", "SPITiming", "SPIPinsSignature", "SPIByte", "SPIController"]
 
 
 SYNC_STAGES = 2
-# When the MPU9250's next SDO bit reaches the FPGA after a falling SCLK edge: (earliest,
-# latest), seconds. PS-MPU-9250A-01 gives the output delay as at most 100 ns (no minimum).
-SDO_WINDOW_S = (0.0, 100e-9)
+
+
+@dataclass(frozen=True)
+class IOBudget:
+    """The round trip of a CIPO bit, in ns: from the falling SCLK edge leaving the FPGA's
+    register to the next bit captured in CIPO's input register. ``sdo_max_ns`` is the MPU9250's
+    output delay (PS-MPU-9250A-01: at most 100 ns, no minimum given); the FPGA figures are a
+    MAX10 C8's I/O with its I/O registers (``fpga_out_ns``: the SCLK output register to the
+    pad; ``fpga_in_ns``: the CIPO pad to its input register, setup included) and are
+    allowances, not Quartus figures (only its timing analysis gives those: ``top.sdc``
+    carries the same figures as constraints for it to check); ``board_ns`` is one way along
+    the board (about 30 cm of trace). ``margin_ns``: what the sample point must leave
+    beyond the latest arrival. Nothing has a minimum: the previous bit may change at once."""
+    sdo_max_ns: float = 100.0
+    fpga_out_ns: float = 7.0
+    board_ns: float = 2.0
+    fpga_in_ns: float = 3.0
+    margin_ns: float = 10.0
+
+    @property
+    def arrival_ns(self):
+        """The latest time after the falling edge leaves its register that a bit arrives."""
+        return self.fpga_out_ns + 2 * self.board_ns + self.sdo_max_ns + self.fpga_in_ns
+
+    @property
+    def sdo_window_s(self):
+        """(earliest, latest) time after the falling edge leaves its register at which the
+        next bit may be sampled: (0, arrival + margin)."""
+        return 0.0, (self.arrival_ns + self.margin_ns) * 1e-9
+
+
+IO_BUDGET = IOBudget()
 
 
 @dataclass(frozen=True)
@@ -39,6 +68,12 @@ class SPITiming:
     def capture_delay(self):
         return SYNC_STAGES + self.cipo_delay
 
+    def setup_margin_ns(self, clk_freq, budget=IO_BUDGET, fast=True):
+        """How long after ``budget``'s latest arrival CIPO's pin is sampled, ns (the sample
+        point's slack, ``for_clock`` makes it at least ``budget.margin_ns``)."""
+        first, _ = self.sample_window(fast)
+        return first / clk_freq * 1e9 - budget.arrival_ns
+
     def sample_window(self, fast):
         """(first, last) cycle after a falling SCLK edge leaves its register at which CIPO's
         pin is sampled for that bit: (sample point, the cycle before the next falling edge)."""
@@ -47,22 +82,23 @@ class SPITiming:
 
     @classmethod
     def for_clock(cls, clk_freq, *, slow_hz=1e6, fast_hz=20e6, cs_hold_s=500e-9,
-                  min_half=2, sdo_window_s=SDO_WINDOW_S):
+                  min_half=2, io_budget=IO_BUDGET):
         """The fastest timing the datasheet and CIPO's timing allow at ``clk_freq``.
 
-        ``sdo_window_s`` = (earliest, latest) time after a falling SCLK edge leaves the FPGA's
-        register at which the sensor's next bit can reach the FPGA's CIPO pin: the MPU9250's
-        output delay (at most 100 ns, no minimum given) plus the board's delays, default
-        (0, 100 ns). The previous bit can therefore change from ``earliest`` after the next
-        falling edge. The pin is sampled on the first clock edge after ``latest`` and it
-        must come before the next falling edge plus ``earliest``: so an SCLK period longer than
-        ``latest - earliest`` is needed, whatever the clock (at most about 9.5 MHz with the
-        defaults). ``fast_half`` is the shortest level (at least ``min_half`` cycles, SCLK at
-        most ``fast_hz``) with such a sampling edge; ``cipo_delay`` places it.
+        ``io_budget.sdo_window_s`` = (earliest, latest) time after a falling SCLK edge leaves
+        the FPGA's register at which the sensor's next bit may be sampled: its round trip
+        (the MPU9250's output delay, at most 100 ns, the FPGA's output and input and the
+        board's, ``IOBudget``) plus a setup margin, (0, 124 ns) by default. The previous bit
+        can change from ``earliest`` after the next falling edge. The pin is sampled on the
+        first clock edge after ``latest`` and it must come before the next falling edge plus
+        ``earliest``: so an SCLK period longer than ``latest - earliest`` is needed, whatever
+        the clock (at most about 8 MHz with the defaults; 6 MHz at 48 MHz). ``fast_half`` is
+        the shortest level (at least ``min_half`` cycles, SCLK at most ``fast_hz``) with such
+        a sampling edge; ``cipo_delay`` places it.
         """
         def half(hz):
             return cycles(1 / (2 * hz), clk_freq, minimum=min_half)
-        earliest, latest = sdo_window_s
+        earliest, latest = io_budget.sdo_window_s
         first = math.floor(latest * clk_freq + 1e-9) + 1    # first edge strictly after latest
         fast = half(fast_hz)
         while first > 2 * fast - 1 + math.floor(earliest * clk_freq + 1e-9):
@@ -107,7 +143,7 @@ class SPIController(wiring.Component):
         Mode 3: SCLK idles high, COPI changes on the falling edge. CIPO's pin is sampled (the
         synchroniser's first flip-flop) ``cipo_delay`` cycles after the rising edge leaves its
         register, so ``half + cipo_delay`` cycles after the falling edge the device answers: late
-        enough for its output delay (``SPITiming.for_clock``'s ``sdo_window_s``), early enough that
+        enough for the round trip (``IOBudget``: the output delay, the I/O, the board, a margin), early enough that
         the bit has not yet changed; the bit is shifted in ``capture_delay`` = 2 + ``cipo_delay``
         cycles after the rising edge.
 

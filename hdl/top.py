@@ -53,7 +53,7 @@ from .driver_status import DriverStatus
 from .sample import Sample
 from .sensor_frontend import SensorFrontEnd, sample_read_cycles
 from .i2c_controller import I2CPinsSignature
-from .spi_controller import SPIPinsSignature
+from .spi_controller import IO_BUDGET, SPIPinsSignature, SPITiming
 from .attitude_program import HOST_WRITABLE
 from .command_decoder import CommandDecoder, CommandStats
 from .frame_arbiter import FrameArbiter
@@ -68,7 +68,7 @@ from .uart_tx import UARTTransmitter
 
 
 __all__ = ["AHRSCore", "BoardTop", "telemetry_divider_for", "rate_budget", "VERSION",
-           "version_word"]
+           "version_word", "io_constraints", "io_register_settings"]
 
 
 VERSION = (0, 2)        # major, minor: the version/build word's top bytes
@@ -299,6 +299,59 @@ class AHRSCore(wiring.Component):
         with m.If(fe.samples.valid & fe.samples.ready):
             m.d.sync += self.samples_seen.eq(self.samples_seen + 1)
         return m
+
+
+def io_constraints(config, clk_freq, *, pll=True, budget=IO_BUDGET):
+    """``top.sdc`` lines that give Quartus the sensor pins' timing, from the same figures the
+    SPI controller's sample point was chosen with (``IOBudget``), so that its timing analysis
+    checks them (no Quartus here: these are not checked by this project's tests).
+
+    SPI: SCLK, COPI and CS leave from registers and must reach the board within
+    ``board_ns``; CIPO's next bit arrives at most ``fpga_out + 2 board + sdo_max`` ns after the
+    clock edge that launched SCLK's falling edge and is sampled ``first`` cycles later (a
+    multicycle path): Quartus checks the rest of the budget (the pad to the input register,
+    the margin). I2C: SCL and SDA are sampled through synchronisers, their timing is the
+    bus's (µs): false paths in, ``board_ns`` out. INT likewise."""
+    clock = "[get_clocks {*pll1|clk[0]}]" if pll else "[get_clocks {clk12_0__io}]"
+    out_ns, in_ns = budget.board_ns, budget.fpga_out_ns + 2 * budget.board_ns + budget.sdo_max_ns
+    lines = ["# the MPU9250's pins (hdl/top.py io_constraints, figures: IOBudget in "
+             "hdl/spi_controller.py)"]
+
+    def outputs(ports):
+        names = " ".join(ports)
+        lines.extend([f"set_output_delay -clock {clock} -max {out_ns:g} [get_ports {{{names}}}]",
+                      f"set_output_delay -clock {clock} -min {-out_ns:g} "
+                      f"[get_ports {{{names}}}]"])
+
+    if config.wiring == "spi":
+        timing = SPITiming.for_clock(clk_freq, io_budget=budget)
+        first, _ = timing.sample_window(fast=True)
+        outputs(["imu_spi_0__clk__io", "imu_spi_0__copi__io", "imu_spi_0__cs__io"])
+        cipo = "[get_ports {imu_spi_0__cipo__io}]"
+        lines += [f"set_input_delay -clock {clock} -max {in_ns:g} {cipo}",
+                  f"set_input_delay -clock {clock} -min 0 {cipo}",
+                  f"# sampled {first} cycles after SCLK's falling edge leaves its register",
+                  f"set_multicycle_path -setup -from {cipo} {first}",
+                  f"set_multicycle_path -hold -from {cipo} {first - 1}",
+                  "set_false_path -from [get_ports {imu_spi_0__int__io}]"]
+    else:
+        outputs(["imu_i2c_0__scl__io", "imu_i2c_0__sda__io", "imu_i2c_0__ncs__io",
+                 "imu_i2c_0__ad0__io"])
+        lines += ["set_false_path -from [get_ports {imu_i2c_0__scl__io imu_i2c_0__sda__io "
+                  "imu_i2c_0__int__io}]"]
+    return "\n".join(lines) + "\n"
+
+
+def io_register_settings(config):
+    """``top.qsf`` lines that put the SPI pins' registers in the I/O elements (SCLK, COPI and
+    CS's output registers, CIPO's first synchroniser stage), so that their delays are the
+    short, fixed ones ``IOBudget`` allows for. I2C's pins are slow and synchronised: none."""
+    if config.wiring != "spi":
+        return ""
+    lines = [f"set_instance_assignment -name FAST_OUTPUT_REGISTER ON -to imu_spi_0__{p}__io"
+             for p in ("clk", "copi", "cs")]
+    lines.append("set_instance_assignment -name FAST_INPUT_REGISTER ON -to imu_spi_0__cipo__io")
+    return "\n".join(lines) + "\n"
 
 
 class BoardTop(Elaboratable):

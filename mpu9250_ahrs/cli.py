@@ -160,7 +160,7 @@ def cmd_build(args):
     from amaranth.back import verilog
     from .hdl.clocking import pll_ratio
     from .hdl.platform import MAX10Platform
-    from .hdl.top import AHRSCore, BoardTop
+    from .hdl.top import AHRSCore, BoardTop, io_constraints, io_register_settings
 
     out = Path(args.out)
     config = _config(args)
@@ -184,7 +184,10 @@ def cmd_build(args):
     plan = platform.build(BoardTop(clk_freq=clk_freq, config=config, baud=args.baud,
                                    **options),
                           name="top", do_build=False,
-                          add_constraints=BoardTop.PLL_CONSTRAINTS)
+                          add_constraints=BoardTop.PLL_CONSTRAINTS + io_constraints(
+                              config, clk_freq,
+                              pll=clk_freq != platform.default_clk_frequency),
+                          add_settings=io_register_settings(config))
     plan.extract(str(out))
     print(f"wrote the Quartus project for {platform.device_name} to {out}/ "
           f"(top.qsf, top.sdc, top.v, build_top.sh; system clock {clk_freq / 1e6:g} MHz from "

@@ -53,6 +53,14 @@ def test_build_writes_quartus_project(tmp_path, capsys):
     sdc = (tmp_path / "top.sdc").read_text()
     assert "create_clock" in sdc and "83.33" in sdc           # the 12 MHz oscillator
     assert "derive_pll_clocks" in sdc                          # its PLL's 48 MHz output
+    # issue #23: the SPI pins constrained from the I/O budget (CIPO's round trip 111 ns
+    # outside the FPGA's input, sampled 6 cycles = 125 ns on), their registers in the I/O
+    assert "set_input_delay -clock [get_clocks {*pll1|clk[0]}] -max 111 " \
+           "[get_ports {imu_spi_0__cipo__io}]" in sdc
+    assert "set_multicycle_path -setup -from [get_ports {imu_spi_0__cipo__io}] 6" in sdc
+    assert "set_output_delay" in sdc and "imu_spi_0__clk__io" in sdc
+    assert "FAST_INPUT_REGISTER ON -to imu_spi_0__cipo__io" in qsf
+    assert "FAST_OUTPUT_REGISTER ON -to imu_spi_0__clk__io" in qsf
     top = (tmp_path / "top.v").read_text()
     assert "altpll" in top and ".clk0_multiply_by(32'd4)" in top
     assert "system clock 48 MHz" in capsys.readouterr().out
