@@ -11,8 +11,9 @@ The rules it applies (``hdl/FAULTS.md`` has what each catches):
   than the last read's; no new field for ``mag_timeout_periods`` sample periods makes it stale
   (``mag_stale``) and asks for the magnetometer to be set up again (``mag_lost``);
 - data-ready intervals against the sample period give ``skipped`` (samples made and never read);
-  they are measured from the edge of the last burst that held a sample, so a spurious INT
-  pulse (its burst has no RAW_RDY: nothing was made, nothing lost) moves nothing;
+  they are measured from the edge of the last burst that held a sample, so a burst without
+  RAW_RDY (a spurious INT pulse, or a line stuck low) moves nothing and samples lost meanwhile
+  show in the next interval;
 - a data-ready interval shorter than ``EARLY_FRACTION`` (7/8) of the period whose burst holds a
   new sample means the sensor runs faster than configured (SMPLRT_DIV or CONFIG changed under the
   driver: a glitch, a brown-out of that register): ``rate_error`` is set, ``rate_errors``
@@ -227,11 +228,21 @@ class SampleReader(wiring.Component):
             """``dst`` takes ``src``'s value, advanced by this cycle's count."""
             m.d.sync += [d.eq(v) for d, v in zip(dst, advanced(src))]
 
+        # one judge for the three places an edge is judged (the last that applies wins, as
+        # a statement would): the interval and whether its base is known, then the figures
+        judging = Signal()
+        judged = (Signal.like(phase), Signal.like(periods))
+        judged_ok = Signal()
+
         def judge(interval, base_ok):
             """(skipped, early) for an edge ``interval`` (phase, periods) after a base."""
-            ph, pe = interval
-            m.d.sync += [skipped.eq(Mux(base_ok & (pe > 1), pe - 1, 0)),
-                         early.eq(base_ok & ((pe == 0) | ((pe == 1) & (ph < early_phase))))]
+            m.d.comb += [judging.eq(1), judged_ok.eq(base_ok),
+                         *(j.eq(v) for j, v in zip(judged, interval))]
+
+        with m.If(judging):
+            ph, pe = judged
+            m.d.sync += [skipped.eq(Mux(judged_ok & (pe > 1), pe - 1, 0)),
+                         early.eq(judged_ok & ((pe == 0) | ((pe == 1) & (ph < early_phase))))]
 
         snap_edge = (Signal.like(phase), Signal.like(periods))      # ``since_edge`` then
         with m.If(int_edge):
@@ -378,10 +389,10 @@ class SampleReader(wiring.Component):
                         jumps.append(~((top == 0) | top.all()))
                     m.d.comb += gyro_jumped.eq(have_base & Cat(*jumps).any())
                     plausible = plausible & ~gyro_jumped
-                # no RAW_RDY over real data: no sample was made (a spurious INT pulse, or a
-                # read made again), none lost; all zeros is a line stuck low: a lost sample
-                data_zeros = Cat(buf[k] == 0 for k in range(1, MPU_BYTES)).all()
-                spurious = ~buf[0][0] & ~data_zeros
+                # no RAW_RDY: no new sample in this burst (a spurious INT pulse, a read made
+                # again) or none readable (a line stuck low reads zeros): either way the
+                # intervals from the last sample's edge count what was lost, not ``dropped``
+                spurious = ~buf[0][0]
                 checked(spurious)
                 if self.int_latched:
                     # after a spurious pulse's burst, a latched INT still active means a
