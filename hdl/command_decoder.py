@@ -128,17 +128,22 @@ class CommandDecoder(wiring.Component):
         byte = src.payload
         take = src.valid & src.ready
 
-        ctype = Signal(8)
-        seq = Signal(8)
-        length = Signal(8)
+        # data registers, written before they are read in every frame, need no reset (on a
+        # MAX10 a synchronous reset costs logic per bit)
+        ctype = Signal(8, reset_less=True)
+        seq = Signal(8, reset_less=True)
+        length = Signal(8, reset_less=True)
         count = Signal(range(MAX_COMMAND_PAYLOAD + 1))
-        payload = Signal(8 * MAX_COMMAND_PAYLOAD)
-        crc_high = Signal(8)
+        payload = Signal(8 * MAX_COMMAND_PAYLOAD, reset_less=True)
+        crc_high = Signal(8, reset_less=True)
         gap = Signal(range(self.timeout + 1))
         addr = payload[:16]
         value = payload[16:48]
         space, low = addr[8:], addr[:8]
-        reply = self.replies.payload
+        # the reply and the engine write are written before they are offered: no reset
+        reply = Signal.like(self.replies.payload, reset_less=True)
+        write = Signal.like(self.cfg.payload, reset_less=True)
+        m.d.comb += [self.replies.payload.eq(reply), self.cfg.payload.eq(write)]
 
         def count_up(counter):
             with m.If(~counter.all()):                  # saturating at 0xFFFF
@@ -266,8 +271,8 @@ class CommandDecoder(wiring.Component):
                 with m.Elif(ctype == COMMANDS["write"][0]):
                     with m.If(space == SPACES["engine"]):
                         with m.If(writable):
-                            m.d.sync += [self.cfg.payload.addr.eq(low),
-                                         self.cfg.payload.data.eq(value)]
+                            m.d.sync += [write.addr.eq(low),
+                                         write.data.eq(value)]
                             m.next = "ENGINE_WRITE"
                         with m.Else():
                             answer(RESULTS["refused"])
@@ -308,18 +313,18 @@ class CommandDecoder(wiring.Component):
                         answer(RESULTS["bad_address"], value_=0)
                 with m.Elif(ctype == COMMANDS["filter"][0]):
                     with m.If(payload[:8] <= max(FILTER_CODES.values())):
-                        m.d.sync += [self.cfg.payload.addr.eq(CONTROL_ADDR),
-                                     self.cfg.payload.data.eq(payload[:8])]
+                        m.d.sync += [write.addr.eq(CONTROL_ADDR),
+                                     write.data.eq(payload[:8])]
                         m.next = "ENGINE_WRITE"
                     with m.Else():
                         answer(RESULTS["refused"], addr_=CONTROL_ADDR, value_=payload[:8])
                 with m.Elif(ctype == COMMANDS["reset"][0]):
-                    m.d.sync += [self.cfg.payload.addr.eq(CONTROL_ADDR),
-                                 self.cfg.payload.data.eq(CONTROL_KEEP | CONTROL_RESET)]
+                    m.d.sync += [write.addr.eq(CONTROL_ADDR),
+                                 write.data.eq(CONTROL_KEEP | CONTROL_RESET)]
                     m.next = "ENGINE_WRITE"
                 with m.Elif(ctype == COMMANDS["rate"][0]):
-                    m.d.sync += [self.cfg.payload.addr.eq(TELEMETRY_DIV_ADDR),
-                                 self.cfg.payload.data.eq(payload[:16])]
+                    m.d.sync += [write.addr.eq(TELEMETRY_DIV_ADDR),
+                                 write.data.eq(payload[:16])]
                     m.next = "ENGINE_WRITE"
                 with m.Elif(ctype == COMMANDS["raw"][0]):
                     m.d.sync += self.raw_mode.eq(payload[0])
@@ -331,8 +336,7 @@ class CommandDecoder(wiring.Component):
             with m.State("ENGINE_WRITE"):
                 m.d.comb += self.cfg.valid.eq(1)
                 with m.If(self.cfg.ready):
-                    answer(RESULTS["ok"], addr_=self.cfg.payload.addr,
-                           value_=self.cfg.payload.data)
+                    answer(RESULTS["ok"], addr_=write.addr, value_=write.data)
             with m.State("ENGINE_READ"):
                 m.d.comb += [self.cfg_read.valid.eq(1), self.cfg_read.payload.eq(low)]
                 with m.If(self.cfg_read.ready):

@@ -179,8 +179,8 @@ class SampleReader(wiring.Component):
         # means n - 1 samples made and never read (e.g. a latched INT still high from the
         # sample before); one under ``EARLY_FRACTION`` of a period means the part runs faster
         # than it was told. Intervals are measured from the edge of the last burst that held a
-        # sample (``since_sample``), so a spurious pulse (its burst: RAW_RDY clear over real
-        # data) moves nothing. ``since_edge`` runs from the edge of the burst in flight (or the
+        # sample (``since_sample``), so a spurious pulse (its burst has no RAW_RDY: nothing
+        # was made) moves nothing. ``since_edge`` runs from the edge of the burst in flight (or the
         # latest), ``since_next`` from an edge that came while a burst was being read: that
         # one is judged at the burst's check, early if the burst held a sample (a read ends
         # well within a period, ``rate_budget``), else against the base before it.
@@ -279,6 +279,10 @@ class SampleReader(wiring.Component):
                 judge([Mux(~spurious, e, b) for e, b in zip(snap_edge, deferred_base)],
                       base_ok)
 
+        # the sample offered: written whole before it is offered, so no reset (on a MAX10 a
+        # synchronous reset costs logic per bit)
+        sample = Signal.like(self.samples.payload, reset_less=True)
+        m.d.comb += self.samples.payload.eq(sample)
         gyro_jumped = Signal()                  # the gyro moved too far (``gyro_jump``)
         have_base = Signal()                    # a sample was passed on since ``start``
         timer = Signal(range(max(self.first_timeout_cycles, self.timeout_cycles) + 1))
@@ -384,7 +388,7 @@ class SampleReader(wiring.Component):
                     for axis in range(3):
                         new = Cat(buf[1 + 8 + 2 * axis + 1], buf[1 + 8 + 2 * axis]).as_signed()
                         delta = Signal(signed(17), name=f"gyro_delta{axis}")
-                        m.d.comb += delta.eq(new - self.samples.payload.gyro[axis])
+                        m.d.comb += delta.eq(new - sample.gyro[axis])
                         top = delta[b:17]
                         jumps.append(~((top == 0) | top.all()))
                     m.d.comb += gyro_jumped.eq(have_base & Cat(*jumps).any())
@@ -418,14 +422,14 @@ class SampleReader(wiring.Component):
                             m.d.sync += self.rate_errors.eq(self.rate_errors + 1)
                     if not spi:
                         m.d.sync += self.read_error.eq(0)
-                    self._emit(m, buf, counter, overrun, dropped, skipped, resumed,
+                    self._emit(m, sample, buf, counter, overrun, dropped, skipped, resumed,
                                prev_field, prev_drdy, mag_age, mag_read_failed)
                     with m.If(~self.samples.valid):
                         m.d.sync += have_base.eq(1)      # this one is the payload now
         return m
 
-    def _emit(self, m, buf, counter, overrun, dropped, skipped, resumed, prev_field, prev_drdy,
-              mag_age, mag_read_failed):
+    def _emit(self, m, sample, buf, counter, overrun, dropped, skipped, resumed, prev_field,
+              prev_drdy, mag_age, mag_read_failed):
         """A burst that passed its checks becomes the sample (or, with the last still offered,
         a dropped one). The magnetometer's freshness is decided here."""
         def be16(k):
@@ -449,7 +453,7 @@ class SampleReader(wiring.Component):
         with m.If(self.samples.valid):
             m.d.sync += [overrun.eq(1), dropped.eq(Mux(dropped == 15, 15, dropped + 1))]
         with m.Else():
-            p = self.samples.payload
+            p = sample
             m.d.sync += [self.samples.valid.eq(1), overrun.eq(0), resumed.eq(0),
                          p.counter.eq(counter), dropped.eq(0),
                          # after a restart the time since the last sample is unknown
