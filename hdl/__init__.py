@@ -5,8 +5,9 @@ Sensor side: ``spi_controller``, ``i2c_controller``, ``register_port`` (and its 
 Attitude engine: ``attitude_engine`` on ``alu``, ``multiplier``, ``multiply_accumulate``,
 ``cordic``, ``divider``, ``memories``, ``host_port``; its instruction set ``attitude_isa`` and
 microcode ``attitude_program`` / ``flagship_microcode``. Link: ``telemetry_scheduler``,
-``telemetry`` (the framer), ``frame_arbiter``, ``uart_tx``, ``uart_rx``, ``command_decoder``,
-``pwm``, ``board_bus``. Top levels and board: ``top``, ``platform``, ``clocking``.
+``telemetry`` (the framer), ``frame_arbiter``, ``uart_tx``, ``uart_rx``, ``command_decoder``
+(its input ``rewindable_fifo``), ``pwm``, ``board_bus``. Top levels and board: ``top``,
+``platform``, ``clocking``.
 Layouts: ``sample``, ``driver_status``, ``attitude_result``, ``config_write``, ``frame_types``;
 the numeric contract with ``reference/``: ``numeric_contract``; register maps:
 ``mpu9250_regs``, ``ak8963_regs``.
