@@ -56,6 +56,7 @@ from .i2c_controller import I2CPinsSignature
 from .spi_controller import IO_BUDGET, SPIPinsSignature, SPITiming
 from .attitude_program import HOST_WRITABLE
 from .command_decoder import CommandDecoder, CommandStats
+from .config_port_arbiter import ConfigPortArbiter
 from .frame_arbiter import FrameArbiter
 from .frame_types import ATTITUDE, REPLY, SENSOR
 from .pwm import PWM_CHANNELS, PWMOutputs
@@ -248,28 +249,18 @@ class AHRSCore(wiring.Component):
                          framer.short.eq(decoder.raw_mode)]
             # The engine's register port: the ``cfg`` ports (a test bench, or tied off) first,
             # then the command decoder's; a transfer is never split between them.
-            ext_write, dec_write = self.cfg, decoder.cfg
-            m.d.comb += [engine.cfg.valid.eq(ext_write.valid | dec_write.valid),
-                         engine.cfg.payload.eq(Mux(ext_write.valid, ext_write.payload,
-                                                   dec_write.payload)),
-                         ext_write.ready.eq(engine.cfg.ready),
-                         dec_write.ready.eq(engine.cfg.ready & ~ext_write.valid)]
-            ext_read, dec_read = self.cfg_read, decoder.cfg_read
-            # whose read is outstanding: its word goes back to it
-            reader = Signal()                                  # 1: the decoder's
-            m.d.comb += [engine.cfg_read.valid.eq(ext_read.valid | dec_read.valid),
-                         engine.cfg_read.payload.eq(Mux(ext_read.valid, ext_read.payload,
-                                                        dec_read.payload)),
-                         ext_read.ready.eq(engine.cfg_read.ready),
-                         dec_read.ready.eq(engine.cfg_read.ready & ~ext_read.valid)]
-            with m.If(engine.cfg_read.valid & engine.cfg_read.ready):
-                m.d.sync += reader.eq(~ext_read.valid)
-            m.d.comb += [self.cfg_read_data.payload.eq(engine.cfg_read_data.payload),
-                         decoder.cfg_read_data.payload.eq(engine.cfg_read_data.payload),
-                         self.cfg_read_data.valid.eq(engine.cfg_read_data.valid & ~reader),
-                         decoder.cfg_read_data.valid.eq(engine.cfg_read_data.valid & reader),
-                         engine.cfg_read_data.ready.eq(Mux(reader, decoder.cfg_read_data.ready,
-                                                           self.cfg_read_data.ready))]
+            # the engine's config port: the core's cfg port first, then the decoder's; a
+            # waiting transfer keeps its client (ConfigPortArbiter)
+            m.submodules.cfg_arbiter = cfg_arbiter = ConfigPortArbiter()
+            connect(m, flipped(self.cfg), cfg_arbiter.first)
+            connect(m, decoder.cfg, cfg_arbiter.second)
+            connect(m, cfg_arbiter.cfg, engine.cfg)
+            connect(m, flipped(self.cfg_read), cfg_arbiter.first_read)
+            connect(m, decoder.cfg_read, cfg_arbiter.second_read)
+            connect(m, cfg_arbiter.cfg_read, engine.cfg_read)
+            connect(m, engine.cfg_read_data, cfg_arbiter.cfg_read_data)
+            connect(m, cfg_arbiter.first_read_data, flipped(self.cfg_read_data))
+            connect(m, cfg_arbiter.second_read_data, decoder.cfg_read_data)
             # the divider register: the engine keeps its copy for read-back
             divider = Signal(16, init=self.telemetry_divider)
             with m.If(engine.cfg.valid & engine.cfg.ready &

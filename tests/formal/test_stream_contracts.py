@@ -26,6 +26,7 @@ from mpu9250_ahrs.hdl.attitude_engine import AttitudeEngine
 from mpu9250_ahrs.hdl.attitude_program import HOST_WRITABLE
 from mpu9250_ahrs.hdl.bring_up_sequencer import BringUpSequencer, bring_up_program
 from mpu9250_ahrs.hdl.command_decoder import CommandDecoder
+from mpu9250_ahrs.hdl.config_port_arbiter import ConfigPortArbiter
 from mpu9250_ahrs.hdl.frame_arbiter import FrameArbiter
 from mpu9250_ahrs.hdl.host_port import HostPort
 from mpu9250_ahrs.hdl.i2c_controller import I2CController, I2CTiming
@@ -72,6 +73,7 @@ COMPONENTS = {
     "frame_arbiter": lambda: FrameArbiter(2),
     "host_port": HostPort,
     "rewindable_fifo": lambda: RewindableFIFO(depth=8),
+    "config_port_arbiter": ConfigPortArbiter,
     "command_decoder": lambda: CommandDecoder(writable=HOST_WRITABLE, version=0x00020000,
                                               timeout=50),
 }
@@ -81,9 +83,12 @@ COMPONENTS = {
 # the sample and status its result came from until the result is taken.
 HELD = {"telemetry_scheduler": {"sample": "results", "status": "results"}}
 # What a component's documentation asks of its user in every cycle: the rewindable FIFO is
-# rewound only with the byte it offers taken, or none offered.
+# rewound only with the byte it offers taken, or none offered; the engine's port (behind the
+# config-port arbiter) takes no read address while a word waits.
 ASSUME = {"rewindable_fifo":
-          lambda c: ~(c.rewind & c.r_stream.valid & ~c.r_stream.ready)}
+          lambda c: ~(c.rewind & c.r_stream.valid & ~c.r_stream.ready),
+          "config_port_arbiter":
+          lambda c: ~(c.cfg_read.ready & c.cfg_read_data.valid)}
 
 
 @pytest.mark.formal
