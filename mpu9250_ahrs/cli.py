@@ -2,6 +2,7 @@
 
 import argparse
 import json
+import os
 import sys
 import time
 from pathlib import Path
@@ -391,10 +392,36 @@ def cmd_report(args):
     return 0
 
 
+def _version():
+    from importlib.metadata import PackageNotFoundError, version
+    try:
+        return version("mpu9250-ahrs")
+    except PackageNotFoundError:
+        return "(not installed)"
+
+
+def _prepare_outputs(args):
+    """Every file a verb will write (``--vcd``, ``--csv``, ``--hdf5``, a file ``--out``):
+    its folder made and checked writable before any work starts, so that a long run (a
+    calibration turned by hand, a simulation) never ends in a missing folder."""
+    names = ["vcd", "csv", "hdf5"] + (["out"] if args.verb != "build" else [])
+    for name in names:
+        path = getattr(args, name, None)
+        if not path:
+            continue
+        path = Path(path)
+        if path.is_dir():
+            raise ValueError(f"--{name} {path} is a folder, not a file")
+        path.parent.mkdir(parents=True, exist_ok=True)
+        if not os.access(path.parent, os.W_OK):
+            raise OSError(f"--{name} {path}: the folder {path.parent} is not writable")
+
+
 def build_parser():
     parser = argparse.ArgumentParser(
         prog="mpu9250-ahrs", description="MPU9250 attitude reference in FPGA gateware.",
         epilog=VERBS_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     sub = parser.add_subparsers(dest="verb", metavar="VERB", required=True)
 
     p = sub.add_parser("build", help="write the Quartus project (or plain Verilog)",
@@ -448,7 +475,9 @@ def build_parser():
                                    "over the movement samples).")
     p.add_argument("file", help="HDF5 recording, e.g. ../shared/data/broad/02_*.hdf5")
     p.add_argument("--filter", choices=("kalman", "complementary", "madgwick", "flagship"),
-                   default="flagship")
+                   default="flagship",
+                   help="the filter to score (flagship); madgwick runs in the float reference "
+                        "only")
     p.add_argument("--engine", choices=("float", "fixed", "gateware"), default="float",
                    help="float: the float reference filter; fixed: the bit-exact integer model "
                         "of the attitude engine; gateware: the engine's Verilog in Verilator "
@@ -632,6 +661,7 @@ def cmd_plot(args):
 def main(argv=None):
     args = build_parser().parse_args(argv)
     try:
+        _prepare_outputs(args)
         return args.func(args)
     except (ValueError, OSError, RuntimeError) as e:
         print(f"mpu9250-ahrs {args.verb}: error: {e}", file=sys.stderr)

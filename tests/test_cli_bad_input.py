@@ -264,3 +264,20 @@ def test_benchmark_bad_recording(tmp_path, capsys):
     for path in (str(tmp_path / "missing.hdf5"), str(bad)):
         code = benchmark([path, "--no-fixed"])
         assert_one_error(code, capsys.readouterr().err, "HDF5")
+
+
+def test_output_folders_are_made_before_the_work(capsys, tmp_path):
+    """Issue #29: a file a verb writes into a folder that is not there yet: the folder is made
+    before any work starts (calibrate lost its fitted result at the very end this way); a
+    folder given for a file is one error line; ``--version`` answers."""
+    n = 40
+    path = broad_file(tmp_path / "rec.hdf5", n=n)
+    out = tmp_path / "new" / "deeper" / "q.csv"
+    code, _, err = run(["replay", path, "--filter", "madgwick", "--out", str(out)], capsys)
+    assert code == 0, err
+    assert out.is_file()
+    code, _, err = run(["replay", path, "--out", str(tmp_path)], capsys)
+    assert_one_error(code, err, "is a folder")
+    with pytest.raises(SystemExit) as stop:
+        main(["--version"])
+    assert stop.value.code == 0 and "mpu9250-ahrs" in capsys.readouterr().out
