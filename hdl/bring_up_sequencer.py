@@ -155,9 +155,6 @@ class BringUpSequencer(wiring.Component):
             on a restart. ``started`` (out, pulse): it just did, from the start of the program.
         ``restarted`` (out, pulse): a restart began (requested, or a failed MPU9250 step).
         ``mag_setup`` (out): the magnetometer's part is running while streaming.
-        ``backoff`` (out, range(BACKOFF_MAX_SHIFT + 1)): restarts since the program last
-            reached STREAM, at most ``BACKOFF_MAX_SHIFT``: the waits marked ``backoff`` last
-            ``2**backoff`` times their cycles (100, 200, 400, 400 ... ms after H_RESET).
         ``whoami_error``, ``no_response``, ``who_am_i``, ``restarts`` (8, saturating),
         ``mag_ok``, ``mag_absent``, ``mag_wia_error`` (out): as ``DriverStatus`` has them.
         ``asa`` (out, 3 × 8): the AK8963's sensitivity adjustment, stored by STORE steps.
@@ -182,7 +179,6 @@ class BringUpSequencer(wiring.Component):
             "restarts": Out(8), "mag_ok": Out(1), "mag_absent": Out(1),
             "mag_wia_error": Out(1),
             "asa": Out(data.ArrayLayout(8, 3)),
-            "backoff": Out(range(BACKOFF_MAX_SHIFT + 1)),
         })
 
     def elaborate(self, platform):
@@ -226,6 +222,9 @@ class BringUpSequencer(wiring.Component):
         # no command is left half done on the port
         restart_pending = Signal()
         reconfiguring = Signal()        # a reconfiguration: the magnetometer's part is left out
+        # restarts since the program last reached STREAM, at most BACKOFF_MAX_SHIFT: the waits
+        # marked ``backoff`` last 2**backoff times their cycles (100, 200, 400, 400 ... ms)
+        backoff = Signal(range(BACKOFF_MAX_SHIFT + 1))
         with m.If(self.restart):
             m.d.sync += restart_pending.eq(1)
 
@@ -235,8 +234,8 @@ class BringUpSequencer(wiring.Component):
             m.d.comb += self.restarted.eq(1)
             with m.If(self.restarts != 255):
                 m.d.sync += self.restarts.eq(self.restarts + 1)
-            with m.If(self.backoff != BACKOFF_MAX_SHIFT):
-                m.d.sync += self.backoff.eq(self.backoff + 1)
+            with m.If(backoff != BACKOFF_MAX_SHIFT):
+                m.d.sync += backoff.eq(backoff + 1)
             m.next = "FETCH"
 
         def fail(absent):
@@ -272,7 +271,7 @@ class BringUpSequencer(wiring.Component):
                 with m.If(restart_pending & ~offered):
                     restart()
                 with m.Else():
-                    self._fetch(m, step, command, timer, next_step, reconfiguring)
+                    self._fetch(m, step, command, timer, next_step, reconfiguring, backoff)
             with m.State("WAIT"):
                 m.d.sync += timer.eq(timer - 1)
                 with m.If(timer == 0):
@@ -331,14 +330,14 @@ class BringUpSequencer(wiring.Component):
                     m.next = "FETCH"
         return m
 
-    def _fetch(self, m, step, command, timer, next_step, reconfiguring):
+    def _fetch(self, m, step, command, timer, next_step, reconfiguring, backoff):
         """FETCH: start the step at ``pc``."""
         port = self.port
         with m.Switch(step.op):
             with m.Case(Op.WAIT):
                 with m.If(step.backoff):
                     # ``step.wait << backoff`` as a choice of shifts (no shifter)
-                    with m.Switch(self.backoff):
+                    with m.Switch(backoff):
                         for shift in range(BACKOFF_MAX_SHIFT + 1):
                             with m.Case(shift):
                                 m.d.sync += timer.eq((step.wait << shift) - 1)
@@ -363,6 +362,6 @@ class BringUpSequencer(wiring.Component):
             with m.Case(Op.STREAM):
                 with m.If(~self.streaming):
                     m.d.comb += self.started.eq(1)
-                m.d.sync += [self.streaming.eq(1), self.mag_setup.eq(0), self.backoff.eq(0),
+                m.d.sync += [self.streaming.eq(1), self.mag_setup.eq(0), backoff.eq(0),
                              reconfiguring.eq(0)]
                 m.next = "RUNNING"

@@ -6,9 +6,9 @@ from amaranth.lib import stream, wiring
 from amaranth.lib.wiring import In, Out
 
 from .attitude_isa import REG_BITS
-from .attitude_program import CONTROL_ADDR, CONTROL_KEEP, CONTROL_RESET, FILTERS
+from .attitude_program import CONTROL_ADDR, FILTERS
 from .config_write import ConfigWrite
-from .numeric_contract import CONTROL_BITS
+from .numeric_contract import CONTROL_BITS, CONTROL_KEEP, CONTROL_RESET
 
 
 __all__ = ["HostPort", "address_in", "control_accepted"]

@@ -47,7 +47,7 @@ class PWMOutputs(wiring.Component):
                         mode changes has its high time set to 0: the value it held was in the
                         other unit (1,500 µs read as 1,500 cycles could exceed the motor
                         period), so it stays low until a high time is written in its new unit.
-    PWM_WATCHDOG_MS     0..65535: with a channel enabled, no command for this long disables
+    PWM_WATCHDOG_MS     0..65535: with a channel enabled, no accepted command for this long disables
     (0x02)              every channel (outputs low) and sets ``tripped``; 0 = off. 500 at
                         reset.
     PWM_STATUS (0x03)   read only: bit 0 ``tripped``; bits 7:4 the channels enabled now.
@@ -76,7 +76,7 @@ class PWMOutputs(wiring.Component):
         ``clk_freq``: the clock (Hz); the servo unit is ``round(clk_freq / 1e6)`` cycles.
     Members
         ``bus`` (in, ``BoardBusSignature`` flipped): the registers.
-        ``kick`` (in): a pulse per good command: restarts the watchdog.
+        ``kick`` (in): a pulse per accepted command: restarts the watchdog.
         ``pwm`` (out, 4): the outputs.
         ``tripped`` (out): the watchdog disabled the outputs (cleared by a PWM_ENABLE write).
     Latency: a register write is acknowledged in the cycle it is made and takes effect at the
@@ -157,7 +157,7 @@ class PWMOutputs(wiring.Component):
                     with m.Case(PWM_REGS[f"PWM_HIGH{k}"]):
                         m.d.sync += high[k].eq(low)
 
-        # the watchdog: milliseconds since the last good command
+        # the watchdog: milliseconds since the last accepted command
         ms_timer = Signal(range(self.ms_cycles), init=self.ms_cycles - 1)
         silent_ms = Signal(16)
         m.d.sync += ms_timer.eq(Mux(ms_timer == 0, self.ms_cycles - 1, ms_timer - 1))

@@ -69,7 +69,7 @@ class RewindableFIFO(wiring.Component):
             m.d.sync += write.eq(write + 1)
 
         # the read port read last cycle at the pointer ``read`` has now (below), so its word
-        # is the byte there: written before, or in that cycle (the port is transparent).
+        # is the byte there: written before, or in that cycle (then from ``bypass``).
         # ``read`` lies between ``keep`` and ``write``, so this is ``read != write``; written
         # as a distance it says so to an induction proof, which starts anywhere
         bypass, bypass_data = Signal(), Signal(8)

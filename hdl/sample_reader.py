@@ -130,7 +130,8 @@ class SampleReader(wiring.Component):
     """
 
     def __init__(self, *, wiring="spi", int_active_low=False, int_latched=True, magnetometer=True,
-                 gyro_jump=None, period_cycles, first_timeout_cycles, timeout_cycles, mag_timeout_periods):
+                 gyro_jump=None, period_cycles, first_timeout_cycles, timeout_cycles,
+                 mag_timeout_periods):
         self.wiring = wiring
         self.int_active_low = int_active_low
         self.int_latched = int_latched

@@ -143,9 +143,9 @@ class SPIController(wiring.Component):
         Mode 3: SCLK idles high, COPI changes on the falling edge. CIPO's pin is sampled (the
         synchroniser's first flip-flop) ``cipo_delay`` cycles after the rising edge leaves its
         register, so ``half + cipo_delay`` cycles after the falling edge the device answers: late
-        enough for the round trip (``IOBudget``: the output delay, the I/O, the board, a margin), early enough that
-        the bit has not yet changed; the bit is shifted in ``capture_delay`` = 2 + ``cipo_delay``
-        cycles after the rising edge.
+        enough for the round trip (``IOBudget``: the output delay, the I/O, the board, a
+        margin), early enough that the bit has not yet changed; the bit is shifted in
+        ``capture_delay`` = 2 + ``cipo_delay`` cycles after the rising edge.
 
     Throughput: 8 bits take ``16 * half`` cycles, plus ``capture_delay`` cycles between bytes
     (the controller waits for a byte's last bit before shifting the next one, which keeps the

@@ -58,6 +58,8 @@ def _hold_bad_rows(*arrays):
 # output is normalised to ~1e-6, so 1 % only catches rows that are not quaternions at all
 # (scaled, zero, garbage).
 TRUTH_NORM_TOLERANCE = 0.01
+# the N x width datasets beside ``movement`` (N)
+_WIDTHS = {"imu_gyr": 3, "imu_acc": 3, "imu_mag": 3, "opt_quat": 4}
 
 
 def load_broad(path):
@@ -82,34 +84,26 @@ def load_broad(path):
             raise ValueError(f"{path}: not a BROAD-format file (missing {', '.join(missing)})")
         # shapes first, from the datasets' headers: a small file may declare huge datasets
         shapes = {}
-        for name, width in (("movement", None), ("imu_gyr", 3), ("imu_acc", 3),
-                            ("imu_mag", 3), ("opt_quat", 4)):
+        for name in ("movement", *_WIDTHS):
             shape = getattr(f[name], "shape", None)
             if shape is None:
                 raise ValueError(f"{path}: {name} is a group, not a dataset")
             shapes[name] = shape
-        n = shapes["movement"][0] if len(shapes["movement"]) >= 1 else 0
-        for name, width in (("imu_gyr", 3), ("imu_acc", 3), ("imu_mag", 3), ("opt_quat", 4)):
+        if len(shapes["movement"]) != 1:
+            raise ValueError(f"{path}: movement has shape {shapes['movement']}, expected (N,)")
+        n = shapes["movement"][0]
+        for name, width in _WIDTHS.items():
             if shapes[name] != (n, width):
                 raise ValueError(f"{path}: {name} has shape {shapes[name]}, expected "
                                  f"({n}, {width}) like movement")
-        if len(shapes["movement"]) != 1:
-            raise ValueError(f"{path}: movement has shape {shapes['movement']}, expected (N,)")
         try:
             rate = float(np.asarray(f.attrs["sampling_rate"]).reshape(-1)[0])
-            arrays = {k: np.asarray(f[k][()], float) for k in
-                      ("imu_gyr", "imu_acc", "imu_mag", "opt_quat")}
+            arrays = {k: np.asarray(f[k][()], float) for k in _WIDTHS}
             movement = np.asarray(f["movement"][()]).astype(bool)
         except (TypeError, ValueError, IndexError) as e:
             raise ValueError(f"{path}: unreadable BROAD data ({e})") from None
     if not np.isfinite(rate) or rate <= 0:
         raise ValueError(f"{path}: sampling_rate {rate:g} is not a positive rate")
-    n = len(movement.reshape(-1))
-    for name, width in (("imu_gyr", 3), ("imu_acc", 3), ("imu_mag", 3), ("opt_quat", 4)):
-        a = arrays[name]
-        if a.ndim != 2 or a.shape[1] != width or a.shape[0] != n:
-            raise ValueError(f"{path}: {name} has shape {a.shape}, expected ({n}, {width}) "
-                             f"like movement")
     if n < 2:
         raise ValueError(f"{path}: {n} samples; a recording needs at least 2")
     (gyr, acc, mag), held = _hold_bad_rows(arrays["imu_gyr"], arrays["imu_acc"],
