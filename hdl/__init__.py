@@ -1,7 +1,8 @@
 """Gateware of the MPU9250 attitude and heading reference, one block per module.
 
 Sensor side: ``spi_controller``, ``i2c_controller``, ``register_port`` (and its arbiter),
-``bring_up_sequencer``, ``sample_reader``, ``mpu9250_driver``, ``sensor_frontend``.
+``bring_up_sequencer``, ``self_test``, ``sample_reader``, ``mpu9250_driver``,
+``sensor_frontend``.
 Attitude engine: ``attitude_engine`` on ``alu``, ``multiplier``, ``multiply_accumulate``,
 ``cordic``, ``divider``, ``memories``, ``host_port``; its instruction set ``attitude_isa`` and
 microcode ``attitude_program`` / ``flagship_microcode``. Link: ``telemetry_scheduler``,

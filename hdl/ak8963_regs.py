@@ -32,6 +32,7 @@ MODE_EXT_TRIG   = 0x4
 MODE_SELF_TEST  = 0x8
 MODE_FUSE_ROM   = 0xF
 CNTL2_SRST = 0x01
+ASTC_SELF = 0x40                      # the self-test field generator (self-test mode)
 
 # Bytes a sample read takes: ST1, HXL..HZH, ST2 (reading ST2 releases the data registers).
 SAMPLE_BYTES = ST2 - ST1 + 1          # 8

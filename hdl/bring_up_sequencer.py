@@ -15,9 +15,14 @@ from amaranth.lib.wiring import In, Out
 from . import ak8963_regs as A
 from . import mpu9250_regs as R
 from .register_port import RegisterPortSignature
+from .self_test import CODE_INDEX, MAG_INDEX, SUM_INDEX
 
 
-__all__ = ["Op", "Fail", "Step", "bring_up_program", "BringUpSequencer", "BACKOFF_MAX_SHIFT"]
+# the bytes of TEST steps, as ``SelfTest`` takes them
+TEST_LAYOUT = data.StructLayout({"valid": 1, "byte": 8, "index": 5, "subtract": 1, "first": 1})
+
+__all__ = ["TEST_LAYOUT", "Op", "Fail", "Step", "SelfTestWaits", "bring_up_program", "BringUpSequencer",
+           "BACKOFF_MAX_SHIFT"]
 
 
 # A restart doubles the waits marked ``backoff`` (the one after H_RESET), up to 2**this times
@@ -34,6 +39,7 @@ class Op(enum.Enum, shape=3):
     POLL   = 4      # read reg until (byte & value) != 0; fails on (byte & mask) or time-out
     MARK   = 5      # status.mag_ok <- 1
     STREAM = 6
+    TEST   = 7      # read ``length`` bytes ``repeat`` times (``wait`` apart) to the self-test
 
 
 class Fail(enum.Enum, shape=1):
@@ -53,11 +59,33 @@ class Step:
     check: str = ""             # "who_am_i" or "wia"
     mag: bool = False           # part of the magnetometer's set-up (run again from its first)
     backoff: bool = False       # a WAIT that doubles with each restart (BACKOFF_MAX_SHIFT)
+    length: int = 1             # TEST: bytes per read, the first at index ``value``
+    repeat: int = 1             # TEST: reads, ``wait`` cycles apart
+    fast: bool = False          # TEST: a read of sensor registers (the fast SCLK)
+    self_test: bool = False     # part of the MPU9250's self-test (a reconfiguration skips it)
+
+    # TEST's ``mask``: bit 0 subtracts the bursts from the sums, bit 1 starts the sums afresh
+    SUBTRACT = 0x01
+    FIRST = 0x02
 
 
-def bring_up_program(config, power_up_cycles, reset_cycles, mag_wait_cycles):
-    """The bring-up sequence for ``config.wiring``, as a list of ``Step`` (the driver's ROM)."""
+@dataclass(frozen=True)
+class SelfTestWaits:
+    """The self-test's waits, in cycles: ``settle`` after the self-test is switched on or off
+    (the application note's 20 ms), ``interval`` between two sample reads (a 1 kHz period),
+    ``mag`` for the AK8963's self-test measurement (its 9 ms at most; SPI wiring: and two
+    sample periods for the MPU9250's I2C master to fetch it)."""
+    settle: int
+    interval: int
+    mag: int
+
+
+def bring_up_program(config, power_up_cycles, reset_cycles, mag_wait_cycles, self_test=None):
+    """The bring-up sequence for ``config.wiring``, as a list of ``Step`` (the driver's ROM).
+    ``self_test`` (``SelfTestWaits``): with ``config.self_test``, the self-tests' waits."""
     spi = config.wiring == "spi"
+    if config.self_test and self_test is None:
+        raise ValueError("bring_up_program needs the self-test's waits (SelfTestWaits)")
     steps = [Step(Op.WAIT, wait=power_up_cycles)]
     if spi:
         steps.append(Step(Op.WRITE, reg=R.USER_CTRL, value=R.USER_CTRL_I2C_IF_DIS))
@@ -67,6 +95,9 @@ def bring_up_program(config, power_up_cycles, reset_cycles, mag_wait_cycles):
         steps.append(Step(Op.WRITE, reg=R.USER_CTRL, value=R.USER_CTRL_I2C_IF_DIS))
     steps += [Step(Op.WRITE, reg=R.PWR_MGMT_1, value=R.PWR_MGMT_1_CLKSEL_AUTO),
               Step(Op.CHECK, reg=R.WHO_AM_I, check="who_am_i")]
+    if config.self_test:
+        steps += [replace(step, self_test=True)
+                  for step in _mpu_self_test(config.self_test_samples, self_test)]
     steps += [Step(Op.WRITE, reg=reg, value=value) for reg, value in config.sensor_writes()]
 
     if config.magnetometer:
@@ -112,6 +143,24 @@ def bring_up_program(config, power_up_cycles, reset_cycles, mag_wait_cycles):
             mag_read(Op.STORE, A.ASAX + axis, value=axis)
         mag_write(A.CNTL1, A.MODE_POWER_DOWN)
         mag.append(Step(Op.WAIT, wait=mag_wait_cycles))
+        if config.self_test:
+            # the self-test field, one 16-bit measurement of it (the part is back in
+            # power-down after it); SPI: SLV0 fetches HXL..ST2 at every sample meanwhile
+            # (seven bytes: reading ST2 ends the read) and the bytes are read in one burst
+            mag_write(A.ASTC, A.ASTC_SELF)
+            mag_write(A.CNTL1, A.CNTL1_BIT_16 | A.MODE_SELF_TEST)
+            test = dict(value=MAG_INDEX, length=7, fail=Fail.MAG)
+            if spi:
+                mag += [Step(Op.WRITE, reg=R.I2C_SLV_ADDR[0], value=R.I2C_SLV_RNW | A.I2C_ADDRESS),
+                        Step(Op.WRITE, reg=R.I2C_SLV_ADDR[0] + 1, value=A.HXL),
+                        Step(Op.WRITE, reg=R.I2C_SLV_ADDR[0] + 2, value=R.I2C_SLV_EN | 7),
+                        Step(Op.WAIT, wait=self_test.mag),
+                        Step(Op.TEST, reg=R.EXT_SENS_DATA_00, **test)]
+            else:
+                mag += [Step(Op.WAIT, wait=self_test.mag),
+                        Step(Op.TEST, device=1, reg=A.HXL, **test)]
+            mag_write(A.ASTC, 0x00)
+            mag.append(Step(Op.WAIT, wait=mag_wait_cycles))
         mag_write(A.CNTL1, A.CNTL1_BIT_16 | A.MODE_CONT_100HZ)
         if spi:
             mag += [Step(Op.WRITE, reg=R.I2C_SLV_ADDR[0], value=R.I2C_SLV_RNW | A.I2C_ADDRESS),
@@ -130,6 +179,30 @@ def bring_up_program(config, power_up_cycles, reset_cycles, mag_wait_cycles):
               Step(Op.WRITE, reg=R.INT_ENABLE, value=R.INT_ENABLE_RAW_RDY),
               Step(Op.STREAM)]
     return steps
+
+
+def _mpu_self_test(samples, waits):
+    """The MPU9250's self-test (``hdl/self_test.py``): at its settings, ``samples`` bursts with
+    self-test off (subtracted), as many with it on (added), then the factory codes."""
+    burst = dict(reg=R.ACCEL_XOUT_H, value=SUM_INDEX, length=R.SENSOR_BYTES, repeat=samples,
+                 wait=waits.interval, fast=True)
+    on = R.SELF_TEST_ENABLE
+    return [Step(Op.WRITE, reg=R.SMPLRT_DIV, value=0),
+            Step(Op.WRITE, reg=R.CONFIG, value=2),              # 92 Hz, 1 kHz
+            Step(Op.WRITE, reg=R.GYRO_CONFIG, value=0),         # ±250 °/s
+            Step(Op.WRITE, reg=R.ACCEL_CONFIG, value=0),        # ±2 g
+            Step(Op.WRITE, reg=R.ACCEL_CONFIG2, value=2),       # 92 Hz
+            Step(Op.WAIT, wait=waits.settle),
+            Step(Op.TEST, mask=Step.SUBTRACT | Step.FIRST, **burst),
+            Step(Op.WRITE, reg=R.GYRO_CONFIG, value=on),
+            Step(Op.WRITE, reg=R.ACCEL_CONFIG, value=on),
+            Step(Op.WAIT, wait=waits.settle),
+            Step(Op.TEST, **burst),
+            Step(Op.WRITE, reg=R.GYRO_CONFIG, value=0),
+            Step(Op.WRITE, reg=R.ACCEL_CONFIG, value=0),
+            Step(Op.TEST, reg=R.SELF_TEST_X_ACCEL, value=CODE_INDEX, length=3),
+            Step(Op.TEST, reg=R.SELF_TEST_X_GYRO, value=CODE_INDEX + 3, length=3),
+            Step(Op.WAIT, wait=waits.settle)]
 
 
 class BringUpSequencer(wiring.Component):
@@ -155,13 +228,17 @@ class BringUpSequencer(wiring.Component):
             on a restart. ``started`` (out, pulse): it just did, from the start of the program.
         ``restarted`` (out, pulse): a restart began (requested, or a failed MPU9250 step).
         ``mag_setup`` (out): the magnetometer's part is running while streaming.
-        ``whoami_error``, ``no_response``, ``who_am_i``, ``restarts`` (8, saturating),
+        ``whoami_error``, ``no_response``, ``who_am_i``, ``restarts`` (7, saturating),
         ``mag_ok``, ``mag_absent``, ``mag_wia_error`` (out): as ``DriverStatus`` has them.
         ``asa`` (out, 3 × 8): the AK8963's sensitivity adjustment, stored by STORE steps.
+        ``test`` (out): the bytes TEST steps read, for a ``SelfTest``: ``valid``, ``byte``,
+            ``index``, ``subtract``, ``first`` as its inputs; ``test_busy`` (in): its ``busy``
+            (a TEST step ends once it is low).
 
     A step's command goes out in the cycle it is fetched; WRITE, CHECK, STORE and MARK take one
     command (or none), POLL repeats its read until the bit is set, a NACK or ``poll_cycles``;
-    WAIT counts its cycles. Failures: ``Fail.RESTART`` restarts the program, ``Fail.MAG`` flags
+    WAIT counts its cycles; TEST reads ``repeat`` times, ``wait`` cycles between a read's end
+    and the next. Failures: ``Fail.RESTART`` restarts the program, ``Fail.MAG`` flags
     the magnetometer and jumps past its part (samples flow without it).
     Latency: a step's command is offered in the cycle the step is fetched, and the next step
     is fetched the cycle after the response; a restart waits for the step under way.
@@ -176,9 +253,10 @@ class BringUpSequencer(wiring.Component):
             "restart": In(1), "mag_lost": In(1), "mag_nack": In(1), "reconfigure": In(1),
             "streaming": Out(1), "started": Out(1), "restarted": Out(1), "mag_setup": Out(1),
             "whoami_error": Out(1), "no_response": Out(1), "who_am_i": Out(8),
-            "restarts": Out(8), "mag_ok": Out(1), "mag_absent": Out(1),
+            "restarts": Out(7), "mag_ok": Out(1), "mag_absent": Out(1),
             "mag_wia_error": Out(1),
             "asa": Out(data.ArrayLayout(8, 3)),
+            "test": Out(TEST_LAYOUT), "test_busy": In(1),
         })
 
     def elaborate(self, platform):
@@ -187,13 +265,16 @@ class BringUpSequencer(wiring.Component):
         mark = next((i for i, s in enumerate(program) if s.op == Op.MARK), None)
         skip_mag = 0 if mark is None else mark + 1
         mag_start = next((i for i, s in enumerate(program) if s.mag), None)
-        config_start = next(i + 1 for i, s in enumerate(program) if s.check == "who_am_i")
+        config_start = max(i + 1 for i, s in enumerate(program)
+                           if s.check == "who_am_i" or s.self_test)
 
         # -- program ROM --------------------------------------------------------------------------
         pc = Signal(range(len(program)))
         step_layout = data.StructLayout({
             "op": Op, "device": 1, "reg": 8, "value": 8, "mask": 8, "fail": Fail,
-            "check_wia": 1, "backoff": 1, "wait": range(max(s.wait for s in program) + 1)})
+            "check_wia": 1, "backoff": 1, "wait": range(max(s.wait for s in program) + 1),
+            "length": range(max(s.length for s in program) + 1), "fast": 1,
+            "repeat": range(max(s.repeat for s in program) + 1)})
         step = Signal(step_layout)
         with m.Switch(pc):
             for index, s in enumerate(program):
@@ -201,7 +282,8 @@ class BringUpSequencer(wiring.Component):
                     m.d.comb += step.eq(step_layout.const({
                         "op": s.op, "device": s.device, "reg": s.reg, "value": s.value,
                         "mask": s.mask, "fail": s.fail, "check_wia": s.check == "wia",
-                        "backoff": s.backoff, "wait": s.wait}))
+                        "backoff": s.backoff, "wait": s.wait, "length": s.length,
+                        "fast": s.fast, "repeat": s.repeat}))
 
         # -- the register port: every read here is one byte, kept as ``last`` -------------------
         port = self.port
@@ -210,10 +292,22 @@ class BringUpSequencer(wiring.Component):
         with m.If(port.rx.valid):
             m.d.sync += last.eq(port.rx.payload)
 
-        def command(*, write=0):
+        def command(*, write=0, test=False):
             p = port.cmd.payload
             m.d.comb += [port.cmd.valid.eq(1), p.device.eq(step.device), p.reg.eq(step.reg),
-                         p.write.eq(write), p.data.eq(step.value), p.length.eq(1)]
+                         p.write.eq(write), p.data.eq(step.value)]
+            if test:
+                m.d.comb += [p.length.eq(step.length), p.fast.eq(step.fast)]
+            else:
+                m.d.comb += p.length.eq(1)
+
+        # TEST: the read's bytes to the self-test, counted from the step's index
+        reads = Signal.like(step.repeat)        # reads still to come after this one
+        offset = Signal(5)
+        test = self.test
+        m.d.comb += [test.byte.eq(port.rx.payload), test.index.eq(step.value[:5] + offset),
+                     test.subtract.eq(step.mask[0]),
+                     test.first.eq(step.mask[1] & (reads == step.repeat - 1))]
 
         longest = max(s.wait << (BACKOFF_MAX_SHIFT if s.backoff else 0) for s in program)
         timer = Signal(range(max(self.poll_cycles, longest) + 1))
@@ -232,7 +326,7 @@ class BringUpSequencer(wiring.Component):
             m.d.sync += [pc.eq(0), self.streaming.eq(0), self.mag_ok.eq(0),
                          self.mag_setup.eq(0), restart_pending.eq(0), reconfiguring.eq(0)]
             m.d.comb += self.restarted.eq(1)
-            with m.If(self.restarts != 255):
+            with m.If(~self.restarts.all()):
                 m.d.sync += self.restarts.eq(self.restarts + 1)
             with m.If(backoff != BACKOFF_MAX_SHIFT):
                 m.d.sync += backoff.eq(backoff + 1)
@@ -271,7 +365,7 @@ class BringUpSequencer(wiring.Component):
                 with m.If(restart_pending & ~offered):
                     restart()
                 with m.Else():
-                    self._fetch(m, step, command, timer, next_step, reconfiguring, backoff)
+                    self._fetch(m, step, command, timer, next_step, reconfiguring, backoff, reads)
             with m.State("WAIT"):
                 m.d.sync += timer.eq(timer - 1)
                 with m.If(timer == 0):
@@ -299,6 +393,30 @@ class BringUpSequencer(wiring.Component):
                         next_step()
                     with m.Else():
                         next_step()
+            with m.State("TEST"):
+                command(test=True)
+                m.d.sync += offset.eq(0)
+                with m.If(port.cmd.ready):
+                    m.next = "TEST_READ"
+            with m.State("TEST_READ"):
+                m.d.comb += test.valid.eq(port.rx.valid)
+                with m.If(port.rx.valid):
+                    m.d.sync += offset.eq(offset + 1)
+                with m.If(port.rsp.valid):
+                    with m.If(port.rsp.payload.error):
+                        fail(absent=1)
+                    with m.Elif(reads == 0):
+                        m.next = "TEST_END"
+                    with m.Else():
+                        m.d.sync += [reads.eq(reads - 1), timer.eq(step.wait)]
+                        m.next = "TEST_WAIT"
+            with m.State("TEST_WAIT"):
+                m.d.sync += timer.eq(timer - 1)
+                with m.If(timer == 0):
+                    m.next = "TEST"
+            with m.State("TEST_END"):
+                with m.If(~self.test_busy):
+                    next_step()
             with m.State("POLL"):
                 with m.If(timer != 0):
                     m.d.sync += timer.eq(timer - 1)
@@ -330,7 +448,7 @@ class BringUpSequencer(wiring.Component):
                     m.next = "FETCH"
         return m
 
-    def _fetch(self, m, step, command, timer, next_step, reconfiguring, backoff):
+    def _fetch(self, m, step, command, timer, next_step, reconfiguring, backoff, reads):
         """FETCH: start the step at ``pc``."""
         port = self.port
         with m.Switch(step.op):
@@ -355,6 +473,9 @@ class BringUpSequencer(wiring.Component):
             with m.Case(Op.POLL):
                 m.d.sync += timer.eq(self.poll_cycles - 1)
                 m.next = "POLL"
+            with m.Case(Op.TEST):
+                m.d.sync += reads.eq(step.repeat - 1)
+                m.next = "TEST"
             with m.Case(Op.MARK):
                 m.d.sync += [self.mag_ok.eq(1), self.mag_absent.eq(0),
                              self.mag_wia_error.eq(0)]

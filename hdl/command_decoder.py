@@ -13,6 +13,7 @@ from .attitude_program import (CONTROL_ADDR, CONTROL_KEEP, CONTROL_RESET, FILTER
 from .board_bus import BoardBusSignature
 from .host_port import address_in, control_accepted
 from .config_write import ConfigWrite
+from .driver_status import SelfTestStatus
 from .frame_types import CRC, SYNC, Reply
 from .rewindable_fifo import RewindableFIFO
 
@@ -43,11 +44,11 @@ BOARD_REGS = {
     "RAW_MODE": 0x00, "VERSION": 0x01, "REGMAP_VERSION": 0x02,
     "RX_FRAMING_ERRORS": 0x03, "RX_OVERRUNS": 0x04, "CMD_DISCARDED": 0x05,
     "CMD_CRC_ERRORS": 0x06, "CMD_MALFORMED": 0x07, "CMD_OK": 0x08, "CMD_REFUSED": 0x09,
-    "FRAMES_SENT": 0x0A, "RATE_ERRORS": 0x0B,
+    "FRAMES_SENT": 0x0A, "RATE_ERRORS": 0x0B, "WHO_AM_I": 0x0C, "SELF_TEST": 0x0D,
 }
 # Bumped whenever an address, a format or a meaning in the register map changes (engine,
 # board, PWM); the host tool refuses to configure a board whose map it does not know.
-REGMAP_VERSION = 3
+REGMAP_VERSION = 4
 
 
 class CommandStats(data.Struct):
@@ -90,7 +91,8 @@ class CommandDecoder(wiring.Component):
         ``kick`` (out): a pulse per accepted command (result ``ok``; the PWM watchdog).
         ``fifo``: the ``RewindableFIFO`` (its ``ram``, one M9K, for ``report``).
         ``stats`` (out, ``CommandStats``); ``rx_framing_errors``, ``rx_overruns``,
-        ``frames_sent``, ``rate_errors`` (in): read back as board registers.
+        ``frames_sent``, ``rate_errors``, ``who_am_i``, ``self_test`` (in): read back as
+            board registers.
     Latency: a board command's reply is offered two cycles after its last (CRC) byte is
     taken; an engine write or read waits in addition until the engine takes it (at once while
     it is idle, ``WORST_UPDATE_CYCLES`` at most) and, for a read, its word (one cycle).
@@ -116,6 +118,8 @@ class CommandDecoder(wiring.Component):
             "rx_overruns": In(16),
             "frames_sent": In(32),
             "rate_errors": In(16),
+            "who_am_i": In(8),
+            "self_test": In(SelfTestStatus),
         })
 
     def elaborate(self, platform):
@@ -176,6 +180,8 @@ class CommandDecoder(wiring.Component):
             BOARD_REGS["CMD_REFUSED"]: stats.refused,
             BOARD_REGS["FRAMES_SENT"]: self.frames_sent,
             BOARD_REGS["RATE_ERRORS"]: self.rate_errors,
+            BOARD_REGS["WHO_AM_I"]: self.who_am_i,
+            BOARD_REGS["SELF_TEST"]: self.self_test.as_value(),
         }
         # an engine write the engine would refuse is answered "refused" here (the host learns
         # why): an address it may not write, or a CONTROL word with no meaning

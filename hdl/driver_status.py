@@ -7,8 +7,8 @@
 - ``int_timeout``: no data-ready interrupt came within the timeout; the driver restarted
   bring-up. Cleared by the next sample.
 - ``restarts``: bring-up restarts since power-on (after a failed check, a time-out or stuck
-  data), saturating at 255.
-- ``who_am_i``: the last WHO_AM_I value read.
+  data), saturating at 127. (The last WHO_AM_I value read is the driver's ``who_am_i`` port:
+  the board register WHO_AM_I.)
 - ``mag_ok``: the AK8963 is up (WIA right, fuse ROM read, continuous 100 Hz 16-bit mode).
 - ``mag_absent``: the AK8963 did not acknowledge (I2C NACK, SLV4_NACK) or an SLV4 transfer
   timed out, at bring-up or at a re-initialisation, or (I2C wiring) a per-sample read failed;
@@ -31,12 +31,22 @@
   controller's last failure: a device held SCL low past the time-out, SDA stayed low through
   nine recovery clocks, or SDA read low while the controller sent a 1. Set by the failing
   operation, cleared by the next START that gets the bus.
+- ``self_test_fail`` (9 bits): the axes that failed their self-test at bring-up, bit 0..8 =
+  accel X, Y, Z, gyro X, Y, Z, magnetometer X, Y, Z (``hdl/self_test.py``: the application
+  note's rules). The MPU9250's six are judged in every bring-up before streaming starts, the
+  AK8963's three in every set-up of it before ``mag_ok``: while ``streaming`` (``mag_ok``)
+  they are this bring-up's (set-up's) verdict. A failing axis is flagged, not left out:
+  samples flow on with it, and the host decides. All 0 in a build without the self-test
+  (``MPU9250Config.self_test``); the board register SELF_TEST says whether each part's ran.
+
+The status is 29 bits, so that a ``SensorFrame`` (``Sample`` and status) is whole bytes and an
+attitude frame at 921,600 baud still fits a 1 kHz period.
 """
 
 from amaranth.lib import data
 
 
-__all__ = ["DriverStatus"]
+__all__ = ["DriverStatus", "SelfTestStatus"]
 
 
 class DriverStatus(data.Struct):
@@ -44,8 +54,7 @@ class DriverStatus(data.Struct):
     whoami_error: 1
     no_response: 1
     int_timeout: 1
-    restarts: 8
-    who_am_i: 8
+    restarts: 7
     mag_ok: 1
     mag_absent: 1
     mag_wia_error: 1
@@ -55,3 +64,13 @@ class DriverStatus(data.Struct):
     bus_stuck: 1
     bus_arbitration: 1
     rate_error: 1
+    self_test_fail: 9
+
+
+class SelfTestStatus(data.Struct):
+    """The driver's ``self_test`` port (board register SELF_TEST): ``done``: the MPU9250's
+    self-test ran at this bring-up; ``mag_done``: the AK8963's at its last set-up; ``fail``:
+    as ``DriverStatus.self_test_fail``. All 0 in a build without the self-test."""
+    done: 1
+    mag_done: 1
+    fail: 9

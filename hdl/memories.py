@@ -121,16 +121,18 @@ class MicrocodeROM(wiring.Component):
 class FrameRAM(wiring.Component):
     """``depth`` words of ``width`` bits, one write port and one synchronous read port with
     enable (the read data holds while ``r_en`` is low; a read of the address being written
-    returns the old word). One M9K on a MAX10: the telemetry framer's copy of a frame.
+    returns the old word). One M9K on a MAX10: the telemetry framer's copy of a frame, the
+    command decoder's input FIFO, the self-test's sums and its table (``init``: a ROM).
 
     Latency: a read's word is on ``r_data`` the cycle after its address (with ``r_en``).
     Throughput: a write and a read per cycle.
     """
     blackbox = False                # ``report`` sets it: module docstring
 
-    def __init__(self, depth, width=8):
+    def __init__(self, depth, width=8, init=()):
         self.depth = depth
         self.width = width
+        self.init = list(init)          # initial words: a ROM when nothing writes it
         self.abits = max(1, (depth - 1).bit_length())
         super().__init__({"w_en": In(1), "w_addr": In(self.abits), "w_data": In(width),
                           "r_en": In(1), "r_addr": In(self.abits), "r_data": Out(width)})
@@ -158,7 +160,7 @@ class FrameRAM(wiring.Component):
                 i_w_addr=self.w_addr, i_w_data=self.w_data, i_r_en=self.r_en,
                 i_r_addr=self.r_addr, o_r_data=self.r_data)
             return m
-        m.submodules.mem = mem = Memory(shape=self.width, depth=self.depth, init=[])
+        m.submodules.mem = mem = Memory(shape=self.width, depth=self.depth, init=self.init)
         wp = mem.write_port()
         rp = mem.read_port()
         m.d.comb += [wp.en.eq(self.w_en), wp.addr.eq(self.w_addr), wp.data.eq(self.w_data),

@@ -19,17 +19,22 @@ one well-known drivers use:
 
     SPI wiring: wait power-up; USER_CTRL = I2C_IF_DIS; PWR_MGMT_1 = H_RESET; wait reset;
     USER_CTRL = I2C_IF_DIS (H_RESET cleared it); PWR_MGMT_1 = CLKSEL 1; check WHO_AM_I;
+    the self-test (``MPU9250Config.self_test``, ``hdl/self_test.py``): 1 kHz, ±250 °/s, ±2 g,
+    92 Hz; wait 20 ms; N bursts of the 14 sensor bytes 1 ms apart, subtracted; self-test on,
+    wait, N bursts added; self-test off; the six factory codes, each axis judged; wait;
     PWR_MGMT_2, CONFIG, SMPLRT_DIV, GYRO_CONFIG, ACCEL_CONFIG, ACCEL_CONFIG2;
     magnetometer through the MPU9250's I2C master: USER_CTRL |= I2C_MST_EN, I2C_MST_CTRL =
     WAIT_FOR_ES | 400 kHz; each AK8963 access is a single SLV4 transfer (SLV4_ADDR/REG/DO/CTRL,
     then poll I2C_MST_STATUS for SLV4_DONE, failing on SLV4_NACK or a time-out): check WIA =
     0x48, CNTL2 = SRST, CNTL1 = fuse ROM, read ASAX/Y/Z, CNTL1 = power-down, wait 100 µs,
+    with the self-test ASTC = SELF, CNTL1 = 0x18 (self-test, 16-bit), SLV0 reads HXL..ST2,
+    wait 9 ms and two sample periods, read them (EXT_SENS_DATA), judge, ASTC = 0, wait 100 µs;
     CNTL1 = 0x16 (continuous 100 Hz, 16-bit); then SLV0 reads 8 bytes from ST1 every sample
     (above 1 kHz every n-th sample, without WAIT_FOR_ES: ``MPU9250Config.aux_every``);
     INT_PIN_CFG; INT_ENABLE = RAW_RDY.
 
     I2C wiring: the same without I2C_IF_DIS, and with the AK8963 reached directly at 0x0C
-    after INT_PIN_CFG.BYPASS_EN (I2C master off).
+    after INT_PIN_CFG.BYPASS_EN (I2C master off; its self-test result read directly).
 
 Failures (the whole catalogue, with detection times: ``hdl/FAULTS.md``): a wrong WHO_AM_I or
 an MPU9250 that does not acknowledge (I2C) sets a flag and restarts from the power-up wait (the
@@ -65,11 +70,13 @@ from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out, connect, flipped
 
 from . import mpu9250_regs as R
-from .bring_up_sequencer import BringUpSequencer, Fail, Op, Step, bring_up_program
+from .bring_up_sequencer import (BringUpSequencer, Fail, Op, SelfTestWaits, Step,
+                                 bring_up_program)
+from .self_test import SelfTest
 from .clocking import cycles
 from .register_port import RegisterPortSignature
 from .register_port_arbiter import RegisterPortArbiter
-from .driver_status import DriverStatus
+from .driver_status import DriverStatus, SelfTestStatus
 from .sample import Sample
 from .sample_reader import (BAD_BURST_LIMIT, MPU_BYTES, SAMPLE_BYTES, SampleReader,
                             burst_is_plausible, gyro_jump_limit)
@@ -94,6 +101,8 @@ class MPU9250Config:
     magnetometer: bool = True       # bring the AK8963 up and read it every sample
     wiring: str = "spi"             # "spi" or "i2c"
     i2c_address: int = R.MPU9250_I2C_ADDRESS    # 0x68, or 0x69 with AD0 high (I2C wiring)
+    self_test: bool = True          # both parts' self-tests at bring-up (hdl/self_test.py)
+    self_test_samples: int = 128    # samples summed with self-test off and on (a power of 2)
 
     def __post_init__(self):
         R.gyro_config(self.gyro_fs_dps)
@@ -107,6 +116,9 @@ class MPU9250Config:
             raise ValueError(f"MPU9250Config.wiring must be 'spi' or 'i2c', not {self.wiring!r}")
         if self.i2c_address not in (0x68, 0x69):
             raise ValueError("MPU9250Config.i2c_address must be 0x68 or 0x69")
+        n = self.self_test_samples
+        if not (1 <= n <= 256 and n & (n - 1) == 0):
+            raise ValueError("MPU9250Config.self_test_samples must be a power of 2, 1..256")
 
     @classmethod
     def for_odr(cls, odr_hz, **kwargs):
@@ -180,6 +192,8 @@ class DriverTiming:
     sample_period_s: Optional[float] = None
     stream_timeout_periods: int = 4
     mag_timeout_s: float = 0.030
+    self_test_settle_s: float = 0.020
+    mag_self_test_s: float = 0.009
 
     def period_s(self, config):
         return self.sample_period_s or 1 / config.output_data_rate
@@ -198,6 +212,23 @@ class DriverTiming:
         return (cycles(self.power_up_s * self.time_scale, clk_freq),
                 cycles(self.reset_s * self.time_scale, clk_freq), cycles(timeout, clk_freq))
 
+    def self_test_waits(self, clk_freq, config):
+        """The self-test's waits (``SelfTestWaits``), scaled as the sensor's period is: its
+        1 kHz reads with the MPU9250's period, the AK8963's 9 ms too (a simulation compresses
+        both parts' times alike), its 20 ms settling with ``time_scale`` (at least two 1 kHz
+        periods); SPI wiring: two sample periods
+        more for the MPU9250's I2C master, which reads the AK8963 at its sample ticks."""
+        scale = self.period_s(config) * config.output_data_rate
+        mag = self.mag_self_test_s * scale
+        if config.wiring == "spi":
+            mag += 2 * self.period_s(config)    # SLV0 fetches it at a sample tick
+        # the filters' settling is scaled like the other start-up waits (``time_scale``), but
+        # never under two samples: the new response must be in the registers
+        settle = max(self.self_test_settle_s * self.time_scale, 2 * scale / 1000)
+        return SelfTestWaits(settle=cycles(settle, clk_freq),
+                             interval=cycles(scale / 1000, clk_freq),
+                             mag=cycles(mag, clk_freq))
+
     def mag_timeout_periods(self, config):
         """``mag_timeout_s`` in whole sample periods (at least two)."""
         return max(2, math.ceil(self.mag_timeout_s / self.period_s(config) - 1e-9))
@@ -206,10 +237,11 @@ class DriverTiming:
 def driver_members():
     """The driver's ports towards the sensor's INT pin and downstream, which the sensor front
     end passes on unchanged: ``int_pin``, ``samples``, ``status``, ``asa``, ``rate_errors``
-    (16, saturating: samples that came early, ``DriverStatus.rate_error``)."""
+    (16, saturating: samples that came early, ``DriverStatus.rate_error``), ``who_am_i``
+    (8: the last WHO_AM_I value read), ``self_test`` (``SelfTestStatus``)."""
     return {"int_pin": In(1), "samples": Out(stream.Signature(Sample)),
             "status": Out(DriverStatus), "asa": Out(data.ArrayLayout(8, 3)),
-            "rate_errors": Out(16)}
+            "rate_errors": Out(16), "who_am_i": Out(8), "self_test": Out(SelfTestStatus)}
 
 
 class MPU9250Driver(wiring.Component):
@@ -238,7 +270,10 @@ class MPU9250Driver(wiring.Component):
         self.stream_timeout_cycles = timing.stream_timeout_periods * self.period_cycles
         self.mag_timeout_periods = timing.mag_timeout_periods(config)
         self.program = bring_up_program(config, self.power_up_cycles, self.reset_cycles,
-                                        self.mag_wait_cycles)
+                                        self.mag_wait_cycles,
+                                        timing.self_test_waits(clk_freq, config))
+        self.self_test_block = (SelfTest(samples_log2=config.self_test_samples.bit_length() - 1)
+                                if config.self_test else None)
         super().__init__({"port": Out(RegisterPortSignature().flip()), **driver_members()})
 
     def elaborate(self, platform):
@@ -259,6 +294,14 @@ class MPU9250Driver(wiring.Component):
         connect(m, arbiter.port, flipped(self.port))
         connect(m, reader.samples, flipped(self.samples))
         status = self.status
+        if cfg.self_test:
+            m.submodules.self_test = st = self.self_test_block
+            m.d.comb += [st.valid.eq(seq.test.valid), st.byte.eq(seq.test.byte),
+                         st.index.eq(seq.test.index), st.subtract.eq(seq.test.subtract),
+                         st.first.eq(seq.test.first), st.asa.eq(seq.asa),
+                         seq.test_busy.eq(st.busy),
+                         self.self_test.done.eq(st.done), self.self_test.mag_done.eq(st.mag_done),
+                         self.self_test.fail.eq(st.fail), status.self_test_fail.eq(st.fail)]
         m.d.comb += [
             reader.int_pin.eq(self.int_pin),
             reader.enable.eq(seq.streaming), reader.start.eq(seq.started),
@@ -272,7 +315,7 @@ class MPU9250Driver(wiring.Component):
             status.streaming.eq(seq.streaming), status.whoami_error.eq(seq.whoami_error),
             status.no_response.eq(seq.no_response | reader.read_error),
             status.int_timeout.eq(reader.int_timeout), status.restarts.eq(seq.restarts),
-            status.who_am_i.eq(seq.who_am_i), status.mag_ok.eq(seq.mag_ok),
+            self.who_am_i.eq(seq.who_am_i), status.mag_ok.eq(seq.mag_ok),
             status.mag_absent.eq(seq.mag_absent), status.mag_wia_error.eq(seq.mag_wia_error),
             status.mag_stale.eq(reader.mag_stale), status.bad_burst.eq(reader.bad_burst),
         ]

@@ -6,6 +6,8 @@ on an address.
 """
 
 # -- addresses ------------------------------------------------------------------------------------
+SELF_TEST_X_GYRO  = 0x00    # ..Z at 0x02: the factory self-test codes (``hdl/self_test.py``)
+SELF_TEST_X_ACCEL = 0x0D    # ..Z at 0x0F
 SMPLRT_DIV     = 0x19
 CONFIG         = 0x1A
 GYRO_CONFIG    = 0x1B
@@ -52,6 +54,10 @@ INT_STATUS_RAW_RDY = 0x01
 WHO_AM_I_MPU9250 = 0x71
 WHO_AM_I_MPU9255 = 0x73
 RESET_VALUES = {PWR_MGMT_1: PWR_MGMT_1_CLKSEL_AUTO, WHO_AM_I: WHO_AM_I_MPU9250}
+
+# GYRO_CONFIG [7:5] XGYRO/YGYRO/ZGYRO_Cten, ACCEL_CONFIG [7:5] ax/ay/az_st_en: self-test on
+SELF_TEST_ENABLE = 0xE0
+
 
 # Registers the host can only read. Writing one is a protocol violation in the model.
 READ_ONLY = frozenset({I2C_MST_STATUS, INT_STATUS, *range(ACCEL_XOUT_H, EXT_SENS_DATA_23 + 1),

@@ -84,7 +84,8 @@ class SensorFrontEnd(wiring.Component):
         connect(m, bus.pins, flipped(self.pins))
         connect(m, driver.samples, flipped(self.samples))
         m.d.comb += [driver.int_pin.eq(self.int_pin), self.status.eq(driver.status),
-                     self.asa.eq(driver.asa), self.rate_errors.eq(driver.rate_errors)]
+                     self.asa.eq(driver.asa), self.rate_errors.eq(driver.rate_errors),
+                     self.who_am_i.eq(driver.who_am_i), self.self_test.eq(driver.self_test)]
         if self.config.wiring == "i2c":
             # the controller's own view of a failure, which the driver sees only as an error
             m.d.comb += [self.status.bus_timeout.eq(bus.status.timeout),

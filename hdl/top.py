@@ -245,6 +245,7 @@ class AHRSCore(wiring.Component):
                          decoder.rx_overruns.eq(rx.overruns),
                          decoder.frames_sent.eq(arbiter.frames),
                          decoder.rate_errors.eq(fe.rate_errors),
+                         decoder.who_am_i.eq(fe.who_am_i), decoder.self_test.eq(fe.self_test),
                          self.command_stats.eq(decoder.stats), self.raw_mode.eq(decoder.raw_mode),
                          framer.short.eq(decoder.raw_mode)]
             # The engine's register port: the ``cfg`` ports (a test bench, or tied off) first,

@@ -73,7 +73,8 @@ def _config(args):
     from .hdl.mpu9250_driver import MPU9250Config
     common = dict(gyro_fs_dps=args.gyro_fs, accel_fs_g=args.accel_fs,
                   int_latched=not args.int_pulse, wiring=args.wiring,
-                  i2c_address=args.i2c_address, magnetometer=not args.no_mag)
+                  i2c_address=args.i2c_address, magnetometer=not args.no_mag,
+                  self_test=not args.no_self_test)
     if getattr(args, "odr", None) is not None:
         if args.dlpf is not None or args.smplrt_div is not None:
             raise ValueError("--odr sets DLPF_CFG and SMPLRT_DIV itself: leave out --dlpf and "
@@ -148,6 +149,9 @@ def _add_sensor_options(p):
                    help="MPU9250 I2C address with --wiring i2c: 0x68 (AD0 low) or 0x69")
     p.add_argument("--no-mag", action="store_true",
                    help="leave the AK8963 magnetometer alone (six-axis samples)")
+    p.add_argument("--no-self-test", action="store_true",
+                   help="no self-test of the MPU9250 and AK8963 at bring-up (it takes about "
+                        "0.3 s; DriverStatus.self_test_done stays 0)")
 
 
 def _clock(args):
@@ -209,8 +213,9 @@ def cmd_simulate(args):
     budget = check_rates(config, clk_freq, args)
     odr_scale = args.odr_scale if args.odr_scale is not None else \
         SimSetup.default_odr_scale(config)
+    # the self-tests as built (the fault tests choose their own: ``catalogue_setup``)
     setup = SimSetup(clk_freq=clk_freq, config=config, delay_scale=args.delay_scale,
-                     odr_scale=odr_scale)
+                     odr_scale=odr_scale, self_test=config.self_test)
     if args.fault is not None:
         return _simulate_fault(args, setup)
     sources = _pose_sources(args.pose, args.samples, config, setup) if args.pose else {}
@@ -256,7 +261,8 @@ def cmd_simulate(args):
             "bring_up_us": result.bring_up_cycles and
             result.bring_up_cycles / setup.clk_freq * 1e6,
             "wall_s": round(result.wall_s, 3), "cycles_per_s": round(result.cycles_per_s),
-            "status": result.status, "asa": result.asa})
+            "status": result.status, "asa": result.asa, "who_am_i": result.who_am_i,
+            "self_test": result.self_test})
     summary.update({"violations": violations,
                     "time_scale": {"delays": setup.delay_scale,
                                    "sample_period": setup.odr_scale}})

@@ -172,8 +172,12 @@ def report(*, clk_freq=None, config=None, latency=True):
     engine = AttitudeEngine()
     datapath = synthesize(engine, "attitude_engine", engine)
     core = AHRSCore(clk_freq=clk_freq, config=config)
+    self_test = core.frontend.driver.self_test_block
+    if self_test:
+        self_test.blackbox = True           # its multiplier, like the engine's
     design = synthesize(core, "mpu9250_ahrs_core", core.engine,
-                        rams=[core.framer.ram, core.decoder.fifo.ram])
+                        rams=[core.framer.ram, core.decoder.fifo.ram,
+                              *([self_test.sums, self_test.table] if self_test else [])])
     cycles, first = cycles_per_update()
     mhz = clk_freq / 1e6
     budget = rate_budget(config, clk_freq)

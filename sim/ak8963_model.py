@@ -16,6 +16,8 @@ Behaviour (``shared/mpu9250-notes.md``, AK8963 datasheet):
   while unread data is pending, is skipped and sets ST1.DOR. Reading ST2 (or a data register)
   clears DRDY and DOR. ST2.HOFL when |X|+|Y|+|Z| ≥ 4912 µT; ST2.BITM mirrors CNTL1.BIT.
 - Auto-increment wraps 0x00..0x0C -> 0x00 and 0x10..0x12 -> 0x10.
+- Self-test mode with ASTC.SELF: one measurement, as a single one, of ``self_test_field``
+  instead of the source's field; then power-down.
 
 The field source gives ``(hx, hy, hz)`` in 16-bit counts (0.15 µT/LSB) in the AK8963's own axes;
 14-bit mode divides by 4. Values outside ±32760 are clipped (and raise HOFL by their size).
@@ -27,7 +29,11 @@ from ..hdl import ak8963_regs as A
 from .mpu9250_model import Violation, ProtocolError
 
 
-__all__ = ["AK8963Timing", "AK8963Model", "constant_field"]
+__all__ = ["AK8963Timing", "AK8963Model", "constant_field", "DEFAULT_SELF_TEST_FIELD"]
+
+# the self-test generator's field of a good part, raw 16-bit LSB (with the default ASA about
+# 36, -24, -1728 after adjustment: inside the datasheet's limits)
+DEFAULT_SELF_TEST_FIELD = (30, -20, -1500)
 
 _EPS = 1e-12
 _READ_ONLY = frozenset({A.WIA, A.INFO, A.ST1, *range(A.HXL, A.HZH + 1), A.ST2,
@@ -50,12 +56,15 @@ class AK8963Timing:
 
 class AK8963Model:
     def __init__(self, *, asa=(176, 178, 167), wia=A.WIA_VALUE, source=None,
-                 timing=AK8963Timing(), raise_on_violation=False):
+                 timing=AK8963Timing(), raise_on_violation=False,
+                 self_test_field=DEFAULT_SELF_TEST_FIELD):
         self.asa = tuple(asa)
         self.wia = wia
         self.source = source or constant_field()
         self.timing = timing
         self.raise_on_violation = raise_on_violation
+        # what its self-test generator makes (raw 16-bit LSB, before ASA), instead of the field
+        self.self_test_field = list(self_test_field)
         self.violations = []
         self.writes = []            # (t, register, value)
         self.measurements = []      # (hx, hy, hz, hofl) as stored, in order
@@ -88,7 +97,7 @@ class AK8963Model:
         while self._next_measure is not None and self._next_measure <= t + _EPS:
             ev = self._next_measure
             self._measure(ev)
-            if self.mode == A.MODE_SINGLE:
+            if self.mode in (A.MODE_SINGLE, A.MODE_SELF_TEST):
                 self.mode = A.MODE_POWER_DOWN
                 self._power_down_at = ev
                 self.regs[A.CNTL1] &= A.CNTL1_BIT_16
@@ -103,6 +112,8 @@ class AK8963Model:
 
     def _measure(self, t):
         hx, hy, hz = (int(v) for v in self.source(len(self.measurements) + self.skipped, t))
+        if self.mode == A.MODE_SELF_TEST and self.regs[A.ASTC] & A.ASTC_SELF:
+            hx, hy, hz = (int(v) for v in self.self_test_field)
         if self._protected:
             self.skipped += 1
             self.regs[A.ST1] |= A.ST1_DOR
@@ -180,7 +191,7 @@ class AK8963Model:
         self.mode = mode
         self.regs[A.CNTL1] = value & 0x1F
         period = self._period()
-        if mode == A.MODE_SINGLE:
+        if mode in (A.MODE_SINGLE, A.MODE_SELF_TEST):
             self._next_measure = self.now + self.timing.single_s * self.timing.odr_scale
         elif period is not None:
             self._next_measure = self.now + period

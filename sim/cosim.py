@@ -10,7 +10,7 @@ the tests and ``python -m mpu9250_ahrs simulate`` use.
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import List, Optional
 
 from amaranth import Elaboratable, Signal
@@ -180,7 +180,8 @@ class SimSetup:
 
     Start-up and reset delays are multiplied by ``delay_scale`` in both the driver and the
     model; the sample period and INT pulse by ``odr_scale`` in the model (the driver's
-    interrupt timeout follows).
+    interrupt timeout and self-test waits follow); the self-test runs only with
+    ``self_test`` and then sums ``self_test_samples``.
     """
     clk_freq: float = SYSTEM_CLOCK_HZ
     config: MPU9250Config = field(default_factory=MPU9250Config)
@@ -191,6 +192,18 @@ class SimSetup:
     # measurements from locking to an exact multiple of the sample period (in which a
     # measurement can land in every read's data protection and be skipped, for ever).
     ak_clock_error: float = 0.0
+    # The self-tests at bring-up (``MPU9250Config.self_test``) add their waits to every
+    # bring-up (with SPI about 3 times the cycles, with I2C 7 times): simulations leave them
+    # out unless they ask (``self_test=True``, as ``simulate`` does), and then sum
+    # ``self_test_samples`` samples (None: the config's 128, 2 x 128 reads at 1 kHz)
+    self_test: bool = False
+    self_test_samples: Optional[int] = 2
+
+    def __post_init__(self):
+        if not self.self_test:
+            self.config = replace(self.config, self_test=False)
+        elif self.self_test_samples is not None and self.config.self_test:
+            self.config = replace(self.config, self_test_samples=self.self_test_samples)
 
     @staticmethod
     def default_odr_scale(config):
@@ -213,8 +226,22 @@ class SimSetup:
         """Cycles that cover three bring-up attempts' waits plus the magnetometer's SLV4
         transfers (each waits for a sample tick of the MPU9250's I2C master): the start of
         every simulation's cycle budget."""
-        power_up, reset, _ = self.driver_timing().cycles(self.clk_freq, self.config)
-        return 3 * (power_up + reset) + 40 * self.sample_period_s * self.clk_freq
+        timing = self.driver_timing()
+        power_up, reset, _ = timing.cycles(self.clk_freq, self.config)
+        return 3 * (power_up + reset + self.self_test_cycles()) + \
+            40 * self.sample_period_s * self.clk_freq
+
+    def self_test_cycles(self):
+        """A bound on the cycles the self-tests add to a bring-up: their waits, and their reads
+        at 400 kHz (the slowest bus: 9 bits a byte)."""
+        cfg = self.config
+        if not cfg.self_test:
+            return 0
+        waits = self.driver_timing().self_test_waits(self.clk_freq, cfg)
+        reads = 2 * cfg.self_test_samples
+        byte = 9 / 400e3 * self.clk_freq
+        return (3 * waits.settle + reads * (waits.interval + 16 * byte) + 20 * byte +
+                (waits.mag + 10 * byte if cfg.magnetometer else 0))
 
     def model_timing(self):
         return MPU9250Timing().scaled(delays=self.delay_scale, odr=self.odr_scale)
@@ -250,6 +277,8 @@ class CosimResult:
     asa: List[int] = field(default_factory=list)            # the driver's asa port at the end
     sample_cycles: List[int] = field(default_factory=list)  # when each sample was taken
     rate_errors: int = 0                                    # the driver's count at the end
+    who_am_i: Optional[int] = None                          # its who_am_i port at the end
+    self_test: dict = field(default_factory=dict)           # its self_test port at the end
 
     @property
     def cycles_per_s(self):
@@ -326,7 +355,7 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
         attach_stuck_miso(sim, harness, stuck_miso)
 
     out = {"samples": [], "status": None, "cycles": 0, "bring_up": None, "log": [], "asa": [],
-           "sample_cycles": [], "rate_errors": 0}
+           "sample_cycles": [], "rate_errors": 0, "who_am_i": None, "self_test": {}}
 
     class Done(Exception):
         pass
@@ -376,6 +405,8 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
         except Done:
             out["asa"] = to_python(ctx.get(dut.asa))
             out["rate_errors"] = ctx.get(dut.rate_errors)
+            out["who_am_i"] = ctx.get(dut.who_am_i)
+            out["self_test"] = to_python(ctx.get(dut.self_test))
             harness.check(ctx)
     sim.add_testbench(testbench)
 
@@ -394,7 +425,7 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
     wall = time.perf_counter() - start
     return CosimResult(out["samples"], out["status"], out["cycles"], out["bring_up"], wall,
                        model, bus, out["log"], out["asa"], out["sample_cycles"],
-                       out["rate_errors"])
+                       out["rate_errors"], out["who_am_i"], out["self_test"])
 
 
 def sample_read_cycles(result, setup):

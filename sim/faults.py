@@ -36,7 +36,7 @@ __all__ = ["Fault", "FAULTS", "FaultInjector", "run_fault", "fault_names", "ERRO
 # DriverStatus bits that say something is wrong (``restarts`` is reported when it goes up)
 ERROR_FLAGS = ("whoami_error", "no_response", "int_timeout", "mag_absent", "mag_wia_error",
                "mag_stale", "bad_burst", "bus_timeout", "bus_stuck", "bus_arbitration",
-               "rate_error")
+               "rate_error", "self_test_fail")
 SAMPLE_FLAGS = ("overrun", "mag_overflow", "mag_dor", "resumed")
 
 
@@ -112,6 +112,7 @@ class Fault:
     flags: Tuple[str, ...] = ()
     recovers: str = "stream"
     stall: bool = False             # the consumer stops taking samples (sensor overrun)
+    self_test: bool = False         # needs the self-tests at bring-up (``catalogue_setup``)
 
     @property
     def removable(self):
@@ -225,6 +226,16 @@ def _int_free(inj, t):
     inj.int_level = None
 
 
+def _gyro_y_dead(inj, t):
+    # a damaged gyro axis: its self-test makes no response (the part still reads its rate)
+    inj.mpu.self_test_gain[4] = 0.0
+
+
+def _mag_z_dead(inj, t):
+    # the AK8963's Z coil: its self-test field reads 0
+    inj.ak.self_test_field[2] = 0
+
+
 FAULTS = {f.name: f for f in [
     Fault("mpu_absent", "no MPU9250 at power-up (SPI: CIPO floats high, no INT; I2C: no ACK); "
           "plugged in later", _set("mpu_absent", True), _set("mpu_absent", False),
@@ -278,6 +289,12 @@ FAULTS = {f.name: f for f in [
           _gyro_bit_flip, duration=None, flags=("bad_burst",), recovers="remains"),
     Fault("spurious_int", "one spurious INT pulse between two samples (no new sample)",
           _int_high, _int_free, duration=0.02, flags=("bad_burst",), recovers="remains"),
+    Fault("self_test_gyro", "the gyro's Y axis makes no self-test response (a damaged axis)",
+          _gyro_y_dead, duration=None, at_power_up=True, flags=("self_test_fail",),
+          recovers="remains", self_test=True),
+    Fault("self_test_mag", "the AK8963's Z axis reads no self-test field (a damaged axis)",
+          _mag_z_dead, duration=None, at_power_up=True, flags=("self_test_fail",),
+          recovers="remains", self_test=True),
 ]}
 
 
@@ -336,6 +353,9 @@ def run_fault(name, setup=None, *, at=20, duration=None, after=None, max_cycles=
     if wiring not in fault.wirings:
         raise ValueError(f"fault {name} applies to {' and '.join(fault.wirings)} wiring, "
                          f"not {wiring}")
+    if fault.self_test and not setup.config.self_test:
+        raise ValueError(f"fault {name} is found by the self-test at bring-up, which this "
+                         f"set-up leaves out")
     if fault.recovers == "mag" and not setup.config.magnetometer:
         raise ValueError(f"fault {name} needs the magnetometer (leave out --no-mag)")
     if name == "host_garbage":
@@ -473,18 +493,21 @@ def summarise(fault, inj, result, setup, after):
     return summary
 
 
-def catalogue_setup(wiring, *, odr=200, clk_freq=4e6, fault=None):
+def catalogue_setup(wiring, *, odr=200, clk_freq=4e6, fault=None, self_test=None):
     """The set-up the fault tests and the catalogue table use: 200 Hz, a 4 MHz clock (the
     front end only: SPI at 2 MHz, I2C at about 300 kHz) and scaled time (SPI: periods × 0.05;
     I2C: × 0.25, whose 1.25 ms still fits its read), so that a fault runs in seconds; the
-    AK8963's clock 10 % slow (``SimSetup.ak_clock_error``)."""
+    AK8963's clock 10 % slow (``SimSetup.ak_clock_error``); the self-tests at bring-up only
+    for the faults they are to find (``Fault.self_test``), or as ``self_test`` says."""
     from ..hdl.mpu9250_driver import MPU9250Config
     from .cosim import SimSetup
     config = MPU9250Config.for_odr(odr, wiring=wiring)
     if fault == "host_garbage":     # the whole core: the UART needs a clock for its baud
         return SimSetup(clk_freq=12e6, config=config, odr_scale=0.2)
     return SimSetup(clk_freq=clk_freq, config=config,
-                    odr_scale=0.05 if wiring == "spi" else 0.25, ak_clock_error=0.1)
+                    odr_scale=0.05 if wiring == "spi" else 0.25, ak_clock_error=0.1,
+                    self_test=bool(fault and FAULTS[fault].self_test) if self_test is None
+                    else self_test)
 
 
 def catalogue_table(wirings=("spi", "i2c"), *, at=3, after=4, duration=8, out=None):

@@ -29,7 +29,12 @@ I2C_MST_STATUS.SLV4_DONE (and SLV4_NACK) and clears its enable. Results appear a
 transfers' duration at the I2C_MST_CLK rate; with WAIT_FOR_ES the sample and its data-ready
 interrupt wait for them too. Devices sit in ``aux_devices``; an absent address NACKs.
 
-Not modelled: the FIFO, self-test, sensor warm-up, the primary I2C interface's own pins (that is
+Self-test: SELF_TEST_X/Y/Z_ACCEL and _GYRO hold factory codes (``self_test_codes``, kept
+through a reset); an axis whose self-test bit is set in ACCEL_CONFIG / GYRO_CONFIG [7:5] reads
+its factory response ``otp(code)`` (LSB at ±2 g, ±250 °/s; halved per full-scale step) times
+``self_test_gain`` (1.0: a good part; 0: a dead axis) on top of the source's counts.
+
+Not modelled: the FIFO, sensor warm-up, the primary I2C interface's own pins (that is
 ``sim.i2c_bus``, which uses ``read_reg``/``write_reg`` here).
 """
 
@@ -38,10 +43,14 @@ from dataclasses import dataclass, replace
 from typing import Optional
 
 from ..hdl import mpu9250_regs as R
+from ..hdl.self_test import otp
 from .sources import SensorSample, constant_source
 
 
-__all__ = ["MPU9250Timing", "Violation", "ProtocolError", "MPU9250Model"]
+# A good part's factory codes (accel X, Y, Z, gyro X, Y, Z): about 0.39 g and 60 °/s
+DEFAULT_SELF_TEST_CODES = (90, 94, 102, 112, 115, 108)
+
+__all__ = ["DEFAULT_SELF_TEST_CODES", "MPU9250Timing", "Violation", "ProtocolError", "MPU9250Model"]
 
 
 def _swap_pairs(data, reg, grp):
@@ -102,8 +111,12 @@ class MPU9250Model:
     CS_HOLD_S = 500e-9
 
     def __init__(self, *, who_am_i=R.WHO_AM_I_MPU9250, timing=MPU9250Timing(), source=None,
-                 sleep_after_reset=False, raise_on_violation=False, aux_devices=None):
+                 sleep_after_reset=False, raise_on_violation=False, aux_devices=None,
+                 self_test_codes=DEFAULT_SELF_TEST_CODES, self_test_gain=(1.0,) * 6):
         self.who_am_i = who_am_i
+        # factory codes and response gains, accel X, Y, Z then gyro X, Y, Z
+        self.self_test_codes = tuple(self_test_codes)
+        self.self_test_gain = list(self_test_gain)
         self.timing = timing
         self.source = source or constant_source(SensorSample())
         # The reset value of SLEEP comes from factory OTP; drivers must not rely on it.
@@ -119,7 +132,10 @@ class MPU9250Model:
         self.writes = []            # (t, address, value): every write the part accepted
         self.samples = []           # SensorSample written to the registers, in order
         self.sample_times = []
-        self.sample_reads = []      # index into ``samples`` of each read of ACCEL_XOUT_H
+        self.sample_reads = []      # index into ``samples`` of each sample read (a burst
+                                    # through ACCEL_XOUT_H from INT_STATUS on)
+        self.self_test_reads = []   # the same for bursts that start at ACCEL_XOUT_H
+        self._burst_start = None
         self.ext_reads = []         # EXT_SENS_DATA_00..07 as that same read saw them
         self.transactions = []      # SPI: (t CS fell, t CS rose, first register, bytes, read)
         self.resets = 0
@@ -190,8 +206,24 @@ class MPU9250Model:
         self._next_sample = t + self.sample_period if self.sampling else None
         self._update_next_event()
 
+    def _self_test_response(self, sample):
+        """``sample`` with the self-test responses of the axes whose self-test is on."""
+        out = []
+        for group, (reg, values) in enumerate(((R.ACCEL_CONFIG, sample.accel),
+                                               (R.GYRO_CONFIG, sample.gyro))):
+            config = self.regs[reg]
+            axes = []
+            for i, v in enumerate(values):
+                code = self.self_test_codes[3 * group + i]
+                if config & (0x80 >> i) and code:
+                    v += round(otp(code) * self.self_test_gain[3 * group + i]) >> \
+                        ((config >> 3) & 3)
+                axes.append(max(-32768, min(32767, v)))
+            out.append(tuple(axes))
+        return replace(sample, accel=out[0], gyro=out[1])
+
     def _convert(self, t):
-        sample = self.source(len(self.samples), t)
+        sample = self._self_test_response(self.source(len(self.samples), t))
         aux = None
         if self.regs[R.USER_CTRL] & R.USER_CTRL_I2C_MST_EN and self._aux_done is None:
             aux = self._aux_cycle(t)
@@ -338,6 +370,9 @@ class MPU9250Model:
         self.regs[R.PWR_MGMT_1] = R.PWR_MGMT_1_CLKSEL_AUTO | \
             (R.PWR_MGMT_1_SLEEP if self.sleep_after_reset else 0)
         self.regs[R.WHO_AM_I] = self.who_am_i
+        codes = self.self_test_codes
+        self.regs[R.SELF_TEST_X_ACCEL:R.SELF_TEST_X_ACCEL + 3] = bytes(codes[:3])
+        self.regs[R.SELF_TEST_X_GYRO:R.SELF_TEST_X_GYRO + 3] = bytes(codes[3:])
 
     def _violation(self, kind, register, detail):
         v = Violation(self.now, kind, register, detail)
@@ -349,6 +384,7 @@ class MPU9250Model:
         """Start of a read burst: the part's shadow registers hold still until it ends."""
         self._snapshot = bytes(self.regs)
         self._snapshot_sample = len(self.samples) - 1
+        self._burst_start = None
 
     @staticmethod
     def next_address(addr):
@@ -358,7 +394,11 @@ class MPU9250Model:
         # ``line_flips`` {register: mask}: bits the data line inverts on the next read of that
         # register (a glitch in transit: the register itself keeps its value)
         value = self._snapshot[addr] ^ self.line_flips.pop(addr, 0)
-        if addr == R.ACCEL_XOUT_H:
+        if self._burst_start is None:
+            self._burst_start = addr
+        if addr == R.ACCEL_XOUT_H and self._burst_start == R.ACCEL_XOUT_H:
+            self.self_test_reads.append(self._snapshot_sample)     # the self-test's bursts
+        elif addr == R.ACCEL_XOUT_H:
             self.sample_reads.append(self._snapshot_sample)
             self.ext_reads.append(self._snapshot[R.EXT_SENS_DATA_00:R.EXT_SENS_DATA_00 + 8])
         if addr == R.INT_STATUS or self.regs[R.INT_PIN_CFG] & R.INT_PIN_CFG_ANYRD_2CLEAR:

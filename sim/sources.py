@@ -70,15 +70,20 @@ def generator_source(iterable: Iterable[SensorSample]):
 
 def counting_source(seed=0):
     """Distinct, recognisable values per sample and field: good for catching swapped bytes.
-    The gyro words move by 61 counts a sample within ±4096 (their wrap is a step of 8,191),
-    under the driver's gyro jump check (``sample_reader.GYRO_JUMP_DPS``: 16,384 counts at
-    ±2000 °/s); accel and temperature step by 7,919 across the whole range."""
+    Accel and gyro words move by 61 counts a sample, each on its own triangle wave between
+    -4096 and 4095 (no wrap: steps stay under the driver's gyro jump check,
+    ``sample_reader.GYRO_JUMP_DPS``, and a still part's self-test still passes across a few
+    samples); the temperature steps by 7,919 across the whole range."""
+    def triangle(n):
+        n %= 16382
+        return (n if n < 8191 else 16382 - n) - 4096
+
     def source(index, t):
-        base = (seed + index * 7919) & 0xFFFF
-        vals = [((base + k * 4099) & 0xFFFF) for k in range(4)]
-        vals = [v - 0x10000 if v & 0x8000 else v for v in vals]
-        gyro = tuple((seed + index * 61 + k * 4099) % 8192 - 4096 for k in range(3))
-        return SensorSample(accel=tuple(vals[0:3]), temp=vals[3], gyro=gyro)
+        temp = (seed + index * 7919 + 3 * 4099) & 0xFFFF
+        accel = tuple(triangle(seed + index * 61 + k * 4099 + 2048) for k in range(3))
+        gyro = tuple(triangle(seed + index * 61 + k * 4099) for k in range(3))
+        return SensorSample(accel=accel, temp=temp - 0x10000 if temp & 0x8000 else temp,
+                            gyro=gyro)
     return source
 
 

@@ -108,7 +108,7 @@ def test_build_verilog_only(tmp_path):
 
 def test_simulate_command(tmp_path, capsys):
     vcd = tmp_path / "x.vcd"
-    assert main(["simulate", "--samples", "3", "--vcd", str(vcd)]) == 0
+    assert main(["simulate", "--samples", "3", "--vcd", str(vcd)]) == 0     # self-tests too
     lines = capsys.readouterr().out.strip().splitlines()
     samples = [json.loads(line) for line in lines[:3]]
     assert [s["counter"] for s in samples] == [0, 1, 2]
@@ -116,11 +116,13 @@ def test_simulate_command(tmp_path, capsys):
     assert summary["violations"] == [] and summary["status"]["streaming"] == 1
     assert summary["status"]["mag_ok"] == 1 and summary["sample_read_us"] > 0
     assert summary["bring_up_cycles"] > 0 and summary["cycles_per_s"] > 0
+    assert summary["self_test"] == {"done": 1, "mag_done": 1, "fail": 0}
+    assert summary["who_am_i"] == 0x71
     assert vcd.stat().st_size > 0 and (tmp_path / "x.gtkw").is_file()
 
 
 def test_simulate_i2c_wiring(capsys):
-    assert main(["simulate", "--samples", "2", "--wiring", "i2c"]) == 0
+    assert main(["simulate", "--samples", "2", "--wiring", "i2c", "--no-self-test"]) == 0
     summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert summary["wiring"] == "i2c" and summary["violations"] == []
     assert summary["status"]["mag_ok"] == 1

@@ -6,6 +6,7 @@ import time
 
 from ..hdl.frame_types import ATTITUDE, SENSOR
 from ..hdl.frame_types import AttitudeFrame
+from ..hdl.self_test import AXES as SELF_TEST_AXES
 from .protocol import unpack
 
 
@@ -108,8 +109,11 @@ def monitor(link, *, frames=None, csv_path=None, hdf5_path=None, out=None,
 def _live_line(link, count, elapsed, ftype, fields):
     rate = (count - 1) / elapsed if elapsed > 0 else 0.0
     status = fields["status"]
-    flags = [k for k, v in status.items() if v and k not in ("restarts", "who_am_i",
+    flags = [k for k, v in status.items() if v and k not in ("restarts", "self_test_fail",
                                                                 "streaming", "mag_ok")]
+    # the axes that failed their self-test, by name (hdl/self_test.py: AXES)
+    flags += [f"self_test:{axis}" for i, axis in enumerate(SELF_TEST_AXES)
+              if status.get("self_test_fail", 0) >> i & 1]
     text = f"{count} frames {rate:6.1f}/s"
     if ftype == ATTITUDE:
         roll, pitch, yaw = (v * 360 / 2 ** 32 for v in fields["attitude"]["angles"])

@@ -24,7 +24,8 @@ from amaranth.lib.wiring import Out
 
 from mpu9250_ahrs.hdl.attitude_engine import AttitudeEngine
 from mpu9250_ahrs.hdl.attitude_program import HOST_WRITABLE
-from mpu9250_ahrs.hdl.bring_up_sequencer import BringUpSequencer, bring_up_program
+from mpu9250_ahrs.hdl.bring_up_sequencer import (BringUpSequencer, SelfTestWaits,
+                                                 bring_up_program)
 from mpu9250_ahrs.hdl.command_decoder import CommandDecoder
 from mpu9250_ahrs.hdl.config_port_arbiter import ConfigPortArbiter
 from mpu9250_ahrs.hdl.frame_arbiter import FrameArbiter
@@ -56,7 +57,8 @@ COMPONENTS = {
     "i2c_register_port": I2CRegisterPort,
     "register_port_arbiter": RegisterPortArbiter,
     "bring_up_sequencer": lambda: BringUpSequencer(
-        bring_up_program(MPU9250Config(), 20, 10, 5), accepted_who_am_i=(0x71,),
+        bring_up_program(MPU9250Config(), 20, 10, 5, SelfTestWaits(6, 4, 5)),
+        accepted_who_am_i=(0x71,),
         poll_cycles=30),
     "sample_reader": lambda: SampleReader(period_cycles=100, first_timeout_cycles=200,
                                           timeout_cycles=400, mag_timeout_periods=3),

@@ -226,7 +226,8 @@ def test_simulate_verb_with_pose_and_attitude(capsys):
     the pose (roll and pitch from the accelerometer within a few samples)."""
     import json
     from mpu9250_ahrs.cli import main
-    assert main(["simulate", "--samples", "12", "--pose", "30,-10,45", "--attitude"]) == 0
+    assert main(["simulate", "--samples", "12", "--pose", "30,-10,45", "--attitude",
+                 "--no-self-test"]) == 0
     lines = capsys.readouterr().out.splitlines()
     rows = [json.loads(line) for line in lines if "roll_pitch_yaw_deg" in line]
     assert len(rows) == 12 and not any(r["saturated"] for r in rows)

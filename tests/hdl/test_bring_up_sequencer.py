@@ -5,7 +5,8 @@ from amaranth.sim import Simulator
 
 from mpu9250_ahrs.hdl import ak8963_regs as A
 from mpu9250_ahrs.hdl import mpu9250_regs as R
-from mpu9250_ahrs.hdl.bring_up_sequencer import BringUpSequencer, bring_up_program
+from mpu9250_ahrs.hdl.bring_up_sequencer import (BringUpSequencer, SelfTestWaits,
+                                                 bring_up_program)
 from mpu9250_ahrs.hdl.mpu9250_driver import MPU9250Config
 from mpu9250_ahrs.sim.streams import check_stream_rules
 
@@ -29,7 +30,7 @@ class Chip:
 
 
 def make(config=MPU9250Config()):
-    program = bring_up_program(config, 3, 3, 2)
+    program = bring_up_program(config, 3, 3, 2, SelfTestWaits(settle=3, interval=2, mag=2))
     # the magnetometer's part, the one run again, starts with the I2C master's USER_CTRL
     first = next(s for s in program if s.mag)
     assert (first.reg, first.value) == (R.USER_CTRL, 0x30)
@@ -61,7 +62,8 @@ def test_program_restart_and_magnetometer_again():
     config = MPU9250Config()
     dut = make(config)
     seen = {}
-    mag_part = expected_writes(config)[10:-2]        # from USER_CTRL |= I2C_MST_EN to SLV0
+    writes = expected_writes(config)
+    mag_part = writes[writes.index((0x6A, 0x30)):-2]    # from USER_CTRL |= I2C_MST_EN to SLV0
 
     async def body(ctx, model):
         pulses = []

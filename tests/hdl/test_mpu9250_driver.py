@@ -27,6 +27,12 @@ def expected_writes(config, *, mag=True):
     int_pin_cfg = (0x20 if config.int_latched else 0) | (0x80 if config.int_active_low else 0)
     writes = [
         (0x6A, 0x10), (0x6B, 0x80), (0x6A, 0x10), (0x6B, 0x01),   # SPI, reset, SPI, clock
+    ]
+    if config.self_test:
+        # 1 kHz, 92 Hz, ±250 °/s, ±2 g; self-test on; off
+        writes += [(0x19, 0), (0x1A, 2), (0x1B, 0), (0x1C, 0), (0x1D, 2),
+                   (0x1B, 0xE0), (0x1C, 0xE0), (0x1B, 0), (0x1C, 0)]
+    writes += [
         (0x6C, 0x00),                                              # all axes on
         (0x1A, config.dlpf_cfg), (0x19, config.smplrt_div),
         (0x1B, R.GYRO_FS_DPS.index(config.gyro_fs_dps) << 3),
@@ -38,13 +44,23 @@ def expected_writes(config, *, mag=True):
         writes += slv4_read(0x00)                             # WIA
         writes += slv4_write(0x0B, 0x01) + slv4_write(0x0A, 0x0F)     # SRST, fuse ROM
         writes += slv4_read(0x10) + slv4_read(0x11) + slv4_read(0x12)  # ASA
-        writes += slv4_write(0x0A, 0x00) + slv4_write(0x0A, 0x16)     # power-down, 100 Hz 16 bit
+        writes += slv4_write(0x0A, 0x00)                              # power-down
+        if config.self_test:
+            # ASTC self, self-test mode 16 bit, SLV0: 7 bytes from HXL; ASTC 0
+            writes += slv4_write(0x0C, 0x40) + slv4_write(0x0A, 0x18)
+            writes += [(0x25, 0x8C), (0x26, 0x03), (0x27, 0x87)] + slv4_write(0x0C, 0x00)
+        writes += slv4_write(0x0A, 0x16)                              # 100 Hz 16 bit
         writes += [(0x25, 0x8C), (0x26, 0x02), (0x27, 0x88)]          # SLV0: 8 bytes from ST1
     return writes + [(0x37, int_pin_cfg), (0x38, 0x01)]
 
 
-AK_WRITES = [(A.CNTL2, A.CNTL2_SRST), (A.CNTL1, A.MODE_FUSE_ROM), (A.CNTL1, A.MODE_POWER_DOWN),
-             (A.CNTL1, A.CNTL1_BIT_16 | A.MODE_CONT_100HZ)]
+def ak_writes(config):
+    """The AK8963's writes at bring-up: reset, fuse ROM, power-down, (self-test,) 100 Hz."""
+    self_test = [(A.ASTC, A.ASTC_SELF), (A.CNTL1, A.CNTL1_BIT_16 | A.MODE_SELF_TEST),
+                 (A.ASTC, 0)]
+    return [(A.CNTL2, A.CNTL2_SRST), (A.CNTL1, A.MODE_FUSE_ROM), (A.CNTL1, A.MODE_POWER_DOWN),
+            *(self_test if config.self_test else []),
+            (A.CNTL1, A.CNTL1_BIT_16 | A.MODE_CONT_100HZ)]
 
 
 def assert_samples_match_model(result, *, mag_ok=True):
@@ -73,16 +89,20 @@ def test_bring_up_sequence_and_nine_axis_samples(vcd):
     model = result.model
     ak = model.aux_devices[A.I2C_ADDRESS]
     assert [(a, v) for _, a, v in model.writes] == expected_writes(setup.config)
-    assert [(a, v) for _, a, v in ak.writes] == AK_WRITES
+    assert [(a, v) for _, a, v in ak.writes] == ak_writes(setup.config)
     assert [(reg, rw) for _, slot, _, reg, rw, _ in model.aux_log if slot == 4] == \
         [(0x00, "r"), (0x0B, "w"), (0x0A, "w"), (0x10, "r"), (0x11, "r"), (0x12, "r"),
          (0x0A, "w"), (0x0A, "w")]
     assert model.resets == 1
     assert result.status == {"streaming": 1, "whoami_error": 0, "no_response": 0,
-                             "int_timeout": 0, "restarts": 0, "who_am_i": 0x71,
+                             "int_timeout": 0, "restarts": 0,
                              "mag_ok": 1, "mag_absent": 0, "mag_wia_error": 0,
                              "mag_stale": 0, "bad_burst": 0, "bus_timeout": 0,
-                             "bus_stuck": 0, "bus_arbitration": 0, "rate_error": 0}
+                             "bus_stuck": 0, "bus_arbitration": 0, "rate_error": 0,
+                             "self_test_fail": 0}
+    # the simulation leaves the self-tests out (``SimSetup.self_test``): nothing judged
+    assert result.who_am_i == 0x71
+    assert result.self_test == {"done": 0, "mag_done": 0, "fail": 0}
     assert_samples_match_model(result)
     # At 1 kHz against the AK8963's 100 Hz, about one sample in ten carries a new field.
     assert 2 <= sum(s["flags"]["mag_new"] for s in result.samples) <= 3
@@ -104,7 +124,7 @@ def test_configurations(config):
     # Keep the simulated sample period near 2,400 cycles whatever the output rate.
     setup = SimSetup(config=config, odr_scale=0.2 * config.output_data_rate / 1000)
     result = run_frontend(setup, n_samples=5)
-    assert [(a, v) for _, a, v in result.model.writes] == expected_writes(config)
+    assert [(a, v) for _, a, v in result.model.writes] == expected_writes(setup.config)
     assert_samples_match_model(result)
 
 
@@ -147,7 +167,7 @@ def test_magnetic_overflow_is_flagged():
 def test_mpu9255_who_am_i_accepted():
     setup = SimSetup()
     result = run_frontend(setup, n_samples=2, model=setup.model(who_am_i=0x73))
-    assert result.status["who_am_i"] == 0x73 and result.status["whoami_error"] == 0
+    assert result.who_am_i == 0x73 and result.status["whoami_error"] == 0
     assert_samples_match_model(result)
 
 
@@ -156,7 +176,7 @@ def test_wrong_who_am_i_sets_flag_and_retries():
     model = setup.model(who_am_i=0x68)
     result = run_frontend(setup, model=model, until=lambda st: st["restarts"] >= 2)
     assert result.status["whoami_error"] == 1 and result.status["no_response"] == 0
-    assert result.status["who_am_i"] == 0x68 and result.status["streaming"] == 0
+    assert result.who_am_i == 0x68 and result.status["streaming"] == 0
     assert result.samples == []
     assert model.resets >= 2                     # each retry starts from a fresh H_RESET
     assert model.violations == []
@@ -168,7 +188,7 @@ def test_unplugged_sensor_gives_flags_not_a_hang(level, value):
     result = run_frontend(setup, stuck_miso=level, until=lambda st: st["restarts"] >= 2)
     assert result.status["restarts"] >= 2
     assert result.status["no_response"] == 1 and result.status["whoami_error"] == 1
-    assert result.status["who_am_i"] == value
+    assert result.who_am_i == value
 
 
 def test_missing_interrupt_times_out_and_restarts():
@@ -252,8 +272,55 @@ def test_a_part_slower_to_reset_than_its_datasheet_comes_up(wiring, slower):
     attempts = sum(power_up + (reset << min(k, BACKOFF_MAX_SHIFT)) for k in range(4))
     period = setup.sample_period_s * setup.clk_freq
     result = run_frontend(setup, model=model, n_samples=3,
-                          max_cycles=int(attempts + 20 * period + 20_000))
+                          max_cycles=int(attempts + setup.self_test_cycles() + 20 * period +
+                                         20_000))
     assert len(result.samples) == 3 and result.status["streaming"] == 1
     assert 1 <= result.status["restarts"] <= BACKOFF_MAX_SHIFT + 1
     assert {v.kind for v in model.violations} <= {"access during start-up"}
     assert all(v.kind == "access during start-up" for v in getattr(result.bus, "violations", []))
+
+
+def self_test_setup(wiring):
+    """The self-tests on a 200 Hz part at a 4 MHz clock, times scaled as the fault tests'."""
+    from mpu9250_ahrs.sim.faults import catalogue_setup
+    return catalogue_setup(wiring, self_test=True)
+
+
+@pytest.mark.parametrize("wiring", ["spi", "i2c"])
+def test_self_test_passes_on_a_good_part(wiring):
+    """Issue #25: both parts' self-tests at bring-up, with the writes they take, on the
+    models' good parts: all nine axes pass; the samples after it are the configured ones."""
+    setup = self_test_setup(wiring)
+    result = run_frontend(setup, n_samples=3)
+    assert result.self_test == {"done": 1, "mag_done": 1, "fail": 0}
+    assert result.status["self_test_fail"] == 0 and result.status["streaming"] == 1
+    model = result.model
+    assert len(model.self_test_reads) == 2 * setup.config.self_test_samples
+    ak = model.aux_devices[A.I2C_ADDRESS]
+    assert [(a, v) for _, a, v in ak.writes] == ak_writes(setup.config)
+    assert model.violations == [] and ak.violations == []
+    if wiring == "spi":     # (the I2C wiring's samples: tests/hdl/test_i2c_wiring.py)
+        assert [(a, v) for _, a, v in model.writes] == expected_writes(setup.config)
+        assert_samples_match_model(result)
+
+
+AXES_CASES = [("accel", i) for i in range(3)] + [("gyro", i) for i in range(3)] + \
+    [("mag", i) for i in range(3)]
+
+
+@pytest.mark.parametrize("part,axis", AXES_CASES, ids=[f"{p}{a}" for p, a in AXES_CASES])
+def test_self_test_finds_each_failing_axis(part, axis):
+    """Each single axis without a self-test response (a damaged axis) is the one flagged,
+    and the design streams on (SPI wiring; the fault catalogue runs both)."""
+    setup = self_test_setup("spi")
+    model = setup.model()
+    if part == "mag":
+        # X and Y must read within ±200 (a field near 0), Z about -1500: out of the limits
+        model.aux_devices[A.I2C_ADDRESS].self_test_field[axis] = 1000 if axis < 2 else 0
+        bit = 6 + axis
+    else:
+        model.self_test_gain[axis + 3 * (part == "gyro")] = 0.0
+        bit = axis + 3 * (part == "gyro")
+    result = run_frontend(setup, n_samples=2, model=model)
+    assert result.self_test == {"done": 1, "mag_done": 1, "fail": 1 << bit}
+    assert result.status["self_test_fail"] == 1 << bit and len(result.samples) == 2

@@ -161,7 +161,7 @@ def test_core_end_to_end_over_uart(vcd):
         i = s["counter"]
         assert s["flags"]["overrun"] == 0 and s["skipped"] == 0
         assert sample_matches(s, reads[i])
-        assert frame["status"]["streaming"] == 1 and frame["status"]["who_am_i"] == 0x71
+        assert frame["status"]["streaming"] == 1 and frame["status"]["self_test_fail"] == 0
         c = frame["counters"]
         assert c["filtered"] == i + 1 and c["lost"] == 0
         assert c["not_sent"] + k + 1 == c["filtered"]
@@ -217,14 +217,14 @@ SENSOR_FRAME_FIELDS = [
     ("data_ready", 1), ("overrun", 1), ("mag_valid", 1), ("mag_overflow", 1), ("mag_new", 1),
     ("mag_dor", 1), ("resumed", 1), ("skipped", 4),
     ("streaming", 1), ("whoami_error", 1), ("no_response", 1), ("int_timeout", 1),
-    ("restarts", 8), ("who_am_i", 8), ("mag_ok", 1), ("mag_absent", 1), ("mag_wia_error", 1),
+    ("restarts", 7), ("mag_ok", 1), ("mag_absent", 1), ("mag_wia_error", 1),
     ("mag_stale", 1), ("bad_burst", 1), ("bus_timeout", 1), ("bus_stuck", 1),
-    ("bus_arbitration", 1),
+    ("bus_arbitration", 1), ("rate_error", 1), ("self_test_fail", 9),
 ]
 KNOWN = {"accel0": 1, "accel1": -2, "accel2": 0x3FF, "temp": 0x1234, "gyro0": -1, "gyro1": 0,
          "gyro2": 32767, "mag0": -32768, "mag1": 5, "mag2": 6, "counter": 0x01020304,
          "data_ready": 1, "mag_valid": 1, "mag_new": 1, "skipped": 2, "streaming": 1,
-         "restarts": 3, "who_am_i": 0x71, "mag_ok": 1, "bad_burst": 1}
+         "restarts": 3, "mag_ok": 1, "bad_burst": 1, "self_test_fail": 0x010}
 def known_frame():
     """The frame written out in the frame format page (``hdl/FRAMES.md``)."""
     from pathlib import Path
@@ -261,8 +261,8 @@ def test_sensor_frame_known_answer():
     frame = {"sample": {"accel": [1, -2, 0x3FF], "temp": 0x1234, "gyro": [-1, 0, 32767],
                         "mag": [-32768, 5, 6], "counter": 0x01020304, "skipped": 2,
                         "flags": {"data_ready": 1, "mag_valid": 1, "mag_new": 1}},
-             "status": {"streaming": 1, "restarts": 3, "who_am_i": 0x71, "mag_ok": 1,
-                        "bad_burst": 1}}
+             "status": {"streaming": 1, "restarts": 3, "mag_ok": 1, "bad_burst": 1,
+                        "self_test_fail": 0x010}}
     dut = TelemetryFramer()
     out = []
 
@@ -284,4 +284,4 @@ def test_sensor_frame_known_answer():
     assert bytes(out) == KNOWN_FRAME
     (ftype, fields), = decode_frames(KNOWN_FRAME, strict=True)
     assert ftype == 0x01 and fields["sample"]["counter"] == 0x01020304
-    assert fields["sample"]["mag"] == [-32768, 5, 6] and fields["status"]["who_am_i"] == 0x71
+    assert fields["sample"]["mag"] == [-32768, 5, 6] and fields["status"]["self_test_fail"] == 0x10

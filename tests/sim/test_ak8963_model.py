@@ -135,3 +135,21 @@ def test_asa_adjustment_formula():
     assert A.asa_adjust(1000, 128) == 1000
     assert A.asa_adjust(1000, 255) == pytest.approx(1496.09375)
     assert A.asa_adjust(1000, 0) == 500
+
+
+def test_self_test_measures_its_own_field_once():
+    """Self-test mode with ASTC.SELF: one measurement of the generator's field (not the
+    source's), then power-down; without SELF it measures the field as a single one would."""
+    m = AK8963Model(source=constant_field(7, 8, 9), self_test_field=(30, -20, -1500))
+    m.write_reg(A.ASTC, A.ASTC_SELF)
+    m.write_reg(A.CNTL1, A.CNTL1_BIT_16 | A.MODE_SELF_TEST)
+    at(m, 0.0073)
+    assert m.mode == A.MODE_POWER_DOWN
+    data = read(m, A.ST1, 8)
+    assert data[0] == A.ST1_DRDY
+    assert [int.from_bytes(bytes(data[1 + 2 * i:3 + 2 * i]), "little", signed=True)
+            for i in range(3)] == [30, -20, -1500]
+    m.write_reg(A.ASTC, 0)
+    at(m, 0.0080).write_reg(A.CNTL1, A.CNTL1_BIT_16 | A.MODE_SELF_TEST)
+    at(m, 0.0160)
+    assert read(m, A.HXL, 2) == [7, 0] and kinds(m) == []

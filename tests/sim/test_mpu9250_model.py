@@ -209,7 +209,8 @@ def test_burst_is_atomic():
     data = host.read(R.ACCEL_XOUT_H, R.SENSOR_BYTES, half=0.5e-6)
     assert data == before.to_bytes()
     assert m.samples[-1] != before               # the new sample landed after CS rose
-    assert m.sample_reads == [m.samples.index(before)]
+    # a burst from ACCEL_XOUT_H is the self-test's (a sample read starts at INT_STATUS)
+    assert m.self_test_reads == [m.samples.index(before)] and m.sample_reads == []
 
 
 def test_sample_during_burst_raises_int_for_the_next_read():
@@ -389,3 +390,20 @@ def test_wait_for_es_delays_data_ready_by_the_transfer():
     assert len(m.samples) == n
     host.wait(10e-6)
     assert len(m.samples) == n + 1
+
+
+def test_self_test_response_and_factory_codes():
+    """SELF_TEST_* hold the factory codes (through a reset); an axis with its self-test bit
+    reads its factory response, halved per full-scale step, times its gain (0: a dead axis)."""
+    from mpu9250_ahrs.hdl.self_test import otp
+    codes = (90, 94, 102, 112, 115, 108)
+    m = MPU9250Model(self_test_codes=codes, self_test_gain=(1, 1, 1, 1, 0, 1))
+    base = SensorSample(accel=(10, 20, 30), gyro=(-5, 0, 5))
+    m.regs[R.GYRO_CONFIG], m.regs[R.ACCEL_CONFIG] = 0xE0, 0xE0 | 0x08     # accel at ±4 g
+    got = m._self_test_response(base)
+    assert got.accel == tuple(v + (otp(c) >> 1) for v, c in zip(base.accel, codes[:3]))
+    assert got.gyro == (-5 + otp(112), 0, 5 + otp(108))
+    m.regs[R.GYRO_CONFIG] = 0x40                                          # Y only
+    assert m._self_test_response(base).gyro == base.gyro               # Y's gain is 0
+    assert bytes(m.regs[R.SELF_TEST_X_ACCEL:R.SELF_TEST_X_ACCEL + 3]) == bytes(codes[:3])
+    assert bytes(m.regs[R.SELF_TEST_X_GYRO:R.SELF_TEST_X_GYRO + 3]) == bytes(codes[3:])
