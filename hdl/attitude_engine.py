@@ -234,14 +234,21 @@ class AttitudeEngine(wiring.Component):
                         m.d.comb += [w_en.eq(1), w_addr.eq(x.d), w_data.eq(alu.result),
                                      w_sat.eq(alu.saturated)]
                     with m.Case(Op.MUL):
+                        # the write-back comes two cycles after the issue: the MUL stays
+                        # until then, unless the next instruction is a MUL (it writes nothing
+                        # in its issue cycle) that reads no result still to be written (its
+                        # operands are taken as it goes on)
+                        def reads(addr):
+                            return (o.a == addr) | (o.b == addr)
+                        overlap = ovalid & (o.op == Op.MUL) & ~(x.wb & reads(x.d))
                         with m.If(phase == 0):
                             m.d.comb += mac.issue.eq(1)
-                            # overlap the write-back with the next instruction if it is a MUL
-                            # (writes nothing in its issue cycle) that does not read the result
-                            reads_d = x.wb & ((o.a == x.d) | (o.b == x.d))
-                            with m.If(~(ovalid & (o.op == Op.MUL) & ~reads_d)):
+                            with m.If(~overlap | (mac.wb_next & reads(mac.wb_next_addr))):
                                 m.d.comb += advance.eq(0)
                                 m.d.sync += phase.eq(1)
+                        with m.Elif((phase == 1) & ~overlap):
+                            m.d.comb += advance.eq(0)
+                            m.d.sync += phase.eq(2)
                         with m.Else():
                             m.d.sync += phase.eq(0)
                     with m.Case(Op.DIV):

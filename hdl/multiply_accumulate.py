@@ -14,11 +14,11 @@ __all__ = ["MultiplyAccumulate"]
 
 
 class MultiplyAccumulate(wiring.Component):
-    """A MUL instruction in two steps: ``issue`` registers the product a·b (inverted when the
+    """A MUL instruction in three steps: ``issue`` registers the product a·b (inverted when the
     instruction subtracts, so that each accumulator bit is one LUT4) and the instruction; the
     next cycle (``pending``) adds it to the accumulator — or to the rounding constant 2^(s−1)
-    when the instruction starts a sum — and, if the instruction writes back, offers
-    ``acc >> s`` saturated to 32 bits (= rshift_round of the exact sum, then sat32).
+    when the instruction starts a sum —; the cycle after, if the instruction writes back, it
+    offers ``acc >> s`` saturated to 32 bits (= rshift_round of the exact sum, then sat32).
 
     Parameters
         ``multiplier``: the 32×32 ``Multiplier`` (a blackbox one for ``report``).
@@ -28,11 +28,15 @@ class MultiplyAccumulate(wiring.Component):
             ``MUL_SHIFTS`` index, ``acc``, ``neg``, ``wb``, ``d``).
         ``issue`` (in): take a MUL now.
         ``pending`` (out): a product is being accumulated this cycle.
-        ``wb_en`` (out): ``pending`` and the instruction writes back; ``wb_addr``, ``wb_data``
-            (out, signed 32), ``wb_saturated`` (out): the register write.
-    Latency 1: issue in cycle n, write-back in cycle n + 1. Throughput one MUL per cycle (an
-    issue in the write-back cycle of the previous one overlaps it), unless the next MUL reads
-    the result: the engine then waits that cycle.
+        ``wb_next``, ``wb_next_addr`` (out): that product's instruction writes back, next
+            cycle, to this register.
+        ``wb_en`` (out): a write-back this cycle (the MUL issued two cycles ago writes back);
+            ``wb_addr``, ``wb_data`` (out, signed 32), ``wb_saturated`` (out): the register
+            write.
+    Latency 2: issue in cycle n, the sum in n + 1, the write-back (the sum shifted and
+    saturated, from the accumulator register) in n + 2. Throughput one MUL per cycle (a MUL
+    issued while earlier ones accumulate and write back overlaps them), unless the next MUL
+    reads a result not yet written: the engine then waits.
     """
     a: In(signed(32))
     b: In(signed(32))
@@ -43,6 +47,8 @@ class MultiplyAccumulate(wiring.Component):
     wb_addr: Out(REG_BITS)
     wb_data: Out(signed(32))
     wb_saturated: Out(1)
+    wb_next: Out(1)
+    wb_next_addr: Out(REG_BITS)
 
     def __init__(self, multiplier=None):
         self.multiplier = Multiplier() if multiplier is None else multiplier
@@ -56,7 +62,8 @@ class MultiplyAccumulate(wiring.Component):
         acc = Signal(signed(66), reset_less=True)
         acc_next = Signal(signed(66))
         rounding = Signal(signed(66))
-        ins = Signal(Instr, reset_less=True)
+        ins = Signal(Instr, reset_less=True)                # the MUL being accumulated
+        ins_wb = Signal(Instr, reset_less=True)             # the MUL being written back
         m.d.comb += [mult.a.eq(self.a), mult.b.eq(self.b)]
         with m.Switch(ins.sh):
             for code, s in enumerate(MUL_SHIFTS):
@@ -64,15 +71,18 @@ class MultiplyAccumulate(wiring.Component):
                     m.d.comb += rounding.eq(1 << (s - 1))
         # ± product with one adder: base + (~product if neg) + neg
         m.d.comb += acc_next.eq(Mux(ins.acc, acc, rounding) + product + ins.neg)
-        # acc >> s saturated to 32 bits, selected per shift (each a slice of the accumulator)
-        with m.Switch(ins.sh):
+        # acc >> s saturated to 32 bits, selected per shift (each a slice of the accumulator),
+        # from the accumulator register: the sum and the saturation are in separate cycles
+        with m.Switch(ins_wb.sh):
             for code, s in enumerate(MUL_SHIFTS):
                 with m.Case(code):
-                    v32, f32 = saturate(m, acc_next[s:].as_signed(), 32)
+                    v32, f32 = saturate(m, acc[s:].as_signed(), 32)
                     m.d.comb += [self.wb_data.eq(v32), self.wb_saturated.eq(f32)]
-        m.d.comb += [self.wb_en.eq(self.pending & ins.wb), self.wb_addr.eq(ins.d)]
+        m.d.comb += [self.wb_addr.eq(ins_wb.d),
+                     self.wb_next.eq(self.pending & ins.wb), self.wb_next_addr.eq(ins.d)]
+        m.d.sync += self.wb_en.eq(self.pending & ins.wb)
         with m.If(self.pending):
-            m.d.sync += [acc.eq(acc_next), self.pending.eq(0)]
+            m.d.sync += [acc.eq(acc_next), ins_wb.eq(ins), self.pending.eq(0)]
         with m.If(self.issue):
             m.d.sync += [product.eq(mult.p ^ self.ins.neg.replicate(64)), ins.eq(self.ins),
                          self.pending.eq(1)]

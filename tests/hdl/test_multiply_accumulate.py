@@ -1,5 +1,6 @@
 """The multiply-accumulate unit against ``reference.fixed_point.mac``: chains of products
-issued back to back, every shift, subtracted terms, extremes that saturate."""
+issued back to back, every shift, subtracted terms, extremes that saturate; the write-back two
+cycles after the last issue."""
 
 import numpy as np
 from amaranth.sim import Simulator
@@ -35,14 +36,18 @@ def test_chains_against_the_reference():
                                   "wb": last, "d": 0x42 if last else 0})
                 ctx.set(dut.issue, 1)
                 await ctx.tick()
-                # the previous term is being accumulated now, and writes nothing
-                assert ctx.get(dut.pending) and (last or not ctx.get(dut.wb_en))
+                # the term is being accumulated now; only the last will write back, next cycle
+                assert ctx.get(dut.pending) and ctx.get(dut.wb_next) == last
+                assert not ctx.get(dut.wb_en)
             ctx.set(dut.issue, 0)
+            await ctx.tick()
+            # latency 2: the chain's sum, shifted and saturated, two cycles after its last issue
             assert ctx.get(dut.wb_en) and ctx.get(dut.wb_addr) == 0x42
             got = (ctx.get(dut.wb_data), bool(ctx.get(dut.wb_saturated)))
             assert got == (want, st.saturated), (terms, shift)
-            await ctx.tick()
             assert not ctx.get(dut.pending)
+            await ctx.tick()
+            assert not ctx.get(dut.wb_en)
     sim = Simulator(dut)
     sim.add_clock(1e-6)
     sim.add_testbench(testbench)
