@@ -9,12 +9,15 @@ filters, selected at run time: the flagship quaternion filter (the reset default
 Kalman filter and the complementary filter.
 
 Pipeline: fetch (instruction ROM, synchronous) → read (register file, two synchronous read
-ports, transparent to the write port) → operands registered → execute and write back. The
-operand registers keep the register file's clock-to-output time and the execute stage's
-adders in separate cycles (the routed critical path of ``report --timing`` ran through both).
+ports, transparent to the write port) → operands registered → execute → write back (the
+register file written from registers a cycle later). The operand and write registers keep the
+block RAM's clock-to-output and input set-up times out of the execute stage's adders (the
+routed critical path of ``report --timing`` ran through both); the MAC adds and saturates in
+separate cycles (``hdl/multiply_accumulate.py``).
 A result is visible to the next instruction without stalls (forwarded into the operand
-registers); multi-cycle operations (MUL 2, DIV 34, VEC/ROT 19 cycles) hold the pipeline; a
-taken branch costs three bubbles.
+registers); multi-cycle operations (MUL 3, or 1 to 2 when the next is a MUL that reads none
+of the results still to come; DIV 34, VEC/ROT 19 cycles) hold the pipeline; a taken branch
+costs three bubbles.
 """
 
 import math
@@ -199,7 +202,14 @@ class AttitudeEngine(wiring.Component):
         # -- the write port: loader, host, or the execute stage (MAC write-back, then ALU,
         # DIV, CORDIC: never two in one cycle, the sequencer sees to it) -----------------------
         w_en, w_addr, w_data, w_sat = Signal(), Signal(REG_BITS), Signal(signed(32)), Signal()
-        m.d.comb += [rf.w_en.eq(w_en), rf.w_addr.eq(w_addr), rf.w_data.eq(w_data)]
+        # the register file is written a cycle later, from registers: the execute stage's
+        # multiplexers end at flip-flops, not at the block RAM's data inputs (a read at the same
+        # edge as that write sees it: the register file is transparent)
+        wr_en = Signal()
+        wr_addr = Signal(REG_BITS, reset_less=True)
+        wr_data = Signal(signed(32), reset_less=True)
+        m.d.sync += [wr_en.eq(w_en), wr_addr.eq(w_addr), wr_data.eq(w_data)]
+        m.d.comb += [rf.w_en.eq(wr_en), rf.w_addr.eq(wr_addr), rf.w_data.eq(wr_data)]
         with m.If(host.w_en):
             m.d.comb += [w_en.eq(1), w_addr.eq(host.w_addr), w_data.eq(host.w_data)]
         # the result is snooped from the register writes (no copy at the end of an update)
@@ -207,7 +217,8 @@ class AttitudeEngine(wiring.Component):
         snooped += [(out.angles[i], f"THETA{i}") for i in range(3)]
         snooped += [(out.bias[i], f"BIAS{i}") for i in range(3)]
         # the operands of ``o``, as they are now: the register file's read when it came in,
-        # a write since (``o_hold_*``), or the write in this very cycle (forwarded)
+        # a write since or in the cycle it came in (which reached the register file after
+        # its read: ``o_hold_*``), or the write in this very cycle (forwarded)
         o_hold_a = Signal(signed(32), reset_less=True)
         o_hold_b = Signal(signed(32), reset_less=True)
         o_held_a, o_held_b = Signal(), Signal()
@@ -285,7 +296,9 @@ class AttitudeEngine(wiring.Component):
             with m.If(advance):
                 m.d.sync += [
                     x.eq(o), xvalid.eq(ovalid & ~flush), xa.eq(o_a), xb.eq(o_b),
-                    o.eq(rom.data), ovalid.eq(rvalid & ~flush), o_held_a.eq(0), o_held_b.eq(0),
+                    o.eq(rom.data), ovalid.eq(rvalid & ~flush),
+                    o_held_a.eq(w_en & (w_addr == rinstr.a)), o_hold_a.eq(w_data),
+                    o_held_b.eq(w_en & (w_addr == rinstr.b)), o_hold_b.eq(w_data),
                     fetch_pc.eq(Mux(flush, branch_to, fetch_pc + 1)), rvalid.eq(~flush),
                 ]
             with m.Else():

@@ -12,15 +12,16 @@ NOP   nothing                                                      1
 ADD   d = a + b                                                    1
 SUB   d = a − b                                                    1
 OR    d = a | b   (zero tests)                                     1
-MUL   acc = (acc if ``acc`` else 2^(s−1)) ± a·b, s = MUL_SHIFTS[sh]  2, or 1 if a MUL
-                                                                   not reading d follows
+MUL   acc = (acc if ``acc`` else 2^(s−1)) ± a·b, s = MUL_SHIFTS[sh]  3; 1 (or 2) when a
+                                                                   MUL follows that reads no
+                                                                   d still to be written
       (exact, 66 bits: the rounding constant goes in first);
       if ``wb``: d = acc >> s  (= rshift_round of the sum)
 DIV   d = div_q24(a, b): ⌊a·2²⁴/b⌋, 0 if b ≤ 0                     34
 VEC   CORDIC vectoring of (x = a, y = b): d = atan2 (BAM32),       19
       d+1 = magnitude · K
 ROT   CORDIC rotation of the angle in a: d = cos, d+1 = sin (Q1.30)  19
-BR    if condition (``cond``, inverted by ``inv``): go to target   1, or 3 when taken
+BR    if condition (``cond``, inverted by ``inv``): go to target   1, or 4 when taken
 SETF  set result flag ``sh`` (``Flag``)                          1
 END   the sample is done: results out                              1
 ====  ===========================================================  ======================

@@ -5,7 +5,6 @@ from amaranth import *
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
-from .alu import saturate
 from .attitude_isa import MUL_SHIFTS, REG_BITS, Instr
 from .multiplier import Multiplier
 
@@ -71,18 +70,30 @@ class MultiplyAccumulate(wiring.Component):
                     m.d.comb += rounding.eq(1 << (s - 1))
         # ± product with one adder: base + (~product if neg) + neg
         m.d.comb += acc_next.eq(Mux(ins.acc, acc, rounding) + product + ins.neg)
-        # acc >> s saturated to 32 bits, selected per shift (each a slice of the accumulator),
-        # from the accumulator register: the sum and the saturation are in separate cycles
+        # acc >> s saturated to 32 bits, selected per shift (each a slice of the accumulator):
+        # whether it fits (the bits from s + 31 up all equal) is found with the sum and
+        # registered; the write-back then only selects the slice or the limit
+        fits = Signal()
+        wb_fits = Signal(reset_less=True)
+        wb_slice = Signal(signed(32))
+        with m.Switch(ins.sh):
+            for code, s in enumerate(MUL_SHIFTS):
+                with m.Case(code):
+                    top = acc_next[s + 31:]
+                    m.d.comb += fits.eq((top == 0) | (top == (1 << len(top)) - 1))
         with m.Switch(ins_wb.sh):
             for code, s in enumerate(MUL_SHIFTS):
                 with m.Case(code):
-                    v32, f32 = saturate(m, acc[s:].as_signed(), 32)
-                    m.d.comb += [self.wb_data.eq(v32), self.wb_saturated.eq(f32)]
+                    m.d.comb += wb_slice.eq(acc[s:s + 32])
+        limit = Mux(acc[-1], C(-(1 << 31), signed(32)), C((1 << 31) - 1, signed(32)))
+        m.d.comb += [self.wb_data.eq(Mux(wb_fits, wb_slice, limit)),
+                     self.wb_saturated.eq(~wb_fits)]
         m.d.comb += [self.wb_addr.eq(ins_wb.d),
                      self.wb_next.eq(self.pending & ins.wb), self.wb_next_addr.eq(ins.d)]
         m.d.sync += self.wb_en.eq(self.pending & ins.wb)
         with m.If(self.pending):
-            m.d.sync += [acc.eq(acc_next), ins_wb.eq(ins), self.pending.eq(0)]
+            m.d.sync += [acc.eq(acc_next), ins_wb.eq(ins), wb_fits.eq(fits),
+                         self.pending.eq(0)]
         with m.If(self.issue):
             m.d.sync += [product.eq(mult.p ^ self.ins.neg.replicate(64)), ins.eq(self.ins),
                          self.pending.eq(1)]
