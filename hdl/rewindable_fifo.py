@@ -73,7 +73,10 @@ class RewindableFIFO(wiring.Component):
         # ``read`` lies between ``keep`` and ``write``, so this is ``read != write``; written
         # as a distance it says so to an induction proof, which starts anywhere
         bypass, bypass_data = Signal(), Signal(8)
-        m.d.comb += [self.r_stream.valid.eq((read - keep)[:bits] < stored),
+        # valid, registered: the same test on the pointers' next values (its subtractions and
+        # comparison are then not in the path from the consumer's ready to the RAM's address)
+        valid = Signal()
+        m.d.comb += [self.r_stream.valid.eq(valid),
                      self.r_stream.payload.eq(Mux(bypass, bypass_data, ram.r_data))]
         take = self.r_stream.valid & self.r_stream.ready
         read_next = Signal(bits)
@@ -85,7 +88,8 @@ class RewindableFIFO(wiring.Component):
             m.d.comb += keep_next.eq(read)
         with m.Elif(self.release):
             m.d.comb += keep_next.eq(read_next)
-        m.d.sync += [read.eq(read_next), keep.eq(keep_next)]
+        m.d.sync += [read.eq(read_next), keep.eq(keep_next),
+                     valid.eq((read_next - keep_next)[:bits] < (write + put - keep_next)[:bits])]
         # the RAM reads the old word at an address written in the same cycle: the byte written
         # there is taken from a register instead
         m.d.comb += [ram.r_en.eq(1), ram.r_addr.eq(read_next[:bits - 1])]

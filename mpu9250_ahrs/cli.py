@@ -108,8 +108,10 @@ def check_rates(config, clk_freq, args, *, out=None):
         raise ValueError(
             f"{budget['sample_rate_hz']:g} Hz is more than this design filters at "
             f"{clk_freq / 1e6:g} MHz with {config.wiring.upper()} wiring: a sample needs "
-            f"{budget['cycles_per_sample']} cycles (read {budget['read_cycles']} + update "
-            f"{budget['update_cycles']}), at most {budget['max_sample_rate_hz']:.0f} Hz")
+            f"{budget['cycles_per_sample']} cycles, the longer of its read "
+            f"({budget['read_cycles']}) and the engine's update ({budget['update_cycles']}), "
+            f"which overlap (the next sample is read while the last is filtered): at most "
+            f"{budget['max_sample_rate_hz']:.0f} Hz")
     if budget["telemetry_divider"] > 1:
         print(f"mpu9250-ahrs: warning: telemetry sends one result in "
               f"{budget['telemetry_divider']} ({budget['frames_per_s']:.0f} of "

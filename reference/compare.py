@@ -22,7 +22,7 @@ import numpy as np
 from .frames import matrix_to_quat, quat_mul
 
 
-__all__ = ["external_filters"]
+__all__ = ["external_filters", "missing_external_filters"]
 
 _NWU_TO_ENU = matrix_to_quat(np.array([[0.0, -1, 0], [1, 0, 0], [0, 0, 1]]))
 
@@ -62,16 +62,24 @@ def _imufusion(g, a, m, rate):
     return out
 
 
+EXTERNAL = (("vqf", "vqf", _vqf), ("ahrs.Madgwick", "ahrs", _ahrs_madgwick),
+            ("ahrs.Mahony", "ahrs", _ahrs_mahony), ("imufusion", "imufusion", _imufusion))
+
+
+def _installed(module):
+    try:
+        __import__(module)
+    except ImportError:
+        return False
+    return True
+
+
 def external_filters():
     """name -> function(gyr rad/s, acc m/s², mag µT, rate Hz) -> body->ENU quaternions, for the
     libraries that are installed."""
-    found = {}
-    for name, module, fn in (("vqf", "vqf", _vqf), ("ahrs.Madgwick", "ahrs", _ahrs_madgwick),
-                             ("ahrs.Mahony", "ahrs", _ahrs_mahony),
-                             ("imufusion", "imufusion", _imufusion)):
-        try:
-            __import__(module)
-        except ImportError:
-            continue
-        found[name] = fn
-    return found
+    return {name: fn for name, module, fn in EXTERNAL if _installed(module)}
+
+
+def missing_external_filters():
+    """The rows ``external_filters`` leaves out: their libraries are not installed."""
+    return [name for name, module, fn in EXTERNAL if not _installed(module)]

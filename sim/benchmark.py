@@ -21,7 +21,7 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 
 from ..reference.recording import Scales, load_broad, quantise, to_units
-from ..reference.compare import external_filters
+from ..reference.compare import external_filters, missing_external_filters
 from ..reference.evaluate import run_filter, run_fixed, score
 from ..reference.kalman import KalmanParams
 
@@ -133,6 +133,11 @@ def main(argv=None):
                    help="skip the (slow) fixed-point and gateware rows")
     p.add_argument("--jobs", type=int, default=1)
     args = p.parse_args(argv)
+    missing = missing_external_filters()
+    if missing:
+        # said at the start, not left for the reader to notice the rows are gone
+        print(f"benchmark: note: no rows for {', '.join(missing)}: their libraries are not "
+              f"installed (pip install -e \".[bench]\")", file=sys.stderr)
     try:
         with ProcessPoolExecutor(args.jobs) as pool:
             results = dict(pool.map(run_trial, args.files,

@@ -12,6 +12,7 @@ read back, and saved as JSON that ``build --calibration FILE`` bakes in as reset
 """
 
 import json
+import os
 import sys
 from dataclasses import dataclass
 
@@ -156,6 +157,9 @@ def calibrate(link, *, operator=human_operator, amounts=Amounts(), accel_fs_g=16
                        "mag_spread_percent": round(fit.spread_percent, 3),
                        "mag_fields": len(raw), "mag_coverage": round(coverage, 3)},
         }
+        # the fit is kept before the board is touched: a write that fails loses nothing
+        if out_json:
+            _save(result, out_json)
         # written (and read back) while the short raw frames still go out: a reply then waits
         # behind a 36-byte frame at most, not a 92-byte one
         registers = calibration_registers(_fixed(result))
@@ -170,9 +174,17 @@ def calibrate(link, *, operator=human_operator, amounts=Amounts(), accel_fs_g=16
         link.command("raw", value=0)
     result["registers"] = registers
     if out_json:
-        with open(out_json, "w") as f:
-            json.dump(result, f, indent=2)
+        _save(result, out_json)
     return result
+
+
+def _save(result, path):
+    """``result`` as JSON at ``path``, atomically: a temporary file beside it, then renamed
+    (an interrupted run leaves the old file or the new one, never half of one)."""
+    tmp = f"{path}.tmp"
+    with open(tmp, "w") as f:
+        json.dump(result, f, indent=2)
+    os.replace(tmp, path)
 
 
 def _fixed(result):

@@ -11,7 +11,11 @@ def formal(request, tmp_path):
     def run(harness, *, name, mode, depth, expect="pass", **kwargs):
         result = check(harness, name=name, mode=mode, depth=depth,
                        workdir=str(tmp_path / name), **kwargs)
-        request.node.user_properties.append(("formal", result.summary()))
+        # a check built to fail (a fault put in, to show the properties bite) says so
+        label = "" if expect == "pass" else (
+            " (expected: a fault was put in)" if not result.passed else " (a fault was put in, "
+            "and it was NOT found)")
+        request.node.user_properties.append(("formal", result.summary() + label))
         if expect == "pass":
             assert result.passed, f"{result.summary()}; in {result.workdir}:\n{result.log}"
         else:
