@@ -76,6 +76,7 @@ class Link:
                 if types is None or frame[0] in types:
                     count += 1
                     last = self.clock()
+                    self._noise_at_frame = self.stats.skipped_bytes
                     if n is not None and count >= n:
                         self.backlog += got[k + 1:]
                         yield frame
@@ -85,6 +86,11 @@ class Link:
                 raise BoardError(self._silence(timeout))
 
     def _silence(self, timeout):
+        noise = self.stats.skipped_bytes - getattr(self, "_noise_at_frame", 0)
+        if self.stats.frames and noise:
+            # a frame or two at first (bytes sent before the baud rate changed), noise since
+            return (f"{self.port}: no valid frame for {timeout:g} s but {noise} bytes of "
+                    f"noise since the last: wrong baud rate ({self.serial.baudrate})?")
         if self.stats.frames:
             return f"{self.port}: no frame for {timeout:g} s: the board stopped sending"
         if self.stats.skipped_bytes or self.stats.crc_errors:
@@ -176,4 +182,8 @@ def open_link(port, baud=921_600, *, timeout=1.0, board_kwargs=None):
         raise BoardError(f"{port}: cannot open: {text}") from None
     except ValueError as e:
         raise BoardError(f"{port}: {e}") from None
+    try:
+        ser.reset_input_buffer()        # bytes from before this link (another baud rate, say)
+    except (OSError, serial.SerialException):
+        pass
     return Link(ser, board=board, own_board=own, timeout=timeout)
