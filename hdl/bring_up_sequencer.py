@@ -15,13 +15,10 @@ from amaranth.lib.wiring import In, Out
 from . import ak8963_regs as A
 from . import mpu9250_regs as R
 from .register_port import RegisterPortSignature
-from .self_test import CODE_INDEX, MAG_INDEX, SUM_INDEX
+from .self_test import CODE_INDEX, MAG_INDEX, SUM_INDEX, TestByte
 
 
-# the bytes of TEST steps, as ``SelfTest`` takes them
-TEST_LAYOUT = data.StructLayout({"valid": 1, "byte": 8, "index": 5, "subtract": 1, "first": 1})
-
-__all__ = ["TEST_LAYOUT", "Op", "Fail", "Step", "SelfTestWaits", "bring_up_program", "BringUpSequencer",
+__all__ = ["Op", "Fail", "Step", "SelfTestWaits", "bring_up_program", "BringUpSequencer",
            "BACKOFF_MAX_SHIFT"]
 
 
@@ -114,6 +111,12 @@ def bring_up_program(config, power_up_cycles, reset_cycles, mag_wait_cycles, sel
             else:
                 mag.append(Step(Op.WRITE, device=1, reg=reg, value=value, fail=Fail.MAG))
 
+        def slv0_reads(reg, n):
+            """SLV0 reads ``n`` bytes of the AK8963 from ``reg`` at every sample (SPI)."""
+            return [Step(Op.WRITE, reg=R.I2C_SLV_ADDR[0], value=R.I2C_SLV_RNW | A.I2C_ADDRESS),
+                    Step(Op.WRITE, reg=R.I2C_SLV_ADDR[0] + 1, value=reg),
+                    Step(Op.WRITE, reg=R.I2C_SLV_ADDR[0] + 2, value=R.I2C_SLV_EN | n)]
+
         def mag_read(op, reg, **kw):
             if spi:
                 mag.extend([Step(Op.WRITE, reg=R.I2C_SLV4_ADDR,
@@ -151,10 +154,7 @@ def bring_up_program(config, power_up_cycles, reset_cycles, mag_wait_cycles, sel
             mag_write(A.CNTL1, A.CNTL1_BIT_16 | A.MODE_SELF_TEST)
             test = dict(value=MAG_INDEX, length=7, fail=Fail.MAG)
             if spi:
-                mag += [Step(Op.WRITE, reg=R.I2C_SLV_ADDR[0], value=R.I2C_SLV_RNW | A.I2C_ADDRESS),
-                        Step(Op.WRITE, reg=R.I2C_SLV_ADDR[0] + 1, value=A.HXL),
-                        Step(Op.WRITE, reg=R.I2C_SLV_ADDR[0] + 2, value=R.I2C_SLV_EN | 7),
-                        Step(Op.WAIT, wait=self_test.mag),
+                mag += [*slv0_reads(A.HXL, 7), Step(Op.WAIT, wait=self_test.mag),
                         Step(Op.TEST, reg=R.EXT_SENS_DATA_00, **test)]
             else:
                 mag += [Step(Op.WAIT, wait=self_test.mag),
@@ -163,10 +163,7 @@ def bring_up_program(config, power_up_cycles, reset_cycles, mag_wait_cycles, sel
             mag.append(Step(Op.WAIT, wait=mag_wait_cycles))
         mag_write(A.CNTL1, A.CNTL1_BIT_16 | A.MODE_CONT_100HZ)
         if spi:
-            mag += [Step(Op.WRITE, reg=R.I2C_SLV_ADDR[0], value=R.I2C_SLV_RNW | A.I2C_ADDRESS),
-                    Step(Op.WRITE, reg=R.I2C_SLV_ADDR[0] + 1, value=A.ST1),
-                    Step(Op.WRITE, reg=R.I2C_SLV_ADDR[0] + 2,
-                         value=R.I2C_SLV_EN | A.SAMPLE_BYTES)]
+            mag += slv0_reads(A.ST1, A.SAMPLE_BYTES)
             if config.aux_every > 1:
                 mag += [Step(Op.WRITE, reg=R.I2C_SLV4_CTRL, value=config.aux_every - 1),
                         Step(Op.WRITE, reg=R.I2C_MST_DELAY_CTRL,
@@ -231,9 +228,8 @@ class BringUpSequencer(wiring.Component):
         ``whoami_error``, ``no_response``, ``who_am_i``, ``restarts`` (7, saturating),
         ``mag_ok``, ``mag_absent``, ``mag_wia_error`` (out): as ``DriverStatus`` has them.
         ``asa`` (out, 3 × 8): the AK8963's sensitivity adjustment, stored by STORE steps.
-        ``test`` (out): the bytes TEST steps read, for a ``SelfTest``: ``valid``, ``byte``,
-            ``index``, ``subtract``, ``first`` as its inputs; ``test_busy`` (in): its ``busy``
-            (a TEST step ends once it is low).
+        ``test`` (out, ``TestByte``): the bytes TEST steps read, for a ``SelfTest``;
+            ``test_busy`` (in): its ``busy`` (a TEST step ends once it is low).
 
     A step's command goes out in the cycle it is fetched; WRITE, CHECK, STORE and MARK take one
     command (or none), POLL repeats its read until the bit is set, a NACK or ``poll_cycles``;
@@ -256,7 +252,7 @@ class BringUpSequencer(wiring.Component):
             "restarts": Out(7), "mag_ok": Out(1), "mag_absent": Out(1),
             "mag_wia_error": Out(1),
             "asa": Out(data.ArrayLayout(8, 3)),
-            "test": Out(TEST_LAYOUT), "test_busy": In(1),
+            "test": Out(TestByte), "test_busy": In(1),
         })
 
     def elaborate(self, platform):

@@ -296,12 +296,8 @@ class MPU9250Driver(wiring.Component):
         status = self.status
         if cfg.self_test:
             m.submodules.self_test = st = self.self_test_block
-            m.d.comb += [st.valid.eq(seq.test.valid), st.byte.eq(seq.test.byte),
-                         st.index.eq(seq.test.index), st.subtract.eq(seq.test.subtract),
-                         st.first.eq(seq.test.first), st.asa.eq(seq.asa),
-                         seq.test_busy.eq(st.busy),
-                         self.self_test.done.eq(st.done), self.self_test.mag_done.eq(st.mag_done),
-                         self.self_test.fail.eq(st.fail), status.self_test_fail.eq(st.fail)]
+            m.d.comb += [st.i.eq(seq.test), st.asa.eq(seq.asa), seq.test_busy.eq(st.busy),
+                         self.self_test.eq(st.status), status.self_test_fail.eq(st.status.fail)]
         m.d.comb += [
             reader.int_pin.eq(self.int_pin),
             reader.enable.eq(seq.streaming), reader.start.eq(seq.started),

@@ -38,11 +38,13 @@ from amaranth import *
 from amaranth.lib import data, wiring
 from amaranth.lib.wiring import In, Out
 
+from .driver_status import SelfTestStatus
 from .memories import FrameRAM
 from .multiplier import BLACKBOX_NAME
 
 
-__all__ = ["otp", "mpu_axis_passes", "mag_axis_passes", "SelfTest", "AXES", "SUM_INDEX",
+__all__ = ["otp", "mpu_axis_passes", "mag_axis_passes", "SelfTest", "TestByte", "AXES",
+           "SUM_INDEX",
            "CODE_INDEX", "MAG_INDEX", "GYRO_CODE0", "ACCEL_CODE0", "MAG_LIMITS"]
 
 
@@ -52,6 +54,15 @@ SUM_INDEX, CODE_INDEX, MAG_INDEX = 0, 16, 24
 GYRO_CODE0 = 15719          # 2·|S| > 15719: |S| ≥ 7860 LSB (60 °/s at ±250 °/s)
 ACCEL_CODE0 = 7373          # 2·|S| > 7373 and < 22119: 3687 ≤ |S| ≤ 11059 (225, 675 mg at ±2 g)
 MAG_LIMITS = ((-200, 200), (-200, 200), (-3200, -800))     # H_adj, 16-bit mode
+
+
+class TestByte(data.Struct):
+    """A byte the bring-up sequencer's TEST steps read, for ``SelfTest`` (its docstring)."""
+    valid: 1
+    byte: 8
+    index: 5
+    subtract: 1
+    first: 1
 
 
 def otp(code):
@@ -83,15 +94,15 @@ class SelfTest(wiring.Component):
     Parameters
         ``samples_log2``: ``N`` = 2**this samples in each half of the MPU9250's test (0..8).
     Members
-        ``valid``, ``byte``, ``index`` (in): a byte of the test and what it is (the table
-            above); ``subtract`` (in): a sum byte is subtracted; ``first`` (in): a sum byte
-            belongs to the first burst (its high byte replaces the sum).
+        ``i`` (in, ``TestByte``): ``valid``, ``byte``, ``index``: a byte of the test and what
+            it is (the table above); ``subtract``: a sum byte is subtracted; ``first``: a sum
+            byte belongs to the first burst (its high byte replaces the sum).
         ``asa`` (in, 3 × 8): the AK8963's sensitivity adjustment, read before its test.
         ``busy`` (out): a byte is still being worked on (the next may come meanwhile only
             when bytes are at least 4 cycles apart, as on the sensor's buses).
-        ``fail`` (out, 9): the axes that failed (``AXES`` order), each as last judged.
-        ``done`` (out): the six MPU9250 axes were judged (the last code came).
-        ``mag_done`` (out): the three AK8963 axes were judged.
+        ``status`` (out, ``SelfTestStatus``): ``fail`` (9), the axes that failed (``AXES``
+            order), each as last judged; ``done``: the six MPU9250 axes were judged (the last
+            code came); ``mag_done``: the three AK8963 axes were judged.
     Latency: a sum byte takes two cycles (a read and a write of its sum), a code three, a
     magnetometer high byte three. Sums are ``17 + samples_log2`` bits, exact for any data.
     The sums live in a ``FrameRAM`` (``sums``) and the factory table in a 256-word one
@@ -107,11 +118,8 @@ class SelfTest(wiring.Component):
         self.width = 17 + samples_log2
         self.sums = FrameRAM(8, self.width)
         self.table = FrameRAM(256, 16, init=[0] + [otp(c) for c in range(1, 256)])
-        super().__init__({
-            "valid": In(1), "byte": In(8), "index": In(5), "subtract": In(1), "first": In(1),
-            "asa": In(data.ArrayLayout(8, 3)),
-            "busy": Out(1), "fail": Out(9), "done": Out(1), "mag_done": Out(1),
-        })
+        super().__init__({"i": In(TestByte), "asa": In(data.ArrayLayout(8, 3)),
+                          "busy": Out(1), "status": Out(SelfTestStatus)})
 
     def elaborate(self, platform):
         m = Module()
@@ -119,7 +127,11 @@ class SelfTest(wiring.Component):
         m.submodules.sums = sums = self.sums
         m.submodules.table = table = self.table
 
-        index = self.index
+        i, status = self.i, self.status
+        index = i.index
+        word = index[1:4]
+        # accel words 0..2 are sums 0..2; gyro words 4..6 are sums 3..5 (3: the temperature)
+        sum_axis = Mux(word > 3, word - 1, word)
         axis = Signal(3)                    # the sum or the axis the byte is for
         hi = Signal()                       # a sum byte is its word's high byte
         m.d.comb += [sums.r_en.eq(1), table.r_en.eq(1)]
@@ -151,28 +163,25 @@ class SelfTest(wiring.Component):
 
         with m.FSM() as fsm:
             with m.State("IDLE"):
-                word = index[1:4]
-                with m.If(self.valid):
-                    m.d.sync += [byte.eq(self.byte), sub.eq(self.subtract)]
+                with m.If(i.valid):
+                    m.d.sync += [byte.eq(i.byte), sub.eq(i.subtract)]
                     with m.If(index < 14):
-                        with m.If((word != 3)):
-                            # accel words 0..2 are sums 0..2; gyro words 4..6 are sums 3..5
-                            m.d.sync += [axis.eq(Mux(word > 3, word - 1, word)), hi.eq(~index[0]),
-                                         replace.eq(self.first & ~index[0])]
+                        with m.If(word != 3):
+                            m.d.sync += [axis.eq(sum_axis), hi.eq(~index[0]),
+                                         replace.eq(i.first & ~index[0])]
                             m.next = "SUM"
                     with m.Elif((index >= 16) & (index < 22)):
-                        m.d.sync += [axis.eq(index - 16), code0.eq(self.byte == 0),
+                        m.d.sync += [axis.eq(index - 16), code0.eq(i.byte == 0),
                                      gyro.eq(index >= 19)]
                         m.next = "CODE"
                     with m.Elif((index >= 24) & (index < 30)):
                         m.d.sync += axis.eq((index - 24) >> 1)
                         with m.If(~index[0]):
-                            m.d.sync += mag_lo.eq(self.byte)
+                            m.d.sync += mag_lo.eq(i.byte)
                         with m.Else():
                             m.next = "MAG"
-                m.d.comb += sums.r_addr.eq(Mux(index >= 16, index - 16,
-                                               Mux(word > 3, word - 1, word)))
-                m.d.comb += table.r_addr.eq(self.byte)
+                m.d.comb += [sums.r_addr.eq(Mux(index >= 16, index - 16, sum_axis)),
+                             table.r_addr.eq(i.byte)]
             with m.State("SUM"):
                 # the sum was read in IDLE; the byte goes in at its place in the word
                 addend = Signal(signed(w))
@@ -191,9 +200,9 @@ class SelfTest(wiring.Component):
             with m.State("JUDGE"):
                 twice = s << 1
                 passes = (twice > t) & (gyro | (twice < t + (t << 1)))
-                m.d.sync += self.fail.bit_select(axis, 1).eq(~passes)
+                m.d.sync += status.fail.bit_select(axis, 1).eq(~passes)
                 with m.If(axis == 5):
-                    m.d.sync += self.done.eq(1)
+                    m.d.sync += status.done.eq(1)
                 m.next = "IDLE"
             with m.State("MAG"):
                 # H · (ASA + 128) in one 18 x 18 block
@@ -203,10 +212,11 @@ class SelfTest(wiring.Component):
                 adjusted = product >> 8                     # floor(H · (ASA + 128) / 256)
                 z = axis == 2
                 (xy_low, xy_high), _, (z_low, z_high) = MAG_LIMITS
-                passes = (adjusted >= Mux(z, z_low, xy_low)) & (adjusted <= Mux(z, z_high, xy_high))
-                m.d.sync += self.fail.bit_select(6 + axis, 1).eq(~passes)
+                passes = ((adjusted >= Mux(z, z_low, xy_low)) &
+                          (adjusted <= Mux(z, z_high, xy_high)))
+                m.d.sync += status.fail.bit_select(6 + axis, 1).eq(~passes)
                 with m.If(axis == 2):
-                    m.d.sync += self.mag_done.eq(1)
+                    m.d.sync += status.mag_done.eq(1)
                 m.next = "IDLE"
         m.d.comb += self.busy.eq(~fsm.ongoing("IDLE"))
         return m

@@ -153,7 +153,7 @@ def _add_sensor_options(p):
                    help="leave the AK8963 magnetometer alone (six-axis samples)")
     p.add_argument("--no-self-test", action="store_true",
                    help="no self-test of the MPU9250 and AK8963 at bring-up (it takes about "
-                        "0.3 s; DriverStatus.self_test_done stays 0)")
+                        "0.3 s; the board register SELF_TEST then stays 0)")
 
 
 def _clock(args):

@@ -41,10 +41,11 @@ DEVICE = {"name": "10M08SCU169C8G", "logic_elements": 8064, "multipliers_18x18":
 YOSYS_HINT = "install it with: apt-get install yosys (Debian's 0.23 has synth_intel)"
 
 
-def hard_blocks_as_blackboxes(engine, rams=()):
-    """Mark the engine's multiplier, register file and ROM and the ``FrameRAM``s ``rams`` to
-    elaborate as empty modules (with the logic Quartus adds around them), for Yosys 0.23."""
-    for block in (engine.multiplier, engine.regfile, engine.rom, *rams):
+def hard_blocks_as_blackboxes(engine, rams=(), others=()):
+    """Mark the engine's multiplier, register file and ROM, the ``FrameRAM``s ``rams`` and the
+    blocks ``others`` (whose own multipliers then are ``BLACKBOX_NAME`` blocks) to elaborate
+    as empty modules (with the logic Quartus adds around them), for Yosys 0.23."""
+    for block in (engine.multiplier, engine.regfile, engine.rom, *rams, *others):
         block.blackbox = True
 
 
@@ -71,11 +72,11 @@ def _count(stat_text, cell):
     return int(found.group(1)) if found else 0
 
 
-def synthesize(top, name, engine, rams=()):
+def synthesize(top, name, engine, rams=(), others=()):
     """Figures for one elaboratable (``engine``: the AttitudeEngine inside it; ``rams``: other
     ``FrameRAM``s in it); their hard blocks are synthesised as empty modules."""
     from .hdl.multiplier import BLACKBOX_NAME
-    hard_blocks_as_blackboxes(engine, rams)
+    hard_blocks_as_blackboxes(engine, rams, others)
     with tempfile.TemporaryDirectory() as tmp:
         with open(os.path.join(tmp, "design.v"), "w") as f:
             f.write(verilog.convert(top, name=name))
@@ -173,11 +174,10 @@ def report(*, clk_freq=None, config=None, latency=True):
     datapath = synthesize(engine, "attitude_engine", engine)
     core = AHRSCore(clk_freq=clk_freq, config=config)
     self_test = core.frontend.driver.self_test_block
-    if self_test:
-        self_test.blackbox = True           # its multiplier, like the engine's
     design = synthesize(core, "mpu9250_ahrs_core", core.engine,
                         rams=[core.framer.ram, core.decoder.fifo.ram,
-                              *([self_test.sums, self_test.table] if self_test else [])])
+                              *([self_test.sums, self_test.table] if self_test else [])],
+                        others=[self_test] if self_test else [])
     cycles, first = cycles_per_update()
     mhz = clk_freq / 1e6
     budget = rate_budget(config, clk_freq)

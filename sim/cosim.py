@@ -202,7 +202,11 @@ class SimSetup:
     def __post_init__(self):
         if not self.self_test:
             self.config = replace(self.config, self_test=False)
-        elif self.self_test_samples is not None and self.config.self_test:
+        elif not self.config.self_test:
+            # e.g. ``dataclasses.replace(setup, self_test=True)`` of a set-up made without
+            # them: its config has lost them, and would run none, silently
+            raise ValueError("SimSetup(self_test=True) needs a config with self_test")
+        elif self.self_test_samples is not None:
             self.config = replace(self.config, self_test_samples=self.self_test_samples)
 
     @staticmethod

@@ -43,6 +43,7 @@ class Link:
         self.seq = 0
         self.backlog = []            # frames read while waiting for a reply
         self.port = serial.port
+        self._noise_at_frame = 0     # noise bytes counted when the last frame came
 
     @property
     def stats(self):
@@ -86,7 +87,7 @@ class Link:
                 raise BoardError(self._silence(timeout))
 
     def _silence(self, timeout):
-        noise = self.stats.skipped_bytes - getattr(self, "_noise_at_frame", 0)
+        noise = self.stats.skipped_bytes - self._noise_at_frame
         if self.stats.frames and noise:
             # a frame or two at first (bytes sent before the baud rate changed), noise since
             return (f"{self.port}: no valid frame for {timeout:g} s but {noise} bytes of "

@@ -53,13 +53,10 @@ def run_cases(samples_log2, cases, mag_cases):
     results = []
 
     async def send(ctx, byte, index, subtract=0, first=0):
-        ctx.set(dut.valid, 1)
-        ctx.set(dut.byte, byte)
-        ctx.set(dut.index, index)
-        ctx.set(dut.subtract, subtract)
-        ctx.set(dut.first, first)
+        ctx.set(dut.i, {"valid": 1, "byte": byte, "index": index, "subtract": subtract,
+                        "first": first})
         await ctx.tick()
-        ctx.set(dut.valid, 0)
+        ctx.set(dut.i.valid, 0)
         # bytes on a sensor bus come many cycles apart
         for _ in range(4):
             await ctx.tick()
@@ -75,13 +72,13 @@ def run_cases(samples_log2, cases, mag_cases):
                     await send(ctx, b, i)
             for axis, code in enumerate(codes):
                 await send(ctx, code, CODE_INDEX + axis)
-            results.append((ctx.get(dut.fail) & 0x3F, ctx.get(dut.done)))
+            results.append((ctx.get(dut.status.fail) & 0x3F, ctx.get(dut.status.done)))
         for h, asa in mag_cases:
             ctx.set(dut.asa, [asa] * 3)
             for axis in range(3):
                 await send(ctx, h[axis] & 0xFF, MAG_INDEX + 2 * axis)
                 await send(ctx, (h[axis] >> 8) & 0xFF, MAG_INDEX + 2 * axis + 1)
-            results.append((ctx.get(dut.fail) >> 6, ctx.get(dut.mag_done)))
+            results.append((ctx.get(dut.status.fail) >> 6, ctx.get(dut.status.mag_done)))
 
     sim = Simulator(dut)
     sim.add_clock(1e-6)
