@@ -7,8 +7,8 @@ Attitude engine: ``attitude_engine`` on ``alu``, ``multiplier``, ``multiply_accu
 ``cordic``, ``divider``, ``memories``, ``host_port``; its instruction set ``attitude_isa`` and
 microcode ``attitude_program`` / ``flagship_microcode``. Link: ``telemetry_scheduler``,
 ``telemetry`` (the framer), ``frame_arbiter``, ``uart_tx``, ``uart_rx``, ``command_decoder``
-(its input ``rewindable_fifo``), ``pwm``, ``board_bus``. Top levels and board: ``top``,
-``platform``, ``clocking``.
+(its input ``rewindable_fifo``), ``pwm``, ``board_bus``. Top levels and boards: ``top``,
+``platform`` (the MAX10), ``ulx3s`` (the open ECP5 flow), ``clocking``.
 Layouts: ``sample``, ``driver_status``, ``attitude_result``, ``config_write``, ``frame_types``;
 the numeric contract with ``reference/``: ``numeric_contract``; register maps:
 ``mpu9250_regs``, ``ak8963_regs``.

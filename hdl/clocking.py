@@ -1,4 +1,5 @@
-"""The system clock: one default, the conversion of times to cycles, and the MAX10 PLL.
+"""The system clock: one default, the conversion of times to cycles, and the PLLs (the MAX10's
+``SystemPLL``, the ECP5's ``ECP5PLL`` for ``build --board ulx3s``).
 
 ``SYSTEM_CLOCK_HZ`` is the clock every part of the design, ``build``, ``simulate`` and
 ``report`` use unless told otherwise (``--clk-freq``). On the board it comes from
@@ -16,7 +17,8 @@ from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
 
-__all__ = ["OSCILLATOR_HZ", "SYSTEM_CLOCK_HZ", "cycles", "pll_ratio", "SystemPLL"]
+__all__ = ["OSCILLATOR_HZ", "SYSTEM_CLOCK_HZ", "cycles", "pll_ratio", "SystemPLL",
+           "ecp5_pll_dividers", "ECP5PLL"]
 
 
 OSCILLATOR_HZ = 12e6
@@ -93,4 +95,92 @@ class SystemPLL(wiring.Component):
             o_locked=self.locked,
         )
         m.d.comb += self.clk_out.eq(clk[0])
+        return m
+
+
+# ECP5 EHXPLLL limits (Lattice TN1263, "ECP5 and ECP5-5G sysCLOCK PLL/DLL Design and Usage
+# Guide"): phase detector 3.125..400 MHz, VCO 400..800 MHz, dividers 1..128.
+ECP5_PFD_HZ = (3.125e6, 400e6)
+ECP5_VCO_HZ = (400e6, 800e6)
+
+
+def ecp5_pll_dividers(in_hz, out_hz):
+    """EHXPLLL dividers that make exactly ``out_hz`` (to 1 Hz) on CLKOS from ``in_hz``, the
+    feedback taken internally from CLKOP (``INT_OP``): VCO = in/CLKI_DIV · CLKFB_DIV ·
+    CLKOP_DIV, CLKOS = VCO/CLKOS_DIV. Feeding back through CLKOP rather than the output
+    itself reaches ratios CLKOP feedback alone cannot (25 MHz → 48 MHz: CLKOP alone gives
+    46.875). A dict (``clki_div``, ``clkfb_div``, ``clkop_div``, ``clkos_div``, ``vco_hz``),
+    the highest VCO first (lower jitter); a ValueError when none is exact."""
+    found = []
+    for clki in range(1, 129):
+        pfd = in_hz / clki
+        if not ECP5_PFD_HZ[0] <= pfd <= ECP5_PFD_HZ[1]:
+            continue
+        for clkfb in range(1, 129):
+            for clkop in range(1, 129):
+                vco = pfd * clkfb * clkop
+                if vco > ECP5_VCO_HZ[1]:
+                    break
+                if vco < ECP5_VCO_HZ[0]:
+                    continue
+                clkos = round(vco / out_hz)
+                if 1 <= clkos <= 128 and abs(vco / clkos - out_hz) <= 1:
+                    found.append({"clki_div": clki, "clkfb_div": clkfb, "clkop_div": clkop,
+                                  "clkos_div": clkos, "vco_hz": vco})
+    if not found:
+        raise ValueError(f"an ECP5 PLL cannot make {out_hz / 1e6:g} MHz from "
+                         f"{in_hz / 1e6:g} MHz exactly")
+    return max(found, key=lambda d: (d["vco_hz"], -d["clki_div"]))
+
+
+class ECP5PLL(wiring.Component):
+    """A Lattice ECP5 PLL (``EHXPLLL``) making the system clock from the oscillator, for
+    ``build --board ulx3s``.
+
+    Parameters
+    ----------
+    in_hz, out_hz : float
+        The oscillator's and the system clock's frequencies (``ecp5_pll_dividers``).
+
+    Members
+    -------
+    clk_in : In(1)
+        Oscillator clock.
+    clk_out : Out(1)
+        System clock (CLKOS).
+    locked : Out(1)
+        The PLL is locked (asynchronous: ``BoardTop`` releases the reset through a
+        ``ResetSynchronizer``).
+
+    Only the ECP5 tools can elaborate the instance. Latency: none (a clock source).
+    """
+    def __init__(self, *, in_hz, out_hz=SYSTEM_CLOCK_HZ):
+        self.dividers = ecp5_pll_dividers(in_hz, out_hz)
+        self.in_hz, self.out_hz = in_hz, out_hz
+        super().__init__({"clk_in": In(1), "clk_out": Out(1), "locked": Out(1)})
+
+    def elaborate(self, platform):
+        m = Module()
+        d = self.dividers
+        feedback = Signal()
+        m.submodules.pll = Instance(
+            "EHXPLLL",
+            a_FREQUENCY_PIN_CLKI=f"{self.in_hz / 1e6:g}",
+            a_FREQUENCY_PIN_CLKOS=f"{self.out_hz / 1e6:g}",
+            a_ICP_CURRENT="12", a_LPF_RESISTOR="8",
+            a_MFG_ENABLE_FILTEROPAMP="1", a_MFG_GMCREF_SEL="2",
+            p_PLLRST_ENA="DISABLED", p_INTFB_WAKE="DISABLED", p_STDBY_ENABLE="DISABLED",
+            p_DPHASE_SOURCE="DISABLED",
+            p_OUTDIVIDER_MUXA="DIVA", p_OUTDIVIDER_MUXB="DIVB",
+            p_CLKI_DIV=d["clki_div"],
+            p_CLKOP_ENABLE="ENABLED", p_CLKOP_DIV=d["clkop_div"],
+            p_CLKOP_CPHASE=d["clkop_div"] - 1, p_CLKOP_FPHASE=0,
+            p_CLKOS_ENABLE="ENABLED", p_CLKOS_DIV=d["clkos_div"],
+            p_CLKOS_CPHASE=d["clkos_div"] - 1, p_CLKOS_FPHASE=0,
+            p_FEEDBK_PATH="INT_OP", p_CLKFB_DIV=d["clkfb_div"],
+            i_CLKI=self.clk_in, i_CLKFB=feedback, o_CLKINTFB=feedback,
+            i_RST=0, i_STDBY=0, i_PHASESEL0=0, i_PHASESEL1=0, i_PHASEDIR=1, i_PHASESTEP=1,
+            i_PHASELOADREG=1, i_PLLWAKESYNC=0, i_ENCLKOP=0, i_ENCLKOS=0,
+            o_CLKOS=self.clk_out, o_LOCK=self.locked,
+        )
         return m

@@ -33,7 +33,7 @@ import re
 from amaranth.build import Attrs, Clock, Pins, PinsN, Resource, Subsignal
 from amaranth.vendor import AlteraPlatform
 
-from .clocking import OSCILLATOR_HZ
+from .clocking import OSCILLATOR_HZ, SystemPLL
 
 
 __all__ = ["DEFAULT_PINOUT", "MAX10Platform", "check_pinout"]
@@ -112,6 +112,11 @@ class MAX10Platform(AlteraPlatform):
                      Subsignal("int", Pins(pinout["imu_int"], dir="i")), io),
         ]
         super().__init__(toolchain=toolchain)
+
+    def system_pll(self, out_hz):
+        """The PLL making ``out_hz`` from the oscillator (Quartus' ``altpll``; ``top.sdc``'s
+        ``derive_pll_clocks`` constrains its output)."""
+        return SystemPLL(in_hz=self.default_clk_frequency, out_hz=out_hz)
 
     @property
     def device_name(self):

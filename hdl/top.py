@@ -42,7 +42,7 @@ from amaranth.lib import data, io, stream, wiring
 from amaranth.lib.cdc import ResetSynchronizer
 from amaranth.lib.wiring import In, Out, connect, flipped
 
-from .clocking import SYSTEM_CLOCK_HZ, SystemPLL, cycles
+from .clocking import SYSTEM_CLOCK_HZ, cycles
 from .mpu9250_driver import DriverTiming, MPU9250Config
 from .attitude_isa import REG_BITS
 from .attitude_program import TELEMETRY_DIV_ADDR
@@ -346,9 +346,11 @@ def io_register_settings(config):
 
 
 class BoardTop(Elaboratable):
-    """``AHRSCore`` on a ``MAX10Platform``: pin buffers, the status LEDs, and the clock.
+    """``AHRSCore`` on a board's platform (``MAX10Platform``, or ``ULX3SPlatform`` for the open
+    ECP5 flow): pin buffers, the status LEDs, and the clock.
 
-    The system clock (``clk_freq``, default ``SYSTEM_CLOCK_HZ``) comes from a ``SystemPLL``
+    The system clock (``clk_freq``, default ``SYSTEM_CLOCK_HZ``) comes from the platform's PLL
+    (``platform.system_pll``: a ``SystemPLL`` on the MAX10, an ``ECP5PLL`` on the ULX3S)
     fed by the board's oscillator; the whole design is held in reset until the PLL locks (a
     ``ResetSynchronizer`` releases it on the system clock). With ``clk_freq`` equal to the
     oscillator's frequency there is no PLL and the oscillator clocks the design directly.
@@ -366,7 +368,8 @@ class BoardTop(Elaboratable):
         if self.clk_freq != osc_hz:
             osc = platform.request(platform.default_clk, 0, dir="-")
             m.submodules.osc_buf = osc_buf = io.Buffer("i", osc)
-            m.submodules.pll = pll = SystemPLL(in_hz=osc_hz, out_hz=self.clk_freq)
+            # the platform's own PLL: the MAX10's altpll, the ECP5's EHXPLLL
+            m.submodules.pll = pll = platform.system_pll(self.clk_freq)
             m.domains.sync = ClockDomain("sync")
             m.d.comb += [pll.clk_in.eq(osc_buf.i), ClockSignal("sync").eq(pll.clk_out)]
             m.submodules.reset_sync = ResetSynchronizer(~pll.locked, domain="sync")

@@ -177,17 +177,23 @@ def cmd_build(args):
     if args.calibration:
         from .host.calibrate import load_calibration
         options["calibration"] = load_calibration(args.calibration)
-    pinout = dict(args.pin)
-    platform = MAX10Platform(pinout=pinout)
-    if not args.verilog_only and clk_freq != platform.default_clk_frequency:
-        pll_ratio(platform.default_clk_frequency, clk_freq)     # a clear error, before the build
-    out.mkdir(parents=True, exist_ok=True)
+    if args.board == "ulx3s" and args.pin:
+        raise ValueError("--pin is for the MAX10 board; the ULX3S's pins are fixed "
+                         "(hdl/ulx3s.py, build/README.md)")
     if args.verilog_only:
+        out.mkdir(parents=True, exist_ok=True)
         core = AHRSCore(clk_freq=clk_freq, config=config, baud=args.baud, **options)
         path = out / "mpu9250_ahrs_core.v"
         path.write_text(verilog.convert(core, name="mpu9250_ahrs_core"))
         print(f"wrote {path} (system clock {clk_freq / 1e6:g} MHz)")
         return 0
+    if args.board == "ulx3s":
+        return _build_ulx3s(args, out, clk_freq, config, options)
+    pinout = dict(args.pin)
+    platform = MAX10Platform(pinout=pinout)
+    if clk_freq != platform.default_clk_frequency:
+        pll_ratio(platform.default_clk_frequency, clk_freq)     # a clear error, before the build
+    out.mkdir(parents=True, exist_ok=True)
     plan = platform.build(BoardTop(clk_freq=clk_freq, config=config, baud=args.baud,
                                    **options),
                           name="top", do_build=False,
@@ -199,6 +205,24 @@ def cmd_build(args):
     print(f"wrote the Quartus project for {platform.device_name} to {out}/ "
           f"(top.qsf, top.sdc, top.v, build_top.sh; system clock {clk_freq / 1e6:g} MHz from "
           f"the {platform.default_clk_frequency / 1e6:g} MHz oscillator); see build/README.md")
+    return 0
+
+
+def _build_ulx3s(args, out, clk_freq, config, options):
+    """``build --board ulx3s``: bitstream and timing with the open ECP5 tools."""
+    from .hdl.clocking import ecp5_pll_dividers
+    from .hdl.top import BoardTop
+    from .hdl.ulx3s import ULX3SPlatform
+    from .open_build import ulx3s_build
+    ecp5_pll_dividers(ULX3SPlatform().default_clk_frequency, clk_freq)  # a clear error first
+    out.mkdir(parents=True, exist_ok=True)
+    say = (lambda m: print(f"mpu9250-ahrs build: {m} ...", file=sys.stderr, flush=True))
+    top = BoardTop(clk_freq=clk_freq, config=config, baud=args.baud, **options)
+    result = ulx3s_build(top, out, clk_freq, seed=args.seed, progress=say)
+    print(json.dumps(result, indent=1))
+    print(f"wrote {result['bitstream']}: {result['fmax_mhz']} MHz routed against "
+          f"{clk_freq / 1e6:g} MHz (slack {result['slack_ns']} ns); program it with "
+          f"openFPGALoader -b ulx3s {result['bitstream']}; see build/README.md")
     return 0
 
 
@@ -432,10 +456,18 @@ def build_parser():
     parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     sub = parser.add_subparsers(dest="verb", metavar="VERB", required=True)
 
-    p = sub.add_parser("build", help="write the Quartus project (or plain Verilog)",
+    p = sub.add_parser("build", help="write the Quartus project (or plain Verilog), or build "
+                                     "a ULX3S bitstream with the open tools",
                        description="Write the Quartus Prime project for a 10M08SCU169C8G "
-                                   "without running Quartus. See build/README.md for the flow.")
+                                   "without running Quartus; or, with --board ulx3s, build a "
+                                   "bitstream for the ULX3S (ECP5-25F) with the open tools from "
+                                   "PyPI and print its timing. See build/README.md.")
     p.add_argument("--out", default="out/quartus", help="output folder (default out/quartus)")
+    p.add_argument("--board", choices=("max10", "ulx3s"), default="max10",
+                   help="max10: the Quartus project for the 10M08SCU169 (default); ulx3s: a "
+                        "bitstream for the ULX3S 25F, built here (a few minutes)")
+    p.add_argument("--seed", type=_count, default=1,
+                   help="nextpnr's placement seed with --board ulx3s (default 1)")
     p.add_argument("--verilog-only", action="store_true",
                    help="write only the core (no pin buffers) as mpu9250_ahrs_core.v")
     p.add_argument("--pin", action="append", default=[], metavar="NAME=PIN", type=_pin,

@@ -72,9 +72,10 @@ def _count(stat_text, cell):
     return int(found.group(1)) if found else 0
 
 
-def synthesize(top, name, engine, rams=(), others=()):
+def synthesize(top, name, engine, rams=(), others=(), *, blocks=False):
     """Figures for one elaboratable (``engine``: the AttitudeEngine inside it; ``rams``: other
-    ``FrameRAM``s in it); their hard blocks are synthesised as empty modules."""
+    ``FrameRAM``s in it); their hard blocks are synthesised as empty modules. With ``blocks``,
+    also ``blocks``: the same synthesis without flattening, per block (``block_figures``)."""
     from .hdl.multiplier import BLACKBOX_NAME
     hard_blocks_as_blackboxes(engine, rams, others)
     with tempfile.TemporaryDirectory() as tmp:
@@ -91,6 +92,11 @@ def synthesize(top, name, engine, rams=(), others=()):
         _yosys(f"{read}; synth_intel -family max10 -top {name} -nobram; tee -q -o intel.txt "
                f"stat; delete t:dffeas t:mpu9250_ahrs_*; tee -q -o ltp.txt ltp", tmp)
         _yosys(f"{read}; synth_ice40 -top {name} -nobram; tee -q -o ice40.txt stat", tmp)
+        if blocks:
+            _yosys(f"{read}; synth_intel -family max10 -top {name} -nobram -noflatten; "
+                   f"write_json hier.json", tmp)
+            with open(os.path.join(tmp, "hier.json")) as f:
+                hier = json.load(f)["modules"]
         intel = open(os.path.join(tmp, "intel.txt")).read()
         ice40 = open(os.path.join(tmp, "ice40.txt")).read()
         ltp = open(os.path.join(tmp, "ltp.txt")).read()
@@ -110,7 +116,7 @@ def synthesize(top, name, engine, rams=(), others=()):
     ffs = _count(intel, "dffeas")
     ice_ffs = sum(int(n) for n in re.findall(r"^\s+SB_DFF\w*\s+(\d+)\s*$", ice40, re.M))
     levels = re.search(r"length=(\d+)", ltp)
-    return {
+    figures = {
         "logic_elements": max(luts, ffs),
         "logic_elements_carry_chain": max(_count(ice40, "SB_LUT4"), ice_ffs),
         "registers": ffs,
@@ -123,6 +129,53 @@ def synthesize(top, name, engine, rams=(), others=()):
         "other_multiplies": other_muls,
         "logic_levels": int(levels.group(1)) if levels else None,
     }
+    if blocks:
+        memories = {ram.name: ram.bits for ram in rams}
+        memories[f"mpu9250_ahrs_regfile{engine.regfile.depth}x32"] = engine.regfile.bits
+        memories[f"mpu9250_ahrs_rom{len(engine.rom.words)}x{engine.rom.width}"] = engine.rom.bits
+        figures["blocks"] = block_figures(hier, name, memories, BLACKBOX_NAME)
+    return figures
+
+
+def block_figures(modules, top, memories, multiplier):
+    """Per block (each submodule of ``top`` and, one level down, of its engine and sensor
+    front end), from a netlist synthesised without flattening (``modules``: Yosys' JSON):
+    ``logic_elements`` (as the flat count: LUTs or registers, the more), ``luts``,
+    ``registers``, ``memory_bits`` (the blackbox RAMs and ROMs in it, ``memories``: module
+    name: bits) and ``multipliers_18x18`` (``multiplier`` blackboxes). Each module's own
+    cells plus its submodules'; ``top`` itself is the logic between the blocks. Synthesis
+    across a block's boundary is not optimised, so the blocks add up to more than the flat
+    count (``logic_elements``)."""
+    def own(module):
+        cells = modules[module]["cells"].values()
+        kinds = [c["type"] for c in cells]
+        return {"luts": kinds.count("fiftyfivenm_lcell_comb"),
+                "registers": kinds.count("dffeas"),
+                "memory_bits": sum(memories.get(k, 0) for k in kinds),
+                "multipliers_18x18": kinds.count(multiplier)}
+
+    def total(prefix):
+        names = [n for n in modules if n == prefix or n.startswith(prefix + ".")]
+        sums = {"luts": 0, "registers": 0, "memory_bits": 0, "multipliers_18x18": 0}
+        for n in names:
+            for k, v in own(n).items():
+                sums[k] += v
+        return {"logic_elements": max(sums["luts"], sums["registers"]), **sums}
+
+    out = {"(between blocks)": {"logic_elements": max(own(top)["luts"], own(top)["registers"]),
+                                **own(top)}}
+    children = sorted({n[len(top) + 1:].split(".")[0] for n in modules
+                       if n.startswith(top + ".")})
+    def label(name):
+        return re.sub(r"\$\d+$", "", name)      # Amaranth's suffix for a name used twice
+
+    for child in children:
+        out[label(child)] = total(f"{top}.{child}")
+        if label(child) in ("engine", "frontend"):
+            for sub in sorted({n.split(".")[2] for n in modules
+                               if n.startswith(f"{top}.{child}.")}):
+                out[f"{label(child)}.{label(sub)}"] = total(f"{top}.{child}.{sub}")
+    return out
 
 
 def cycles_per_update(samples=6):
@@ -177,7 +230,8 @@ def report(*, clk_freq=None, config=None, latency=True):
     design = synthesize(core, "mpu9250_ahrs_core", core.engine,
                         rams=[core.framer.ram, core.decoder.fifo.ram,
                               *([self_test.sums, self_test.table] if self_test else [])],
-                        others=[self_test] if self_test else [])
+                        others=[self_test] if self_test else [], blocks=True)
+    design["room_left_les"] = DEVICE["logic_elements"] - design["logic_elements"]
     cycles, first = cycles_per_update()
     mhz = clk_freq / 1e6
     budget = rate_budget(config, clk_freq)

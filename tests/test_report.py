@@ -30,6 +30,19 @@ def test_report_keys_and_sanity(figures):
     assert figures["design"]["multipliers_18x18"] == 5
     assert figures["design"]["other_multiplies"] == []
     assert figures["design"]["logic_elements"] > figures["datapath"]["logic_elements"]
+    # issue #24: the room left, and every block's cost from a run without flattening
+    design = figures["design"]
+    assert design["room_left_les"] == 8064 - design["logic_elements"]
+    blocks = design["blocks"]
+    assert {"engine", "engine.mac", "engine.cordic", "frontend", "frontend.driver", "decoder",
+            "pwm", "framer", "scheduler", "uart", "uart_rx", "arbiter"} <= set(blocks)
+    assert sum(b["multipliers_18x18"] for name, b in blocks.items() if "." not in name) == 5
+    assert blocks["engine.mac"]["multipliers_18x18"] == 4
+    assert sum(b["memory_bits"] for name, b in blocks.items() if "." not in name) == \
+        design["memory_bits"]
+    # not optimised across block boundaries: the blocks add up to at least the flat count
+    assert sum(b["logic_elements"] for name, b in blocks.items() if "." not in name) >= \
+        0.95 * design["logic_elements"]
     from amaranth.lib import data
     from mpu9250_ahrs.hdl.attitude_isa import REG_COUNT, Instr
     from mpu9250_ahrs.hdl.attitude_program import build_program
