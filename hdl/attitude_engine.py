@@ -226,12 +226,34 @@ class AttitudeEngine(wiring.Component):
         hit_b = w_en & (w_addr == o.b)
         o_a = Mux(hit_a, w_data, Mux(o_held_a, o_hold_a, rf.ra_data))
         o_b = Mux(hit_b, w_data, Mux(o_held_b, o_hold_b, rf.rb_data))
-        with m.If(w_en):
+        # snooped from the registered write (a cycle after the execute stage's): the ALU's and
+        # the write multiplexer's paths end at ``wr_data``, not at the result's 320 flip-flops
+        # as well. The last write of an update is at the latest in the cycle before END
+        # executes, so its result is in ``out`` when ``result_valid`` rises
+        with m.If(wr_en):
             for field, name in snooped:
-                with m.If(w_addr == REGS[name]):
-                    m.d.sync += field.eq(w_data)
-            with m.If(w_sat):
-                m.d.sync += flag_sat.eq(1)
+                with m.If(wr_addr == REGS[name]):
+                    m.d.sync += field.eq(wr_data)
+        with m.If(w_en & w_sat):
+            m.d.sync += flag_sat.eq(1)
+
+        # Whether ``o`` reads the register ``x`` writes, and the one the MAC's accumulating
+        # instruction writes: the MUL's stall test needs both, and ``advance`` fans out to
+        # every pipeline register's enable, so they are kept as registered facts (updated
+        # with ``o``, ``x`` and the MAC's instruction, which change only at ``advance`` and
+        # at an issue; a comparison of the next values, chosen late) rather than compared in
+        # the cycle. No reset, like the registers they describe (zero instructions: equal).
+        def reads(instr, addr):
+            return (instr.a == addr) | (instr.b == addr)
+
+        o_reads_x = Signal(reset_less=True, init=1)
+        o_reads_acc = Signal(reset_less=True, init=1)
+        m.d.sync += [
+            o_reads_x.eq(Mux(advance, reads(rinstr, o.d), o_reads_x)),
+            o_reads_acc.eq(Mux(advance,
+                               Mux(mac.issue, reads(rinstr, x.d), reads(rinstr, mac.wb_next_addr)),
+                               Mux(mac.issue, reads(o, x.d), o_reads_acc))),
+        ]
 
         def execute():
             """The execute stage for ``x`` (an FSM state body)."""
@@ -249,12 +271,10 @@ class AttitudeEngine(wiring.Component):
                         # until then, unless the next instruction is a MUL (it writes nothing
                         # in its issue cycle) that reads no result still to be written (its
                         # operands are taken as it goes on)
-                        def reads(addr):
-                            return (o.a == addr) | (o.b == addr)
-                        overlap = ovalid & (o.op == Op.MUL) & ~(x.wb & reads(x.d))
+                        overlap = ovalid & (o.op == Op.MUL) & ~(x.wb & o_reads_x)
                         with m.If(phase == 0):
                             m.d.comb += mac.issue.eq(1)
-                            with m.If(~overlap | (mac.wb_next & reads(mac.wb_next_addr))):
+                            with m.If(~overlap | (mac.wb_next & o_reads_acc)):
                                 m.d.comb += advance.eq(0)
                                 m.d.sync += phase.eq(1)
                         with m.Elif((phase == 1) & ~overlap):
@@ -295,7 +315,7 @@ class AttitudeEngine(wiring.Component):
                         m.d.sync += flags_set.bit_select(x.sh, 1).eq(1)
             with m.If(advance):
                 m.d.sync += [
-                    x.eq(o), xvalid.eq(ovalid & ~flush), xa.eq(o_a), xb.eq(o_b),
+                    x.eq(o), xvalid.eq(ovalid & ~flush),
                     o.eq(rom.data), ovalid.eq(rvalid & ~flush),
                     o_held_a.eq(w_en & (w_addr == rinstr.a)), o_hold_a.eq(w_data),
                     o_held_b.eq(w_en & (w_addr == rinstr.b)), o_hold_b.eq(w_data),
@@ -308,6 +328,13 @@ class AttitudeEngine(wiring.Component):
                     m.d.sync += [o_hold_a.eq(w_data), o_held_a.eq(1)]
                 with m.If(hit_b):
                     m.d.sync += [o_hold_b.eq(w_data), o_held_b.eq(1)]
+
+        # ``xa``/``xb`` are loaded every cycle, not only with ``x``: every unit reads them in
+        # the first cycle of ``x``'s instruction only (the ALU and the branch test then; the
+        # MAC, divider and CORDIC take them at their issue or start, in that cycle), and at an
+        # ``advance`` they take ``o``'s operands as ``x`` takes ``o``. Without an enable, the
+        # stall logic (``advance``) is not in the operands' path
+        m.d.sync += [xa.eq(o_a), xb.eq(o_b)]
 
         def start(entry):
             m.d.sync += [fetch_pc.eq(entry), rvalid.eq(0), ovalid.eq(0), xvalid.eq(0),

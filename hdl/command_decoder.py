@@ -96,7 +96,8 @@ class CommandDecoder(wiring.Component):
     Latency: a board command's reply is offered two cycles after its last (CRC) byte is
     taken; an engine write or read waits in addition until the engine takes it (at once while
     it is idle, ``WORST_UPDATE_CYCLES`` at most) and, for a read, its word (one cycle).
-    Throughput: a byte per cycle while parsing; a command then takes a few cycles, or until
+    Throughput: a byte every two cycles while parsing (each is looked at, then taken); a
+    command then takes a few cycles, or until
     the engine is idle (``WORST_UPDATE_CYCLES`` at most), and its reply's time on the link.
     """
     def __init__(self, *, writable, version, timeout):
@@ -132,6 +133,27 @@ class CommandDecoder(wiring.Component):
         byte = src.payload
         take = src.valid & src.ready
 
+        # The byte at the FIFO's head is looked at a cycle before it is taken: what the parser
+        # decides from it (a sync byte, a length too long, the CRC matching) is registered
+        # first, so that the FIFO's pointers (take, mark, release, rewind) follow registers,
+        # not the FIFO's own output through the comparisons (that loop was the longest path
+        # of the core, report --timing). The head changes only when a byte is taken (a rewind
+        # comes with a take), so the facts hold until then. A byte every two cycles: the UART
+        # brings one every ten bit times.
+        looked = Signal()
+        is_sync0 = Signal(reset_less=True)
+        is_sync1 = Signal(reset_less=True)
+        too_long = Signal(reset_less=True)
+        empty = Signal(reset_less=True)
+        crc_ok = Signal(reset_less=True)
+        crc_high = Signal(8, reset_less=True)
+        with m.If(take):
+            m.d.sync += looked.eq(0)
+        with m.Elif(src.valid):
+            m.d.sync += [looked.eq(1), is_sync0.eq(byte == SYNC[0]), is_sync1.eq(byte == SYNC[1]),
+                         too_long.eq(byte > MAX_COMMAND_PAYLOAD), empty.eq(byte == 0),
+                         crc_ok.eq(Cat(byte, crc_high) == crc.crc)]
+
         # data registers, written before they are read in every frame, need no reset (on a
         # MAX10 a synchronous reset costs logic per bit)
         ctype = Signal(8, reset_less=True)
@@ -139,7 +161,6 @@ class CommandDecoder(wiring.Component):
         length = Signal(8, reset_less=True)
         count = Signal(range(MAX_COMMAND_PAYLOAD + 1))
         payload = Signal(8 * MAX_COMMAND_PAYLOAD, reset_less=True)
-        crc_high = Signal(8, reset_less=True)
         gap = Signal(range(self.timeout + 1))
         addr = payload[:16]
         value = payload[16:48]
@@ -194,9 +215,9 @@ class CommandDecoder(wiring.Component):
         timed_out = (gap == self.timeout) & ~take & in_frame
         with m.FSM() as fsm:
             with m.State("HUNT"):
-                m.d.comb += src.ready.eq(1)
+                m.d.comb += src.ready.eq(looked)
                 with m.If(take):
-                    with m.If(byte == SYNC[0]):
+                    with m.If(is_sync0):
                         # a frame may start here: kept until it is done or failed
                         m.d.comb += fifo.mark.eq(1)
                         m.next = "SYNC1"
@@ -212,7 +233,7 @@ class CommandDecoder(wiring.Component):
                     with m.If(timed_out):
                         m.d.comb += fifo.release.eq(1)
                         m.next = "HUNT"
-                    m.d.comb += src.ready.eq(1)
+                    m.d.comb += src.ready.eq(looked)
                     if checked:
                         m.d.comb += crc.valid.eq(take)
                     with m.If(take):
@@ -224,9 +245,9 @@ class CommandDecoder(wiring.Component):
                     m.next = "HUNT"
                 # a byte other than the sync's second goes back to the hunt untaken (the hunt
                 # counts it, or starts on it if it is 0xA5); the 0xA5 before it began nothing
-                m.d.comb += src.ready.eq(byte == SYNC[1])
-                with m.If(src.valid):
-                    with m.If(byte == SYNC[1]):
+                m.d.comb += src.ready.eq(looked & is_sync1)
+                with m.If(looked):
+                    with m.If(is_sync1):
                         m.next = "TYPE"
                     with m.Else():
                         count_up(stats.discarded)
@@ -240,11 +261,11 @@ class CommandDecoder(wiring.Component):
                 m.next = "LENGTH"
             with receiving("LENGTH"):
                 m.d.sync += [length.eq(byte), count.eq(0), payload.eq(0)]
-                with m.If(byte > MAX_COMMAND_PAYLOAD):
+                with m.If(too_long):
                     count_up(stats.malformed)
                     m.d.comb += fifo.rewind.eq(1)           # search the rest for a header
                     m.next = "HUNT"
-                with m.Elif(byte == 0):
+                with m.Elif(empty):
                     m.next = "CRC_HIGH"
                 with m.Else():
                     m.next = "PAYLOAD"
@@ -256,7 +277,7 @@ class CommandDecoder(wiring.Component):
                 m.d.sync += crc_high.eq(byte)
                 m.next = "CRC_LOW"
             with receiving("CRC_LOW", checked=False):
-                with m.If(Cat(byte, crc_high) == crc.crc):
+                with m.If(crc_ok):
                     m.d.comb += fifo.release.eq(1)
                     m.next = "EXECUTE"
                 with m.Else():

@@ -13,9 +13,9 @@ __all__ = ["MultiplyAccumulate"]
 
 
 class MultiplyAccumulate(wiring.Component):
-    """A MUL instruction in three steps: ``issue`` registers the product a·b (inverted when the
-    instruction subtracts, so that each accumulator bit is one LUT4) and the instruction; the
-    next cycle (``pending``) adds it to the accumulator — or to the rounding constant 2^(s−1)
+    """A MUL instruction in three steps: ``issue`` registers the product a·b and the
+    instruction; the next cycle (``pending``) adds it (inverted, plus one, when the instruction
+    subtracts) to the accumulator — or to the rounding constant 2^(s−1)
     when the instruction starts a sum —; the cycle after, if the instruction writes back, it
     offers ``acc >> s`` saturated to 32 bits (= rshift_round of the exact sum, then sat32).
 
@@ -57,7 +57,7 @@ class MultiplyAccumulate(wiring.Component):
         m = Module()
         m.submodules.multiplier = mult = self.multiplier
         # datapath registers without reset: qualified by ``pending``
-        product = Signal(signed(64), reset_less=True)       # inverted already when ``neg``
+        product = Signal(signed(64), reset_less=True)       # a·b as it is (``ins.neg`` below)
         acc = Signal(signed(66), reset_less=True)
         acc_next = Signal(signed(66))
         rounding = Signal(signed(66))
@@ -68,23 +68,27 @@ class MultiplyAccumulate(wiring.Component):
             for code, s in enumerate(MUL_SHIFTS):
                 with m.Case(code):
                     m.d.comb += rounding.eq(1 << (s - 1))
-        # ± product with one adder: base + (~product if neg) + neg
-        m.d.comb += acc_next.eq(Mux(ins.acc, acc, rounding) + product + ins.neg)
+        # ± product with one adder: base + (~product if neg) + neg. The inversion is here, not
+        # before the product register: the 18x18 blocks and the adders that combine their
+        # products are the longest path into that register (report --timing)
+        m.d.comb += acc_next.eq(Mux(ins.acc, acc, rounding) +
+                                (product.as_unsigned() ^ ins.neg.replicate(64)).as_signed() +
+                                ins.neg)
         # acc >> s saturated to 32 bits, selected per shift (each a slice of the accumulator):
         # whether it fits (the bits from s + 31 up all equal) is found with the sum and
         # registered; the write-back then only selects the slice or the limit
+        # The slice is selected with the sum too, and registered: the write-back's path (into
+        # the register file's write and the operands' forwarding) is then a two-way choice
         fits = Signal()
         wb_fits = Signal(reset_less=True)
-        wb_slice = Signal(signed(32))
+        slice_next = Signal(signed(32))
+        wb_slice = Signal(signed(32), reset_less=True)
         with m.Switch(ins.sh):
             for code, s in enumerate(MUL_SHIFTS):
                 with m.Case(code):
                     top = acc_next[s + 31:]
-                    m.d.comb += fits.eq((top == 0) | (top == (1 << len(top)) - 1))
-        with m.Switch(ins_wb.sh):
-            for code, s in enumerate(MUL_SHIFTS):
-                with m.Case(code):
-                    m.d.comb += wb_slice.eq(acc[s:s + 32])
+                    m.d.comb += [fits.eq((top == 0) | (top == (1 << len(top)) - 1)),
+                                 slice_next.eq(acc_next[s:s + 32])]
         limit = Mux(acc[-1], C(-(1 << 31), signed(32)), C((1 << 31) - 1, signed(32)))
         m.d.comb += [self.wb_data.eq(Mux(wb_fits, wb_slice, limit)),
                      self.wb_saturated.eq(~wb_fits)]
@@ -93,8 +97,9 @@ class MultiplyAccumulate(wiring.Component):
         m.d.sync += self.wb_en.eq(self.pending & ins.wb)
         with m.If(self.pending):
             m.d.sync += [acc.eq(acc_next), ins_wb.eq(ins), wb_fits.eq(fits),
+                         wb_slice.eq(slice_next),
                          self.pending.eq(0)]
         with m.If(self.issue):
-            m.d.sync += [product.eq(mult.p ^ self.ins.neg.replicate(64)), ins.eq(self.ins),
+            m.d.sync += [product.eq(mult.p), ins.eq(self.ins),
                          self.pending.eq(1)]
         return m

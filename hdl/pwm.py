@@ -168,38 +168,57 @@ class PWMOutputs(wiring.Component):
         with m.If((watchdog_ms != 0) & (silent_ms >= watchdog_ms) & (enable != 0) & ~write):
             m.d.sync += [enable.eq(0), self.tripped.eq(1)]
 
-        # the two time bases: a counter each, its period taken at each wrap
-        us_timer = Signal(range(self.us_cycles))
+        # the two time bases: a counter each, its period taken at each wrap. The counter stays
+        # below its active period (it starts at 0 at a wrap, or at period - 1 while no channel
+        # runs on it), so the wrap is an equality, not a magnitude comparison.
+        # The time bases and each channel's active high time and state need no reset: with
+        # every channel disabled (PWM_ENABLE is 0 at reset) they are reloaded each cycle (a
+        # synchronous reset costs logic per bit with Yosys' MAX10 mapping)
+        us_timer = Signal(range(self.us_cycles), reset_less=True)
         us_tick = us_timer == 0
         m.d.sync += us_timer.eq(Mux(us_tick, self.us_cycles - 1, us_timer - 1))
-        count = [Signal(PERIOD_BITS, name="servo_count"), Signal(PERIOD_BITS, name="motor_count")]
-        active = [Signal(PERIOD_BITS, init=SERVO_PERIOD_US[1], name="servo_active_period"),
-                  Signal(PERIOD_BITS, init=self.motor_min, name="motor_active_period")]
+        count = [Signal(PERIOD_BITS, name="servo_count", reset_less=True),
+                 Signal(PERIOD_BITS, name="motor_count", reset_less=True)]
+        active = [Signal(PERIOD_BITS, init=SERVO_PERIOD_US[1], name="servo_active_period",
+                         reset_less=True),
+                  Signal(PERIOD_BITS, init=self.motor_min, name="motor_active_period",
+                         reset_less=True)]
         wrap = [Signal(name="servo_wrap"), Signal(name="motor_wrap")]
+        tick = [us_tick, C(1)]
+        step = [Signal(PERIOD_BITS, name="servo_next"), Signal(PERIOD_BITS, name="motor_next")]
         in_use = [(enable & ~mode) != 0, (enable & mode) != 0]
-        for g, tick in enumerate((us_tick, C(1))):
-            m.d.comb += wrap[g].eq(tick & (count[g] + 1 >= active[g]))
+        for g in range(2):
+            m.d.comb += [step[g].eq(count[g] + 1), wrap[g].eq(tick[g] & (step[g] == active[g]))]
             with m.If(~in_use[g]):
                 # no channel runs on it: the new period at once, and a wrap at the next tick
                 # (a channel enabled starts there)
                 m.d.sync += [count[g].eq(period[g] - 1), active[g].eq(period[g])]
             with m.Elif(wrap[g]):
                 m.d.sync += [count[g].eq(0), active[g].eq(period[g])]
-            with m.Elif(tick):
-                m.d.sync += count[g].eq(count[g] + 1)
+            with m.Elif(tick[g]):
+                m.d.sync += count[g].eq(step[g])
 
         for k in range(n):
-            active_high = Signal(PERIOD_BITS, name=f"active_high{k}")
-            running = Signal(name=f"running{k}")        # enabled, and a period has begun since
+            active_high = Signal(PERIOD_BITS, name=f"active_high{k}", reset_less=True)
+            # enabled, and a period has begun since
+            running = Signal(name=f"running{k}", reset_less=True)
+            # ``count < active_high`` of the channel's group, kept as a bit: a running channel's
+            # count starts at 0 at the wrap (below: the high time is not 0) and goes up by one
+            # a tick, so it is set at the wrap and cleared when the count reaches the high time
+            # (equality; a high time equal to the period is never reached: high all period)
+            below = Signal(name=f"below{k}", reset_less=True)
             group_wrap = Mux(mode[k], wrap[1], wrap[0])
+            reaches = Mux(mode[k], tick[1] & (step[1] == active_high),
+                          tick[0] & (step[0] == active_high))
             # a disabled channel takes its high time at once; an enabled one at its group's
             # wrap, where it also starts: its first pulse is a whole one
             with m.If(~enable[k] | group_wrap):
-                m.d.sync += active_high.eq(high[k])
+                m.d.sync += [active_high.eq(high[k]), below.eq(high[k] != 0)]
+            with m.Elif(reaches):
+                m.d.sync += below.eq(0)
             with m.If(~enable[k]):
                 m.d.sync += running.eq(0)
             with m.Elif(group_wrap):
                 m.d.sync += running.eq(1)
-            m.d.comb += self.pwm[k].eq(enable[k] & running &
-                                       (Mux(mode[k], count[1], count[0]) < active_high))
+            m.d.comb += self.pwm[k].eq(enable[k] & running & below)
         return m

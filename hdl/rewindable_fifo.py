@@ -79,20 +79,42 @@ class RewindableFIFO(wiring.Component):
         m.d.comb += [self.r_stream.valid.eq(valid),
                      self.r_stream.payload.eq(Mux(bypass, bypass_data, ram.r_data))]
         take = self.r_stream.valid & self.r_stream.ready
+        # The reader's take, mark, release and rewind come late in the cycle (the reader
+        # decides them from its state and the byte offered). Every sum and comparison below
+        # is of registers only, one per case, and those four signals only choose among the
+        # results: the same function as the pointers' next values compared directly
+        # (read_next = rewind ? keep + 1 : read + take; keep_next = rewind ? keep + 1 :
+        # mark & take ? read : release ? read_next : keep; valid: a byte at read_next).
+        stored_next = (write + put)[:bits]
+
+        def offered(r, k):
+            # a byte at ``r`` is waiting, ``k`` the oldest kept: r - k < write - k
+            return (r - k)[:bits] < (stored_next - k)[:bits]
+
+        read_1, keep_1 = (read + 1)[:bits], (keep + 1)[:bits]
         read_next = Signal(bits)
         keep_next = Signal(bits)
-        m.d.comb += [read_next.eq(read + take), keep_next.eq(keep)]
+        valid_next = Signal()
         with m.If(self.rewind):
-            m.d.comb += [read_next.eq(keep + 1), keep_next.eq(keep + 1)]
+            m.d.comb += [read_next.eq(keep_1), keep_next.eq(keep_1),
+                         valid_next.eq(offered(keep_1, keep_1))]
         with m.Elif(self.mark & take):
-            m.d.comb += keep_next.eq(read)
+            m.d.comb += [read_next.eq(read_1), keep_next.eq(read),
+                         valid_next.eq(offered(read_1, read))]
         with m.Elif(self.release):
-            m.d.comb += keep_next.eq(read_next)
-        m.d.sync += [read.eq(read_next), keep.eq(keep_next),
-                     valid.eq((read_next - keep_next)[:bits] < (write + put - keep_next)[:bits])]
+            m.d.comb += [read_next.eq(Mux(take, read_1, read)),
+                         keep_next.eq(Mux(take, read_1, read)),
+                         valid_next.eq(Mux(take, offered(read_1, read_1), offered(read, read)))]
+        with m.Else():
+            m.d.comb += [read_next.eq(Mux(take, read_1, read)), keep_next.eq(keep),
+                         valid_next.eq(Mux(take, offered(read_1, keep), offered(read, keep)))]
+        m.d.sync += [read.eq(read_next), keep.eq(keep_next), valid.eq(valid_next)]
         # the RAM reads the old word at an address written in the same cycle: the byte written
         # there is taken from a register instead
+        waddr = write[:bits - 1]
         m.d.comb += [ram.r_en.eq(1), ram.r_addr.eq(read_next[:bits - 1])]
-        m.d.sync += [bypass.eq(put & (write[:bits - 1] == read_next[:bits - 1])),
+        m.d.sync += [bypass.eq(put & Mux(self.rewind, waddr == keep_1[:bits - 1],
+                                         Mux(take, waddr == read_1[:bits - 1],
+                                             waddr == read[:bits - 1]))),
                      bypass_data.eq(self.w_stream.payload)]
         return m

@@ -74,7 +74,7 @@ class TelemetryScheduler(wiring.Component):
             m.d.sync += offering.eq(0)
 
         # the count as offered, frozen while the frame waits to be copied (``offering``)
-        refused = Signal(16)
+        refused = Signal(16, reset_less=True)   # loaded each cycle while not offering
         with m.If(~offering):
             m.d.sync += refused.eq(self.cfg_refused)
 

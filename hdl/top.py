@@ -137,6 +137,12 @@ class AHRSCore(wiring.Component):
             through the ``FrameArbiter`` before telemetry); ``pwm`` (4): ``PWMOutputs``;
             ``command_stats`` (``CommandStats``), ``raw_mode``: the command channel's.
         ``command_timeout_s``: a command frame with no byte for this long is dropped (5 ms).
+        ``commands`` (True): with the command channel (``uart_rx``, the decoder, replies);
+            False leaves it out (no ``uart_rx``, ``command_stats``, ``raw_mode`` ports; the
+            ``cfg`` ports alone write the engine) and with it the PWM outputs.
+        ``pwm`` (default: as ``commands``): with the PWM outputs (the ``pwm`` port); without,
+            the command channel answers ``bad_address`` for the PWM registers. Both options
+            are for users who need the room (``report`` counts each build).
 
     With the engine, every sample the driver reads is filtered: the engine takes a sample as
     soon as its previous update is done (``WORST_UPDATE_CYCLES`` at most) and the
@@ -150,7 +156,14 @@ class AHRSCore(wiring.Component):
     def __init__(self, *, clk_freq=SYSTEM_CLOCK_HZ, config=MPU9250Config(),
                  timing=DriverTiming(), baud=921_600, attitude=True, filter_config=None,
                  calibration=None, flagship_config=None, filter="flagship",
-                 telemetry_divider=None, command_timeout_s=0.005):
+                 telemetry_divider=None, command_timeout_s=0.005, commands=True, pwm=None):
+        if pwm is None:
+            pwm = commands
+        if pwm and not commands:
+            raise ValueError("the PWM outputs are set through the command channel: "
+                             "pwm=True needs commands=True")
+        self.commands = commands and attitude
+        self.has_pwm = pwm and self.commands
         self.clk_freq = clk_freq
         self.config = config
         self.attitude = attitude
@@ -171,14 +184,22 @@ class AHRSCore(wiring.Component):
                                          filter=filter,
                                          extra_registers={"TELEMETRY_DIV": telemetry_divider})
             self.scheduler = TelemetryScheduler()
+            # the build's options in the version word only when they leave something out,
+            # so that the default build's word is as before
+            left_out = {k: False for k, on in (("commands", self.commands),
+                                               ("pwm", self.has_pwm)) if not on}
             self.version = version_word(clk_freq=clk_freq, baud=baud, config=repr(config),
-                                        filter=filter)
-            self.receiver = UARTReceiver(divisor=UARTTransmitter.divisor_for(clk_freq, baud))
-            self.decoder = CommandDecoder(writable=HOST_WRITABLE, version=self.version,
-                                          timeout=cycles(command_timeout_s, clk_freq))
-            self.pwm_block = PWMOutputs(clk_freq=clk_freq)
-            self.reply_framer = TelemetryFramer(Reply, REPLY)
-            self.arbiter = FrameArbiter(2)             # replies first, then telemetry
+                                        filter=filter, **left_out)
+            if self.commands:
+                self.receiver = UARTReceiver(divisor=UARTTransmitter.divisor_for(clk_freq, baud))
+                self.decoder = CommandDecoder(writable=HOST_WRITABLE, version=self.version,
+                                              timeout=cycles(command_timeout_s, clk_freq))
+                self.reply_framer = TelemetryFramer(Reply, REPLY)
+                self.arbiter = FrameArbiter(2)             # replies first, then telemetry
+            else:
+                self.arbiter = FrameArbiter(1)
+            if self.has_pwm:
+                self.pwm_block = PWMOutputs(clk_freq=clk_freq)
         else:
             self.framer = TelemetryFramer()
             self.telemetry_divider = 1
@@ -198,10 +219,12 @@ class AHRSCore(wiring.Component):
             ports["cfg_read_data"] = Out(stream.Signature(signed(32)))
             ports["counters"] = Out(TelemetryCounters)
             ports["cfg_refused"] = Out(16)
+        if self.commands:
             ports["uart_rx"] = In(1, init=1)
-            ports["pwm"] = Out(PWM_CHANNELS)
             ports["command_stats"] = Out(CommandStats)
             ports["raw_mode"] = Out(1)
+        if self.has_pwm:
+            ports["pwm"] = Out(PWM_CHANNELS)
         super().__init__(ports)
 
     def elaborate(self, platform):
@@ -230,36 +253,12 @@ class AHRSCore(wiring.Component):
             with m.If(fe.samples.valid & fe.samples.ready):
                 m.d.sync += [held.eq(fe.samples.payload), held_status.eq(fe.status)]
 
-            # Host -> UART receiver -> command decoder (its FIFO inside) -> engine / board /
-            # PWM, and its replies -> framer -> arbiter (before telemetry) -> UART.
-            m.submodules.uart_rx = rx = self.receiver
-            m.submodules.decoder = decoder = self.decoder
-            m.submodules.pwm = pwm = self.pwm_block
-            m.submodules.reply_framer = reply_framer = self.reply_framer
-            m.d.comb += rx.rx.eq(self.uart_rx)
-            connect(m, rx.o_stream, decoder.i_stream)
-            connect(m, decoder.pwm, pwm.bus)
-            connect(m, decoder.replies, reply_framer.i_stream)
-            m.d.comb += [pwm.kick.eq(decoder.kick), self.pwm.eq(pwm.pwm),
-                         decoder.rx_framing_errors.eq(rx.framing_errors),
-                         decoder.rx_overruns.eq(rx.overruns),
-                         decoder.frames_sent.eq(arbiter.frames),
-                         decoder.rate_errors.eq(fe.rate_errors),
-                         decoder.who_am_i.eq(fe.who_am_i), decoder.self_test.eq(fe.self_test),
-                         self.command_stats.eq(decoder.stats), self.raw_mode.eq(decoder.raw_mode),
-                         framer.short.eq(decoder.raw_mode)]
-            # The engine's register port: the ``cfg`` ports (a test bench, or tied off) first,
-            # then the command decoder's; a waiting transfer keeps its client.
-            m.submodules.cfg_arbiter = cfg_arbiter = ConfigPortArbiter()
-            connect(m, flipped(self.cfg), cfg_arbiter.first)
-            connect(m, decoder.cfg, cfg_arbiter.second)
-            connect(m, cfg_arbiter.cfg, engine.cfg)
-            connect(m, flipped(self.cfg_read), cfg_arbiter.first_read)
-            connect(m, decoder.cfg_read, cfg_arbiter.second_read)
-            connect(m, cfg_arbiter.cfg_read, engine.cfg_read)
-            connect(m, engine.cfg_read_data, cfg_arbiter.cfg_read_data)
-            connect(m, cfg_arbiter.first_read_data, flipped(self.cfg_read_data))
-            connect(m, cfg_arbiter.second_read_data, decoder.cfg_read_data)
+            if self.commands:
+                self._command_channel(m, engine, framer, arbiter, fe)
+            else:
+                connect(m, flipped(self.cfg), engine.cfg)
+                connect(m, flipped(self.cfg_read), engine.cfg_read)
+                connect(m, engine.cfg_read_data, flipped(self.cfg_read_data))
             # the divider register: the engine keeps its copy for read-back
             divider = Signal(16, init=self.telemetry_divider)
             with m.If(engine.cfg.valid & engine.cfg.ready &
@@ -272,9 +271,8 @@ class AHRSCore(wiring.Component):
                 sched.cfg_refused.eq(engine.cfg_refused), self.cfg_refused.eq(engine.cfg_refused),
                 sched.framer_idle.eq(framer.idle),
             ]
-            connect(m, reply_framer.o_stream, arbiter.i0)
-            connect(m, framer.o_stream, arbiter.i1)
-            m.d.comb += reply_framer.seq.eq(arbiter.seq)
+            if not self.commands:
+                connect(m, framer.o_stream, arbiter.i0)
         else:
             # Sample stream -> frame (sample + status at the moment it was taken) -> UART.
             m.d.comb += [
@@ -289,6 +287,43 @@ class AHRSCore(wiring.Component):
         with m.If(fe.samples.valid & fe.samples.ready):
             m.d.sync += self.samples_seen.eq(self.samples_seen + 1)
         return m
+
+
+    def _command_channel(self, m, engine, framer, arbiter, fe):
+        """Host -> UART receiver -> command decoder (its FIFO inside) -> engine / board / PWM,
+        and its replies -> framer -> arbiter (before telemetry) -> UART."""
+        m.submodules.uart_rx = rx = self.receiver
+        m.submodules.decoder = decoder = self.decoder
+        m.submodules.reply_framer = reply_framer = self.reply_framer
+        m.d.comb += rx.rx.eq(self.uart_rx)
+        connect(m, rx.o_stream, decoder.i_stream)
+        connect(m, decoder.replies, reply_framer.i_stream)
+        if self.has_pwm:
+            m.submodules.pwm = pwm = self.pwm_block
+            connect(m, decoder.pwm, pwm.bus)
+            m.d.comb += [pwm.kick.eq(decoder.kick), self.pwm.eq(pwm.pwm)]
+        m.d.comb += [decoder.rx_framing_errors.eq(rx.framing_errors),
+                     decoder.rx_overruns.eq(rx.overruns),
+                     decoder.frames_sent.eq(arbiter.frames),
+                     decoder.rate_errors.eq(fe.rate_errors),
+                     decoder.who_am_i.eq(fe.who_am_i), decoder.self_test.eq(fe.self_test),
+                     self.command_stats.eq(decoder.stats), self.raw_mode.eq(decoder.raw_mode),
+                     framer.short.eq(decoder.raw_mode)]
+        # The engine's register port: the ``cfg`` ports (a test bench, or tied off) first,
+        # then the command decoder's; a waiting transfer keeps its client.
+        m.submodules.cfg_arbiter = cfg_arbiter = ConfigPortArbiter()
+        connect(m, flipped(self.cfg), cfg_arbiter.first)
+        connect(m, decoder.cfg, cfg_arbiter.second)
+        connect(m, cfg_arbiter.cfg, engine.cfg)
+        connect(m, flipped(self.cfg_read), cfg_arbiter.first_read)
+        connect(m, decoder.cfg_read, cfg_arbiter.second_read)
+        connect(m, cfg_arbiter.cfg_read, engine.cfg_read)
+        connect(m, engine.cfg_read_data, cfg_arbiter.cfg_read_data)
+        connect(m, cfg_arbiter.first_read_data, flipped(self.cfg_read_data))
+        connect(m, cfg_arbiter.second_read_data, decoder.cfg_read_data)
+        connect(m, reply_framer.o_stream, arbiter.i0)
+        connect(m, framer.o_stream, arbiter.i1)
+        m.d.comb += reply_framer.seq.eq(arbiter.seq)
 
 
 def io_constraints(config, clk_freq, *, pll=True, budget=IO_BUDGET):
@@ -379,8 +414,9 @@ class BoardTop(Elaboratable):
         m.submodules.uart_tx = uart_tx = io.Buffer("o", uart.tx)
         m.submodules.uart_rx = uart_rx = io.Buffer("i", uart.rx)
         m.d.comb += uart_tx.o.eq(core.uart_tx)
-        if core.attitude:
+        if core.commands:
             m.d.comb += core.uart_rx.eq(uart_rx.i)       # synchronised in the receiver
+        if core.has_pwm:
             for i in range(len(core.pwm)):
                 pwm = io.Buffer("o", platform.request("pwm", i, dir="-"))
                 m.submodules[f"pwm{i}"] = pwm

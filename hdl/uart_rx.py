@@ -46,14 +46,20 @@ class UARTReceiver(wiring.Component):
         d = self.divisor
         line = Signal(init=1)
         m.submodules.sync = FFSynchronizer(self.rx, line, init=1)
-        history = Signal(3, init=0b111)
+        # The sampling registers need no reset (a synchronous reset costs logic per bit with
+        # Yosys' MAX10 mapping): ``history`` is refilled within three cycles and is read only at
+        # the middle of a start bit, ``timer`` and ``count`` are loaded before they are used,
+        # and ``shreg`` is filled with eight bits before it is passed on
+        history = Signal(3, init=0b111, reset_less=True)
         m.d.sync += history.eq(Cat(line, history[:2]))
         # the majority of the last three samples: the sample taken at ``timer == 0`` is the
         # middle one of three spaced around the bit's centre
         bit = (history[0] & history[1]) | (history[1] & history[2]) | (history[0] & history[2])
-        timer = Signal(range(d))
-        count = Signal(range(9))
-        shreg = Signal(8)
+        timer = Signal(range(d), reset_less=True)
+        count = Signal(range(9), reset_less=True)
+        shreg = Signal(8, reset_less=True)
+        data = Signal(8, reset_less=True)           # written with ``valid``: no reset either
+        m.d.comb += self.o_stream.payload.eq(data)
 
         def saturating_inc(counter):
             with m.If(counter != 0xFFFF):
@@ -90,7 +96,7 @@ class UARTReceiver(wiring.Component):
                         with m.If(self.o_stream.valid & ~self.o_stream.ready):
                             saturating_inc(self.overruns)
                         with m.Else():
-                            m.d.sync += [self.o_stream.payload.eq(shreg),
+                            m.d.sync += [data.eq(shreg),
                                          self.o_stream.valid.eq(1)]
                         m.next = "IDLE"
                     with m.Else():

@@ -90,6 +90,10 @@ def _core_options(args):
     out = {}
     if getattr(args, "telemetry_divider", None) is not None:
         out["telemetry_divider"] = args.telemetry_divider
+    if getattr(args, "no_commands", False):
+        out["commands"] = False
+    if getattr(args, "no_pwm", False):
+        out["pwm"] = False
     if getattr(args, "euler_rates", False):
         from .hdl.attitude_engine import default_filter_config
         from .reference.fixed_point import FilterRates
@@ -154,6 +158,16 @@ def _add_sensor_options(p):
     p.add_argument("--no-self-test", action="store_true",
                    help="no self-test of the MPU9250 and AK8963 at bring-up (it takes about "
                         "0.3 s; the board register SELF_TEST then stays 0)")
+
+
+def _add_left_out_options(p):
+    """What a user who needs the room can leave out of a build (``build``, ``report``)."""
+    p.add_argument("--no-pwm", action="store_true",
+                   help="leave the four PWM outputs out (the command channel then answers "
+                        "bad_address for the PWM registers)")
+    p.add_argument("--no-commands", action="store_true",
+                   help="leave the command channel (UART receiver, decoder, replies) out, and "
+                        "with it the PWM outputs: telemetry only, the filters as built")
 
 
 def _clock(args):
@@ -409,13 +423,14 @@ def cmd_replay(args):
 
 def cmd_report(args):
     from .report import report
-    result = report(clk_freq=_clock(args), config=_config(args))
+    options = {k: v for k, v in _core_options(args).items() if k in ("commands", "pwm")}
+    result = report(clk_freq=_clock(args), config=_config(args), core_options=options)
     if args.timing:
         from amaranth.back import verilog
         from .hdl.top import AHRSCore
         from .timing import ecp5_timing
         clk = _clock(args)
-        core = AHRSCore(clk_freq=clk, config=_config(args))
+        core = AHRSCore(clk_freq=clk, config=_config(args), **options)
         say = (lambda m: print(f"mpu9250-ahrs report: {m} ...", file=sys.stderr, flush=True))
         result["timing_ecp5"] = ecp5_timing(
             verilog.convert(core, name="mpu9250_ahrs_core"), "mpu9250_ahrs_core", clk,
@@ -475,6 +490,7 @@ def build_parser():
     p.add_argument("--calibration", default=None, metavar="FILE",
                    help="bake a calibration saved by 'calibrate' (JSON) in as reset values")
     _add_sensor_options(p)
+    _add_left_out_options(p)
     p.set_defaults(func=cmd_build)
 
     p = sub.add_parser("simulate", help="co-simulate the gateware with the MPU9250 model",
@@ -547,6 +563,7 @@ def build_parser():
                                    "its critical path and the slack at the clock: about a "
                                    "minute more per seed.")
     _add_sensor_options(p)
+    _add_left_out_options(p)
     p.add_argument("--timing", action="store_true",
                    help="also place and route the core with the open ECP5 tools (timing_ecp5)")
     p.add_argument("--seeds", type=_count, default=3,

@@ -215,7 +215,10 @@ def drdy_to_attitude_us(clk_freq, config, results=4):
     return round(max(run.latencies_us(clk_freq)[1:]), 2)
 
 
-def report(*, clk_freq=None, config=None, latency=True):
+def report(*, clk_freq=None, config=None, latency=True, core_options=None):
+    """The figures (``report``'s JSON). ``core_options``: ``AHRSCore`` options of the build
+    counted (``commands=False``, ``pwm=False``: what a user may leave out); the datapath,
+    cycles and latency are those of the default build either way."""
     from .hdl.attitude_engine import AttitudeEngine
     from .hdl.clocking import SYSTEM_CLOCK_HZ
     from .hdl.mpu9250_driver import MPU9250Config
@@ -225,10 +228,12 @@ def report(*, clk_freq=None, config=None, latency=True):
     clk_freq = SYSTEM_CLOCK_HZ if clk_freq is None else clk_freq
     engine = AttitudeEngine()
     datapath = synthesize(engine, "attitude_engine", engine)
-    core = AHRSCore(clk_freq=clk_freq, config=config)
+    core_options = dict(core_options or {})
+    core = AHRSCore(clk_freq=clk_freq, config=config, **core_options)
     self_test = core.frontend.driver.self_test_block
     design = synthesize(core, "mpu9250_ahrs_core", core.engine,
-                        rams=[core.framer.ram, core.decoder.fifo.ram,
+                        rams=[core.framer.ram,
+                              *([core.decoder.fifo.ram] if core.commands else []),
                               *([self_test.sums, self_test.table] if self_test else [])],
                         others=[self_test] if self_test else [], blocks=True)
     design["room_left_les"] = DEVICE["logic_elements"] - design["logic_elements"]
@@ -236,6 +241,7 @@ def report(*, clk_freq=None, config=None, latency=True):
     mhz = clk_freq / 1e6
     budget = rate_budget(config, clk_freq)
     return {
+        "build": {"commands": core.commands, "pwm": core.has_pwm},
         "clock_hz": clk_freq,
         "latency_us": {"drdy_to_attitude": drdy_to_attitude_us(clk_freq, config)
                        if latency else None},

@@ -83,7 +83,9 @@ def run(data, *, gaps=None, busy_cycles=3):
             ctx.set(dec.i_stream.payload, byte)
             await ctx.tick().until(dec.i_stream.ready)
             ctx.set(dec.i_stream.valid, 0)
-        await ctx.tick().repeat(TIMEOUT + 60)
+        # the decoder takes a byte every two cycles: a FIFO's worth of bytes and their
+        # commands may still wait when the host stops, then a cut-off frame's time-out
+        await ctx.tick().repeat(TIMEOUT + 200)
         out["stats"] = to_python(ctx.get(dec.stats))
         out["raw"] = ctx.get(dec.raw_mode)
     sim.add_testbench(host)
@@ -188,7 +190,9 @@ def test_cut_off_command_times_out():
     frame = encode_command("write", 1, addr=CONFIG_REGS["R"], value=1)
     good = encode_command("write", 2, addr=CONFIG_REGS["P0"], value=2)
     data = frame[:8] + good
-    writes, replies, stats, _ = run(data, gaps={8: TIMEOUT + 5})
+    # the time-out runs from the last byte the decoder took: it takes one every two cycles,
+    # so the eight bytes fed one a cycle are all taken 8 cycles after the host's last
+    writes, replies, stats, _ = run(data, gaps={8: TIMEOUT + 5 + 8})
     assert writes == [(CONFIG_REGS["P0"], 2)] and stats["malformed"] == 1
     assert [r["cmd_seq"] for r in replies] == [2]
 
