@@ -230,9 +230,10 @@ def _build_ulx3s(args, out, clk_freq, config, options):
     from .open_build import ulx3s_build
     ecp5_pll_dividers(ULX3SPlatform().default_clk_frequency, clk_freq)  # a clear error first
     out.mkdir(parents=True, exist_ok=True)
-    say = (lambda m: print(f"mpu9250-ahrs build: {m} ...", file=sys.stderr, flush=True))
+    from .progress import steps
     top = BoardTop(clk_freq=clk_freq, config=config, baud=args.baud, **options)
-    result = ulx3s_build(top, out, clk_freq, seed=args.seed, progress=say)
+    with steps(["build"], "build --board ulx3s") as shown:
+        result = ulx3s_build(top, out, clk_freq, seed=args.seed, progress=shown.next)
     print(json.dumps(result, indent=1))
     print(f"wrote {result['bitstream']}: {result['fmax_mhz']} MHz routed against "
           f"{clk_freq / 1e6:g} MHz (slack {result['slack_ns']} ns); program it with "
@@ -241,6 +242,7 @@ def _build_ulx3s(args, out, clk_freq, config, options):
 
 
 def cmd_simulate(args):
+    from . import progress
     from .sim.cosim import SimSetup, run_core, run_frontend
 
     if args.fault == "list":
@@ -264,9 +266,10 @@ def cmd_simulate(args):
                "odr_hz": config.output_data_rate, "dlpf_cfg": config.dlpf_cfg,
                "smplrt_div": config.smplrt_div}
     if args.attitude:
-        run = run_core(setup, n_results=args.samples, model=model, baud=args.baud,
-                       core_kwargs={"filter": args.filter, **_core_options(args)},
-                       vcd=args.vcd)
+        with progress.bar(args.samples, "simulate (whole core)", "result") as shown:
+            run = run_core(setup, n_results=args.samples, model=model, baud=args.baud,
+                           core_kwargs={"filter": args.filter, **_core_options(args)},
+                           vcd=args.vcd, progress=shown)
         for r in run.results:
             print(json.dumps(attitude_json(r, args.filter)))
         latency = run.latencies_us(clk_freq)
@@ -284,7 +287,9 @@ def cmd_simulate(args):
         violations = [str(v) for who in (model, *model.aux_devices.values())
                       for v in who.violations]
     else:
-        result = run_frontend(setup, n_samples=args.samples, model=model, vcd=args.vcd)
+        with progress.bar(args.samples, "simulate (sensor front end)", "sample") as shown:
+            result = run_frontend(setup, n_samples=args.samples, model=model, vcd=args.vcd,
+                                  progress=shown)
         for s in result.samples:
             print(json.dumps({"counter": s["counter"], "accel": s["accel"], "temp": s["temp"],
                               "gyro": s["gyro"], "mag": s["mag"], "flags": s["flags"],
@@ -314,11 +319,13 @@ def cmd_simulate(args):
 
 def _simulate_fault(args, setup):
     """``simulate --fault NAME``: the front end with one fault of the catalogue."""
+    from . import progress
     from .sim.faults import run_fault
     if args.attitude or args.pose:
         raise ValueError("--fault runs the sensor front end with its test pattern: leave out "
                          "--attitude and --pose")
-    summary = run_fault(args.fault, setup, at=args.fault_at, vcd=args.vcd)
+    with progress.bar(None, f"simulate --fault {args.fault}", "sample") as shown:
+        summary = run_fault(args.fault, setup, at=args.fault_at, vcd=args.vcd, progress=shown)
     summary["time_scale"] = {"delays": setup.delay_scale, "sample_period": setup.odr_scale}
     print(json.dumps(summary), file=sys.stderr if args.quiet_summary else sys.stdout)
     ok = summary["detected_after_samples"] is not None and summary["recovered"] and \
@@ -431,10 +438,12 @@ def cmd_report(args):
         from .timing import ecp5_timing
         clk = _clock(args)
         core = AHRSCore(clk_freq=clk, config=_config(args), **options)
-        say = (lambda m: print(f"mpu9250-ahrs report: {m} ...", file=sys.stderr, flush=True))
-        result["timing_ecp5"] = ecp5_timing(
-            verilog.convert(core, name="mpu9250_ahrs_core"), "mpu9250_ahrs_core", clk,
-            seeds=tuple(range(1, args.seeds + 1)), progress=say)
+        from .progress import steps
+        with steps(["synth"] + [f"seed {k}" for k in range(args.seeds)],
+                   "report --timing") as shown:
+            result["timing_ecp5"] = ecp5_timing(
+                verilog.convert(core, name="mpu9250_ahrs_core"), "mpu9250_ahrs_core", clk,
+                seeds=tuple(range(1, args.seeds + 1)), progress=shown.next)
     print(json.dumps(result, indent=1))
     return 0
 
@@ -470,8 +479,11 @@ def build_parser():
         epilog=VERBS_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     sub = parser.add_subparsers(dest="verb", metavar="VERB", required=True)
+    quiet = argparse.ArgumentParser(add_help=False)
+    quiet.add_argument("--quiet", action="store_true",
+                       help="no progress bars on stderr (they show only on a terminal anyway)")
 
-    p = sub.add_parser("build", help="write the Quartus project (or plain Verilog), or build "
+    p = sub.add_parser("build", parents=[quiet], help="write the Quartus project (or plain Verilog), or build "
                                      "a ULX3S bitstream with the open tools",
                        description="Write the Quartus Prime project for a 10M08SCU169C8G "
                                    "without running Quartus; or, with --board ulx3s, build a "
@@ -493,7 +505,7 @@ def build_parser():
     _add_left_out_options(p)
     p.set_defaults(func=cmd_build)
 
-    p = sub.add_parser("simulate", help="co-simulate the gateware with the MPU9250 model",
+    p = sub.add_parser("simulate", parents=[quiet], help="co-simulate the gateware with the MPU9250 model",
                        description="Bring-up plus N samples in Amaranth's simulator, with real "
                                    "time scaled down (delays and sample period) to save cycles.")
     p.add_argument("--samples", type=_count, default=20, help="samples to read (default 20)")
@@ -523,7 +535,7 @@ def build_parser():
     _add_sensor_options(p)
     p.set_defaults(func=cmd_simulate)
 
-    p = sub.add_parser("replay", help="score a reference filter on a recording",
+    p = sub.add_parser("replay", parents=[quiet], help="score a reference filter on a recording",
                        description="Quantise a BROAD-format recording (imu_gyr rad/s, imu_acc "
                                    "m/s², imu_mag µT, opt_quat, movement, sampling_rate) to "
                                    "MPU9250/AK8963 counts, run a filter, and print one JSON line "
@@ -549,7 +561,7 @@ def build_parser():
                    help="accelerometer full scale: 2, 4, 8 or 16 g (16)")
     p.set_defaults(func=cmd_replay)
 
-    p = sub.add_parser("report", help="resources (Yosys) and cycles per update, as JSON",
+    p = sub.add_parser("report", parents=[quiet], help="resources (Yosys) and cycles per update, as JSON",
                        description="Synthesise the attitude datapath alone and the whole design "
                                    "with Debian's Yosys 0.23 (synth_intel -family max10; "
                                    "apt-get install yosys) and simulate a few updates; print "
@@ -569,7 +581,7 @@ def build_parser():
     p.add_argument("--seeds", type=_count, default=3,
                    help="place-and-route seeds for --timing (3); the spread is reported")
     p.set_defaults(func=cmd_report)
-    _add_host_verbs(sub)
+    _add_host_verbs(sub, quiet)
     return parser
 
 
@@ -582,8 +594,8 @@ def _add_port_options(p):
                    help="seconds without a valid frame (or a reply) before giving up (1)")
 
 
-def _add_host_verbs(sub):
-    p = sub.add_parser("monitor", help="decode and log a board's frames",
+def _add_host_verbs(sub, quiet):
+    p = sub.add_parser("monitor", parents=[quiet], help="decode and log a board's frames",
                        description="Decode the board's frames: a live line on stderr (frame "
                                    "rate, attitude, flags, CRC errors, frames lost by the "
                                    "sequence numbers), every frame logged, a JSON summary "
@@ -596,7 +608,7 @@ def _add_host_verbs(sub):
                    help="stop after N frames (default: until Ctrl-C)")
     p.set_defaults(func=cmd_monitor)
 
-    p = sub.add_parser("config", help="read or write the board's registers",
+    p = sub.add_parser("config", parents=[quiet], help="read or write the board's registers",
                        description="get NAME | set NAME VALUE | filter NAME | reset | rate HZ | "
                                    "list. Names, formats and units: hdl/FRAMES.md (VALUE in the "
                                    "register's unit; the tool converts).")
@@ -605,7 +617,7 @@ def _add_host_verbs(sub):
     p.add_argument("args", nargs="*", metavar="ARG")
     p.set_defaults(func=cmd_config)
 
-    p = sub.add_parser("calibrate", help="guided calibration, written to the board and saved",
+    p = sub.add_parser("calibrate", parents=[quiet], help="guided calibration, written to the board and saved",
                        description="Gyro bias at rest, the accelerometer in six poses, the "
                                    "magnetometer turned through all orientations; each step "
                                    "checked; the result written to the board and saved as "
@@ -621,7 +633,7 @@ def _add_host_verbs(sub):
                         "default with PORT=sim)")
     p.set_defaults(func=cmd_calibrate)
 
-    p = sub.add_parser("plot", help="plot a monitor log",
+    p = sub.add_parser("plot", parents=[quiet], help="plot a monitor log",
                        description="Attitude, gyro rates and flags of a monitor log (CSV or "
                                    "HDF5) against time, written as an image.")
     p.add_argument("log", metavar="LOG")
@@ -717,6 +729,8 @@ def cmd_plot(args):
 
 def main(argv=None):
     args = build_parser().parse_args(argv)
+    from .progress import set_quiet
+    set_quiet(getattr(args, "quiet", False))
     try:
         _prepare_outputs(args)
         return args.func(args)

@@ -227,7 +227,11 @@ def report(*, clk_freq=None, config=None, latency=True, core_options=None):
     config = MPU9250Config() if config is None else config
     clk_freq = SYSTEM_CLOCK_HZ if clk_freq is None else clk_freq
     engine = AttitudeEngine()
+    from .progress import steps
+    shown = steps(["datapath", "design", "cycles", "latency"], "report")
+    shown.next("synthesis of the datapath (Yosys)")
     datapath = synthesize(engine, "attitude_engine", engine)
+    shown.next("synthesis of the whole design: flat, carry chain, per block (Yosys)")
     core_options = dict(core_options or {})
     core = AHRSCore(clk_freq=clk_freq, config=config, **core_options)
     self_test = core.frontend.driver.self_test_block
@@ -237,14 +241,17 @@ def report(*, clk_freq=None, config=None, latency=True, core_options=None):
                               *([self_test.sums, self_test.table] if self_test else [])],
                         others=[self_test] if self_test else [], blocks=True)
     design["room_left_les"] = DEVICE["logic_elements"] - design["logic_elements"]
+    shown.next("cycles per update (simulated, three filters)")
     cycles, first = cycles_per_update()
+    shown.next("data-ready to attitude (co-simulation of the core)")
+    latency_us = drdy_to_attitude_us(clk_freq, config) if latency else None
+    shown.close()
     mhz = clk_freq / 1e6
     budget = rate_budget(config, clk_freq)
     return {
         "build": {"commands": core.commands, "pwm": core.has_pwm},
         "clock_hz": clk_freq,
-        "latency_us": {"drdy_to_attitude": drdy_to_attitude_us(clk_freq, config)
-                       if latency else None},
+        "latency_us": {"drdy_to_attitude": latency_us},
         "max_sample_rate_hz": round(budget["max_sample_rate_hz"]),
         "sample_budget_cycles": {k: budget[k] for k in ("read_cycles", "update_cycles",
                                                          "cycles_per_sample")},

@@ -139,9 +139,13 @@ def main(argv=None):
         print(f"benchmark: note: no rows for {', '.join(missing)}: their libraries are not "
               f"installed (pip install -e \".[bench]\")", file=sys.stderr)
     try:
+        from tqdm import tqdm
         with ProcessPoolExecutor(args.jobs) as pool:
-            results = dict(pool.map(run_trial, args.files,
-                                    [not args.no_fixed] * len(args.files)))
+            # progress on stderr, on a terminal only: a trial takes about a minute
+            results = dict(tqdm(pool.map(run_trial, args.files,
+                                         [not args.no_fixed] * len(args.files)),
+                                total=len(args.files), desc="benchmark", unit="trial",
+                                file=sys.stderr, leave=False, disable=not sys.stderr.isatty()))
     except (OSError, ValueError) as e:          # a missing or malformed recording: one line
         print(f"benchmark: error: {e}", file=sys.stderr)
         return 2

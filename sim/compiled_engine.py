@@ -24,6 +24,7 @@ import hashlib
 import os
 import shutil
 import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -203,6 +204,10 @@ class CompiledEngine:
         folder = _cache_root() / f"engine-{key}"
         binary = folder / "engine_sim"
         if not binary.exists():
+            if sys.stderr.isatty():
+                # a one-time wait worth a word (the binary is cached afterwards)
+                print("mpu9250-ahrs: building the engine with Verilator (about 15 s, once: "
+                      f"cached in {folder.parent}) ...", file=sys.stderr, flush=True)
             start = time.perf_counter()
             folder.parent.mkdir(parents=True, exist_ok=True)
             with tempfile.TemporaryDirectory(dir=folder.parent) as tmp:

@@ -315,7 +315,8 @@ def expected_mag(ak_bytes, mag_ok=True, previous=None):
 
 
 def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cycles=None,
-                 until=None, vcd=None, ready=None, bus_kw=None, injector=None, stop=None):
+                 until=None, vcd=None, ready=None, bus_kw=None, injector=None, stop=None,
+                 progress=None):
     """Simulate until ``n_samples`` samples came out, ``until(status_dict)`` is true,
     ``stop(cycle, status_dict, sample_cycles, samples)`` is true, or ``max_cycles`` (an error
     unless ``until`` was given and is merely never met). ``injector``: a fault
@@ -327,6 +328,8 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
 
     ``ready(cycle)`` gives the consumer's ready per cycle (default: always ready).
     ``vcd``: path of a VCD file to write; a GTKWave save file is written beside it.
+    ``progress``: a bar (``mpu9250_ahrs.progress``: ``update``, ``set_postfix_str``) told of
+    each sample and the cycle reached.
     """
     setup = setup or SimSetup()
     dut = setup.frontend()
@@ -376,6 +379,9 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
         if taken:
             out["samples"].append(to_python(payload))
             out["sample_cycles"].append(cycle)
+        if progress is not None:
+            progress.set_postfix_str(f"cycle {cycle:,}", refresh=False)
+            progress.update(1 if taken else 0)
         done = (n_samples and len(out["samples"]) >= n_samples) or (until and until(st)) or \
             (stop and stop(cycle, st, out["sample_cycles"], out["samples"]))
         if done or cycle >= max_cycles:
@@ -478,13 +484,14 @@ class CoreRun:
 
 
 def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycles=None,
-             baud=921_600, core_kwargs=None, writes=(), vcd=None):
+             baud=921_600, core_kwargs=None, writes=(), vcd=None, progress=None):
     """The whole ``AHRSCore`` (driver, engine, telemetry) against the models until the engine
     has produced ``n_results`` results and the UART has carried ``n_frames`` frames (either
     may be None). Each result is recorded as it leaves the engine (the telemetry scheduler
     takes every one) with the cycle of the INT edge that announced its sample, so
     ``CoreRun.latencies_us`` is the data-ready-to-attitude latency. ``writes``: (address,
-    value) register writes through the ``cfg`` port at the start."""
+    value) register writes through the ``cfg`` port at the start. ``progress``: a bar told
+    of each result and the cycle reached (``run_frontend``)."""
     from ..hdl.top import AHRSCore
     from .streams import stream_put
     from ..host.protocol import FrameDecoder
@@ -531,6 +538,9 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
                 raise TimeoutError(f"{len(out['results'])} results, {len(out['frames'])} "
                                    f"frames after {cycle} cycles; status "
                                    f"{to_python(ctx.get(core.status))}")
+            if progress is not None:
+                progress.set_postfix_str(f"cycle {cycle:,}", refresh=False)
+                progress.update(0)
             pin = ctx.get(core.imu_int)
             if pin and not level:
                 last_int = cycle
@@ -543,6 +553,8 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
                 out["results"].append(payload)
                 out["cycles"].append(first_cycle)
                 out["ints"].append(last_int)
+                if progress is not None:
+                    progress.update(1)
                 await ctx.tick()
                 continue
             await ctx.changed(results.valid, core.imu_int).delay((max_cycles - cycle) * period)

@@ -339,7 +339,7 @@ def run_host_garbage(setup, *, n_results=4, baud=None):
 
 
 def run_fault(name, setup=None, *, at=20, duration=None, after=None, max_cycles=None,
-              vcd=None, keep_result=False):
+              vcd=None, keep_result=False, progress=None):
     """Co-simulate the front end of ``setup`` (``SimSetup``) with fault ``name``; return the
     summary dict (module docstring). ``at``: samples read before a mid-run fault; ``duration``:
     sample periods until it is removed (default: the fault's); ``after``: samples to see once
@@ -410,7 +410,7 @@ def run_fault(name, setup=None, *, at=20, duration=None, after=None, max_cycles=
         max_cycles = int(2 * bring_up + span + 200_000)
     result = run_frontend(setup, model=model, injector=inj, stop=stop, max_cycles=max_cycles,
                           vcd=vcd, ready=ready if fault.stall else None,
-                          until=lambda st: False)
+                          until=lambda st: False, progress=progress)
     summary = summarise(fault, inj, result, setup, after)
     return (summary, result) if keep_result else summary
 
@@ -519,15 +519,20 @@ def catalogue_table(wirings=("spi", "i2c"), *, at=3, after=4, duration=8, out=No
     print("| fault | wiring | detected after (sample periods) | flags | recovered | "
           "stale valid samples |", file=out)
     print("|---|---|---|---|---|---|", file=out)
-    for wiring in wirings:
-        for name in fault_names(wiring):
-            d = duration if FAULTS[name].removable else None
-            r = run_fault(name, catalogue_setup(wiring, fault=name), at=at, after=after,
-                          duration=d)
-            rows.append(r)
-            print(f"| {name} | {wiring} | {r['detected_after_samples']} | "
-                  f"{', '.join(r['flags'])} | {'yes' if r['recovered'] else 'NO'} | "
-                  f"{r['stale_valid_samples']} |", file=out, flush=True)
+    from tqdm import tqdm
+    todo = [(wiring, name) for wiring in wirings for name in fault_names(wiring)]
+    # progress on stderr, on a terminal only (the table goes to ``out``)
+    shown = tqdm(todo, desc="fault catalogue", unit="fault", file=sys.stderr, leave=False,
+                 disable=not sys.stderr.isatty())
+    for wiring, name in shown:
+        shown.set_postfix_str(f"{name} ({wiring})")
+        d = duration if FAULTS[name].removable else None
+        r = run_fault(name, catalogue_setup(wiring, fault=name), at=at, after=after,
+                      duration=d)
+        rows.append(r)
+        print(f"| {name} | {wiring} | {r['detected_after_samples']} | "
+              f"{', '.join(r['flags'])} | {'yes' if r['recovered'] else 'NO'} | "
+              f"{r['stale_valid_samples']} |", file=out, flush=True)
     return rows
 
 

@@ -169,9 +169,17 @@ def corrupted_share(trials=20_000, *, seed=0, flips=(1, 2, 3, 4)):
     rng = random.Random(seed)
     n = payload_bytes(FRAME_TYPES[ATTITUDE])
     out = {}
+    import sys
+    from tqdm import tqdm
+    # progress on stderr, on a terminal only (100,000 trials take minutes)
+    shown = tqdm(total=trials * (len(flips) + 1), desc="corrupted frames", unit="frame",
+                 file=sys.stderr, leave=False, disable=not sys.stderr.isatty(),
+                 mininterval=0.5)
     for k in flips:
         accepted = 0
+        shown.set_postfix_str(f"{k}-bit flips")
         for _ in range(trials):
+            shown.update(1)
             payload, seq = rng.randbytes(n), rng.randrange(256)
             sent = (ATTITUDE, seq, unpack(FRAME_TYPES[ATTITUDE], int.from_bytes(payload, "little")))
             frame = bytearray(encode_frame(ATTITUDE, seq, payload))
@@ -181,10 +189,13 @@ def corrupted_share(trials=20_000, *, seed=0, flips=(1, 2, 3, 4)):
             accepted += any(f != sent for f in decode_frames(frame, with_seq=True))
         out[f"{k}-bit flips"] = (accepted, trials)
     accepted = 0
+    shown.set_postfix_str("random bodies")
     for _ in range(trials):
+        shown.update(1)
         body = bytes([ATTITUDE, rng.randrange(256), n]) + rng.randbytes(n + 2)
         accepted += bool(decode_frames(bytes(SYNC) + body))
     out["random bodies"] = (accepted, trials)
+    shown.close()
     return out
 
 
