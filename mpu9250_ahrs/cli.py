@@ -28,6 +28,9 @@ VERBS_HELP = """verbs:
              behind a pseudo-terminal): a live line, a CSV or HDF5 log, a JSON summary
   config     read or write the board's registers by name in physical units, select the
              filter, reset it, set the telemetry rate (hdl/FRAMES.md)
+  board      start the co-simulated board on a pseudo-terminal and keep it running: its
+             path is a PORT for monitor, config and calibrate, as a real board's (configure,
+             then watch, as on hardware)
   calibrate  guided calibration (gyro at rest, six accelerometer poses, magnetometer turned
              through all orientations), checked, written to the board and saved as JSON for
              build --calibration
@@ -633,6 +636,19 @@ def _add_host_verbs(sub, quiet):
                         "default with PORT=sim)")
     p.set_defaults(func=cmd_calibrate)
 
+    p = sub.add_parser("board", parents=[quiet], help="the simulated board on a pseudo-terminal, "
+                                                      "kept running",
+                       description="Start the co-simulated design (the models, the driver, the "
+                                   "engine, the command channel) behind a pseudo-terminal, print "
+                                   "its path and keep it running until Ctrl-C: monitor, config "
+                                   "and calibrate then use that path as a serial port, so a "
+                                   "configuration made by one command is seen by the next. It "
+                                   "sends about one frame a second (Amaranth's simulator): give "
+                                   "the host verbs --timeout 60.")
+    p.add_argument("--seconds", type=_positive, default=None, metavar="S",
+                   help="stop after S seconds (default: run until Ctrl-C)")
+    p.set_defaults(func=cmd_board)
+
     p = sub.add_parser("plot", parents=[quiet], help="plot a monitor log",
                        description="Attitude, gyro rates and flags of a monitor log (CSV or "
                                    "HDF5) against time, written as an image.")
@@ -652,6 +668,28 @@ def _progress(what, k, n):
         if k == n:
             sys.stderr.write("\n")
         sys.stderr.flush()
+
+
+def cmd_board(args):
+    """``board``: a SimulatedBoard on a pseudo-terminal until Ctrl-C (or ``--seconds``)."""
+    from .sim.board import SimulatedBoard
+    board = SimulatedBoard().start()
+    print(f"simulated board on {board.port}", flush=True)
+    print(f"use it as the PORT of monitor, config and calibrate, with --timeout 60 (about a "
+          f"frame a second), e.g.: python -m mpu9250_ahrs config {board.port} --timeout 60 "
+          f"filter complementary; Ctrl-C stops it", file=sys.stderr, flush=True)
+    start = time.monotonic()
+    try:
+        while args.seconds is None or time.monotonic() - start < args.seconds:
+            if board.error is not None:
+                break
+            time.sleep(0.2)
+    except KeyboardInterrupt:
+        pass
+    cycles = board.cycles
+    board.stop()                        # raises (one line, exit 2) if the simulation failed
+    print(f"simulated board stopped after {cycles:,} cycles", file=sys.stderr)
+    return 0
 
 
 def cmd_monitor(args):
