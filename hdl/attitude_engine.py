@@ -222,8 +222,29 @@ class AttitudeEngine(wiring.Component):
         o_hold_a = Signal(signed(32), reset_less=True)
         o_hold_b = Signal(signed(32), reset_less=True)
         o_held_a, o_held_b = Signal(), Signal()
-        hit_a = w_en & (w_addr == o.a)
-        hit_b = w_en & (w_addr == o.b)
+        # Whether this cycle's write is to ``o``'s operand: ``w_en & (w_addr == o.a)``, made
+        # from registered facts (does ``o`` read what ``x`` writes, ``x.d + 1``, what the MAC
+        # writes back), kept with the registers they compare, so that no address comparison
+        # is between the write-back's multiplexers and the operands' forwarding (that path
+        # limited the routed Fmax, report --timing). ``x_wd``/``x_wd1``: the execute stage
+        # writes ``x.d``/``x.d + 1`` now (it takes the write port over the MAC's, as below).
+        # Outside RUN only ``xa``/``xb`` see them, and those are not read there.
+        x_wd, x_wd1 = Signal(), Signal()
+        wb_next_d = Mux(mac.pending, mac.wb_next_addr, mac.wb_addr)   # the MAC's d next cycle
+        facts = {}
+        for port in ("a", "b"):
+            own = getattr(o, port)
+            incoming = getattr(rinstr, port)
+            eq_x = Signal(reset_less=True, init=1, name=f"eq_xd_{port}")
+            eq_x1 = Signal(reset_less=True, init=0, name=f"eq_xd1_{port}")
+            eq_wb = Signal(reset_less=True, init=1, name=f"eq_wb_{port}")
+            m.d.sync += [
+                eq_x.eq(Mux(advance, o.d == incoming, eq_x)),
+                eq_x1.eq(Mux(advance, (o.d + 1)[:REG_BITS] == incoming, eq_x1)),
+                eq_wb.eq(Mux(advance, wb_next_d == incoming, wb_next_d == own)),
+            ]
+            facts[port] = (x_wd & eq_x) | (x_wd1 & eq_x1) | (~x_wd & ~x_wd1 & mac.wb_en & eq_wb)
+        hit_a, hit_b = facts["a"], facts["b"]
         o_a = Mux(hit_a, w_data, Mux(o_held_a, o_hold_a, rf.ra_data))
         o_b = Mux(hit_b, w_data, Mux(o_held_b, o_hold_b, rf.rb_data))
         # snooped from the registered write (a cycle after the execute stage's): the ALU's and
@@ -264,7 +285,8 @@ class AttitudeEngine(wiring.Component):
             with m.If(xvalid):
                 with m.Switch(x.op):
                     with m.Case(Op.ADD, Op.SUB, Op.OR):
-                        m.d.comb += [w_en.eq(1), w_addr.eq(x.d), w_data.eq(alu.result),
+                        m.d.comb += [w_en.eq(1), w_addr.eq(x.d), x_wd.eq(1),
+                                     w_data.eq(alu.result),
                                      w_sat.eq(alu.saturated)]
                     with m.Case(Op.MUL):
                         # the write-back comes two cycles after the issue: the MUL stays
@@ -290,7 +312,7 @@ class AttitudeEngine(wiring.Component):
                             m.d.comb += advance.eq(0)
                         with m.Else():
                             m.d.sync += phase.eq(0)
-                            m.d.comb += [w_en.eq(1), w_addr.eq(x.d),
+                            m.d.comb += [w_en.eq(1), w_addr.eq(x.d), x_wd.eq(1),
                                          w_data.eq(divider.quotient), w_sat.eq(divider.saturated)]
                     with m.Case(Op.VEC, Op.ROT):
                         is_rot = x.op == Op.ROT
@@ -300,12 +322,12 @@ class AttitudeEngine(wiring.Component):
                         with m.Elif(phase == 1):
                             m.d.comb += advance.eq(0)
                             with m.If(cordic.done):
-                                m.d.comb += [w_en.eq(1), w_addr.eq(x.d),
+                                m.d.comb += [w_en.eq(1), w_addr.eq(x.d), x_wd.eq(1),
                                              w_data.eq(Mux(is_rot, cordic.cos, cordic.angle))]
                                 m.d.sync += phase.eq(2)
                         with m.Else():
                             m.d.sync += phase.eq(0)
-                            m.d.comb += [w_en.eq(1), w_addr.eq(x.d + 1),
+                            m.d.comb += [w_en.eq(1), w_addr.eq(x.d + 1), x_wd1.eq(1),
                                          w_data.eq(Mux(is_rot, cordic.sin, cordic.magnitude)),
                                          w_sat.eq(~is_rot & cordic.saturated)]
                     with m.Case(Op.BR):
