@@ -170,16 +170,9 @@ class CommandDecoder(wiring.Component):
         write = Signal.like(self.cfg.payload, reset_less=True)
         m.d.comb += [self.replies.payload.eq(reply), self.cfg.payload.eq(write)]
 
-        # The statistics share incrementers (each its own costs about 50 LUTs on a MAX10): the
-        # discarded, CRC-error, ok and refused counts are each made in parser states of their
-        # own, so never two in one cycle, and share one; the malformed count, which comes with
-        # a refused (a bad command) or a discarded one (a time-out in SYNC1), has its own.
-        # Each counter saturates at 0xFFFF.
-        shared = ("discarded", "crc_errors", "ok", "refused")
-        requests = {name: Signal(name=f"count_{name}") for name in (*shared, "malformed")}
-
-        def count_up(name):
-            m.d.comb += requests[name].eq(1)
+        def count_up(counter):
+            with m.If(~counter.all()):                  # saturating at 0xFFFF
+                m.d.sync += counter.eq(counter + 1)
 
         def answer(result, value_=None, addr_=None):
             m.d.sync += [reply.command.eq(ctype), reply.cmd_seq.eq(seq), reply.result.eq(result),
@@ -189,9 +182,9 @@ class CommandDecoder(wiring.Component):
                 # only an accepted command restarts the PWM watchdog: a host stuck sending
                 # refused or unknown commands is as good as a silent one
                 m.d.comb += self.kick.eq(1)
-                count_up("ok")
+                count_up(stats.ok)
             else:
-                count_up("refused")
+                count_up(stats.refused)
             m.next = "REPLY"
 
         m.d.comb += [crc.data.eq(byte)]
@@ -230,7 +223,7 @@ class CommandDecoder(wiring.Component):
                         m.next = "SYNC1"
                     with m.Else():
                         m.d.comb += fifo.release.eq(1)
-                        count_up("discarded")
+                        count_up(stats.discarded)
 
             @contextmanager
             def receiving(state, *, checked=True):
@@ -257,7 +250,7 @@ class CommandDecoder(wiring.Component):
                     with m.If(is_sync1):
                         m.next = "TYPE"
                     with m.Else():
-                        count_up("discarded")
+                        count_up(stats.discarded)
                         m.next = "HUNT"
             with receiving("TYPE"):
                 m.d.comb += crc.start.eq(1)
@@ -269,7 +262,7 @@ class CommandDecoder(wiring.Component):
             with receiving("LENGTH"):
                 m.d.sync += [length.eq(byte), count.eq(0), payload.eq(0)]
                 with m.If(too_long):
-                    count_up("malformed")
+                    count_up(stats.malformed)
                     m.d.comb += fifo.rewind.eq(1)           # search the rest for a header
                     m.next = "HUNT"
                 with m.Elif(empty):
@@ -288,7 +281,7 @@ class CommandDecoder(wiring.Component):
                     m.d.comb += fifo.release.eq(1)
                     m.next = "EXECUTE"
                 with m.Else():
-                    count_up("crc_errors")
+                    count_up(stats.crc_errors)
                     m.d.comb += fifo.rewind.eq(1)           # search the rest for a header
                     m.next = "HUNT"
 
@@ -300,7 +293,7 @@ class CommandDecoder(wiring.Component):
                         with m.Case(code):
                             m.d.comb += [expected.eq(n), known.eq(1)]
                 with m.If(~known | (length != expected)):
-                    count_up("malformed")
+                    count_up(stats.malformed)
                     answer(RESULTS["bad_command"])
                 with m.Elif(ctype == COMMANDS["write"][0]):
                     with m.If(space == SPACES["engine"]):
@@ -391,16 +384,6 @@ class CommandDecoder(wiring.Component):
         with m.Elif(~timed_out):
             m.d.sync += gap.eq(gap + 1)
         with m.If(timed_out):
-            count_up("malformed")
+            count_up(stats.malformed)
             m.d.sync += gap.eq(0)
-
-        # the one counter of the four asked for (at most one is): an AND-OR of them
-        chosen = Signal(16)
-        m.d.comb += chosen.eq(Cat(*[Cat(*[requests[n] & getattr(stats, n)[k]
-                                          for n in shared]).any() for k in range(16)]))
-        for name in shared:
-            with m.If(requests[name] & ~chosen.all()):
-                m.d.sync += getattr(stats, name).eq(chosen + 1)
-        with m.If(requests["malformed"] & ~stats.malformed.all()):
-            m.d.sync += stats.malformed.eq(stats.malformed + 1)
         return m
