@@ -24,7 +24,7 @@ def saturate(m, value, bits):
 
 class ALU(wiring.Component):
     """One adder for a ± b (exact at 33 bits), or a | b, then the result wrapped to 32 bits or
-    saturated to 32 bits, or to 16 (calibrated sensor values: sat16 of sat32 is sat16).
+    saturated to 32 bits, or to 16 (calibrated sensor values: sat16 of sat32, which is sat16).
 
     Members
         ``a``, ``b`` (in, signed 32): the operands.
@@ -49,10 +49,14 @@ class ALU(wiring.Component):
         m.d.comb += full.eq(self.a + Mux(self.sub, ~self.b, self.b) + self.sub)   # one adder
         wide = Signal(signed(33))
         m.d.comb += wide.eq(Mux(self.or_, self.a | self.b, full))
+        # both clamps of the one sum, side by side rather than one after the other (the
+        # ALU's result is forwarded to the next instruction's operands in the same cycle:
+        # the longest path of the engine, report --timing). sat16 of the sum is sat16 of its
+        # sat32: a sum beyond 32 bits is beyond 16 with the same sign
         v32, f32 = saturate(m, wide, 32)
-        v16, f16 = saturate(m, v32, 16)
+        v16, f16 = saturate(m, wide, 16)
         m.d.comb += [
             self.result.eq(Mux(self.wrap, full[:32], Mux(self.sat16, v16, v32))),
-            self.saturated.eq(~self.wrap & (f32 | (self.sat16 & f16))),
+            self.saturated.eq(~self.wrap & Mux(self.sat16, f16, f32)),
         ]
         return m
