@@ -14,6 +14,7 @@ Needs the ``bench`` extra for the libraries (``pip install -e ".[bench]"``).
 
 import argparse
 import json
+import os
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
@@ -133,6 +134,20 @@ def main(argv=None):
                    help="skip the (slow) fixed-point and gateware rows")
     p.add_argument("--jobs", type=int, default=1)
     args = p.parse_args(argv)
+    # the files it writes: their folders made, and checked writable, before minutes of work
+    for name in ("json", "figure"):
+        path = getattr(args, name)
+        if path:
+            folder = os.path.dirname(os.path.abspath(path))
+            try:
+                os.makedirs(folder, exist_ok=True)
+            except OSError as e:
+                print(f"benchmark: error: --{name} {path}: {e}", file=sys.stderr)
+                return 2
+            if os.path.isdir(path) or not os.access(folder, os.W_OK):
+                print(f"benchmark: error: --{name} {path}: not a writable file path",
+                      file=sys.stderr)
+                return 2
     missing = missing_external_filters()
     if missing:
         # said at the start, not left for the reader to notice the rows are gone

@@ -266,6 +266,19 @@ def test_benchmark_bad_recording(tmp_path, capsys):
         assert_one_error(code, capsys.readouterr().err, "HDF5")
 
 
+def test_benchmark_checks_its_output_paths_first(tmp_path, capsys):
+    """Issue #29: the benchmark's --json/--figure folders are made before the trials run, and
+    a folder given for a file is one error line before any work (a missing recording would
+    otherwise be the first error)."""
+    from mpu9250_ahrs.sim.benchmark import main as benchmark
+    missing = str(tmp_path / "missing.hdf5")
+    code = benchmark([missing, "--no-fixed", "--json", str(tmp_path)])
+    assert_one_error(code, capsys.readouterr().err, "not a writable file path")
+    code = benchmark([missing, "--no-fixed", "--json", str(tmp_path / "new" / "b.json")])
+    assert (tmp_path / "new").is_dir()
+    assert_one_error(code, capsys.readouterr().err, "HDF5")
+
+
 def test_output_folders_are_made_before_the_work(capsys, tmp_path):
     """Issue #29: a file a verb writes into a folder that is not there yet: the folder is made
     before any work starts (calibrate lost its fitted result at the very end this way); a
