@@ -616,8 +616,10 @@ def _add_host_verbs(sub, quiet):
                                    "list. Names, formats and units: hdl/FRAMES.md (VALUE in the "
                                    "register's unit; the tool converts).")
     _add_port_options(p)
-    p.add_argument("action", choices=("get", "set", "filter", "reset", "rate", "list"))
-    p.add_argument("args", nargs="*", metavar="ARG")
+    p.add_argument("action", choices=("get", "set", "filter", "reset", "rate", "list"),
+                   help="get NAME, set NAME VALUE, filter NAME (kalman, complementary, "
+                        "flagship), reset (the filter's state), rate HZ (telemetry), list")
+    p.add_argument("args", nargs="*", metavar="ARG", help="the action's arguments")
     p.set_defaults(func=cmd_config)
 
     p = sub.add_parser("calibrate", parents=[quiet], help="guided calibration, written to the board and saved",
@@ -652,8 +654,8 @@ def _add_host_verbs(sub, quiet):
     p = sub.add_parser("plot", parents=[quiet], help="plot a monitor log",
                        description="Attitude, gyro rates and flags of a monitor log (CSV or "
                                    "HDF5) against time, written as an image.")
-    p.add_argument("log", metavar="LOG")
-    p.add_argument("--out", required=True, metavar="FILE.png")
+    p.add_argument("log", metavar="LOG", help="a monitor log (CSV or HDF5)")
+    p.add_argument("--out", required=True, metavar="FILE.png", help="the image to write")
     p.set_defaults(func=cmd_plot)
 
 

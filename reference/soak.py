@@ -107,7 +107,7 @@ def main(argv=None):
                                 description=__doc__.split("\n\n")[0])
     p.add_argument("--rate", type=float, default=1000.0, help="sample rate, Hz (1000)")
     p.add_argument("--samples", type=int, default=1_000_000, help="samples (10⁶)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=int, default=0, help="the simulated motion's seed (0)")
     args = p.parse_args(argv)
     result = soak(args.samples, args.rate, seed=args.seed)
     print(json.dumps(result))

@@ -127,12 +127,12 @@ def figure(path, out_png, filter_name="flagship"):
 def main(argv=None):
     p = argparse.ArgumentParser(prog="python -m mpu9250_ahrs.sim.benchmark",
                                 description=__doc__.split("\n\n")[0])
-    p.add_argument("files", nargs="+")
+    p.add_argument("files", nargs="+", help="BROAD recordings (HDF5)")
     p.add_argument("--json", help="write all figures as JSON")
     p.add_argument("--figure", help="PNG of roll/pitch/yaw vs truth for the first file")
     p.add_argument("--no-fixed", action="store_true",
                    help="skip the (slow) fixed-point and gateware rows")
-    p.add_argument("--jobs", type=int, default=1)
+    p.add_argument("--jobs", type=int, default=1, help="trials run in parallel (1)")
     args = p.parse_args(argv)
     # the files it writes: their folders made, and checked writable, before minutes of work
     for name in ("json", "figure"):

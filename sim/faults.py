@@ -540,6 +540,7 @@ if __name__ == "__main__":
     import argparse
     parser = argparse.ArgumentParser(description="Run the fault catalogue (hdl/FAULTS.md) in "
                                      "co-simulation and print what was measured as a table.")
-    parser.add_argument("--wiring", choices=("spi", "i2c"), action="append")
+    parser.add_argument("--wiring", choices=("spi", "i2c"), action="append",
+                        help="only this wiring's faults (repeatable; default both)")
     args = parser.parse_args()
     catalogue_table(tuple(args.wiring or ("spi", "i2c")))
