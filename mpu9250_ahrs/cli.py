@@ -777,3 +777,20 @@ def main(argv=None):
     except (ValueError, OSError, RuntimeError) as e:
         print(f"mpu9250-ahrs {args.verb}: error: {e}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print(f"mpu9250-ahrs {args.verb}: interrupted; {_kept(args)}", file=sys.stderr)
+        return 130
+
+
+def _kept(args):
+    """What an interrupted verb leaves behind, in words: the files it was writing that exist
+    (complete up to the interruption), or that nothing was written."""
+    names = ["vcd", "csv", "hdf5", "out"]
+    found = []
+    for name in names:
+        path = getattr(args, name, None)
+        if path and Path(path).exists():
+            found.append(f"{path}{'/' if Path(path).is_dir() else ''}")
+    if not found:
+        return "nothing was written"
+    return "kept as far as it got: " + ", ".join(found)
