@@ -402,6 +402,13 @@ def cmd_replay(args):
              "accel_lsb_per_ms2": scales.accel_lsb_per_ms2}
     extra = {}
     start = time.perf_counter()
+    from .progress import enabled
+    if engine != "float" and enabled():
+        # one call runs the whole recording (tens of seconds): say what is going on
+        what = {"fixed": "the bit-exact integer model",
+                "gateware": "the engine's gateware (Verilator) and the integer model"}[engine]
+        print(f"mpu9250-ahrs replay: {len(rec.quat):,} samples through {what} ...",
+              file=sys.stderr, flush=True)
     if engine == "gateware":
         from .reference.flagship_fixed import q30_to_float
         from .sim.attitude_bench import first_mismatch

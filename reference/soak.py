@@ -80,7 +80,12 @@ def soak(n, rate, rates=FilterRates(), seed=0):
     fixed = np.empty((n, 3))
     saturated = 0
     gl, al, ml, vl = gc.tolist(), ac.tolist(), mc.tolist(), mag_valid.tolist()
-    for k in range(n):
+    import sys
+    from tqdm import tqdm
+    # progress on stderr, on a terminal only: 10^6 samples take a minute or two
+    for k in tqdm(range(n), desc="soak (integer filter)", unit="sample", file=sys.stderr,
+                  leave=False, disable=not sys.stderr.isatty(), mininterval=0.5,
+                  miniters=10_000):
         st = Status()
         kf.step(gl[k], al[k], ml[k], vl[k], st)
         saturated += bool(st.saturated)
