@@ -231,7 +231,7 @@ class AttitudeEngine(wiring.Component):
         # Outside RUN only ``xa``/``xb`` see them, and those are not read there.
         x_wd, x_wd1 = Signal(), Signal()
         wb_next_d = Mux(mac.pending, mac.wb_next_addr, mac.wb_addr)   # the MAC's d next cycle
-        facts = {}
+        facts, reads_xd = {}, {}
         for port in ("a", "b"):
             own = getattr(o, port)
             incoming = getattr(rinstr, port)
@@ -244,6 +244,7 @@ class AttitudeEngine(wiring.Component):
                 eq_wb.eq(Mux(advance, wb_next_d == incoming, wb_next_d == own)),
             ]
             facts[port] = (x_wd & eq_x) | (x_wd1 & eq_x1) | (~x_wd & ~x_wd1 & mac.wb_en & eq_wb)
+            reads_xd[port] = eq_x
         hit_a, hit_b = facts["a"], facts["b"]
         o_a = Mux(hit_a, w_data, Mux(o_held_a, o_hold_a, rf.ra_data))
         o_b = Mux(hit_b, w_data, Mux(o_held_b, o_hold_b, rf.rb_data))
@@ -258,19 +259,19 @@ class AttitudeEngine(wiring.Component):
         with m.If(w_en & w_sat):
             m.d.sync += flag_sat.eq(1)
 
-        # Whether ``o`` reads the register ``x`` writes, and the one the MAC's accumulating
-        # instruction writes: the MUL's stall test needs both, and ``advance`` fans out to
-        # every pipeline register's enable, so they are kept as registered facts (updated
-        # with ``o``, ``x`` and the MAC's instruction, which change only at ``advance`` and
-        # at an issue; a comparison of the next values, chosen late) rather than compared in
-        # the cycle. No reset, like the registers they describe (zero instructions: equal).
+        # Whether ``o`` reads the register ``x`` writes (from the forwarding's facts above),
+        # and the one the MAC's accumulating instruction writes: the MUL's stall test needs
+        # both, and ``advance`` fans out to every pipeline register's enable, so they are
+        # registered facts (updated with ``o``, ``x`` and the MAC's instruction, which change
+        # only at ``advance`` and at an issue; a comparison of the next values, chosen late)
+        # rather than compared in the cycle. No reset, like the registers they describe (zero
+        # instructions: equal).
         def reads(instr, addr):
             return (instr.a == addr) | (instr.b == addr)
 
-        o_reads_x = Signal(reset_less=True, init=1)
+        o_reads_x = reads_xd["a"] | reads_xd["b"]
         o_reads_acc = Signal(reset_less=True, init=1)
         m.d.sync += [
-            o_reads_x.eq(Mux(advance, reads(rinstr, o.d), o_reads_x)),
             o_reads_acc.eq(Mux(advance,
                                Mux(mac.issue, reads(rinstr, x.d), reads(rinstr, mac.wb_next_addr)),
                                Mux(mac.issue, reads(o, x.d), o_reads_acc))),

@@ -95,18 +95,17 @@ class RewindableFIFO(wiring.Component):
         read_next = Signal(bits)
         keep_next = Signal(bits)
         valid_next = Signal()
+        m.d.comb += read_next.eq(Mux(take, read_1, read))
         with m.If(self.rewind):
             m.d.comb += [read_next.eq(keep_1), keep_next.eq(keep_1),
                          valid_next.eq(offered(keep_1, keep_1))]
         with m.Elif(self.mark & take):
-            m.d.comb += [read_next.eq(read_1), keep_next.eq(read),
-                         valid_next.eq(offered(read_1, read))]
+            m.d.comb += [keep_next.eq(read), valid_next.eq(offered(read_1, read))]
         with m.Elif(self.release):
-            m.d.comb += [read_next.eq(Mux(take, read_1, read)),
-                         keep_next.eq(Mux(take, read_1, read)),
+            m.d.comb += [keep_next.eq(read_next),
                          valid_next.eq(Mux(take, offered(read_1, read_1), offered(read, read)))]
         with m.Else():
-            m.d.comb += [read_next.eq(Mux(take, read_1, read)), keep_next.eq(keep),
+            m.d.comb += [keep_next.eq(keep),
                          valid_next.eq(Mux(take, offered(read_1, keep), offered(read, keep)))]
         m.d.sync += [read.eq(read_next), keep.eq(keep_next), valid.eq(valid_next)]
         # the RAM reads the old word at an address written in the same cycle: the byte written

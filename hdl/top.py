@@ -259,6 +259,7 @@ class AHRSCore(wiring.Component):
                 connect(m, flipped(self.cfg), engine.cfg)
                 connect(m, flipped(self.cfg_read), engine.cfg_read)
                 connect(m, engine.cfg_read_data, flipped(self.cfg_read_data))
+                connect(m, framer.o_stream, arbiter.i0)
             # the divider register: the engine keeps its copy for read-back
             divider = Signal(16, init=self.telemetry_divider)
             with m.If(engine.cfg.valid & engine.cfg.ready &
@@ -271,8 +272,6 @@ class AHRSCore(wiring.Component):
                 sched.cfg_refused.eq(engine.cfg_refused), self.cfg_refused.eq(engine.cfg_refused),
                 sched.framer_idle.eq(framer.idle),
             ]
-            if not self.commands:
-                connect(m, framer.o_stream, arbiter.i0)
         else:
             # Sample stream -> frame (sample + status at the moment it was taken) -> UART.
             m.d.comb += [

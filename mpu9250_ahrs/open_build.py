@@ -19,7 +19,7 @@ import shutil
 import subprocess
 from pathlib import Path
 
-from .timing import block_of
+from .timing import path_figures, slack_ns, used_cells
 
 
 __all__ = ["YOWASP_TOOLS", "ulx3s_build"]
@@ -70,18 +70,12 @@ def timing_summary(report, clk_hz, *, bitstream=None):
     name = min(clocks, key=lambda c: abs(clocks[c]["constraint"] - clk_hz / 1e6))
     fmax = clocks[name]["achieved"]
     paths = [p for p in report["critical_paths"] if p["to"] == name or p["from"] == name]
-    path = (paths or report["critical_paths"])[0]["path"]
-    start, end = path[0]["from"]["cell"], path[-1]["to"]["cell"]
-    used = report["utilization"]
     return {
         "board": "ULX3S (LFE5U-25F, speed 6)",
         "bitstream": str(bitstream) if bitstream else None,
         "clock": name, "clock_mhz": clk_hz / 1e6, "fmax_mhz": round(fmax, 2),
-        "slack_ns": round(1e9 / clk_hz - 1e3 / fmax, 2),
-        "critical_path": {"from": start, "to": end, "from_block": block_of(start),
-                          "to_block": block_of(end),
-                          "ns": round(sum(s["delay"] for s in path), 2)},
-        "cells": {k: used[k]["used"] for k in ("TRELLIS_COMB", "TRELLIS_FF", "DP16KD",
-                                               "MULT18X18D", "EHXPLLL", "TRELLIS_IO")
-                  if k in used},
+        "slack_ns": slack_ns(clk_hz, fmax),
+        "critical_path": path_figures((paths or report["critical_paths"])[0]["path"]),
+        "cells": used_cells(report, ("TRELLIS_COMB", "TRELLIS_FF", "DP16KD", "MULT18X18D",
+                                     "EHXPLLL", "TRELLIS_IO")),
     }

@@ -26,7 +26,8 @@ import tempfile
 import time
 
 
-__all__ = ["ecp5_timing", "block_of", "TARGET_MARGIN"]
+__all__ = ["ecp5_timing", "block_of", "slack_ns", "path_figures", "used_cells",
+           "TARGET_MARGIN"]
 
 TARGET_MARGIN = 1.5
 
@@ -45,6 +46,27 @@ def block_of(cell):
     (``engine.regfile.mem.1.0`` -> ``engine.regfile``), or the top level's name."""
     parts = cell.split(".")
     return ".".join(parts[:2]) if len(parts) > 2 else (parts[0] if len(parts) > 1 else "top")
+
+
+def slack_ns(clk_hz, fmax_mhz):
+    """The slack at ``clk_hz`` of a design that reaches ``fmax_mhz`` (negative: it fails)."""
+    return round(1e9 / clk_hz - 1e3 / fmax_mhz, 2)
+
+
+def path_figures(path):
+    """A nextpnr critical path (its report's ``path`` steps): its start and end cells, the
+    blocks they are in, its length and how much of it is routing (ns)."""
+    start, end = path[0]["from"]["cell"], path[-1]["to"]["cell"]
+    return {"from": start, "to": end, "from_block": block_of(start), "to_block": block_of(end),
+            "ns": round(sum(step["delay"] for step in path), 2),
+            "routing_ns": round(sum(step["delay"] for step in path
+                                    if step["type"] == "routing"), 2)}
+
+
+def used_cells(report, kinds):
+    """How many cells of each of ``kinds`` a nextpnr report's design uses."""
+    used = report["utilization"]
+    return {k: used[k]["used"] for k in kinds if k in used}
 
 
 def _run(argv, cwd, what):
@@ -86,10 +108,6 @@ def ecp5_timing(verilog_text, top, clk_hz, *, seeds=(1, 2, 3), progress=None,
     worst = min(runs, key=lambda r: r["fmax_mhz"])
     path = max(worst["report"]["critical_paths"],
                key=lambda p: sum(step["delay"] for step in p["path"]))["path"]
-    start_cell, end_cell = path[0]["from"]["cell"], path[-1]["to"]["cell"]
-    total = sum(step["delay"] for step in path)
-    routing = sum(step["delay"] for step in path if step["type"] == "routing")
-    used = worst["report"]["utilization"]
     fmaxes = [r["fmax_mhz"] for r in runs]
     return {
         "flow": "yowasp synth_ecp5 + nextpnr-ecp5 --25k --speed 6 --out-of-context "
@@ -99,12 +117,10 @@ def ecp5_timing(verilog_text, top, clk_hz, *, seeds=(1, 2, 3), progress=None,
         "fmax_mhz_by_seed": {r["seed"]: r["fmax_mhz"] for r in runs},
         "fmax_mhz_min": min(fmaxes),
         "fmax_mhz_median": round(statistics.median(fmaxes), 2),
-        "slack_ns_worst": round(1e9 / clk_hz - 1e3 / min(fmaxes), 2),
-        "critical_path": {"from": start_cell, "to": end_cell, "from_block": block_of(start_cell),
-                          "to_block": block_of(end_cell), "ns": round(total, 2),
-                          "routing_ns": round(routing, 2), "seed": worst["seed"]},
-        "cells": {k: used[k]["used"] for k in ("TRELLIS_COMB", "TRELLIS_FF", "DP16KD",
-                                               "MULT18X18D", "TRELLIS_RAMW") if k in used},
+        "slack_ns_worst": slack_ns(clk_hz, min(fmaxes)),
+        "critical_path": {**path_figures(path), "seed": worst["seed"]},
+        "cells": used_cells(worst["report"], ("TRELLIS_COMB", "TRELLIS_FF", "DP16KD",
+                                               "MULT18X18D", "TRELLIS_RAMW")),
         "synth_s": round(synth_s, 1),
         "pnr_s": [r["pnr_s"] for r in runs],
     }

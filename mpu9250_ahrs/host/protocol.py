@@ -169,12 +169,9 @@ def corrupted_share(trials=20_000, *, seed=0, flips=(1, 2, 3, 4)):
     rng = random.Random(seed)
     n = payload_bytes(FRAME_TYPES[ATTITUDE])
     out = {}
-    import sys
-    from tqdm import tqdm
+    from ..progress import bar
     # progress on stderr, on a terminal only (100,000 trials take minutes)
-    shown = tqdm(total=trials * (len(flips) + 1), desc="corrupted frames", unit="frame",
-                 file=sys.stderr, leave=False, disable=not sys.stderr.isatty(),
-                 mininterval=0.5)
+    shown = bar(trials * (len(flips) + 1), "corrupted frames", "frame")
     for k in flips:
         accepted = 0
         shown.set_postfix_str(f"{k}-bit flips")
