@@ -28,7 +28,7 @@ from .streams import Monitored
 from ..host.protocol import to_python
 
 
-__all__ = ["CosimHarness", "attach_models", "attach_mpu9250", "attach_stuck_miso", "SimSetup",
+__all__ = ["CosimHarness", "PinModels", "attach_models", "attach_mpu9250", "attach_stuck_miso", "SimSetup",
            "CosimResult", "run_frontend", "CoreRun", "run_core",
            "sample_matches", "expected_mag", "sample_read_cycles"]
 
@@ -80,13 +80,92 @@ class CosimHarness(Monitored):
 NEVER = (1 << 40) - 1
 
 
+class PinModels:
+    """What the models do at one wake-up: given the cycle and the watched pins' levels, they
+    take the edges, and say which levels they drive (``cipo_model``, ``int_model``,
+    ``scl_model_low``, ``sda_model_low``: the ``CosimHarness`` signal names) and at which cycle
+    they next want to run with no pin change. Shared by Amaranth's simulator
+    (``attach_models``) and the compiled path (``sim.compiled_board``), so both play the
+    models alike. ``spi``: the design has SPI pins (else I2C lines, needing ``bus``)."""
+
+    def __init__(self, clk_freq, *, mpu, bus=None, injector=None, spi=True):
+        self.clk_freq = clk_freq
+        self.mpu, self.bus, self.injector, self.spi = mpu, bus, injector, spi
+        self.cs_prev, self.sclk_prev = 1, 1
+        self.driven = {}
+
+    def _drive(self, name, value):
+        if self.driven.get(name) != value:
+            self.driven[name] = value
+            return {name: value}
+        return {}
+
+    def initial(self):
+        """What the models drive before anything happens (a bus stuck from the start, say)."""
+        out = {}
+        bus, mpu = self.bus, self.mpu
+        if bus is not None:
+            out.update(self._drive("scl_model_low", int(bus.scl_low)))
+            out.update(self._drive("sda_model_low", int(bus.sda_low)))
+        if mpu is not None:
+            out.update(self._drive("int_model", mpu.int_level))
+        return out
+
+    def react(self, cycle, a, b, copi=0):
+        """At ``cycle``: ``a``, ``b`` = CS_n, SCLK (SPI; ``copi`` too) or SCL, SDA (I2C).
+        Returns (levels changed, the next cycle to wake at or ``NEVER``)."""
+        mpu, bus, injector, clk_freq = self.mpu, self.bus, self.injector, self.clk_freq
+        out = {}
+        t = cycle / clk_freq
+        if injector is not None:
+            injector.advance(t)
+        absent = injector is not None and injector.mpu_absent
+        if mpu is not None:
+            mpu.advance(t)
+        if self.spi and absent:
+            self.cs_prev, self.sclk_prev = a, b
+            out.update(self._drive("cipo_model", 1))
+        elif self.spi:
+            cs_n, sclk = a, b
+            if cs_n != self.cs_prev and not cs_n:
+                mpu.cs_edge(t, cs_n)
+            if sclk != self.sclk_prev:
+                mpu.sclk_edge(t, sclk, copi)
+            if cs_n != self.cs_prev and cs_n:
+                mpu.cs_edge(t, cs_n)
+            self.cs_prev, self.sclk_prev = cs_n, sclk
+            mpu.advance(t)
+            # the level SDO has when the design's first CIPO flip-flop next samples it
+            level = mpu.sdo_at(t + 1 / clk_freq)
+            if injector is not None and injector.cipo is not None:
+                level = injector.cipo
+            out.update(self._drive("cipo_model", level))
+        if bus is not None:
+            bus.lines(t, a, b)
+            out.update(self._drive("scl_model_low", int(bus.scl_low)))
+            out.update(self._drive("sda_model_low", int(bus.sda_low)))
+        if mpu is not None:
+            level = 0 if absent else mpu.int_level
+            if injector is not None and injector.int_level is not None:
+                level = injector.int_level
+            out.update(self._drive("int_model", level))
+        events = [e for e in (mpu and mpu.next_event, bus and bus.next_event,
+                              injector and injector.next_event) if e is not None]
+        change = mpu.sdo_change_at if self.spi and not absent else None
+        if change is not None:          # wake the cycle before the edge that will see it
+            events.append(change - 1 / clk_freq)
+        wake = NEVER if not events else \
+            max(cycle + 1, math.ceil(min(events) * clk_freq - 1e-6))
+        return out, wake
+
+
 def attach_models(sim, harness, clk_freq, *, mpu, bus=None, injector=None):
     """Play ``mpu`` (an ``MPU9250Model``) on the harness's SPI pins, or ``bus`` (an
     ``I2CBusModel`` holding the MPU9250 and what its bypass exposes) on its I2C lines, plus the
-    INT pin. The process wakes only on pin changes and on the models' own events.
-    ``injector`` (``sim.faults.FaultInjector``): a fault switched on and off in time, with its
-    pin overrides (CIPO, INT) and an MPU9250 that is not there (SPI: it sees no pin changes,
-    CIPO floats high, INT low)."""
+    INT pin. The process wakes only on pin changes and on the models' own events
+    (``PinModels``). ``injector`` (``sim.faults.FaultInjector``): a fault switched on and off
+    in time, with its pin overrides (CIPO, INT) and an MPU9250 that is not there (SPI: it sees
+    no pin changes, CIPO floats high, INT low)."""
     spi = harness.spi
     watched = [harness.wake]
     sampled = [harness.cycle]
@@ -95,67 +174,22 @@ def attach_models(sim, harness, clk_freq, *, mpu, bus=None, injector=None):
         sampled += [spi.copi]
     if bus is not None:
         watched += [harness.scl, harness.sda]
+    models = PinModels(clk_freq, mpu=mpu, bus=bus, injector=injector, spi=spi is not None)
 
     async def process(ctx):
-        cs_prev, sclk_prev = 1, 1
-        driven = {}
         wake_prev = NEVER
 
-        def drive(signal, value):
-            if driven.get(signal.name) != value:
-                driven[signal.name] = value
-                ctx.set(signal, value)
+        def apply(levels):
+            for name, value in levels.items():
+                ctx.set(getattr(harness, name), value)
 
-        # What the models drive before anything happens (a bus stuck from the start, say).
-        if bus is not None:
-            drive(harness.scl_model_low, int(bus.scl_low))
-            drive(harness.sda_model_low, int(bus.sda_low))
-        if mpu is not None:
-            drive(harness.int_model, mpu.int_level)
-
+        apply(models.initial())
         async for values in ctx.changed(*watched).sample(*sampled):
-            changed = dict(zip(("wake", "a", "b"), values[:len(watched)]))
+            a, b = values[1:len(watched)]
             cycle = values[len(watched)]
-            t = cycle / clk_freq
-            if injector is not None:
-                injector.advance(t)
-            absent = injector is not None and injector.mpu_absent
-            if mpu is not None:
-                mpu.advance(t)
-            if spi is not None and absent:
-                cs_prev, sclk_prev = changed["a"], changed["b"]
-                drive(harness.cipo_model, 1)
-            elif spi is not None:
-                cs_n, sclk, copi = changed["a"], changed["b"], values[len(watched) + 1]
-                if cs_n != cs_prev and not cs_n:
-                    mpu.cs_edge(t, cs_n)
-                if sclk != sclk_prev:
-                    mpu.sclk_edge(t, sclk, copi)
-                if cs_n != cs_prev and cs_n:
-                    mpu.cs_edge(t, cs_n)
-                cs_prev, sclk_prev = cs_n, sclk
-                mpu.advance(t)
-                # the level SDO has when the design's first CIPO flip-flop next samples it
-                level = mpu.sdo_at(t + 1 / clk_freq)
-                if injector is not None and injector.cipo is not None:
-                    level = injector.cipo
-                drive(harness.cipo_model, level)
-            if bus is not None:
-                bus.lines(t, changed["a"], changed["b"])
-                drive(harness.scl_model_low, int(bus.scl_low))
-                drive(harness.sda_model_low, int(bus.sda_low))
-            if mpu is not None:
-                level = 0 if absent else mpu.int_level
-                if injector is not None and injector.int_level is not None:
-                    level = injector.int_level
-                drive(harness.int_model, level)
-            events = [e for e in (mpu and mpu.next_event, bus and bus.next_event,
-                                  injector and injector.next_event) if e is not None]
-            change = mpu.sdo_change_at if spi is not None and not absent else None
-            if change is not None:          # wake the cycle before the edge that will see it
-                events.append(change - 1 / clk_freq)
-            wake = NEVER if not events else \
-                max(cycle + 1, math.ceil(min(events) * clk_freq - 1e-6))
+            copi = values[len(watched) + 1] if spi is not None else 0
+            levels, wake = models.react(cycle, a, b, copi)
+            apply(levels)
             if wake != wake_prev:
                 wake_prev = wake
                 ctx.set(harness.wake_at, wake)
@@ -283,6 +317,7 @@ class CosimResult:
     rate_errors: int = 0                                    # the driver's count at the end
     who_am_i: Optional[int] = None                          # its who_am_i port at the end
     self_test: dict = field(default_factory=dict)           # its self_test port at the end
+    compiled: bool = False                                  # the compiled path ran
 
     @property
     def cycles_per_s(self):
@@ -314,9 +349,28 @@ def expected_mag(ak_bytes, mag_ok=True, previous=None):
                  "mag_new": int(new), "mag_dor": int(new and bool(st1 & A.ST1_DOR))}
 
 
+def compiled_wanted(compiled, *, vcd=None, supported=True):
+    """Whether a co-simulation takes the compiled path (``sim.compiled_board``):
+    ``compiled`` True asks for it (an error if it cannot be had), False for Amaranth's
+    simulator, None: the compiled path when Verilator and g++ are there and the run is one it
+    supports (no VCD: waveforms come from Amaranth's simulator)."""
+    from .compiled_design import verilator_available
+    if compiled:
+        if vcd or not supported:
+            raise ValueError("the compiled path does not take this run (waveforms, a stuck "
+                             "CIPO or a slow consumer): use compiled=False")
+        if not verilator_available():
+            raise RuntimeError("the compiled co-simulation needs verilator and g++: "
+                               "apt-get install verilator g++")
+        return True
+    if compiled is None:
+        return bool(supported and not vcd and verilator_available())
+    return False
+
+
 def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cycles=None,
                  until=None, vcd=None, ready=None, bus_kw=None, injector=None, stop=None,
-                 progress=None):
+                 progress=None, compiled=False):
     """Simulate until ``n_samples`` samples came out, ``until(status_dict)`` is true,
     ``stop(cycle, status_dict, sample_cycles, samples)`` is true, or ``max_cycles`` (an error
     unless ``until`` was given and is merely never met). ``injector``: a fault
@@ -330,6 +384,8 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
     ``vcd``: path of a VCD file to write; a GTKWave save file is written beside it.
     ``progress``: a bar (``mpu9250_ahrs.progress``: ``update``, ``set_postfix_str``) told of
     each sample and the cycle reached.
+    ``compiled``: run the design compiled (``compiled_wanted``; ``CosimResult.compiled``
+    says which path ran).
     """
     setup = setup or SimSetup()
     dut = setup.frontend()
@@ -354,12 +410,17 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
     if injector is not None:
         injector.mpu, injector.bus = model, bus
     harness.monitor(dut.samples, "samples")
-    sim = Simulator(harness)
-    sim.add_clock(1 / setup.clk_freq)
-    if model is not None or bus is not None:
-        attach_models(sim, harness, setup.clk_freq, mpu=model, bus=bus, injector=injector)
-    else:
-        attach_stuck_miso(sim, harness, stuck_miso)
+    compiled = compiled_wanted(compiled, vcd=vcd,
+                               supported=stuck_miso is None and ready is None)
+    sim = None
+    if not compiled:
+        sim = Simulator(harness)
+        sim.add_clock(1 / setup.clk_freq)
+        if model is not None or bus is not None:
+            attach_models(sim, harness, setup.clk_freq, mpu=model, bus=bus,
+                          injector=injector)
+        else:
+            attach_stuck_miso(sim, harness, stuck_miso)
 
     out = {"samples": [], "status": None, "cycles": 0, "bring_up": None, "log": [], "asa": [],
            "sample_cycles": [], "rate_errors": 0, "who_am_i": None, "self_test": {}}
@@ -418,10 +479,33 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
             out["who_am_i"] = ctx.get(dut.who_am_i)
             out["self_test"] = to_python(ctx.get(dut.self_test))
             harness.check(ctx)
-    sim.add_testbench(testbench)
+    if sim is not None:
+        sim.add_testbench(testbench)
 
     start = time.perf_counter()
-    if vcd:
+    if compiled:
+        from amaranth.lib import data
+        from .compiled_board import check_monitors, frontend_loop
+        models = PinModels(setup.clk_freq, mpu=model, bus=bus, injector=injector,
+                           spi=bus is None)
+        payload_layout = data.Layout.cast(dut.samples.payload.shape())
+        status_layout = data.Layout.cast(dut.status.shape())
+        holder = {}
+        try:
+            frontend_loop(harness, dut, models,
+                          lambda c, v, p, st: observe(c, v, data.Const(payload_layout, p),
+                                                      data.Const(status_layout, st)),
+                          max_cycles, spi=bus is None, built=holder)
+        except Done:
+            design = holder["design"]
+            def end(name, value):
+                return to_python(data.Const(data.Layout.cast(value.shape()), design.get(name)))
+            out["asa"] = end("asa", dut.asa)
+            out["rate_errors"] = design.get("rate_errors")
+            out["who_am_i"] = design.get("who_am_i")
+            out["self_test"] = end("self_test", dut.self_test)
+            check_monitors(design, harness)
+    elif vcd:
         gtkw = str(vcd).rsplit(".", 1)[0] + ".gtkw"
         if bus is None:
             traces = [dut.pins.cs_n, dut.pins.sclk, dut.pins.copi, dut.pins.cipo]
@@ -435,7 +519,7 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
     wall = time.perf_counter() - start
     return CosimResult(out["samples"], out["status"], out["cycles"], out["bring_up"], wall,
                        model, bus, out["log"], out["asa"], out["sample_cycles"],
-                       out["rate_errors"], out["who_am_i"], out["self_test"])
+                       out["rate_errors"], out["who_am_i"], out["self_test"], compiled)
 
 
 def sample_read_cycles(result, setup):

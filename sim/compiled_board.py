@@ -1,0 +1,223 @@
+"""The whole-board co-simulations on the compiled path: the design in Verilator
+(``sim.compiled_design``), the Python models (``sim.cosim.PinModels``) called only when a pin
+they watch changes or at the time they asked for, the UART read back in Python.
+
+``frontend_loop`` and ``core_loop`` are the compiled twins of the testbenches of
+``cosim.run_frontend`` and ``cosim.run_core``: same models, same observations (a sample or a
+result recorded at the cycle it is seen), so both paths give the same samples, results, cycles
+and frames (``tests/sim/test_compiled_board.py``). ``cosim`` picks this path when
+``compiled=True`` (or None: when Verilator and g++ are there, for long runs); ``simulate``,
+``report`` and the simulated board say which path ran.
+
+Speed (``python -m mpu9250_ahrs.sim.compiled_board``): prints both paths' cycles per second on
+the same short run of the core and the front end.
+"""
+
+import time
+
+from .compiled_design import CompiledDesign, verilator_available
+from .cosim import NEVER, PinModels
+
+
+__all__ = ["frontend_loop", "core_loop", "board_ports", "verilator_available"]
+
+
+def board_ports(harness, *, spi, extra_inputs=None, extra_outputs=None):
+    """The ports of a ``CosimHarness`` for the compiled path: the models' levels and
+    ``extra_inputs`` in; the watched pins first (so they can be watched), then
+    ``extra_outputs`` and the stream monitors' flags out."""
+    inputs = {"cipo_model": harness.cipo_model, "int_model": harness.int_model,
+              "scl_model_low": harness.scl_model_low, "sda_model_low": harness.sda_model_low}
+    inputs.update(extra_inputs or {})
+    if spi:
+        outputs = {"pin_a": harness.spi.cs_n, "pin_b": harness.spi.sclk,
+                   "copi": harness.spi.copi}
+    else:
+        outputs = {"pin_a": harness.scl, "pin_b": harness.sda}
+    outputs["cycle"] = harness.cycle
+    outputs.update(extra_outputs or {})
+    for k, monitor in enumerate(harness.monitors):
+        outputs[f"mon{k}_withdrawn"] = monitor.withdrawn
+        outputs[f"mon{k}_changed"] = monitor.changed
+    return inputs, outputs
+
+
+def check_monitors(design, harness):
+    for k, monitor in enumerate(harness.monitors):
+        assert not design.get(f"mon{k}_withdrawn"), f"{monitor.name}: valid withdrawn before a transfer"
+        assert not design.get(f"mon{k}_changed"), f"{monitor.name}: payload changed under valid"
+
+
+class _Models:
+    """``PinModels`` on a compiled design: call ``poll(cycle)`` at every return of ``run``."""
+
+    def __init__(self, design, models, spi):
+        self.design, self.models, self.spi = design, models, spi
+        self.pins = None
+        self.wake = 0
+        self._apply(models.initial())
+
+    def _apply(self, levels):
+        for name, value in levels.items():
+            self.design.set(name, value)
+
+    def poll(self, cycle):
+        d = self.design
+        pins = (d.get("pin_a"), d.get("pin_b"))
+        if pins != self.pins or cycle >= self.wake:
+            self.pins = pins
+            copi = d.get("copi") if self.spi else 0
+            levels, self.wake = self.models.react(cycle, pins[0], pins[1], copi)
+            self._apply(levels)
+
+
+class UARTReader:
+    """The UART receiver of ``sim.uart`` on a compiled design's ``tx`` output: a byte's bits
+    sampled in their middles (``divisor`` cycles a bit), appended to ``sink``."""
+
+    def __init__(self, design, name, divisor, sink):
+        self.design, self.name, self.divisor, self.sink = design, name, divisor, sink
+        self.level = design.get(name)
+        self.at = NEVER           # the next cycle to sample at
+        self.bit = None           # None: waiting for a start bit; -1 start; 0..7 data; 8 stop
+        self.byte = 0
+
+    def poll(self, cycle):
+        level = self.design.get(self.name)
+        fell = self.level and not level
+        self.level = level
+        if self.bit is None:
+            if fell:
+                self.bit, self.at = -1, cycle + self.divisor // 2
+            return
+        if cycle < self.at:
+            return
+        if self.bit == -1:
+            if level:
+                self.bit, self.at = None, NEVER         # a glitch, not a start bit
+                return
+            self.byte = 0
+        elif self.bit < 8:
+            self.byte |= level << self.bit
+        else:
+            if not level:
+                from .uart import FramingError
+                raise FramingError(f"stop bit low after byte 0x{self.byte:02X}")
+            self.sink.append(self.byte)
+            self.bit, self.at = None, NEVER
+            return
+        self.bit += 1
+        self.at = cycle + self.divisor
+
+
+def frontend_loop(harness, dut, models, observe, max_cycles, *, spi, built=None):
+    """``run_frontend``'s always-ready testbench on the compiled path: ``observe(cycle,
+    valid, payload_bits, status_bits)`` at every change of the sample stream's valid or of
+    the status (it raises to end the run). ``built`` (a dict) gets the design as
+    ``"design"`` (for the values at the end)."""
+    inputs, outputs = board_ports(
+        harness, spi=spi, extra_inputs={"samples_ready": dut.samples.ready},
+        extra_outputs={"samples_valid": dut.samples.valid, "status": dut.status,
+                       "samples_payload": dut.samples.payload, "asa": dut.asa,
+                       "rate_errors": dut.rate_errors, "who_am_i": dut.who_am_i,
+                       "self_test": dut.self_test})
+    design = CompiledDesign(harness, inputs, outputs,
+                            name="frontend-" + ("spi" if spi else "i2c"))
+    if built is not None:
+        built["design"] = design
+    design.set("samples_ready", 1)
+    pins = _Models(design, models, spi)
+    mask = design.mask("pin_a", "pin_b", "samples_valid", "status")
+    last = None
+    cycle = 0
+    while True:
+        pins.poll(cycle)
+        seen = (design.get("samples_valid"), design.get("status"))
+        if seen != last or cycle >= max_cycles:
+            last = seen
+            observe(cycle, seen[0], design.get("samples_payload"), seen[1])
+            if cycle >= max_cycles:
+                raise AssertionError("observe did not end the run at max_cycles")
+        cycle = design.run(min(pins.wake, max_cycles), mask)
+
+
+def core_loop(harness, core, models, *, divisor, received, more_wanted, max_cycles,
+              writes=(), progress=None):
+    """``run_core``'s testbench on the compiled path: every engine result recorded as it is
+    first seen valid, with the cycle of the INT edge before it; the UART's bytes appended to
+    ``received``; ``more_wanted()`` asked at the testbench's wake-ups (a result, an INT edge).
+    Returns (results as bits, result cycles, INT cycles, end cycle, design)."""
+    results = core.engine.results
+    inputs, outputs = board_ports(
+        harness, spi=True,
+        extra_inputs={"cfg_valid": core.cfg.valid, "cfg_payload": core.cfg.payload},
+        extra_outputs={"r_valid": results.valid, "imu_int": core.imu_int,
+                       "uart_tx": core.uart_tx, "cfg_ready": core.cfg.ready,
+                       "r_payload": results.payload, "counters": core.counters,
+                       "status": core.status, "asa": core.asa})
+    design = CompiledDesign(harness, inputs, outputs, name="core")
+    pins = _Models(design, models, True)
+    uart = UARTReader(design, "uart_tx", divisor, received)
+    cycle = 0
+    for addr, value in writes:                # stream_put, a cycle at a time
+        layout = core.cfg.payload.shape()
+        design.set("cfg_payload", layout.const({"addr": addr, "data": value}).as_value().value)
+        design.set("cfg_valid", 1)
+        while True:
+            ready = design.get("cfg_ready")
+            pins.poll(cycle)
+            uart.poll(cycle)
+            cycle = design.run(cycle + 1)
+            if ready:
+                break
+        design.set("cfg_valid", 0)
+    mask = design.mask("pin_a", "pin_b", "r_valid", "imu_int", "uart_tx")
+    out = {"results": [], "cycles": [], "ints": []}
+    last_int, level, valid_prev = None, 0, 0
+    while True:
+        pins.poll(cycle)
+        uart.poll(cycle)
+        pin, valid = design.get("imu_int"), design.get("r_valid")
+        woken = pin != level or valid != valid_prev
+        if woken:
+            if not more_wanted():
+                break
+            if progress is not None:
+                progress.set_postfix_str(f"cycle {cycle:,}", refresh=False)
+                progress.update(0)
+        if pin and not level:
+            last_int = cycle
+        level = pin
+        if valid and not valid_prev:
+            out["results"].append(design.get("r_payload"))
+            out["cycles"].append(cycle)
+            out["ints"].append(last_int)
+            if progress is not None:
+                progress.update(1)
+        valid_prev = valid
+        if cycle >= max_cycles:
+            raise TimeoutError(f"{len(out['results'])} results after {cycle} cycles (compiled)")
+        cycle = design.run(min(pins.wake, uart.at, max_cycles), mask)
+    return out["results"], out["cycles"], out["ints"], cycle, design
+
+
+def speed(samples=20):
+    """Cycles per second of both paths on the same runs (SPI front end, the whole core)."""
+    from .cosim import SimSetup, run_core, run_frontend
+    setup = SimSetup()
+    out = {}
+    for name, run in (("frontend_spi", lambda c: run_frontend(setup, n_samples=samples,
+                                                                compiled=c)),
+                      ("core", lambda c: run_core(setup, n_results=samples, compiled=c))):
+        fast = run(True)
+        fast = run(True)            # the second: the build is cached
+        slow = run(False)
+        out[name] = {"cycles": fast.cycles, "pysim_cycles_per_s": round(slow.cycles / slow.wall_s),
+                     "compiled_cycles_per_s": round(fast.cycles / fast.wall_s),
+                     "ratio": round(slow.wall_s / fast.wall_s * fast.cycles / slow.cycles)}
+    return out
+
+
+if __name__ == "__main__":
+    import json
+    print(json.dumps(speed()))
