@@ -110,11 +110,12 @@ class UARTReader:
         self.at = cycle + self.divisor
 
 
-def frontend_loop(harness, dut, models, observe, max_cycles, *, spi, built=None):
+def frontend_loop(harness, dut, models, observe, max_cycles, *, spi, built=None, key=None):
     """``run_frontend``'s always-ready testbench on the compiled path: ``observe(cycle,
     valid, payload_bits, status_bits)`` at every change of the sample stream's valid or of
     the status (it raises to end the run). ``built`` (a dict) gets the design as
-    ``"design"`` (for the values at the end)."""
+    ``"design"`` (for the values at the end). ``key``: what made the design
+    (``CompiledDesign``'s)."""
     inputs, outputs = board_ports(
         harness, spi=spi, extra_inputs={"samples_ready": dut.samples.ready},
         extra_outputs={"samples_valid": dut.samples.valid, "status": dut.status,
@@ -122,7 +123,7 @@ def frontend_loop(harness, dut, models, observe, max_cycles, *, spi, built=None)
                        "rate_errors": dut.rate_errors, "who_am_i": dut.who_am_i,
                        "self_test": dut.self_test})
     design = CompiledDesign(harness, inputs, outputs,
-                            name="frontend-" + ("spi" if spi else "i2c"))
+                            name="frontend-" + ("spi" if spi else "i2c"), key=key)
     if built is not None:
         built["design"] = design
     design.set("samples_ready", 1)
@@ -142,7 +143,7 @@ def frontend_loop(harness, dut, models, observe, max_cycles, *, spi, built=None)
 
 
 def core_loop(harness, core, models, *, divisor, received, more_wanted, max_cycles,
-              writes=(), progress=None):
+              writes=(), progress=None, key=None):
     """``run_core``'s testbench on the compiled path: every engine result recorded as it is
     first seen valid, with the cycle of the INT edge before it; the UART's bytes appended to
     ``received``; ``more_wanted()`` asked at the testbench's wake-ups (a result, an INT edge).
@@ -155,7 +156,7 @@ def core_loop(harness, core, models, *, divisor, received, more_wanted, max_cycl
                        "uart_tx": core.uart_tx, "cfg_ready": core.cfg.ready,
                        "r_payload": results.payload, "counters": core.counters,
                        "status": core.status, "asa": core.asa})
-    design = CompiledDesign(harness, inputs, outputs, name="core")
+    design = CompiledDesign(harness, inputs, outputs, name="core", key=key)
     pins = _Models(design, models, True)
     uart = UARTReader(design, "uart_tx", divisor, received)
     cycle = 0
@@ -180,7 +181,7 @@ def core_loop(harness, core, models, *, divisor, received, more_wanted, max_cycl
         pin, valid = design.get("imu_int"), design.get("r_valid")
         woken = pin != level or valid != valid_prev
         if woken:
-            if not more_wanted():
+            if not more_wanted(len(out["results"])):
                 break
             if progress is not None:
                 progress.set_postfix_str(f"cycle {cycle:,}", refresh=False)

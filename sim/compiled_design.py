@@ -90,6 +90,8 @@ def _cxx(top, inputs, outputs):
     gets = "".join(f"    case {k}: {access(n, w, 'get')}break;\n"
                    for k, (n, w) in enumerate(outputs))
     watched = [(k, n) for k, (n, w) in enumerate(outputs) if w <= 64][:64]
+    small = [(k, n) for k, (n, w) in enumerate(outputs) if w <= 64]
+    snap = "".join(f"    s->snap[{k}] = s->top->{n};\n" for k, n in small)
     keep = "".join(f"        if (mask & (1ULL << {k})) prev[{k}] = s->top->{n};\n"
                    for k, n in watched)
     compare = "".join(
@@ -100,16 +102,22 @@ def _cxx(top, inputs, outputs):
 #include "{cls}.h"
 #include "verilated.h"
 
-struct Sim {{ VerilatedContext *ctx; {cls} *top; uint64_t cycle; }};
+struct Sim {{ VerilatedContext *ctx; {cls} *top; uint64_t cycle; uint64_t *snap; }};
+
+// the outputs of up to 64 bits, copied where Python reads them without a call
+static void snapshot(Sim *s) {{
+{snap}}}
 
 extern "C" {{
-void *sim_new() {{
+void *sim_new(uint64_t *snap) {{
     Sim *s = new Sim;
+    s->snap = snap;
     s->ctx = new VerilatedContext;
     s->top = new {cls}(s->ctx);
     s->cycle = 0;
     s->top->clk = 0; s->top->rst = 0;
     s->top->eval();
+    snapshot(s);
     return s;
 }}
 void sim_free(void *p) {{
@@ -120,6 +128,7 @@ void sim_set(void *p, int k, const uint32_t *w) {{
     switch (k) {{
 {sets}    }}
     s->top->eval();
+    snapshot(s);
 }}
 void sim_get(void *p, int k, uint32_t *w) {{
     Sim *s = (Sim *)p;
@@ -138,19 +147,63 @@ uint64_t sim_run(void *p, uint64_t until, uint64_t mask) {{
         bool hit = false;
 {compare}        if (hit) break;
     }}
+    snapshot(s);
     return s->cycle;
 }}
 }}
 """
 
 
+_VERSION = []
+
+
+def _verilator_version():
+    if not _VERSION:
+        _VERSION.append(subprocess.run(["verilator", "--version"], capture_output=True,
+                                       text=True).stdout.strip())
+    return _VERSION[0]
+
+
+def _sources_hash():
+    """A hash of the package's gateware and simulation sources and Amaranth's version: what,
+    beside a caller's parameters, decides the Verilog of a design made by this package."""
+    import amaranth
+    root = Path(__file__).resolve().parent.parent
+    h = hashlib.sha256(amaranth.__version__.encode())
+    for folder in ("hdl", "sim"):
+        for path in sorted((root / folder).glob("*.py")):
+            h.update(path.name.encode() + b"\0" + path.read_bytes())
+    return h.hexdigest()
+
+
+def _mark_used(root):
+    """Mark ``root`` and the elaboratables it holds (attributes, lists, dicts) as used."""
+    from amaranth.hdl import Elaboratable
+    seen, todo = set(), [root]
+    while todo:
+        obj = todo.pop()
+        if id(obj) in seen:
+            continue
+        seen.add(id(obj))
+        if isinstance(obj, Elaboratable):
+            obj._MustUse__used = True
+            todo.extend(vars(obj).values())
+        elif isinstance(obj, (list, tuple)):
+            todo.extend(obj)
+        elif isinstance(obj, dict):
+            todo.extend(obj.values())
+
+
 class CompiledDesign:
     """``design`` (an ``Elaboratable`` with a ``sync`` domain) compiled with ports for
     ``inputs`` and ``outputs`` (name: signal or value-castable; names must be Verilog
-    identifiers). ``name``: the cache folder's prefix."""
+    identifiers). ``name``: the cache folder's prefix. ``key``: what makes the design (its
+    parameters, with a repr that says all of them); given, the cache is looked up without
+    converting the design to Verilog (the package's sources are part of the key)."""
 
-    def __init__(self, design, inputs, outputs, *, name="design"):
+    def __init__(self, design, inputs, outputs, *, name="design", key=None):
         self.name = name
+        self.key = key
         self.inputs = {n: Value.cast(v) for n, v in inputs.items()}
         self.outputs = {n: Value.cast(v) for n, v in outputs.items()}
         self._in_index = {n: k for k, n in enumerate(self.inputs)}
@@ -160,7 +213,11 @@ class CompiledDesign:
         self._out_shape = {n: v.shape() for n, v in self.outputs.items()}
         self.build_s = 0.0
         self._lib = self._build(design)
-        self._handle = ctypes.c_void_p(self._lib.sim_new())
+        self._snap = (ctypes.c_uint64 * max(1, len(self.outputs)))()
+        self._handle = ctypes.c_void_p(self._lib.sim_new(self._snap))
+        # name -> (index, width, signed) for the outputs read from the snapshot
+        self._small = {n: (self._out_index[n], w, self._out_shape[n].signed)
+                       for n, w in self._out_width.items() if w <= 64}
         self._buf = (ctypes.c_uint32 * max(2, *(_words(w) for w in
                                                  [*self._in_width.values(),
                                                   *self._out_width.values()])))()
@@ -171,16 +228,29 @@ class CompiledDesign:
         if not verilator_available():
             raise RuntimeError(f"the compiled co-simulation needs verilator and g++; {HINT}")
         top = self.name.replace("-", "_") + "_top"
-        ports = _Ports(design, self.inputs, self.outputs)
-        text = verilog.convert(ports, name=top, emit_src=False)
         cxx = _cxx(top, [(n, self._in_width[n]) for n in self.inputs],
                    [(n, self._out_width[n]) for n in self.outputs])
-        version = subprocess.run(["verilator", "--version"], capture_output=True,
-                                 text=True).stdout.strip()
-        key = hashlib.sha256("\0".join((text, cxx, version)).encode()).hexdigest()[:20]
+        version = _verilator_version()
+        text = None
+        if self.key is None:
+            text = verilog.convert(_Ports(design, self.inputs, self.outputs), name=top,
+                                   emit_src=False)
+            key = text
+        else:
+            # converting the whole core to Verilog takes seconds: a caller that knows what
+            # makes its design (its parameters; the sources are added here) names it instead
+            key = "\0".join((repr(self.key), _sources_hash()))
+        key = hashlib.sha256("\0".join((key, cxx, version)).encode()).hexdigest()[:20]
         folder = _cache_root() / f"{self.name}-{key}"
         library = folder / "design.so"
+        if library.exists() and text is None:
+            # the design was never elaborated (the cache had it): its blocks would each warn,
+            # when collected, that they were "created but never used"
+            _mark_used(design)
         if not library.exists():
+            if text is None:
+                text = verilog.convert(_Ports(design, self.inputs, self.outputs), name=top,
+                                       emit_src=False)
             if sys.stderr.isatty():
                 print(f"mpu9250-ahrs: compiling the {self.name} with Verilator (about a "
                       f"minute, once: cached in {folder.parent}) ...", file=sys.stderr,
@@ -196,7 +266,8 @@ class CompiledDesign:
                 # with the design and our C API (api.cpp), all position-independent
                 cmd = ["verilator", "--cc", "--exe", "--build", "-O3", "-Wno-fatal",
                        "-Wno-lint", "-Wno-style", "--top-module", top,
-                       "-CFLAGS", "-O2 -fPIC", "-LDFLAGS", "-shared", "--Mdir", str(obj),
+                       "-CFLAGS", "-O3 -fPIC", "-LDFLAGS", "-shared", "--x-assign", "fast",
+                       "--x-initial", "fast", "--noassert", "--Mdir", str(obj),
                        "-o", "design.so", f"{top}.v", "api.cpp"]
                 result = subprocess.run(cmd, cwd=tmp, capture_output=True, text=True)
                 if result.returncode:
@@ -213,6 +284,7 @@ class CompiledDesign:
             self.build_s = time.perf_counter() - start
         lib = ctypes.CDLL(str(library))
         lib.sim_new.restype = ctypes.c_void_p
+        lib.sim_new.argtypes = [ctypes.c_void_p]
         lib.sim_free.argtypes = [ctypes.c_void_p]
         lib.sim_set.argtypes = [ctypes.c_void_p, ctypes.c_int, ctypes.c_void_p]
         lib.sim_get.argtypes = [ctypes.c_void_p, ctypes.c_int, ctypes.c_void_p]
@@ -246,6 +318,13 @@ class CompiledDesign:
 
     def get(self, name):
         """The output's value: an int (signed if its value is signed)."""
+        small = self._small.get(name)
+        if small is not None:
+            index, width, signed = small
+            value = self._snap[index]
+            if signed and value >> (width - 1):
+                value -= 1 << width
+            return value
         width = self._out_width[name]
         self._lib.sim_get(self._handle, self._out_index[name], self._buf)
         value = 0

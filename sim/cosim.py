@@ -388,6 +388,8 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
     says which path ran).
     """
     setup = setup or SimSetup()
+    compiled = compiled_wanted(compiled, vcd=vcd,
+                               supported=stuck_miso is None and ready is None)
     dut = setup.frontend()
     if model is None and stuck_miso is None:
         model = setup.model()
@@ -410,8 +412,6 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
     if injector is not None:
         injector.mpu, injector.bus = model, bus
     harness.monitor(dut.samples, "samples")
-    compiled = compiled_wanted(compiled, vcd=vcd,
-                               supported=stuck_miso is None and ready is None)
     sim = None
     if not compiled:
         sim = Simulator(harness)
@@ -495,7 +495,9 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
             frontend_loop(harness, dut, models,
                           lambda c, v, p, st: observe(c, v, data.Const(payload_layout, p),
                                                       data.Const(status_layout, st)),
-                          max_cycles, spi=bus is None, built=holder)
+                          max_cycles, spi=bus is None, built=holder,
+                          key=("frontend", setup.clk_freq, setup.config,
+                               setup.driver_timing()))
         except Done:
             design = holder["design"]
             def end(name, value):
@@ -561,6 +563,7 @@ class CoreRun:
     model: Optional[MPU9250Model]
     asa: List[int] = field(default_factory=list)
     core: Optional[Elaboratable] = None
+    compiled: bool = False                  # the compiled path ran
 
     def latencies_us(self, clk_freq):
         """Data-ready edge (INT at the pin) to the result leaving the engine, per result."""
@@ -568,14 +571,16 @@ class CoreRun:
 
 
 def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycles=None,
-             baud=921_600, core_kwargs=None, writes=(), vcd=None, progress=None):
+             baud=921_600, core_kwargs=None, writes=(), vcd=None, progress=None,
+             compiled=False):
     """The whole ``AHRSCore`` (driver, engine, telemetry) against the models until the engine
     has produced ``n_results`` results and the UART has carried ``n_frames`` frames (either
     may be None). Each result is recorded as it leaves the engine (the telemetry scheduler
     takes every one) with the cycle of the INT edge that announced its sample, so
     ``CoreRun.latencies_us`` is the data-ready-to-attitude latency. ``writes``: (address,
     value) register writes through the ``cfg`` port at the start. ``progress``: a bar told
-    of each result and the cycle reached (``run_frontend``)."""
+    of each result and the cycle reached (``run_frontend``). ``compiled``: as
+    ``run_frontend``'s (``CoreRun.compiled`` says which path ran)."""
     from ..hdl.top import AHRSCore
     from .streams import stream_put
     from ..host.protocol import FrameDecoder
@@ -595,19 +600,23 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
     harness = CosimHarness(core, spi=core.imu, int_pin=core.imu_int)
     harness.monitor(core.engine.results, "results")
     harness.monitor(core.arbiter.o_stream, "frame bytes")
-    sim = Simulator(harness)
-    sim.add_clock(1 / setup.clk_freq)
-    attach_mpu9250(sim, model, harness, setup.clk_freq)
+    compiled = compiled_wanted(compiled, vcd=vcd)
     received = bytearray()
-    attach_uart_receiver(sim, core.uart_tx, core.uart.divisor, received)
+    if not compiled:
+        sim = Simulator(harness)
+        sim.add_clock(1 / setup.clk_freq)
+        attach_mpu9250(sim, model, harness, setup.clk_freq)
+        attach_uart_receiver(sim, core.uart_tx, core.uart.divisor, received)
     out = {"results": [], "cycles": [], "ints": [], "frames": [], "end": None}
     results = core.engine.results
     decoder = FrameDecoder()
 
-    def more_wanted():
+    def more_wanted(results_seen=None):
         out["frames"] += [f for _, _, f in decoder.feed(received)]
         received.clear()
-        return (len(out["results"]) < (n_results or 0) or
+        if results_seen is None:
+            results_seen = len(out["results"])
+        return (results_seen < (n_results or 0) or
                 len(out["frames"]) < (n_frames or 0))
 
     async def testbench(ctx):
@@ -645,9 +654,26 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
         out["end"] = (ctx.get(harness.cycle), to_python(ctx.get(core.counters)),
                       to_python(ctx.get(core.status)), to_python(ctx.get(core.asa)))
         harness.check(ctx)
-    sim.add_testbench(testbench)
+    if not compiled:
+        sim.add_testbench(testbench)
     start = time.perf_counter()
-    if vcd:
+    if compiled:
+        from amaranth.lib import data
+        from .compiled_board import check_monitors, core_loop
+        def const(value, bits):
+            return to_python(data.Const(data.Layout.cast(value.shape()), bits))
+        models = PinModels(setup.clk_freq, mpu=model, spi=True)
+        bits, out["cycles"], out["ints"], end, design = core_loop(
+            harness, core, models, divisor=core.uart.divisor, received=received,
+            more_wanted=more_wanted, max_cycles=max_cycles, writes=writes,
+            progress=progress, key=("core", setup.clk_freq, setup.config,
+                                    setup.driver_timing(), baud, sorted((core_kwargs or {}).items())))
+        out["results"] = [const(results.payload, b) for b in bits]
+        out["end"] = (end, const(core.counters, design.get("counters")),
+                      const(core.status, design.get("status")),
+                      const(core.asa, design.get("asa")))
+        check_monitors(design, harness)
+    elif vcd:
         with sim.write_vcd(str(vcd), str(vcd).rsplit(".", 1)[0] + ".gtkw",
                            traces=[core.imu.cs_n, core.imu.sclk, core.imu.cipo, core.imu_int,
                                    results.valid, core.uart_tx]):
@@ -658,4 +684,4 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
     more_wanted()                       # the bytes that came after the last look
     cycles, counters, status, asa = out["end"]
     return CoreRun(out["results"], out["cycles"], out["ints"], out["frames"], counters, status,
-                   cycles, wall, model, asa, core)
+                   cycles, wall, model, asa, core, compiled)

@@ -62,8 +62,9 @@ class StreamMonitor(Elaboratable):
 
     def __init__(self, stream, name):
         self.stream, self.name = stream, name
-        self.withdrawn = Signal(name=f"{name}_withdrawn")
-        self.changed = Signal(name=f"{name}_changed")
+        tag = "".join(c if c.isalnum() else "_" for c in name)   # an identifier: the
+        self.withdrawn = Signal(name=f"{tag}_withdrawn")          # compiled path exports
+        self.changed = Signal(name=f"{tag}_changed")              # these to Verilog
 
     def elaborate(self, platform):
         m = Module()
