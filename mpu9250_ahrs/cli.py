@@ -261,8 +261,9 @@ def cmd_simulate(args):
     # the self-tests as built (the fault tests choose their own: ``catalogue_setup``)
     setup = SimSetup(clk_freq=clk_freq, config=config, delay_scale=args.delay_scale,
                      odr_scale=odr_scale, self_test=config.self_test)
+    compiled = _simulator_choice(args)
     if args.fault is not None:
-        return _simulate_fault(args, setup)
+        return _simulate_fault(args, setup, compiled)
     sources = _pose_sources(args.pose, args.samples, config, setup) if args.pose else {}
     model = setup.model(who_am_i=args.who_am_i, magnetometer=not args.no_mag, **sources)
     summary = {"wiring": config.wiring, "clock_hz": clk_freq,
@@ -272,7 +273,7 @@ def cmd_simulate(args):
         with progress.bar(args.samples, "simulate (whole core)", "result") as shown:
             run = run_core(setup, n_results=args.samples, model=model, baud=args.baud,
                            core_kwargs={"filter": args.filter, **_core_options(args)},
-                           vcd=args.vcd, progress=shown)
+                           vcd=args.vcd, progress=shown, compiled=compiled)
         for r in run.results:
             print(json.dumps(attitude_json(r, args.filter)))
         latency = run.latencies_us(clk_freq)
@@ -286,13 +287,14 @@ def cmd_simulate(args):
             "latency_us": {"drdy_to_attitude": round(max(latency), 2) if latency else None},
             "cycles": run.cycles, "wall_s": round(run.wall_s, 3),
             "cycles_per_s": round(run.cycles / run.wall_s) if run.wall_s else None,
+            "simulator": _simulator_name(run.compiled),
             "status": run.status, "asa": run.asa})
         violations = [str(v) for who in (model, *model.aux_devices.values())
                       for v in who.violations]
     else:
         with progress.bar(args.samples, "simulate (sensor front end)", "sample") as shown:
             result = run_frontend(setup, n_samples=args.samples, model=model, vcd=args.vcd,
-                                  progress=shown)
+                                  progress=shown, compiled=compiled)
         for s in result.samples:
             print(json.dumps({"counter": s["counter"], "accel": s["accel"], "temp": s["temp"],
                               "gyro": s["gyro"], "mag": s["mag"], "flags": s["flags"],
@@ -309,7 +311,7 @@ def cmd_simulate(args):
             "bring_up_us": result.bring_up_cycles and
             result.bring_up_cycles / setup.clk_freq * 1e6,
             "wall_s": round(result.wall_s, 3), "cycles_per_s": round(result.cycles_per_s),
-            "status": result.status, "asa": result.asa, "who_am_i": result.who_am_i,
+            "simulator": _simulator_name(result.compiled), "status": result.status, "asa": result.asa, "who_am_i": result.who_am_i,
             "self_test": result.self_test})
     summary.update({"violations": violations,
                     "time_scale": {"delays": setup.delay_scale,
@@ -320,7 +322,26 @@ def cmd_simulate(args):
     return 1 if violations else 0
 
 
-def _simulate_fault(args, setup):
+def _simulator_choice(args):
+    """``--simulator`` as ``run_frontend``'s ``compiled``: True, False or None (auto). Auto
+    without Verilator and g++ says so in one line and runs Amaranth's simulator."""
+    from .sim.compiled_design import verilator_available
+    if args.simulator == "compiled":
+        return True
+    if args.simulator == "python":
+        return False
+    if not verilator_available():
+        print("mpu9250-ahrs: verilator or g++ not found: simulating in Amaranth's simulator "
+              "(slower; apt-get install verilator g++ for the compiled path)", file=sys.stderr)
+        return False
+    return None
+
+
+def _simulator_name(compiled):
+    return "compiled (Verilator)" if compiled else "python (Amaranth)"
+
+
+def _simulate_fault(args, setup, compiled=None):
     """``simulate --fault NAME``: the front end with one fault of the catalogue."""
     from . import progress
     from .sim.faults import run_fault
@@ -328,7 +349,8 @@ def _simulate_fault(args, setup):
         raise ValueError("--fault runs the sensor front end with its test pattern: leave out "
                          "--attitude and --pose")
     with progress.bar(None, f"simulate --fault {args.fault}", "sample") as shown:
-        summary = run_fault(args.fault, setup, at=args.fault_at, vcd=args.vcd, progress=shown)
+        summary = run_fault(args.fault, setup, at=args.fault_at, vcd=args.vcd, progress=shown,
+                            compiled=compiled)
     summary["time_scale"] = {"delays": setup.delay_scale, "sample_period": setup.odr_scale}
     print(json.dumps(summary), file=sys.stderr if args.quiet_summary else sys.stdout)
     ok = summary["detected_after_samples"] is not None and summary["recovered"] and \
@@ -542,6 +564,11 @@ def build_parser():
                         "--fault list prints the names")
     p.add_argument("--fault-at", type=_count, default=20, metavar="N",
                    help="a mid-run fault starts after the design has read N samples (20)")
+    p.add_argument("--simulator", choices=("auto", "compiled", "python"), default="auto",
+                   help="compiled: the design in Verilator (tens of times faster; built once "
+                        "and cached, needs verilator and g++), python: Amaranth's simulator "
+                        "(waveforms, a slow consumer), auto (default): compiled when it can "
+                        "be; the summary's 'simulator' says which ran")
     _add_sensor_options(p)
     p.set_defaults(func=cmd_simulate)
 

@@ -315,15 +315,16 @@ def host_garbage_writes():
             (REGS["QOUT0"], 0), (0xFD, 7)]
 
 
-def run_host_garbage(setup, *, n_results=4, baud=None):
+def run_host_garbage(setup, *, n_results=4, baud=None, compiled=False):
     """The whole core twice, with and without ``host_garbage_writes`` at the start: every
     result must be the same and every write counted in ``cfg_refused`` (port and frames).
     ``baud``: the UART's (default: a quarter of the clock, so that frames come quickly)."""
     from .cosim import run_core
     bad = host_garbage_writes()
     baud = baud or setup.clk_freq / 4
-    clean = run_core(setup, n_results=n_results, n_frames=1, baud=baud)
-    dirty = run_core(setup, n_results=n_results, n_frames=1, writes=bad, baud=baud)
+    clean = run_core(setup, n_results=n_results, n_frames=1, baud=baud, compiled=compiled)
+    dirty = run_core(setup, n_results=n_results, n_frames=1, writes=bad, baud=baud,
+                     compiled=compiled)
     changed = sum(a != b for a, b in zip(clean.results, dirty.results))
     refused = dirty.frames[-1]["cfg_refused"] if dirty.frames else None
     return {"fault": "host_garbage", "wiring": setup.config.wiring,
@@ -335,11 +336,12 @@ def run_host_garbage(setup, *, n_results=4, baud=None):
             "recovered": len(dirty.results) >= n_results,
             "stale_valid_samples": changed, "status": dirty.status,
             "cycles": dirty.cycles, "wall_s": round(clean.wall_s + dirty.wall_s, 2),
+            "simulator": "compiled (Verilator)" if dirty.compiled else "python (Amaranth)",
             "violations": [str(v) for v in dirty.model.violations][:5]}
 
 
 def run_fault(name, setup=None, *, at=20, duration=None, after=None, max_cycles=None,
-              vcd=None, keep_result=False, progress=None):
+              vcd=None, keep_result=False, progress=None, compiled=False):
     """Co-simulate the front end of ``setup`` (``SimSetup``) with fault ``name``; return the
     summary dict (module docstring). ``at``: samples read before a mid-run fault; ``duration``:
     sample periods until it is removed (default: the fault's); ``after``: samples to see once
@@ -359,7 +361,7 @@ def run_fault(name, setup=None, *, at=20, duration=None, after=None, max_cycles=
     if fault.recovers == "mag" and not setup.config.magnetometer:
         raise ValueError(f"fault {name} needs the magnetometer (leave out --no-mag)")
     if name == "host_garbage":
-        return run_host_garbage(setup)
+        return run_host_garbage(setup, compiled=compiled)
     if at < 1 and not fault.at_power_up:
         raise ValueError("--fault-at must be at least 1 (samples read before the fault)")
     after = 12 if after is None else after
@@ -410,8 +412,10 @@ def run_fault(name, setup=None, *, at=20, duration=None, after=None, max_cycles=
         max_cycles = int(2 * bring_up + span + 200_000)
     result = run_frontend(setup, model=model, injector=inj, stop=stop, max_cycles=max_cycles,
                           vcd=vcd, ready=ready if fault.stall else None,
-                          until=lambda st: False, progress=progress)
+                          until=lambda st: False, progress=progress,
+                          compiled=compiled)
     summary = summarise(fault, inj, result, setup, after)
+    summary["simulator"] = "compiled (Verilator)" if result.compiled else "python (Amaranth)"
     return (summary, result) if keep_result else summary
 
 
