@@ -115,18 +115,21 @@ class SimulatedBoard:
         and the MPU9250 model. ``cycles``: simulated so far.
     """
     def __init__(self, *, errors=SensorErrors(), sample_cycles=1600, core_kwargs=None, seed=1,
-                 setup=None):
+                 setup=None, compiled=None):
         from ..hdl.top import AHRSCore
+        from .cosim import compiled_wanted
+        self.compiled = compiled_wanted(compiled)
         self.errors = errors
         self.setup = setup or board_setup(sample_cycles=sample_cycles)
         config = self.setup.config
         self.rng = np.random.default_rng(seed)
         self.pose = np.radians([0.0, 0.0, 0.0])
         self.tumbling = False
-        self.core = AHRSCore(clk_freq=self.setup.clk_freq, config=config,
-                             timing=self.setup.driver_timing(), baud=self.setup.clk_freq / 4,
-                             command_timeout_s=2e-3, telemetry_divider=1,
-                             **(core_kwargs or {}))
+        core_kwargs = dict(clk_freq=self.setup.clk_freq, config=config,
+                           timing=self.setup.driver_timing(), baud=self.setup.clk_freq / 4,
+                           command_timeout_s=2e-3, telemetry_divider=1, **(core_kwargs or {}))
+        self._key = ("board", sorted(core_kwargs.items(), key=lambda kv: kv[0]))
+        self.core = AHRSCore(**core_kwargs)
         self.lsb_g = 32768 / config.accel_fs_g
         ak = self.setup.ak8963(source=self._field)
         self.model = self.setup.model(source=self._sample, aux_devices={A.I2C_ADDRESS: ak})
@@ -196,6 +199,8 @@ class SimulatedBoard:
         self.port = os.ttyname(slave)
         core = self.core
         harness = CosimHarness(core, spi=core.imu, int_pin=core.imu_int)
+        if self.compiled:
+            return self._start_compiled(harness)
         sim = Simulator(harness)
         sim.add_clock(1 / self.setup.clk_freq)
         attach_mpu9250(sim, self.model, harness, self.setup.clk_freq)
@@ -237,6 +242,76 @@ class SimulatedBoard:
         def run():
             try:
                 sim.run()
+            except BaseException as e:                # reported by stop()
+                self.error = e
+        self._thread = threading.Thread(target=run, name="simulated-board", daemon=True)
+        self._thread.start()
+        return self
+
+    def _flush(self, sent, ratio):
+        """The design's bytes so far to the host, as a UART at its baud sees them."""
+        if sent:
+            out = garble(bytes(sent), ratio)
+            sent.clear()
+            try:
+                os.write(self._master, out)
+            except OSError:                          # nobody reading: the bytes are lost
+                pass
+
+    def _start_compiled(self, harness):
+        """``start`` on the compiled path (``sim.compiled_board``): the same bridge, played
+        by a loop that wakes at the models' events, the UART's bit times and every byte time
+        to look at the pseudo-terminal."""
+        from .compiled_board import UARTReader, _Models, board_ports
+        from .compiled_design import CompiledDesign
+        from .cosim import NEVER, PinModels
+        core, master = self.core, self._master
+        inputs, outputs = board_ports(harness, spi=True,
+                                      extra_inputs={"uart_rx": core.uart_rx},
+                                      extra_outputs={"uart_tx": core.uart_tx})
+        design = CompiledDesign(harness, inputs, outputs, name="board", key=self._key)
+        divisor = core.uart.divisor
+        poll = 10 * divisor                         # a byte time
+
+        def run():
+            try:
+                sent = []
+                pins = _Models(design, PinModels(self.setup.clk_freq, mpu=self.model), True)
+                uart = UARTReader(design, "uart_tx", divisor, sent)
+                mask = design.mask("pin_a", "pin_b", "uart_tx")
+                design.set("uart_rx", 1)
+                pending, bits = bytearray(), []
+                cycle, next_poll, next_bit, ratio = 0, poll, NEVER, 1.0
+                while not self._stop.is_set():
+                    pins.poll(cycle)
+                    uart.poll(cycle)
+                    if cycle >= next_bit:
+                        if bits:
+                            design.set("uart_rx", bits.pop(0))
+                            next_bit = cycle + divisor
+                        else:                       # a byte sent
+                            self.cycles = cycle
+                            self._flush(sent, ratio)
+                            next_bit = NEVER
+                    if next_bit == NEVER and cycle >= next_poll:
+                        if not pending:
+                            self.cycles = cycle
+                            ratio = pty_baud(master) / NOMINAL_BAUD
+                            self._flush(sent, ratio)
+                            try:
+                                pending += garble(os.read(master, 4096), 1 / ratio)
+                            except OSError:          # nothing written
+                                pass
+                        if pending:
+                            byte = pending.pop(0)
+                            bits = [0] + [(byte >> k) & 1 for k in range(8)] + [1]
+                            design.set("uart_rx", bits.pop(0))
+                            next_bit = cycle + divisor
+                        else:
+                            next_poll = cycle + poll
+                    # while a byte goes out, its bits are the bridge's times; else the poll
+                    until = next_bit if next_bit != NEVER else next_poll
+                    cycle = design.run(min(pins.wake, uart.at, until), mask)
             except BaseException as e:                # reported by stop()
                 self.error = e
         self._thread = threading.Thread(target=run, name="simulated-board", daemon=True)

@@ -88,6 +88,7 @@ def calibrate(link, *, operator=human_operator, amounts=Amounts(), accel_fs_g=16
     try:
         # 1. gyro bias
         operator("rest", "Put the board down and keep it still.")
+        link.discard()
         rest = _collect(link, a.rest, a.settle, progress, "gyro at rest")
         gyr = np.array([s["gyro"] for s in rest], float)
         if gyr.std(0).max() > a.still_counts:
@@ -100,6 +101,7 @@ def calibrate(link, *, operator=human_operator, amounts=Amounts(), accel_fs_g=16
         for axis, _ in POSES.items():
             operator(axis, f"Turn the board so that its {axis[1]} axis points "
                            f"{'up' if axis[0] == '+' else 'down'} ({axis} up), and hold it still.")
+            link.discard()
             got = _collect(link, a.pose, a.settle, progress, f"accelerometer {axis}")
             acc = np.array([s["accel"] for s in got], float)
             g = np.array([s["gyro"] for s in got], float)
@@ -122,6 +124,7 @@ def calibrate(link, *, operator=human_operator, amounts=Amounts(), accel_fs_g=16
                / 2 ** 14 for j in range(3)]
         operator("tumble", "Turn the board slowly through all orientations (every face up, "
                            "every direction), away from iron and magnets.")
+        link.discard()
         raw = _collect_fields(link, a.fields, a.settle, progress, 40 * a.fields + 400)
         if len(raw) < a.min_fields:
             raise BoardError(f"magnetometer: only {len(raw)} new fields (need {a.min_fields}); "

@@ -101,6 +101,17 @@ class Link:
         return (f"{self.port}: nothing received within {timeout:g} s: no board, not powered, "
                 f"or not configured")
 
+    def discard(self):
+        """Drop what the board sent before now (the port's input buffer, frames kept while
+        waiting for replies): after the user was told to move the board, what was measured
+        before is not of the new pose, however long the host took to read it."""
+        try:
+            self.serial.reset_input_buffer()
+        except OSError as e:
+            raise BoardError(f"{self.port}: read failed: {e}") from None
+        self.backlog = []
+        self.decoder.drop()
+
     def wait_for_frame(self, timeout=None):
         return next(self.frames(1, timeout=timeout))
 

@@ -147,6 +147,11 @@ class FrameDecoder:
         self._state = {}
         self.stats = LinkStats()
 
+    def drop(self):
+        """Forget the bytes of a frame not yet complete (the stream starts again)."""
+        self._buf.clear()
+        self._state.clear()
+
     def feed(self, chunk):
         self._buf += chunk
         frames, used = _scan(self._buf, False, self.stats, self._state)
