@@ -315,7 +315,7 @@ def host_garbage_writes():
             (REGS["QOUT0"], 0), (0xFD, 7)]
 
 
-def run_host_garbage(setup, *, n_results=4, baud=None, compiled=False):
+def run_host_garbage(setup, *, n_results=4, baud=None, compiled=None):
     """The whole core twice, with and without ``host_garbage_writes`` at the start: every
     result must be the same and every write counted in ``cfg_refused`` (port and frames).
     ``baud``: the UART's (default: a quarter of the clock, so that frames come quickly)."""
@@ -341,7 +341,7 @@ def run_host_garbage(setup, *, n_results=4, baud=None, compiled=False):
 
 
 def run_fault(name, setup=None, *, at=20, duration=None, after=None, max_cycles=None,
-              vcd=None, keep_result=False, progress=None, compiled=False):
+              vcd=None, keep_result=False, progress=None, compiled=None):
     """Co-simulate the front end of ``setup`` (``SimSetup``) with fault ``name``; return the
     summary dict (module docstring). ``at``: samples read before a mid-run fault; ``duration``:
     sample periods until it is removed (default: the fault's); ``after``: samples to see once
