@@ -128,7 +128,8 @@ class SimulatedBoard:
         core_kwargs = dict(clk_freq=self.setup.clk_freq, config=config,
                            timing=self.setup.driver_timing(), baud=self.setup.clk_freq / 4,
                            command_timeout_s=2e-3, telemetry_divider=1, **(core_kwargs or {}))
-        self._key = ("board", sorted(core_kwargs.items(), key=lambda kv: kv[0]))
+        from .compiled_board import core_key
+        self._key = core_key("board", **core_kwargs)
         self.core = AHRSCore(**core_kwargs)
         self.lsb_g = 32768 / config.accel_fs_g
         ak = self.setup.ak8963(source=self._field)

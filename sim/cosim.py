@@ -659,15 +659,16 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
     start = time.perf_counter()
     if compiled:
         from amaranth.lib import data
-        from .compiled_board import check_monitors, core_loop
+        from .compiled_board import check_monitors, core_key, core_loop
         def const(value, bits):
             return to_python(data.Const(data.Layout.cast(value.shape()), bits))
         models = PinModels(setup.clk_freq, mpu=model, spi=True)
         bits, out["cycles"], out["ints"], end, design = core_loop(
             harness, core, models, divisor=core.uart.divisor, received=received,
             more_wanted=more_wanted, max_cycles=max_cycles, writes=writes,
-            progress=progress, key=("core", setup.clk_freq, setup.config,
-                                    setup.driver_timing(), baud, sorted((core_kwargs or {}).items())))
+            progress=progress, key=core_key("core", clk_freq=setup.clk_freq,
+                                            config=setup.config, timing=setup.driver_timing(),
+                                            baud=baud, **(core_kwargs or {})))
         out["results"] = [const(results.payload, b) for b in bits]
         out["end"] = (end, const(core.counters, design.get("counters")),
                       const(core.status, design.get("status")),

@@ -19,6 +19,7 @@ def figures(tmp_path_factory):
     return report()
 
 
+@pytest.mark.slow          # four Yosys syntheses of the whole design: about two minutes
 def test_report_keys_and_sanity(figures):
     for part in ("design", "datapath"):
         f = figures[part]
@@ -60,6 +61,7 @@ def test_report_keys_and_sanity(figures):
     assert figures["max_sample_rate_hz"] >= 8000
 
 
+@pytest.mark.slow          # it shares the figures of the test above
 def test_report_verb_prints_json(monkeypatch, capsys, figures):
     import mpu9250_ahrs.report as report_module
     monkeypatch.setattr(report_module, "report", lambda **kw: figures)

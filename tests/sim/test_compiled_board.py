@@ -30,8 +30,8 @@ def test_front_end_same_on_both_paths(wiring, samples):
 
 def test_core_same_on_both_paths():
     setup = SimSetup()
-    fast = run_core(setup, n_results=3, n_frames=1, compiled=True)
-    slow = run_core(setup, n_results=3, n_frames=1, compiled=False)
+    fast = run_core(setup, n_results=2, n_frames=1, compiled=True)
+    slow = run_core(setup, n_results=2, n_frames=1, compiled=False)
     assert fast.compiled and not slow.compiled
     for name in ("results", "result_cycles", "int_cycles", "frames", "counters", "status",
                  "asa", "cycles"):
