@@ -323,8 +323,9 @@ def cmd_simulate(args):
 
 
 def _simulator_choice(args):
-    """``--simulator`` as ``run_frontend``'s ``compiled``: True, False or None (auto). Auto
-    without Verilator and g++ says so in one line and runs Amaranth's simulator."""
+    """``--simulator`` as ``run_frontend``'s ``compiled``: True, False or "prefer" (auto:
+    compiled, built once if need be, where the run allows it). Auto without Verilator and g++
+    says so in one line and runs Amaranth's simulator."""
     from .sim.compiled_design import verilator_available
     if args.simulator == "compiled":
         return True
@@ -334,7 +335,7 @@ def _simulator_choice(args):
         print("mpu9250-ahrs: verilator or g++ not found: simulating in Amaranth's simulator "
               "(slower; apt-get install verilator g++ for the compiled path)", file=sys.stderr)
         return False
-    return None
+    return "prefer"
 
 
 def _simulator_name(compiled):
@@ -678,9 +679,10 @@ def _add_host_verbs(sub, quiet):
                                    "engine, the command channel) behind a pseudo-terminal, print "
                                    "its path and keep it running until Ctrl-C: monitor, config "
                                    "and calibrate then use that path as a serial port, so a "
-                                   "configuration made by one command is seen by the next. It "
-                                   "sends about one frame a second (Amaranth's simulator): give "
-                                   "the host verbs --timeout 60.")
+                                   "configuration made by one command is seen by the next. "
+                                   "Compiled (Verilator and g++ there) it sends tens of frames a "
+                                   "second; in Amaranth's simulator about one: then give the "
+                                   "host verbs --timeout 60.")
     p.add_argument("--seconds", type=_positive, default=None, metavar="S",
                    help="stop after S seconds (default: run until Ctrl-C)")
     p.set_defaults(func=cmd_board)
@@ -711,9 +713,15 @@ def cmd_board(args):
     from .sim.board import SimulatedBoard
     board = SimulatedBoard().start()
     print(f"simulated board on {board.port}", flush=True)
-    print(f"use it as the PORT of monitor, config and calibrate, with --timeout 60 (about a "
-          f"frame a second), e.g.: python -m mpu9250_ahrs config {board.port} --timeout 60 "
-          f"filter complementary; Ctrl-C stops it", file=sys.stderr, flush=True)
+    if board.compiled:
+        print(f"use it as the PORT of monitor, config and calibrate (compiled: tens of frames "
+              f"a second), e.g.: python -m mpu9250_ahrs config {board.port} filter "
+              f"complementary; Ctrl-C stops it", file=sys.stderr, flush=True)
+    else:
+        print(f"use it as the PORT of monitor, config and calibrate, with --timeout 60 "
+              f"(Amaranth's simulator, no verilator/g++ here: about a frame a second), e.g.: "
+              f"python -m mpu9250_ahrs config {board.port} --timeout 60 filter complementary; "
+              f"Ctrl-C stops it", file=sys.stderr, flush=True)
     start = time.monotonic()
     try:
         while args.seconds is None or time.monotonic() - start < args.seconds:

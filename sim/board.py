@@ -118,7 +118,8 @@ class SimulatedBoard:
                  setup=None, compiled=None):
         from ..hdl.top import AHRSCore
         from .cosim import compiled_wanted
-        self.compiled = compiled_wanted(compiled)
+        # a board runs for as long as it is used: worth a build whenever one can be had
+        self.compiled = compiled_wanted("prefer" if compiled is None else compiled)
         self.errors = errors
         self.setup = setup or board_setup(sample_cycles=sample_cycles)
         config = self.setup.config

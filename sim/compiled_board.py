@@ -5,9 +5,12 @@ they watch changes or at the time they asked for, the UART read back in Python.
 ``frontend_loop`` and ``core_loop`` are the compiled twins of the testbenches of
 ``cosim.run_frontend`` and ``cosim.run_core``: same models, same observations (a sample or a
 result recorded at the cycle it is seen), so both paths give the same samples, results, cycles
-and frames (``tests/sim/test_compiled_board.py``). ``cosim`` picks this path when
-``compiled=True`` (or None: when Verilator and g++ are there, for long runs); ``simulate``,
-``report`` and the simulated board say which path ran.
+and frames (``tests/sim/test_compiled_board.py``). ``run_frontend``/``run_core`` take
+``compiled``: True (this path), False (Amaranth's simulator), None (auto, the default: this
+path when Verilator and g++ are there and the build is cached or the run's cycle budget is at
+least ``WORTH_A_BUILD_CYCLES``), "prefer" (this path whenever it can run the job: what
+``simulate`` and the simulated board use). Waveforms (VCD) and a stuck CIPO stay with
+Amaranth's simulator. ``CosimResult.compiled`` / ``CoreRun.compiled`` say which path ran.
 
 Speed (``python -m mpu9250_ahrs.sim.compiled_board``): prints both paths' cycles per second on
 the same short run of the core and the front end.
@@ -121,24 +124,63 @@ class UARTReader:
         self.at = cycle + self.divisor
 
 
-def frontend_loop(harness, dut, models, observe, max_cycles, *, spi, built=None, key=None):
-    """``run_frontend``'s always-ready testbench on the compiled path: ``observe(cycle,
-    valid, payload_bits, status_bits)`` at every change of the sample stream's valid or of
-    the status (it raises to end the run). ``built`` (a dict) gets the design as
-    ``"design"`` (for the values at the end). ``key``: what made the design
-    (``CompiledDesign``'s)."""
+# Auto (``compiled=None``) builds a design only for a run this long (its cycle budget): a
+# build takes about 5 s (front end) or 20 s (whole core), what Amaranth's simulator does in
+# about 10^5 cycles; a design already in the cache is always taken.
+WORTH_A_BUILD_CYCLES = 2_000_000
+
+
+def frontend_design(harness, dut, *, spi, key, cached_only=False):
+    """The compiled ``SensorFrontEnd`` in its harness (``CompiledDesign``; ``NotBuilt`` with
+    ``cached_only`` when the cache does not have it)."""
     inputs, outputs = board_ports(
         harness, spi=spi, extra_inputs={"samples_ready": dut.samples.ready},
         extra_outputs={"samples_valid": dut.samples.valid, "status": dut.status,
                        "samples_payload": dut.samples.payload, "asa": dut.asa,
                        "rate_errors": dut.rate_errors, "who_am_i": dut.who_am_i,
                        "self_test": dut.self_test})
-    design = CompiledDesign(harness, inputs, outputs,
-                            name="frontend-" + ("spi" if spi else "i2c"), key=key)
-    if built is not None:
-        built["design"] = design
-    design.set("samples_ready", 1)
+    return CompiledDesign(harness, inputs, outputs, name="frontend-" + ("spi" if spi else "i2c"),
+                          key=key, cached_only=cached_only)
+
+
+def core_design(harness, core, *, key, cached_only=False):
+    """The compiled ``AHRSCore`` in its harness (``frontend_design``'s rules)."""
+    results = core.engine.results
+    inputs, outputs = board_ports(
+        harness, spi=True,
+        extra_inputs={"cfg_valid": core.cfg.valid, "cfg_payload": core.cfg.payload},
+        extra_outputs={"r_valid": results.valid, "imu_int": core.imu_int,
+                       "uart_tx": core.uart_tx, "cfg_ready": core.cfg.ready,
+                       "r_payload": results.payload, "counters": core.counters,
+                       "status": core.status, "asa": core.asa})
+    return CompiledDesign(harness, inputs, outputs, name="core", key=key,
+                          cached_only=cached_only)
+
+
+def frontend_loop(design, models, observe, max_cycles, *, spi, ready=None):
+    """``run_frontend``'s testbench on the compiled path (``design``: ``frontend_design``'s):
+    ``observe(cycle, taken, payload_bits, status_bits)`` at every change of the sample
+    stream's valid or of the status (it raises to end the run). ``ready(cycle)``: the
+    consumer's ready per cycle (a slow consumer: the loop then steps a cycle at a time, and
+    observes each transfer); None: always ready."""
     pins = _Models(design, models, spi)
+    if ready is not None:
+        last = None
+        cycle = 0
+        while True:
+            r = ready(cycle)
+            design.set("samples_ready", r)
+            pins.poll(cycle)
+            valid, status = design.get("samples_valid"), design.get("status")
+            payload = design.get("samples_payload") if valid else 0
+            cycle = design.run(cycle + 1)
+            taken = bool(valid and r)
+            if taken or (valid, status) != last or cycle >= max_cycles:
+                last = (valid, status)
+                observe(cycle, taken, payload, status)
+                if cycle >= max_cycles:
+                    raise AssertionError("observe did not end the run at max_cycles")
+    design.set("samples_ready", 1)
     mask = design.mask("pin_a", "pin_b", "samples_valid", "status")
     last = None
     cycle = 0
@@ -153,21 +195,13 @@ def frontend_loop(harness, dut, models, observe, max_cycles, *, spi, built=None,
         cycle = design.run(min(pins.wake, max_cycles), mask)
 
 
-def core_loop(harness, core, models, *, divisor, received, more_wanted, max_cycles,
-              writes=(), progress=None, key=None):
+def core_loop(design, core, models, *, divisor, received, more_wanted, max_cycles,
+              writes=(), progress=None):
     """``run_core``'s testbench on the compiled path: every engine result recorded as it is
     first seen valid, with the cycle of the INT edge before it; the UART's bytes appended to
     ``received``; ``more_wanted()`` asked at the testbench's wake-ups (a result, an INT edge).
-    Returns (results as bits, result cycles, INT cycles, end cycle, design)."""
-    results = core.engine.results
-    inputs, outputs = board_ports(
-        harness, spi=True,
-        extra_inputs={"cfg_valid": core.cfg.valid, "cfg_payload": core.cfg.payload},
-        extra_outputs={"r_valid": results.valid, "imu_int": core.imu_int,
-                       "uart_tx": core.uart_tx, "cfg_ready": core.cfg.ready,
-                       "r_payload": results.payload, "counters": core.counters,
-                       "status": core.status, "asa": core.asa})
-    design = CompiledDesign(harness, inputs, outputs, name="core", key=key)
+    Returns (results as bits, result cycles, INT cycles, end cycle); ``design``:
+    ``core_design``'s."""
     pins = _Models(design, models, True)
     uart = UARTReader(design, "uart_tx", divisor, received)
     cycle = 0
@@ -210,7 +244,7 @@ def core_loop(harness, core, models, *, divisor, received, more_wanted, max_cycl
         if cycle >= max_cycles:
             raise TimeoutError(f"{len(out['results'])} results after {cycle} cycles (compiled)")
         cycle = design.run(min(pins.wake, uart.at, max_cycles), mask)
-    return out["results"], out["cycles"], out["ints"], cycle, design
+    return out["results"], out["cycles"], out["ints"], cycle
 
 
 def speed(samples=20):

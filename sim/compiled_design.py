@@ -36,7 +36,7 @@ from amaranth.lib.wiring import In, Out
 from .compiled_engine import HINT, _cache_root, verilator_available
 
 
-__all__ = ["CompiledDesign", "verilator_available"]
+__all__ = ["CompiledDesign", "NotBuilt", "verilator_available"]
 
 
 class _Ports(wiring.Component):
@@ -154,6 +154,10 @@ uint64_t sim_run(void *p, uint64_t until, uint64_t mask) {{
 """
 
 
+class NotBuilt(LookupError):
+    """``CompiledDesign(cached_only=True)`` of a design the cache does not have."""
+
+
 _VERSION = []
 
 
@@ -199,9 +203,11 @@ class CompiledDesign:
     ``inputs`` and ``outputs`` (name: signal or value-castable; names must be Verilog
     identifiers). ``name``: the cache folder's prefix. ``key``: what makes the design (its
     parameters, with a repr that says all of them); given, the cache is looked up without
-    converting the design to Verilog (the package's sources are part of the key)."""
+    converting the design to Verilog (the package's sources are part of the key).
+    ``cached_only``: raise ``NotBuilt`` rather than build."""
 
-    def __init__(self, design, inputs, outputs, *, name="design", key=None):
+    def __init__(self, design, inputs, outputs, *, name="design", key=None, cached_only=False):
+        self.cached_only = cached_only
         self.name = name
         self.key = key
         self.inputs = {n: Value.cast(v) for n, v in inputs.items()}
@@ -243,6 +249,8 @@ class CompiledDesign:
         key = hashlib.sha256("\0".join((key, cxx, version)).encode()).hexdigest()[:20]
         folder = _cache_root() / f"{self.name}-{key}"
         library = folder / "design.so"
+        if self.cached_only and not library.exists():
+            raise NotBuilt(f"{self.name}: not in the cache")
         if library.exists() and text is None:
             # the design was never elaborated (the cache had it): its blocks would each warn,
             # when collected, that they were "created but never used"

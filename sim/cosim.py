@@ -352,25 +352,47 @@ def expected_mag(ak_bytes, mag_ok=True, previous=None):
 def compiled_wanted(compiled, *, vcd=None, supported=True):
     """Whether a co-simulation takes the compiled path (``sim.compiled_board``):
     ``compiled`` True asks for it (an error if it cannot be had), False for Amaranth's
-    simulator, None: the compiled path when Verilator and g++ are there and the run is one it
-    supports (no VCD: waveforms come from Amaranth's simulator)."""
+    simulator, None (auto): the compiled path when Verilator and g++ are there, the run is
+    one it supports (no VCD: waveforms come from Amaranth's simulator) and its build is cached
+    or pays for itself (``_auto_build``); "prefer": the compiled path whenever it can run
+    this (built if need be), else Amaranth's simulator (what ``simulate`` does). Returns
+    True, False or None (still auto)."""
     from .compiled_design import verilator_available
+    if compiled == "prefer":
+        return bool(supported and not vcd and verilator_available())
     if compiled:
         if vcd or not supported:
-            raise ValueError("the compiled path does not take this run (waveforms, a stuck "
-                             "CIPO or a slow consumer): use compiled=False")
+            raise ValueError("the compiled path does not take this run (waveforms or a stuck "
+                             "CIPO): use compiled=False")
         if not verilator_available():
             raise RuntimeError("the compiled co-simulation needs verilator and g++: "
                                "apt-get install verilator g++")
         return True
     if compiled is None:
-        return bool(supported and not vcd and verilator_available())
+        # auto: the caller takes the compiled path if the build is cached or the run long
+        return None if supported and not vcd and verilator_available() else False
     return False
+
+
+def _auto_build(compiled, max_cycles, make):
+    """The compiled design ``make(cached_only)`` for ``compiled`` True, or for None (auto)
+    when the cache has it or the run's budget (``max_cycles``) pays for a build; else None
+    (Amaranth's simulator)."""
+    from .compiled_board import WORTH_A_BUILD_CYCLES
+    from .compiled_design import NotBuilt
+    if compiled is False:
+        return None
+    if compiled or max_cycles >= WORTH_A_BUILD_CYCLES:
+        return make(False)
+    try:
+        return make(True)
+    except NotBuilt:
+        return None
 
 
 def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cycles=None,
                  until=None, vcd=None, ready=None, bus_kw=None, injector=None, stop=None,
-                 progress=None, compiled=False):
+                 progress=None, compiled=None):
     """Simulate until ``n_samples`` samples came out, ``until(status_dict)`` is true,
     ``stop(cycle, status_dict, sample_cycles, samples)`` is true, or ``max_cycles`` (an error
     unless ``until`` was given and is merely never met). ``injector``: a fault
@@ -388,8 +410,7 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
     says which path ran).
     """
     setup = setup or SimSetup()
-    compiled = compiled_wanted(compiled, vcd=vcd,
-                               supported=stuck_miso is None and ready is None)
+    compiled = compiled_wanted(compiled, vcd=vcd, supported=stuck_miso is None)
     dut = setup.frontend()
     if model is None and stuck_miso is None:
         model = setup.model()
@@ -412,6 +433,13 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
     if injector is not None:
         injector.mpu, injector.bus = model, bus
     harness.monitor(dut.samples, "samples")
+    design = None
+    if compiled is not False:
+        from .compiled_board import frontend_design
+        design = _auto_build(compiled, max_cycles, lambda cached_only: frontend_design(
+            harness, dut, spi=bus is None, cached_only=cached_only,
+            key=("frontend", setup.clk_freq, setup.config, setup.driver_timing())))
+    compiled = design is not None
     sim = None
     if not compiled:
         sim = Simulator(harness)
@@ -490,16 +518,12 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
                            spi=bus is None)
         payload_layout = data.Layout.cast(dut.samples.payload.shape())
         status_layout = data.Layout.cast(dut.status.shape())
-        holder = {}
         try:
-            frontend_loop(harness, dut, models,
+            frontend_loop(design, models,
                           lambda c, v, p, st: observe(c, v, data.Const(payload_layout, p),
                                                       data.Const(status_layout, st)),
-                          max_cycles, spi=bus is None, built=holder,
-                          key=("frontend", setup.clk_freq, setup.config,
-                               setup.driver_timing()))
+                          max_cycles, spi=bus is None, ready=ready)
         except Done:
-            design = holder["design"]
             def end(name, value):
                 return to_python(data.Const(data.Layout.cast(value.shape()), design.get(name)))
             out["asa"] = end("asa", dut.asa)
@@ -572,7 +596,7 @@ class CoreRun:
 
 def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycles=None,
              baud=921_600, core_kwargs=None, writes=(), vcd=None, progress=None,
-             compiled=False):
+             compiled=None):
     """The whole ``AHRSCore`` (driver, engine, telemetry) against the models until the engine
     has produced ``n_results`` results and the UART has carried ``n_frames`` frames (either
     may be None). Each result is recorded as it leaves the engine (the telemetry scheduler
@@ -601,6 +625,14 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
     harness.monitor(core.engine.results, "results")
     harness.monitor(core.arbiter.o_stream, "frame bytes")
     compiled = compiled_wanted(compiled, vcd=vcd)
+    design = None
+    if compiled is not False:
+        from .compiled_board import core_design, core_key
+        design = _auto_build(compiled, max_cycles, lambda cached_only: core_design(
+            harness, core, cached_only=cached_only,
+            key=core_key("core", clk_freq=setup.clk_freq, config=setup.config,
+                         timing=setup.driver_timing(), baud=baud, **(core_kwargs or {}))))
+    compiled = design is not None
     received = bytearray()
     if not compiled:
         sim = Simulator(harness)
@@ -659,16 +691,14 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
     start = time.perf_counter()
     if compiled:
         from amaranth.lib import data
-        from .compiled_board import check_monitors, core_key, core_loop
+        from .compiled_board import check_monitors, core_loop
         def const(value, bits):
             return to_python(data.Const(data.Layout.cast(value.shape()), bits))
         models = PinModels(setup.clk_freq, mpu=model, spi=True)
-        bits, out["cycles"], out["ints"], end, design = core_loop(
-            harness, core, models, divisor=core.uart.divisor, received=received,
+        bits, out["cycles"], out["ints"], end = core_loop(
+            design, core, models, divisor=core.uart.divisor, received=received,
             more_wanted=more_wanted, max_cycles=max_cycles, writes=writes,
-            progress=progress, key=core_key("core", clk_freq=setup.clk_freq,
-                                            config=setup.config, timing=setup.driver_timing(),
-                                            baud=baud, **(core_kwargs or {})))
+            progress=progress)
         out["results"] = [const(results.payload, b) for b in bits]
         out["end"] = (end, const(core.counters, design.get("counters")),
                       const(core.status, design.get("status")),

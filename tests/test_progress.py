@@ -59,7 +59,7 @@ def _run_in_a_terminal(argv):
 
 
 def test_a_long_job_shows_progress_on_a_terminal_only():
-    argv = [sys.executable, "-m", "mpu9250_ahrs.host.protocol", "3000"]
+    argv = [sys.executable, "-m", "mpu9250_ahrs.host.protocol", "1000"]
     code, out, err = _run_in_a_terminal(argv)
     assert code == 0 and "corrupted frames" in err and "%" in err
     assert out.count('"case"') == 5                            # the results, unchanged

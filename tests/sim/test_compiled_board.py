@@ -28,6 +28,15 @@ def test_front_end_same_on_both_paths(wiring, samples):
         assert fast.bus.log == slow.bus.log and fast.bus.frames == slow.bus.frames
 
 
+def test_slow_consumer_same_on_both_paths():
+    """A consumer ready one cycle in seven: the compiled path steps a cycle at a time."""
+    setup = SimSetup(config=MPU9250Config(magnetometer=False), odr_scale=0.1)
+    runs = [run_frontend(setup, n_samples=4, ready=lambda c: c % 7 == 0, compiled=compiled,
+                         model=setup.model(magnetometer=False)) for compiled in (True, False)]
+    for name in ("samples", "sample_cycles", "status_log", "cycles"):
+        assert getattr(runs[0], name) == getattr(runs[1], name), name
+
+
 def test_core_same_on_both_paths():
     setup = SimSetup()
     fast = run_core(setup, n_results=2, n_frames=1, compiled=True)

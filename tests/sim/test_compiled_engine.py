@@ -87,7 +87,10 @@ RECORDINGS = sorted(glob.glob("../shared/data/broad/*.hdf5")) or sorted(glob.glo
 
 
 @pytest.mark.skipif(not RECORDINGS, reason="shared/data/broad not beside the checkout")
-@pytest.mark.parametrize("filter", ["flagship", "kalman", "complementary"])
+# the flagship (the reset default, the longest program) in the default run; the other two
+# filters, 20 s more, in the slow step
+@pytest.mark.parametrize("filter", ["flagship", pytest.param("kalman", marks=pytest.mark.slow),
+                                    pytest.param("complementary", marks=pytest.mark.slow)])
 def test_whole_recording_bit_exact(compiled, filter):
     """Every sample of the shortest shared recording (trial 33, a magnet attached: the
     flagship's gates at work) through the compiled gateware, equal to the fixed-point model."""
