@@ -16,10 +16,8 @@ Speed (``python -m mpu9250_ahrs.sim.compiled_board``): prints both paths' cycles
 the same short run of the core and the front end.
 """
 
-import time
-
 from .compiled_design import CompiledDesign, verilator_available
-from .cosim import NEVER, PinModels
+from .cosim import NEVER
 
 
 __all__ = ["frontend_loop", "core_loop", "board_ports", "verilator_available"]

@@ -20,20 +20,18 @@ raises ``RuntimeError`` with a hint, and callers fall back to Amaranth's simulat
 
 import ctypes
 import hashlib
-import os
-import shutil
 import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
-from amaranth import Module, Shape, Signal, Value
+from amaranth import Module, Signal, Value
 from amaranth.back import verilog
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
-from .compiled_engine import HINT, _cache_root, verilator_available
+from .compiled_engine import HINT, _cache_root, publish, verilator_available
 
 
 __all__ = ["CompiledDesign", "NotBuilt", "verilator_available"]
@@ -281,14 +279,7 @@ class CompiledDesign:
                 if result.returncode:
                     raise RuntimeError(f"verilator failed to build the {self.name}:\n"
                                        + (result.stderr or result.stdout)[-3000:])
-                (tmp / "design.so").write_bytes((obj / "design.so").read_bytes())
-                (tmp / "done").mkdir()
-                shutil.copy2(tmp / "design.so", tmp / "done" / "design.so")
-                try:
-                    os.replace(tmp / "done", folder)      # atomic: concurrent builds race fine
-                except OSError:
-                    if not library.exists():
-                        raise
+                publish(obj / "design.so", folder)
             self.build_s = time.perf_counter() - start
         lib = ctypes.CDLL(str(library))
         lib.sim_new.restype = ctypes.c_void_p

@@ -177,6 +177,19 @@ def _cache_root():
     return Path(root)
 
 
+def publish(built, folder):
+    """Put the file ``built`` (inside a temporary folder of the cache) into the cache folder
+    ``folder`` under its name, atomically: concurrent builds of one design race fine."""
+    done = built.parent / "done"
+    done.mkdir()
+    shutil.copy2(built, done / built.name)
+    try:
+        os.replace(done, folder)
+    except OSError:
+        if not (folder / built.name).exists():
+            raise
+
+
 class CompiledEngine:
     """One engine design (``make_engine()`` returns a fresh ``AttitudeEngine``) as a compiled
     Verilator model; ``build()`` is implicit in ``run``."""
@@ -222,14 +235,7 @@ class CompiledEngine:
                 if result.returncode:
                     raise RuntimeError("verilator failed to build the engine:\n"
                                        + (result.stderr or result.stdout)[-3000:])
-                built = tmp / "obj" / "engine_sim"
-                (tmp / "done").mkdir()
-                shutil.copy2(built, tmp / "done" / "engine_sim")
-                try:
-                    os.replace(tmp / "done", folder)      # atomic: concurrent builds race fine
-                except OSError:
-                    if not binary.exists():
-                        raise
+                publish(tmp / "obj" / "engine_sim", folder)
             self.build_s = time.perf_counter() - start
         self.binary = binary
         return binary
