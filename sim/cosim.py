@@ -363,7 +363,8 @@ def compiled_wanted(compiled, *, vcd=None, supported=True):
     if compiled:
         if vcd or not supported:
             raise ValueError("the compiled path does not take this run (waveforms or a stuck "
-                             "CIPO): use compiled=False")
+                             "CIPO): run it in Amaranth's simulator (simulate --simulator "
+                             "python, or compiled=False)")
         if not verilator_available():
             raise RuntimeError("the compiled co-simulation needs verilator and g++: "
                                "apt-get install verilator g++")
