@@ -119,6 +119,7 @@ def test_simulate_command(tmp_path, capsys):
     assert summary["self_test"] == {"done": 1, "mag_done": 1, "fail": 0}
     assert summary["who_am_i"] == 0x71
     assert vcd.stat().st_size > 0 and (tmp_path / "x.gtkw").is_file()
+    assert summary["simulator"] == "python (Amaranth)"          # waveforms: Amaranth's
 
 
 def test_simulate_i2c_wiring(capsys):
@@ -126,6 +127,9 @@ def test_simulate_i2c_wiring(capsys):
     summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert summary["wiring"] == "i2c" and summary["violations"] == []
     assert summary["status"]["mag_ok"] == 1
+    from mpu9250_ahrs.sim.compiled_design import verilator_available
+    assert summary["simulator"] == ("compiled (Verilator)" if verilator_available()
+                                    else "python (Amaranth)")
 
 
 def test_help_lists_verbs(capsys):
