@@ -246,7 +246,7 @@ def _build_ulx3s(args, out, clk_freq, config, options):
 
 def cmd_simulate(args):
     from . import progress
-    from .sim.cosim import SimSetup, run_core, run_frontend
+    from .sim.cosim import SimSetup, run_core, run_frontend, simulator_name
 
     if args.fault == "list":
         from .sim.faults import FAULTS
@@ -287,7 +287,7 @@ def cmd_simulate(args):
             "latency_us": {"drdy_to_attitude": round(max(latency), 2) if latency else None},
             "cycles": run.cycles, "wall_s": round(run.wall_s, 3),
             "cycles_per_s": round(run.cycles / run.wall_s) if run.wall_s else None,
-            "simulator": _simulator_name(run.compiled),
+            "simulator": simulator_name(run.compiled),
             "status": run.status, "asa": run.asa})
         violations = [str(v) for who in (model, *model.aux_devices.values())
                       for v in who.violations]
@@ -311,8 +311,8 @@ def cmd_simulate(args):
             "bring_up_us": result.bring_up_cycles and
             result.bring_up_cycles / setup.clk_freq * 1e6,
             "wall_s": round(result.wall_s, 3), "cycles_per_s": round(result.cycles_per_s),
-            "simulator": _simulator_name(result.compiled), "status": result.status, "asa": result.asa, "who_am_i": result.who_am_i,
-            "self_test": result.self_test})
+            "simulator": simulator_name(result.compiled), "status": result.status,
+            "asa": result.asa, "who_am_i": result.who_am_i, "self_test": result.self_test})
     summary.update({"violations": violations,
                     "time_scale": {"delays": setup.delay_scale,
                                    "sample_period": setup.odr_scale}})
@@ -336,10 +336,6 @@ def _simulator_choice(args):
               "(slower; apt-get install verilator g++ for the compiled path)", file=sys.stderr)
         return False
     return "prefer"
-
-
-def _simulator_name(compiled):
-    return "compiled (Verilator)" if compiled else "python (Amaranth)"
 
 
 def _simulate_fault(args, setup, compiled=None):
@@ -539,8 +535,9 @@ def build_parser():
     p.set_defaults(func=cmd_build)
 
     p = sub.add_parser("simulate", parents=[quiet], help="co-simulate the gateware with the MPU9250 model",
-                       description="Bring-up plus N samples in Amaranth's simulator, with real "
-                                   "time scaled down (delays and sample period) to save cycles.")
+                       description="Bring-up plus N samples, compiled (Verilator) or in "
+                                   "Amaranth's simulator (--simulator), with real time scaled "
+                                   "down (delays and sample period) to save cycles.")
     p.add_argument("--samples", type=_count, default=20, help="samples to read (default 20)")
     p.add_argument("--vcd", default=None, help="write a VCD (and a GTKWave .gtkw beside it)")
     p.add_argument("--who-am-i", type=_number("a byte", low=0, integer=True), default=0x71,
@@ -568,8 +565,8 @@ def build_parser():
     p.add_argument("--simulator", choices=("auto", "compiled", "python"), default="auto",
                    help="compiled: the design in Verilator (tens of times faster; built once "
                         "and cached, needs verilator and g++), python: Amaranth's simulator "
-                        "(waveforms, a slow consumer), auto (default): compiled when it can "
-                        "be; the summary's 'simulator' says which ran")
+                        "(what --vcd uses), auto (default): compiled when it can be; the "
+                        "summary's 'simulator' says which ran")
     _add_sensor_options(p)
     p.set_defaults(func=cmd_simulate)
 

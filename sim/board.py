@@ -68,6 +68,11 @@ def board_setup(config=None, sample_cycles=1600):
                     ak_clock_error=-0.55)
 
 
+def _uart_bits(byte):
+    """A byte on a UART line (8N1): start bit, data LSB first, stop bit."""
+    return [0] + [(byte >> k) & 1 for k in range(8)] + [1]
+
+
 def garble(data, ratio):
     """The bytes a UART receiver at ``ratio`` × the sender's baud makes of ``data`` sent
     back to back (8N1): wrong ones, and a 0x00 for each framing error (what Linux delivers
@@ -77,8 +82,7 @@ def garble(data, ratio):
     over = 16                                       # samples per sender bit
     line = []
     for byte in data:
-        bits = [0] + [(byte >> k) & 1 for k in range(8)] + [1]
-        for b in bits:
+        for b in _uart_bits(byte):
             line += [b] * over
     line += [1] * (over * 20)
     step = over / ratio                             # samples per receiver bit
@@ -211,16 +215,6 @@ class SimulatedBoard:
         attach_uart_receiver(sim, core.uart_tx, divisor, sent)
         poll = 10 * divisor                         # a byte time
 
-        def flush(ratio):
-            """The design's bytes so far to the host, as a UART at its baud sees them."""
-            if sent:
-                out = garble(bytes(sent), ratio)
-                sent.clear()
-                try:
-                    os.write(master, out)
-                except OSError:                      # nobody reading: the bytes are lost
-                    pass
-
         async def bridge(ctx):
             ctx.set(core.uart_rx, 1)
             pending = bytearray()
@@ -228,27 +222,33 @@ class SimulatedBoard:
                 await ctx.tick().repeat(poll)
                 self.cycles = ctx.get(harness.cycle)
                 ratio = pty_baud(master) / NOMINAL_BAUD
-                flush(ratio)
-                try:
-                    pending += garble(os.read(master, 4096), 1 / ratio)
-                except OSError:                      # nothing written
-                    pass
+                self._flush(sent, ratio)
+                pending += self._from_host(ratio)
                 while pending and not self._stop.is_set():
-                    byte = pending.pop(0)
-                    for bit in [0] + [(byte >> k) & 1 for k in range(8)] + [1]:
+                    for bit in _uart_bits(pending.pop(0)):
                         ctx.set(core.uart_rx, bit)
                         await ctx.tick().repeat(divisor)
-                    flush(ratio)
+                    self._flush(sent, ratio)
         sim.add_testbench(bridge)
+        return self._run_in_thread(sim.run)
 
-        def run():
+    def _run_in_thread(self, run):
+        def guarded():
             try:
-                sim.run()
+                run()
             except BaseException as e:                # reported by stop()
                 self.error = e
-        self._thread = threading.Thread(target=run, name="simulated-board", daemon=True)
+        self._thread = threading.Thread(target=guarded, name="simulated-board", daemon=True)
         self._thread.start()
         return self
+
+    def _from_host(self, ratio):
+        """The bytes the host wrote since the last look, as a UART at the board's baud sees
+        them (``ratio``: the host's baud over the board's)."""
+        try:
+            return garble(os.read(self._master, 4096), 1 / ratio)
+        except OSError:                              # nothing written
+            return b""
 
     def _flush(self, sent, ratio):
         """The design's bytes so far to the host, as a UART at its baud sees them."""
@@ -276,49 +276,40 @@ class SimulatedBoard:
         poll = 10 * divisor                         # a byte time
 
         def run():
-            try:
-                sent = []
-                pins = _Models(design, PinModels(self.setup.clk_freq, mpu=self.model), True)
-                uart = UARTReader(design, "uart_tx", divisor, sent)
-                mask = design.mask("pin_a", "pin_b", "uart_tx")
-                design.set("uart_rx", 1)
-                pending, bits = bytearray(), []
-                cycle, next_poll, next_bit, ratio = 0, poll, NEVER, 1.0
-                while not self._stop.is_set():
-                    pins.poll(cycle)
-                    uart.poll(cycle)
-                    if cycle >= next_bit:
-                        if bits:
-                            design.set("uart_rx", bits.pop(0))
-                            next_bit = cycle + divisor
-                        else:                       # a byte sent
-                            self.cycles = cycle
-                            self._flush(sent, ratio)
-                            next_bit = NEVER
-                    if next_bit == NEVER and cycle >= next_poll:
-                        if not pending:
-                            self.cycles = cycle
-                            ratio = pty_baud(master) / NOMINAL_BAUD
-                            self._flush(sent, ratio)
-                            try:
-                                pending += garble(os.read(master, 4096), 1 / ratio)
-                            except OSError:          # nothing written
-                                pass
-                        if pending:
-                            byte = pending.pop(0)
-                            bits = [0] + [(byte >> k) & 1 for k in range(8)] + [1]
-                            design.set("uart_rx", bits.pop(0))
-                            next_bit = cycle + divisor
-                        else:
-                            next_poll = cycle + poll
-                    # while a byte goes out, its bits are the bridge's times; else the poll
-                    until = next_bit if next_bit != NEVER else next_poll
-                    cycle = design.run(min(pins.wake, uart.at, until), mask)
-            except BaseException as e:                # reported by stop()
-                self.error = e
-        self._thread = threading.Thread(target=run, name="simulated-board", daemon=True)
-        self._thread.start()
-        return self
+            sent = []
+            pins = _Models(design, PinModels(self.setup.clk_freq, mpu=self.model), True)
+            uart = UARTReader(design, "uart_tx", divisor, sent)
+            mask = design.mask("pin_a", "pin_b", "uart_tx")
+            design.set("uart_rx", 1)
+            pending, bits = bytearray(), []
+            cycle, next_poll, next_bit, ratio = 0, poll, NEVER, 1.0
+            while not self._stop.is_set():
+                pins.poll(cycle)
+                uart.poll(cycle)
+                if cycle >= next_bit:
+                    if bits:
+                        design.set("uart_rx", bits.pop(0))
+                        next_bit = cycle + divisor
+                    else:                       # a byte sent
+                        self.cycles = cycle
+                        self._flush(sent, ratio)
+                        next_bit = NEVER
+                if next_bit == NEVER and cycle >= next_poll:
+                    if not pending:
+                        self.cycles = cycle
+                        ratio = pty_baud(master) / NOMINAL_BAUD
+                        self._flush(sent, ratio)
+                        pending += self._from_host(ratio)
+                    if pending:
+                        bits = _uart_bits(pending.pop(0))
+                        design.set("uart_rx", bits.pop(0))
+                        next_bit = cycle + divisor
+                    else:
+                        next_poll = cycle + poll
+                # while a byte goes out, its bits are the bridge's times; else the poll
+                until = next_bit if next_bit != NEVER else next_poll
+                cycle = design.run(min(pins.wake, uart.at, until), mask)
+        return self._run_in_thread(run)
 
     def wait_cycles(self, cycles, timeout=600):
         """Block until the simulation has run ``cycles`` more cycles."""

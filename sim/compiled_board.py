@@ -35,7 +35,6 @@ def board_ports(harness, *, spi, extra_inputs=None, extra_outputs=None):
                    "copi": harness.spi.copi}
     else:
         outputs = {"pin_a": harness.scl, "pin_b": harness.sda}
-    outputs["cycle"] = harness.cycle
     outputs.update(extra_outputs or {})
     for k, monitor in enumerate(harness.monitors):
         outputs[f"mon{k}_withdrawn"] = monitor.withdrawn
@@ -54,10 +53,24 @@ def core_key(name, **kwargs):
                          if k not in defaults or defaults[k] != v))
 
 
+class _MonitorFlags:
+    """What ``StreamMonitor.check`` reads (``get(signal)``), from a compiled design's ports
+    (``board_ports``'s ``mon{k}_*``)."""
+
+    def __init__(self, design, harness):
+        self.design = design
+        self.ports = {}
+        for k, monitor in enumerate(harness.monitors):
+            self.ports[id(monitor.withdrawn)] = f"mon{k}_withdrawn"
+            self.ports[id(monitor.changed)] = f"mon{k}_changed"
+
+    def get(self, signal):
+        return self.design.get(self.ports[id(signal)])
+
+
 def check_monitors(design, harness):
-    for k, monitor in enumerate(harness.monitors):
-        assert not design.get(f"mon{k}_withdrawn"), f"{monitor.name}: valid withdrawn before a transfer"
-        assert not design.get(f"mon{k}_changed"), f"{monitor.name}: payload changed under valid"
+    """``harness.check`` (the stream rules of every monitored stream) on a compiled design."""
+    harness.check(_MonitorFlags(design, harness))
 
 
 class _Models:
@@ -193,18 +206,18 @@ def frontend_loop(design, models, observe, max_cycles, *, spi, ready=None):
         cycle = design.run(min(pins.wake, max_cycles), mask)
 
 
-def core_loop(design, core, models, *, divisor, received, more_wanted, max_cycles,
+def core_loop(design, core, models, *, divisor, received, record, more_wanted, max_cycles,
               writes=(), progress=None):
-    """``run_core``'s testbench on the compiled path: every engine result recorded as it is
-    first seen valid, with the cycle of the INT edge before it; the UART's bytes appended to
-    ``received``; ``more_wanted()`` asked at the testbench's wake-ups (a result, an INT edge).
-    Returns (results as bits, result cycles, INT cycles, end cycle); ``design``:
-    ``core_design``'s."""
+    """``run_core``'s testbench on the compiled path: every engine result passed to
+    ``record(payload_bits, cycle, int_cycle)`` as it is first seen valid, with the cycle of
+    the INT edge before it; the UART's bytes appended to ``received``; ``more_wanted()``
+    asked at the testbench's wake-ups (a result, an INT edge). Returns the end cycle;
+    ``design``: ``core_design``'s."""
     pins = _Models(design, models, True)
     uart = UARTReader(design, "uart_tx", divisor, received)
     cycle = 0
+    layout = core.cfg.payload.shape()
     for addr, value in writes:                # stream_put, a cycle at a time
-        layout = core.cfg.payload.shape()
         design.set("cfg_payload", layout.const({"addr": addr, "data": value}).as_value().value)
         design.set("cfg_valid", 1)
         while True:
@@ -216,15 +229,14 @@ def core_loop(design, core, models, *, divisor, received, more_wanted, max_cycle
                 break
         design.set("cfg_valid", 0)
     mask = design.mask("pin_a", "pin_b", "r_valid", "imu_int", "uart_tx")
-    out = {"results": [], "cycles": [], "ints": []}
-    last_int, level, valid_prev = None, 0, 0
+    last_int, level, valid_prev, results = None, 0, 0, 0
     while True:
         pins.poll(cycle)
         uart.poll(cycle)
         pin, valid = design.get("imu_int"), design.get("r_valid")
         woken = pin != level or valid != valid_prev
         if woken:
-            if not more_wanted(len(out["results"])):
+            if not more_wanted():
                 break
             if progress is not None:
                 progress.set_postfix_str(f"cycle {cycle:,}", refresh=False)
@@ -233,16 +245,15 @@ def core_loop(design, core, models, *, divisor, received, more_wanted, max_cycle
             last_int = cycle
         level = pin
         if valid and not valid_prev:
-            out["results"].append(design.get("r_payload"))
-            out["cycles"].append(cycle)
-            out["ints"].append(last_int)
+            record(design.get("r_payload"), cycle, last_int)
+            results += 1
             if progress is not None:
                 progress.update(1)
         valid_prev = valid
         if cycle >= max_cycles:
-            raise TimeoutError(f"{len(out['results'])} results after {cycle} cycles (compiled)")
+            raise TimeoutError(f"{results} results after {cycle} cycles (compiled)")
         cycle = design.run(min(pins.wake, uart.at, max_cycles), mask)
-    return out["results"], out["cycles"], out["ints"], cycle
+    return cycle
 
 
 def speed(samples=20):

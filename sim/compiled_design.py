@@ -19,6 +19,7 @@ raises ``RuntimeError`` with a hint, and callers fall back to Amaranth's simulat
 """
 
 import ctypes
+import functools
 import hashlib
 import subprocess
 import sys
@@ -31,7 +32,8 @@ from amaranth.back import verilog
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
-from .compiled_engine import HINT, _cache_root, publish, verilator_available
+from .compiled_engine import (HINT, _cache_root, publish, verilator_available,
+                              verilator_version)
 
 
 __all__ = ["CompiledDesign", "NotBuilt", "verilator_available"]
@@ -85,12 +87,14 @@ def _cxx(top, inputs, outputs):
                 ("w[1] = (uint32_t)(v >> 32); " if width > 32 else "") + "} ")
     sets = "".join(f"    case {k}: {access(n, w, 'set')}break;\n"
                    for k, (n, w) in enumerate(inputs))
+    # outputs of up to 64 bits are read from the snapshot, wider ones through sim_get
     gets = "".join(f"    case {k}: {access(n, w, 'get')}break;\n"
-                   for k, (n, w) in enumerate(outputs))
-    watched = [(k, n) for k, (n, w) in enumerate(outputs) if w <= 64][:64]
+                   for k, (n, w) in enumerate(outputs) if w > 64)
     small = [(k, n) for k, (n, w) in enumerate(outputs) if w <= 64]
     snap = "".join(f"    s->snap[{k}] = s->top->{n};\n" for k, n in small)
-    keep = "".join(f"        if (mask & (1ULL << {k})) prev[{k}] = s->top->{n};\n"
+    watched = [(k, n) for k, n in small if k < 64]          # a bit of the mask each
+    # a watched output that changes ends the run: until then each equals its value at entry
+    keep = "".join(f"    if (mask & (1ULL << {k})) prev[{k}] = s->top->{n};\n"
                    for k, n in watched)
     compare = "".join(
         f"        if ((mask & (1ULL << {k})) && s->top->{n} != prev[{k}]) hit = true;\n"
@@ -138,8 +142,8 @@ uint64_t sim_cycle(void *p) {{ return ((Sim *)p)->cycle; }}
 uint64_t sim_run(void *p, uint64_t until, uint64_t mask) {{
     Sim *s = (Sim *)p;
     uint64_t prev[64];
-    while (s->cycle < until) {{
-{keep}        s->top->clk = 1; s->top->eval();
+{keep}    while (s->cycle < until) {{
+        s->top->clk = 1; s->top->eval();
         s->top->clk = 0; s->top->eval();
         ++s->cycle;
         bool hit = false;
@@ -156,19 +160,11 @@ class NotBuilt(LookupError):
     """``CompiledDesign(cached_only=True)`` of a design the cache does not have."""
 
 
-_VERSION = []
-
-
-def _verilator_version():
-    if not _VERSION:
-        _VERSION.append(subprocess.run(["verilator", "--version"], capture_output=True,
-                                       text=True).stdout.strip())
-    return _VERSION[0]
-
-
+@functools.lru_cache(maxsize=None)
 def _sources_hash():
     """A hash of the package's gateware and simulation sources and Amaranth's version: what,
-    beside a caller's parameters, decides the Verilog of a design made by this package."""
+    beside a caller's parameters, decides the Verilog of a design made by this package (read
+    once a process)."""
     import amaranth
     root = Path(__file__).resolve().parent.parent
     h = hashlib.sha256(amaranth.__version__.encode())
@@ -234,17 +230,18 @@ class CompiledDesign:
         top = self.name.replace("-", "_") + "_top"
         cxx = _cxx(top, [(n, self._in_width[n]) for n in self.inputs],
                    [(n, self._out_width[n]) for n in self.outputs])
-        version = _verilator_version()
+        def convert():
+            return verilog.convert(_Ports(design, self.inputs, self.outputs), name=top,
+                                   emit_src=False)
         text = None
         if self.key is None:
-            text = verilog.convert(_Ports(design, self.inputs, self.outputs), name=top,
-                                   emit_src=False)
-            key = text
+            text = key = convert()
         else:
             # converting the whole core to Verilog takes seconds: a caller that knows what
             # makes its design (its parameters; the sources are added here) names it instead
             key = "\0".join((repr(self.key), _sources_hash()))
-        key = hashlib.sha256("\0".join((key, cxx, version)).encode()).hexdigest()[:20]
+        key = hashlib.sha256("\0".join((key, cxx, verilator_version())).encode()
+                             ).hexdigest()[:20]
         folder = _cache_root() / f"{self.name}-{key}"
         library = folder / "design.so"
         if self.cached_only and not library.exists():
@@ -255,8 +252,7 @@ class CompiledDesign:
             _mark_used(design)
         if not library.exists():
             if text is None:
-                text = verilog.convert(_Ports(design, self.inputs, self.outputs), name=top,
-                                       emit_src=False)
+                text = convert()
             if sys.stderr.isatty():
                 print(f"mpu9250-ahrs: compiling the {self.name} with Verilator (about a "
                       f"minute, once: cached in {folder.parent}) ...", file=sys.stderr,
@@ -321,16 +317,12 @@ class CompiledDesign:
         if small is not None:
             index, width, signed = small
             value = self._snap[index]
-            if signed and value >> (width - 1):
-                value -= 1 << width
-            return value
-        width = self._out_width[name]
-        self._lib.sim_get(self._handle, self._out_index[name], self._buf)
-        value = 0
-        for i in range(_words(width)):
-            value |= self._buf[i] << (32 * i)
-        value &= (1 << width) - 1
-        if self._out_shape[name].signed and value >> (width - 1):
+        else:
+            width, signed = self._out_width[name], self._out_shape[name].signed
+            self._lib.sim_get(self._handle, self._out_index[name], self._buf)
+            value = sum(self._buf[i] << (32 * i) for i in range(_words(width)))
+            value &= (1 << width) - 1
+        if signed and value >> (width - 1):
             value -= 1 << width
         return value
 

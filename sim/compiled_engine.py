@@ -20,6 +20,7 @@ Results (int32 per sample): quat wxyz, angles, bias, counter, flags (``AttitudeF
 cycles (sample offered to result valid, as ``run_engine`` counts them).
 """
 
+import functools
 import hashlib
 import os
 import shutil
@@ -171,6 +172,13 @@ def verilator_available():
     return shutil.which("verilator") is not None and shutil.which("g++") is not None
 
 
+@functools.lru_cache(maxsize=None)
+def verilator_version():
+    """``verilator --version``: part of every cache key (asked once a process)."""
+    return subprocess.run(["verilator", "--version"], capture_output=True,
+                          text=True).stdout.strip()
+
+
 def _cache_root():
     root = os.environ.get("MPU9250_AHRS_CACHE") or os.path.join(
         os.path.expanduser("~"), ".cache", "mpu9250-ahrs")
@@ -211,9 +219,8 @@ class CompiledEngine:
         if not verilator_available():
             raise RuntimeError(f"the compiled engine needs verilator and g++; {HINT}")
         text = self._verilog()
-        version = subprocess.run(["verilator", "--version"], capture_output=True,
-                                 text=True).stdout.strip()
-        key = hashlib.sha256("\0".join((text, _DRIVER, version)).encode()).hexdigest()[:20]
+        key = hashlib.sha256("\0".join((text, _DRIVER, verilator_version())).encode()
+                             ).hexdigest()[:20]
         folder = _cache_root() / f"engine-{key}"
         binary = folder / "engine_sim"
         if not binary.exists():

@@ -29,7 +29,7 @@ from ..host.protocol import to_python
 
 
 __all__ = ["CosimHarness", "PinModels", "attach_models", "attach_mpu9250", "attach_stuck_miso", "SimSetup",
-           "CosimResult", "run_frontend", "CoreRun", "run_core",
+           "CosimResult", "run_frontend", "CoreRun", "run_core", "simulator_name",
            "sample_matches", "expected_mag", "sample_read_cycles"]
 
 
@@ -349,6 +349,11 @@ def expected_mag(ak_bytes, mag_ok=True, previous=None):
                  "mag_new": int(new), "mag_dor": int(new and bool(st1 & A.ST1_DOR))}
 
 
+def simulator_name(compiled):
+    """Which simulator ran, as summaries say it."""
+    return "compiled (Verilator)" if compiled else "python (Amaranth)"
+
+
 def compiled_wanted(compiled, *, vcd=None, supported=True):
     """Whether a co-simulation takes the compiled path (``sim.compiled_board``):
     ``compiled`` True asks for it (an error if it cannot be had), False for Amaranth's
@@ -377,8 +382,8 @@ def compiled_wanted(compiled, *, vcd=None, supported=True):
 
 def _auto_build(compiled, max_cycles, make):
     """The compiled design ``make(cached_only)`` for ``compiled`` True, or for None (auto)
-    when the cache has it or the run's budget (``max_cycles``) pays for a build; else None
-    (Amaranth's simulator)."""
+    when the cache has it or the run's budget (``max_cycles``) pays for a build; else (and
+    for False, ``compiled_wanted``'s no) None: Amaranth's simulator."""
     from .compiled_board import WORTH_A_BUILD_CYCLES
     from .compiled_design import NotBuilt
     if compiled is False:
@@ -434,12 +439,10 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
     if injector is not None:
         injector.mpu, injector.bus = model, bus
     harness.monitor(dut.samples, "samples")
-    design = None
-    if compiled is not False:
-        from .compiled_board import frontend_design
-        design = _auto_build(compiled, max_cycles, lambda cached_only: frontend_design(
-            harness, dut, spi=bus is None, cached_only=cached_only,
-            key=("frontend", setup.clk_freq, setup.config, setup.driver_timing())))
+    from .compiled_board import frontend_design
+    design = _auto_build(compiled, max_cycles, lambda cached_only: frontend_design(
+        harness, dut, spi=bus is None, cached_only=cached_only,
+        key=("frontend", setup.clk_freq, setup.config, setup.driver_timing())))
     compiled = design is not None
     sim = None
     if not compiled:
@@ -525,12 +528,11 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
                                                       data.Const(status_layout, st)),
                           max_cycles, spi=bus is None, ready=ready)
         except Done:
-            def end(name, value):
-                return to_python(data.Const(data.Layout.cast(value.shape()), design.get(name)))
-            out["asa"] = end("asa", dut.asa)
+            from ..host.protocol import unpack
+            out["asa"] = unpack(dut.asa.shape(), design.get("asa"))
             out["rate_errors"] = design.get("rate_errors")
             out["who_am_i"] = design.get("who_am_i")
-            out["self_test"] = end("self_test", dut.self_test)
+            out["self_test"] = unpack(dut.self_test.shape(), design.get("self_test"))
             check_monitors(design, harness)
     elif vcd:
         gtkw = str(vcd).rsplit(".", 1)[0] + ".gtkw"
@@ -626,13 +628,11 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
     harness.monitor(core.engine.results, "results")
     harness.monitor(core.arbiter.o_stream, "frame bytes")
     compiled = compiled_wanted(compiled, vcd=vcd)
-    design = None
-    if compiled is not False:
-        from .compiled_board import core_design, core_key
-        design = _auto_build(compiled, max_cycles, lambda cached_only: core_design(
-            harness, core, cached_only=cached_only,
-            key=core_key("core", clk_freq=setup.clk_freq, config=setup.config,
-                         timing=setup.driver_timing(), baud=baud, **(core_kwargs or {}))))
+    from .compiled_board import core_design, core_key
+    design = _auto_build(compiled, max_cycles, lambda cached_only: core_design(
+        harness, core, cached_only=cached_only,
+        key=core_key("core", clk_freq=setup.clk_freq, config=setup.config,
+                     timing=setup.driver_timing(), baud=baud, **(core_kwargs or {}))))
     compiled = design is not None
     received = bytearray()
     if not compiled:
@@ -644,12 +644,10 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
     results = core.engine.results
     decoder = FrameDecoder()
 
-    def more_wanted(results_seen=None):
+    def more_wanted():
         out["frames"] += [f for _, _, f in decoder.feed(received)]
         received.clear()
-        if results_seen is None:
-            results_seen = len(out["results"])
-        return (results_seen < (n_results or 0) or
+        return (len(out["results"]) < (n_results or 0) or
                 len(out["frames"]) < (n_frames or 0))
 
     async def testbench(ctx):
@@ -691,19 +689,20 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
         sim.add_testbench(testbench)
     start = time.perf_counter()
     if compiled:
-        from amaranth.lib import data
+        from ..host.protocol import unpack
         from .compiled_board import check_monitors, core_loop
-        def const(value, bits):
-            return to_python(data.Const(data.Layout.cast(value.shape()), bits))
-        models = PinModels(setup.clk_freq, mpu=model, spi=True)
-        bits, out["cycles"], out["ints"], end = core_loop(
-            design, core, models, divisor=core.uart.divisor, received=received,
-            more_wanted=more_wanted, max_cycles=max_cycles, writes=writes,
-            progress=progress)
-        out["results"] = [const(results.payload, b) for b in bits]
-        out["end"] = (end, const(core.counters, design.get("counters")),
-                      const(core.status, design.get("status")),
-                      const(core.asa, design.get("asa")))
+
+        def record(bits, cycle, int_cycle):
+            out["results"].append(unpack(results.payload.shape(), bits))
+            out["cycles"].append(cycle)
+            out["ints"].append(int_cycle)
+        end = core_loop(design, core, PinModels(setup.clk_freq, mpu=model, spi=True),
+                        divisor=core.uart.divisor, received=received, record=record,
+                        more_wanted=more_wanted, max_cycles=max_cycles, writes=writes,
+                        progress=progress)
+        out["end"] = (end, *(unpack(v.shape(), design.get(name)) for name, v in
+                             (("counters", core.counters), ("status", core.status),
+                              ("asa", core.asa))))
         check_monitors(design, harness)
     elif vcd:
         with sim.write_vcd(str(vcd), str(vcd).rsplit(".", 1)[0] + ".gtkw",

@@ -319,7 +319,7 @@ def run_host_garbage(setup, *, n_results=4, baud=None, compiled=None):
     """The whole core twice, with and without ``host_garbage_writes`` at the start: every
     result must be the same and every write counted in ``cfg_refused`` (port and frames).
     ``baud``: the UART's (default: a quarter of the clock, so that frames come quickly)."""
-    from .cosim import run_core
+    from .cosim import run_core, simulator_name
     bad = host_garbage_writes()
     baud = baud or setup.clk_freq / 4
     clean = run_core(setup, n_results=n_results, n_frames=1, baud=baud, compiled=compiled)
@@ -336,7 +336,7 @@ def run_host_garbage(setup, *, n_results=4, baud=None, compiled=None):
             "recovered": len(dirty.results) >= n_results,
             "stale_valid_samples": changed, "status": dirty.status,
             "cycles": dirty.cycles, "wall_s": round(clean.wall_s + dirty.wall_s, 2),
-            "simulator": "compiled (Verilator)" if dirty.compiled else "python (Amaranth)",
+            "simulator": simulator_name(dirty.compiled),
             "violations": [str(v) for v in dirty.model.violations][:5]}
 
 
@@ -346,7 +346,7 @@ def run_fault(name, setup=None, *, at=20, duration=None, after=None, max_cycles=
     summary dict (module docstring). ``at``: samples read before a mid-run fault; ``duration``:
     sample periods until it is removed (default: the fault's); ``after``: samples to see once
     it is removed (default 12). ``keep_result``: return (summary, the ``CosimResult``)."""
-    from .cosim import SimSetup, run_frontend
+    from .cosim import SimSetup, run_frontend, simulator_name
     setup = setup or SimSetup()
     if name not in FAULTS:
         raise ValueError(f"unknown fault {name!r}; simulate --fault list names them")
@@ -415,7 +415,7 @@ def run_fault(name, setup=None, *, at=20, duration=None, after=None, max_cycles=
                           until=lambda st: False, progress=progress,
                           compiled=compiled)
     summary = summarise(fault, inj, result, setup, after)
-    summary["simulator"] = "compiled (Verilator)" if result.compiled else "python (Amaranth)"
+    summary["simulator"] = simulator_name(result.compiled)
     return (summary, result) if keep_result else summary
 
 
