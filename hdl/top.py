@@ -68,7 +68,7 @@ from .uart_rx import UARTReceiver
 from .uart_tx import UARTTransmitter
 
 
-__all__ = ["AHRSCore", "BoardTop", "telemetry_divider_for", "rate_budget", "VERSION",
+__all__ = ["AHRSCore", "AsyncResetCore", "core_verilog", "BoardTop", "telemetry_divider_for", "rate_budget", "VERSION",
            "version_word", "io_constraints", "io_register_settings"]
 
 
@@ -379,6 +379,50 @@ def io_register_settings(config):
     return "\n".join(lines) + "\n"
 
 
+def core_verilog(core, name="mpu9250_ahrs_core"):
+    """``core``'s Verilog as a board builds it (``AsyncResetCore``): ports ``clk``, ``rst``
+    (asynchronous, active high) and the core's own."""
+    from amaranth.back import verilog
+    wrapped = AsyncResetCore(core)
+    return verilog.convert(wrapped, name=name, ports=wrapped.ports())
+
+
+class AsyncResetCore(Elaboratable):
+    """A design (``AHRSCore``) in a ``sync`` domain with an asynchronous reset: what a board
+    builds (``BoardTop``) and what ``build --verilog-only``, ``report`` and ``report --timing``
+    convert (``core_verilog``). The design's own
+    module gets the domain, so the hierarchy and the port names are the design's, plus
+    ``clk`` and ``rst``.
+
+    Why asynchronous: it is Intel's recommended reset for its devices (asserted at any time,
+    released in step with the clock by a ``ResetSynchronizer``), and the MAX10 LE's register
+    clears asynchronously at no cost, where Yosys 0.23's MAX10 mapping builds a synchronous
+    reset from a LUT in front of each register bit that has one (about 750 LEs of this design
+    by ``report``'s count). The simulations clock the core with Amaranth's default synchronous
+    reset; no test asserts it, so both behave the same cycle for cycle.
+
+    Members
+        ``clk``, ``rst`` (in): the clock, and the reset (active high; assert it at any time,
+            release it synchronously to ``clk``).
+    """
+    def __init__(self, design):
+        self.design = design
+        self.clk = Signal()
+        self.rst = Signal()
+
+    def ports(self):
+        return [self.clk, self.rst,
+                *(Value.cast(v) for _, _, v in self.design.signature.flatten(self.design))]
+
+    def elaborate(self, platform):
+        m = self.design.elaborate(platform)
+        # the design is elaborated here, as this module: not left unused
+        self.design._MustUse__silence = True
+        m.domains.sync = ClockDomain("sync", async_reset=True)
+        m.d.comb += [ClockSignal("sync").eq(self.clk), ResetSignal("sync").eq(self.rst)]
+        return m
+
+
 class BoardTop(Elaboratable):
     """``AHRSCore`` on a board's platform (``MAX10Platform``, or ``ULX3SPlatform`` for the open
     ECP5 flow): pin buffers, the status LEDs, and the clock.
@@ -404,9 +448,16 @@ class BoardTop(Elaboratable):
             m.submodules.osc_buf = osc_buf = io.Buffer("i", osc)
             # the platform's own PLL: the MAX10's altpll, the ECP5's EHXPLLL
             m.submodules.pll = pll = platform.system_pll(self.clk_freq)
-            m.domains.sync = ClockDomain("sync")
+            # an asynchronous reset (``AsyncResetCore`` says why), released by the synchroniser
+            m.domains.sync = ClockDomain("sync", async_reset=True)
             m.d.comb += [pll.clk_in.eq(osc_buf.i), ClockSignal("sync").eq(pll.clk_out)]
             m.submodules.reset_sync = ResetSynchronizer(~pll.locked, domain="sync")
+        else:
+            # the oscillator clocks the design; no reset but the registers' initial values
+            osc = platform.request(platform.default_clk, 0, dir="-")
+            m.submodules.osc_buf = osc_buf = io.Buffer("i", osc)
+            m.domains.sync = ClockDomain("sync", async_reset=True)
+            m.d.comb += ClockSignal("sync").eq(osc_buf.i)
         m.submodules.core = core = AHRSCore(clk_freq=self.clk_freq, **self.core_kwargs)
         config = core.config
         uart = platform.request("uart", 0, dir="-")

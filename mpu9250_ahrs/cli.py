@@ -181,10 +181,9 @@ def _clock(args):
 
 
 def cmd_build(args):
-    from amaranth.back import verilog
     from .hdl.clocking import pll_ratio
     from .hdl.platform import MAX10Platform
-    from .hdl.top import AHRSCore, BoardTop, io_constraints, io_register_settings
+    from .hdl.top import AHRSCore, BoardTop, core_verilog, io_constraints, io_register_settings
 
     out = Path(args.out)
     config = _config(args)
@@ -201,8 +200,10 @@ def cmd_build(args):
         out.mkdir(parents=True, exist_ok=True)
         core = AHRSCore(clk_freq=clk_freq, config=config, baud=args.baud, **options)
         path = out / "mpu9250_ahrs_core.v"
-        path.write_text(verilog.convert(core, name="mpu9250_ahrs_core"))
-        print(f"wrote {path} (system clock {clk_freq / 1e6:g} MHz)")
+        # with ports clk and rst (asynchronous, active high: ``AsyncResetCore``)
+        path.write_text(core_verilog(core))
+        print(f"wrote {path} (system clock {clk_freq / 1e6:g} MHz; rst asynchronous, "
+              f"active high, released synchronously to clk)")
         return 0
     if args.board == "ulx3s":
         return _build_ulx3s(args, out, clk_freq, config, options)
@@ -462,8 +463,7 @@ def cmd_report(args):
     options = {k: v for k, v in _core_options(args).items() if k in ("commands", "pwm")}
     result = report(clk_freq=_clock(args), config=_config(args), core_options=options)
     if args.timing:
-        from amaranth.back import verilog
-        from .hdl.top import AHRSCore
+        from .hdl.top import AHRSCore, core_verilog
         from .timing import ecp5_timing
         clk = _clock(args)
         core = AHRSCore(clk_freq=clk, config=_config(args), **options)
@@ -471,7 +471,8 @@ def cmd_report(args):
         with steps(["synth"] + [f"seed {k}" for k in range(args.seeds)],
                    "report --timing") as shown:
             result["timing_ecp5"] = ecp5_timing(
-                verilog.convert(core, name="mpu9250_ahrs_core"), "mpu9250_ahrs_core", clk,
+                core_verilog(core),
+                "mpu9250_ahrs_core", clk,
                 seeds=tuple(range(1, args.seeds + 1)), progress=shown.next)
     print(json.dumps(result, indent=1))
     return 0

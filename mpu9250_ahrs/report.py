@@ -72,15 +72,16 @@ def _count(stat_text, cell):
     return int(found.group(1)) if found else 0
 
 
-def synthesize(top, name, engine, rams=(), others=(), *, blocks=False):
+def synthesize(top, name, engine, rams=(), others=(), *, blocks=False, ports=None):
     """Figures for one elaboratable (``engine``: the AttitudeEngine inside it; ``rams``: other
     ``FrameRAM``s in it); their hard blocks are synthesised as empty modules. With ``blocks``,
-    also ``blocks``: the same synthesis without flattening, per block (``block_figures``)."""
+    also ``blocks``: the same synthesis without flattening, per block (``block_figures``).
+    ``ports``: the top's ports, for an elaboratable that is not a component."""
     from .hdl.multiplier import BLACKBOX_NAME
     hard_blocks_as_blackboxes(engine, rams, others)
     with tempfile.TemporaryDirectory() as tmp:
         with open(os.path.join(tmp, "design.v"), "w") as f:
-            f.write(verilog.convert(top, name=name))
+            f.write(verilog.convert(top, name=name, ports=ports))
         with open(os.path.join(tmp, "stubs.v"), "w") as f:
             f.write(_stubs(engine, rams))
         read = "read_verilog stubs.v; read_verilog design.v"
@@ -172,8 +173,9 @@ def block_figures(modules, top, memories, multiplier):
     for child in children:
         out[label(child)] = total(f"{top}.{child}")
         if label(child) in ("engine", "frontend"):
-            for sub in sorted({n.split(".")[2] for n in modules
-                               if n.startswith(f"{top}.{child}.")}):
+            inside = f"{top}.{child}."
+            for sub in sorted({n[len(inside):].split(".")[0] for n in modules
+                               if n.startswith(inside)}):
                 out[f"{label(child)}.{label(sub)}"] = total(f"{top}.{child}.{sub}")
     return out
 
@@ -222,7 +224,7 @@ def report(*, clk_freq=None, config=None, latency=True, core_options=None):
     from .hdl.attitude_engine import AttitudeEngine
     from .hdl.clocking import SYSTEM_CLOCK_HZ
     from .hdl.mpu9250_driver import MPU9250Config
-    from .hdl.top import AHRSCore, rate_budget
+    from .hdl.top import AHRSCore, AsyncResetCore, rate_budget
 
     config = MPU9250Config() if config is None else config
     clk_freq = SYSTEM_CLOCK_HZ if clk_freq is None else clk_freq
@@ -235,11 +237,14 @@ def report(*, clk_freq=None, config=None, latency=True, core_options=None):
     core_options = dict(core_options or {})
     core = AHRSCore(clk_freq=clk_freq, config=config, **core_options)
     self_test = core.frontend.driver.self_test_block
-    design = synthesize(core, "mpu9250_ahrs_core", core.engine,
+    # as a board builds it: the reset asynchronous (``AsyncResetCore`` says why)
+    wrapped = AsyncResetCore(core)
+    design = synthesize(wrapped, "mpu9250_ahrs_core", core.engine,
                         rams=[core.framer.ram,
                               *([core.decoder.fifo.ram] if core.commands else []),
                               *([self_test.sums, self_test.table] if self_test else [])],
-                        others=[self_test] if self_test else [], blocks=True)
+                        others=[self_test] if self_test else [], blocks=True,
+                        ports=wrapped.ports())
     design["room_left_les"] = DEVICE["logic_elements"] - design["logic_elements"]
     shown.next("cycles per update (simulated, three filters)")
     cycles, first = cycles_per_update()
