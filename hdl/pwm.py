@@ -44,12 +44,12 @@ class PWMOutputs(wiring.Component):
                         clears the watchdog's ``tripped``.
     PWM_MODE (0x01)     bits 3:0: 0 = servo (high time in µs), 1 = motor (in clock cycles). A
                         change to the mode of an enabled channel is refused. A channel whose
-                        mode changes has its high time set to 0: the value it held was in the
+                        mode changes has its high time set to 0 (it reads 0): the value it held was in the
                         other unit (1,500 µs read as 1,500 cycles could exceed the motor
                         period), so it stays low until a high time is written in its new unit.
     PWM_WATCHDOG_MS     0..65535: with a channel enabled, no accepted command for this long disables
     (0x02)              every channel (outputs low) and sets ``tripped``; 0 = off. 500 at
-                        reset.
+                        reset. Writing it starts the count again, as a command does.
     PWM_STATUS (0x03)   read only: bit 0 ``tripped``; bits 7:4 the channels enabled now.
     PWM_SERVO_PERIOD    the servo channels' frame: 2,500..20,000 µs (400..50 Hz); 20,000 at
     (0x04)              reset. Writing it sets the high time of every servo channel (enabled
@@ -108,6 +108,10 @@ class PWMOutputs(wiring.Component):
         period = [Signal(PERIOD_BITS, init=SERVO_PERIOD_US[1], name="servo_period"),
                   Signal(PERIOD_BITS, init=self.motor_min, name="motor_period")]
         high = [Signal(PERIOD_BITS, name=f"high{k}") for k in range(n)]
+        # a high time given in the channel's present unit and period. A mode or period change
+        # clears this bit rather than the high time (the register then reads 0 and the output
+        # stays low): one bit per channel to clear instead of sixteen
+        given = Signal(n)
 
         # register reads, existence and the range checks of a write
         value = bus.w_data
@@ -116,6 +120,9 @@ class PWMOutputs(wiring.Component):
         # a high time fits its channel's group period: one comparator for all channels (the
         # addressed channel's mode picks the period)
         high_fits = small & (low <= Mux(mode.bit_select(bus.addr[:2], 1), period[1], period[0]))
+        # the high times are read through one multiplexer, then masked by ``given``
+        high_read = Mux(given.bit_select(bus.addr[:2], 1),
+                        Array(high)[bus.addr[:2]], 0)
         checks = {
             PWM_REGS["PWM_ENABLE"]: (enable, value < (1 << n)),
             # the mode of an enabled channel stays
@@ -126,99 +133,102 @@ class PWMOutputs(wiring.Component):
             PWM_REGS["PWM_SERVO_PERIOD"]: (period[0], small & (low >= SERVO_PERIOD_US[0]) &
                                            (low <= SERVO_PERIOD_US[1])),
             PWM_REGS["PWM_MOTOR_PERIOD"]: (period[1], small & (low >= self.motor_min)),
-            **{PWM_REGS[f"PWM_HIGH{k}"]: (high[k], high_fits) for k in range(n)},
+            **{PWM_REGS[f"PWM_HIGH{k}"]: (high_read, high_fits) for k in range(n)},
         }
         with m.Switch(bus.addr):
             for addr, (signal, ok) in checks.items():
                 with m.Case(addr):
                     m.d.comb += [bus.exists.eq(1), bus.r_data.eq(signal), bus.ok.eq(ok)]
         write = bus.w_en & bus.ok
+        restart = Signal()              # the watchdog's count starts again (next cycle)
+        m.d.sync += restart.eq(self.kick)
         with m.If(write):
             with m.Switch(bus.addr):
                 with m.Case(PWM_REGS["PWM_ENABLE"]):
                     m.d.sync += [enable.eq(value[:n]), self.tripped.eq(0)]
                 with m.Case(PWM_REGS["PWM_MODE"]):
-                    m.d.sync += mode.eq(value[:n])
                     # a high time is in its mode's unit: a channel changing mode drops it
-                    for k in range(n):
-                        with m.If(value[k] != mode[k]):
-                            m.d.sync += high[k].eq(0)
+                    m.d.sync += [mode.eq(value[:n]), given.eq(given & ~(value[:n] ^ mode))]
                 with m.Case(PWM_REGS["PWM_WATCHDOG_MS"]):
-                    m.d.sync += watchdog_ms.eq(low)
+                    m.d.sync += [watchdog_ms.eq(low), restart.eq(1)]
                 for g, name in enumerate(("PWM_SERVO_PERIOD", "PWM_MOTOR_PERIOD")):
                     with m.Case(PWM_REGS[name]):
                         m.d.sync += period[g].eq(low)
                         # a high time was a duty of the old period: the group's channels drop
                         # theirs (a period shrunk under one would hold that output high)
-                        for k in range(n):
-                            with m.If(mode[k] == g):
-                                m.d.sync += high[k].eq(0)
+                        m.d.sync += given.eq(given & (mode if g == 0 else ~mode))
                 for k in range(n):
                     with m.Case(PWM_REGS[f"PWM_HIGH{k}"]):
-                        m.d.sync += high[k].eq(low)
+                        m.d.sync += [high[k].eq(low), given[k].eq(1)]
 
-        # the watchdog: milliseconds since the last accepted command
-        ms_timer = Signal(range(self.ms_cycles), init=self.ms_cycles - 1)
-        silent_ms = Signal(16)
-        m.d.sync += ms_timer.eq(Mux(ms_timer == 0, self.ms_cycles - 1, ms_timer - 1))
-        with m.If(self.kick):
-            m.d.sync += [silent_ms.eq(0), ms_timer.eq(self.ms_cycles - 1)]
-        with m.Elif((ms_timer == 0) & ~silent_ms.all()):
-            m.d.sync += silent_ms.eq(silent_ms + 1)
-        with m.If((watchdog_ms != 0) & (silent_ms >= watchdog_ms) & (enable != 0) & ~write):
-            m.d.sync += [enable.eq(0), self.tripped.eq(1)]
-
-        # the two time bases: a counter each, its period taken at each wrap. The counter stays
-        # below its active period (it starts at 0 at a wrap, or at period - 1 while no channel
-        # runs on it), so the wrap is an equality, not a magnitude comparison.
-        # The time bases and each channel's active high time and state need no reset: with
-        # every channel disabled (PWM_ENABLE is 0 at reset) they are reloaded each cycle (a
-        # synchronous reset costs logic per bit with Yosys' MAX10 mapping)
+        # the time bases' microsecond
         us_timer = Signal(range(self.us_cycles), reset_less=True)
         us_tick = us_timer == 0
         m.d.sync += us_timer.eq(Mux(us_tick, self.us_cycles - 1, us_timer - 1))
+
+        # the watchdog: the milliseconds left, counted down from ``watchdog_ms`` after each
+        # accepted command (``kick``) or a write of the limit; the milliseconds are counted
+        # in microsecond ticks, so a restart lands within a microsecond of the command
+        ms_us = Signal(range(1000), init=999)
+        ms_tick = us_tick & (ms_us == 0)
+        left = Signal(16, init=WATCHDOG_MS_AT_RESET)
+        with m.If(us_tick):
+            m.d.sync += ms_us.eq(Mux(ms_us == 0, 999, ms_us - 1))
+        with m.If(restart):
+            m.d.sync += [left.eq(watchdog_ms), ms_us.eq(999)]
+        with m.Elif(ms_tick & (left != 0)):
+            m.d.sync += left.eq(left - 1)
+        with m.If((watchdog_ms != 0) & (left == 0) & ~restart & (enable != 0) & ~write):
+            m.d.sync += [enable.eq(0), self.tripped.eq(1)]
+
+        # the two time bases: a counter each, its period taken at each wrap. The counter stays
+        # below its active period (it starts at 0 at a wrap), so the wrap is an equality, not
+        # a magnitude comparison; while no channel runs on it, ``idle`` makes the next tick a
+        # wrap (a channel enabled starts there).
+        # The time bases and each channel's active high time and state need no reset: with
+        # every channel disabled (PWM_ENABLE is 0 at reset) they are reloaded each cycle
         count = [Signal(PERIOD_BITS, name="servo_count", reset_less=True),
                  Signal(PERIOD_BITS, name="motor_count", reset_less=True)]
         active = [Signal(PERIOD_BITS, init=SERVO_PERIOD_US[1], name="servo_active_period",
                          reset_less=True),
                   Signal(PERIOD_BITS, init=self.motor_min, name="motor_active_period",
                          reset_less=True)]
+        idle = [Signal(name="servo_idle", reset_less=True),
+                Signal(name="motor_idle", reset_less=True)]
         wrap = [Signal(name="servo_wrap"), Signal(name="motor_wrap")]
         tick = [us_tick, C(1)]
         step = [Signal(PERIOD_BITS, name="servo_next"), Signal(PERIOD_BITS, name="motor_next")]
         in_use = [(enable & ~mode) != 0, (enable & mode) != 0]
         for g in range(2):
-            m.d.comb += [step[g].eq(count[g] + 1), wrap[g].eq(tick[g] & (step[g] == active[g]))]
+            m.d.comb += [step[g].eq(count[g] + 1),
+                         wrap[g].eq(tick[g] & (idle[g] | (step[g] == active[g])))]
             with m.If(~in_use[g]):
                 # no channel runs on it: the new period at once, and a wrap at the next tick
-                # (a channel enabled starts there)
-                m.d.sync += [count[g].eq(period[g] - 1), active[g].eq(period[g])]
+                m.d.sync += [idle[g].eq(1), active[g].eq(period[g])]
             with m.Elif(wrap[g]):
-                m.d.sync += [count[g].eq(0), active[g].eq(period[g])]
+                m.d.sync += [count[g].eq(0), active[g].eq(period[g]), idle[g].eq(0)]
             with m.Elif(tick[g]):
                 m.d.sync += count[g].eq(step[g])
 
         for k in range(n):
             active_high = Signal(PERIOD_BITS, name=f"active_high{k}", reset_less=True)
-            # enabled, and a period has begun since
-            running = Signal(name=f"running{k}", reset_less=True)
-            # ``count < active_high`` of the channel's group, kept as a bit: a running channel's
-            # count starts at 0 at the wrap (below: the high time is not 0) and goes up by one
-            # a tick, so it is set at the wrap and cleared when the count reaches the high time
-            # (equality; a high time equal to the period is never reached: high all period)
+            # ``count < active_high`` of the channel's group while it runs, kept as a bit: the
+            # count starts at 0 at the wrap and goes up by one a tick, so it is set at the
+            # wrap (if the high time is not 0) and cleared when the count reaches the high
+            # time (equality; a high time equal to the period is never reached: high all
+            # period). 0 while the channel is disabled and until its group's next wrap, so an
+            # enabled channel starts at a wrap: its first pulse is a whole one
             below = Signal(name=f"below{k}", reset_less=True)
             group_wrap = Mux(mode[k], wrap[1], wrap[0])
             reaches = Mux(mode[k], tick[1] & (step[1] == active_high),
                           tick[0] & (step[0] == active_high))
             # a disabled channel takes its high time at once; an enabled one at its group's
-            # wrap, where it also starts: its first pulse is a whole one
-            with m.If(~enable[k] | group_wrap):
-                m.d.sync += [active_high.eq(high[k]), below.eq(high[k] != 0)]
+            # wrap
+            with m.If(~enable[k]):
+                m.d.sync += [active_high.eq(high[k]), below.eq(0)]
+            with m.Elif(group_wrap):
+                m.d.sync += [active_high.eq(high[k]), below.eq(given[k] & (high[k] != 0))]
             with m.Elif(reaches):
                 m.d.sync += below.eq(0)
-            with m.If(~enable[k]):
-                m.d.sync += running.eq(0)
-            with m.Elif(group_wrap):
-                m.d.sync += running.eq(1)
-            m.d.comb += self.pwm[k].eq(enable[k] & running & below)
+            m.d.comb += self.pwm[k].eq(enable[k] & below)
         return m
