@@ -14,6 +14,7 @@ from amaranth.lib.wiring import In, Out
 
 from . import ak8963_regs as A
 from . import mpu9250_regs as R
+from .memories import FrameRAM
 from .register_port import RegisterPortSignature
 from .self_test import CODE_INDEX, MAG_INDEX, SUM_INDEX, TestByte
 
@@ -244,6 +245,19 @@ class BringUpSequencer(wiring.Component):
         self.program = program
         self.accepted_who_am_i = tuple(accepted_who_am_i)
         self.poll_cycles = poll_cycles
+        self.step_layout = data.StructLayout({
+            "op": Op, "device": 1, "reg": 8, "value": 8, "mask": 8, "fail": Fail,
+            "check_wia": 1, "backoff": 1, "wait": range(max(s.wait for s in program) + 1),
+            "length": range(max(s.length for s in program) + 1), "fast": 1,
+            "repeat": range(max(s.repeat for s in program) + 1)})
+        layout = self.step_layout
+        words = [layout.const({
+            "op": s.op, "device": s.device, "reg": s.reg, "value": s.value, "mask": s.mask,
+            "fail": s.fail, "check_wia": s.check == "wia", "backoff": s.backoff,
+            "wait": s.wait, "length": s.length, "fast": s.fast,
+            "repeat": s.repeat}).as_value().value for s in program]
+        # the program, one step a word (an M9K; ``report`` counts it)
+        self.rom = FrameRAM(len(program), layout.size, init=words)
         super().__init__({
             "port": Out(RegisterPortSignature().flip()),
             "restart": In(1), "mag_lost": In(1), "mag_nack": In(1), "reconfigure": In(1),
@@ -265,21 +279,22 @@ class BringUpSequencer(wiring.Component):
                            if s.check == "who_am_i" or s.self_test)
 
         # -- program ROM --------------------------------------------------------------------------
+        # In an M9K (``FrameRAM`` with the program as its words: ``self.rom``, for ``report``),
+        # not in logic: as a LUT ROM its 45-bit words cost about a third of this block. The ROM
+        # reads the address ``pc`` takes next (``pc_next``), so its word is the step at ``pc``
+        # in the same cycle, as a ROM in logic would give it; only the first cycle after a reset
+        # (START) waits for the first word.
         pc = Signal(range(len(program)))
-        step_layout = data.StructLayout({
-            "op": Op, "device": 1, "reg": 8, "value": 8, "mask": 8, "fail": Fail,
-            "check_wia": 1, "backoff": 1, "wait": range(max(s.wait for s in program) + 1),
-            "length": range(max(s.length for s in program) + 1), "fast": 1,
-            "repeat": range(max(s.repeat for s in program) + 1)})
+        pc_next = Signal.like(pc)
+        m.d.comb += pc_next.eq(pc)
+        m.d.sync += pc.eq(pc_next)
+        step_layout = self.step_layout
         step = Signal(step_layout)
-        with m.Switch(pc):
-            for index, s in enumerate(program):
-                with m.Case(index):
-                    m.d.comb += step.eq(step_layout.const({
-                        "op": s.op, "device": s.device, "reg": s.reg, "value": s.value,
-                        "mask": s.mask, "fail": s.fail, "check_wia": s.check == "wia",
-                        "backoff": s.backoff, "wait": s.wait, "length": s.length,
-                        "fast": s.fast, "repeat": s.repeat}))
+        m.submodules.rom = rom = self.rom
+        m.d.comb += [rom.r_en.eq(1), rom.r_addr.eq(pc_next), step.eq(rom.r_data)]
+
+        def goto(index):
+            m.d.comb += pc_next.eq(index)
 
         # -- the register port: every read here is one byte, kept as ``last`` -------------------
         port = self.port
@@ -319,7 +334,8 @@ class BringUpSequencer(wiring.Component):
             m.d.sync += restart_pending.eq(1)
 
         def restart():
-            m.d.sync += [pc.eq(0), self.streaming.eq(0), self.mag_ok.eq(0),
+            goto(0)
+            m.d.sync += [self.streaming.eq(0), self.mag_ok.eq(0),
                          self.mag_setup.eq(0), restart_pending.eq(0), reconfiguring.eq(0)]
             m.d.comb += self.restarted.eq(1)
             with m.If(~self.restarts.all()):
@@ -331,7 +347,8 @@ class BringUpSequencer(wiring.Component):
         def fail(absent):
             """The current step failed: ``absent`` = no acknowledge / time-out, else a bad value."""
             with m.If(step.fail == Fail.MAG):
-                m.d.sync += [pc.eq(skip_mag), self.mag_absent.eq(absent),
+                goto(skip_mag)
+                m.d.sync += [self.mag_absent.eq(absent),
                              self.mag_wia_error.eq(~absent)]
                 m.next = "FETCH"
             with m.Else():
@@ -341,9 +358,9 @@ class BringUpSequencer(wiring.Component):
 
         def next_step():
             if mag_start is None:
-                m.d.sync += pc.eq(pc + 1)
+                goto(pc + 1)
             else:
-                m.d.sync += pc.eq(Mux(reconfiguring & (pc == mag_start - 1), skip_mag, pc + 1))
+                goto(Mux(reconfiguring & (pc == mag_start - 1), skip_mag, pc + 1))
             m.next = "FETCH"
 
         with m.If(self.mag_nack):
@@ -356,7 +373,10 @@ class BringUpSequencer(wiring.Component):
         offered = Signal()
         m.d.sync += offered.eq(port.cmd.valid & ~port.cmd.ready)
 
-        with m.FSM():
+        with m.FSM(init="START"):
+            with m.State("START"):
+                # the ROM reads the first step (pc is 0)
+                m.next = "FETCH"
             with m.State("FETCH"):
                 with m.If(restart_pending & ~offered):
                     restart()
@@ -436,11 +456,12 @@ class BringUpSequencer(wiring.Component):
                 with m.If(restart_pending):
                     restart()
                 with m.Elif(self.mag_lost):
-                    m.d.sync += [self.mag_ok.eq(0), self.mag_setup.eq(1),
-                                 pc.eq(mag_start or 0)]
+                    goto(mag_start or 0)
+                    m.d.sync += [self.mag_ok.eq(0), self.mag_setup.eq(1)]
                     m.next = "FETCH"
                 with m.Elif(self.reconfigure):
-                    m.d.sync += [reconfiguring.eq(1), pc.eq(config_start)]
+                    goto(config_start)
+                    m.d.sync += reconfiguring.eq(1)
                     m.next = "FETCH"
         return m
 

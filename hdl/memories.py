@@ -145,6 +145,14 @@ class FrameRAM(wiring.Component):
     def bits(self):
         return self.depth * self.width
 
+    @property
+    def m9k_blocks(self):
+        """M9Ks it takes on a MAX10: 36 bits wide at most (256 words deep), 8,192 data bits
+        each beyond."""
+        if self.depth <= 256:
+            return -(-self.width // 36)
+        return -(-self.bits // 8192)
+
     def stub(self):
         """Verilog declaring the blackbox module (``report``)."""
         a, w = self.abits, self.width

@@ -274,14 +274,16 @@ class MPU9250Driver(wiring.Component):
                                         timing.self_test_waits(clk_freq, config))
         self.self_test_block = (SelfTest(samples_log2=config.self_test_samples.bit_length() - 1)
                                 if config.self_test else None)
+        # made here, not in ``elaborate``, so that ``report`` finds its program ROM
+        self.sequencer = BringUpSequencer(
+            self.program, accepted_who_am_i=config.accepted_who_am_i,
+            poll_cycles=self.timeout_cycles)
         super().__init__({"port": Out(RegisterPortSignature().flip()), **driver_members()})
 
     def elaborate(self, platform):
         m = Module()
         cfg = self.config
-        m.submodules.sequencer = seq = BringUpSequencer(
-            self.program, accepted_who_am_i=cfg.accepted_who_am_i,
-            poll_cycles=self.timeout_cycles)
+        m.submodules.sequencer = seq = self.sequencer
         m.submodules.reader = reader = SampleReader(
             wiring=cfg.wiring, int_active_low=cfg.int_active_low, int_latched=cfg.int_latched,
             gyro_jump=gyro_jump_limit(cfg.gyro_fs_dps),

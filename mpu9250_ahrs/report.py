@@ -125,7 +125,7 @@ def synthesize(top, name, engine, rams=(), others=(), *, blocks=False, ports=Non
         "rom_bits_in_logic": rom_bits,
         "m9k_blocks": 2 * math.ceil(engine.regfile.depth * 32 / 9216)
         + math.ceil(engine.rom.width / 36) * math.ceil(len(engine.rom.words) / 256)
-        + len(rams),
+        + sum(ram.m9k_blocks for ram in rams),
         "multipliers_18x18": multipliers,
         "other_multiplies": other_muls,
         "logic_levels": int(levels.group(1)) if levels else None,
@@ -240,7 +240,7 @@ def report(*, clk_freq=None, config=None, latency=True, core_options=None):
     # as a board builds it: the reset asynchronous (``AsyncResetCore`` says why)
     wrapped = AsyncResetCore(core)
     design = synthesize(wrapped, "mpu9250_ahrs_core", core.engine,
-                        rams=[core.framer.ram,
+                        rams=[core.framer.ram, core.frontend.driver.sequencer.rom,
                               *([core.decoder.fifo.ram] if core.commands else []),
                               *([self_test.sums, self_test.table] if self_test else [])],
                         others=[self_test] if self_test else [], blocks=True,
