@@ -135,10 +135,12 @@ class UARTReader:
         self.at = cycle + self.divisor
 
 
-# Auto (``compiled=None``) builds a design only for a run this long (its cycle budget): a
-# build takes about 5 s (front end) or 20 s (whole core), what Amaranth's simulator does in
-# about 10^5 cycles; a design already in the cache is always taken.
-WORTH_A_BUILD_CYCLES = 2_000_000
+# Auto (``compiled=None``) builds a design only for a run this long (its cycle budget, which
+# a run that ends on its samples or condition may use a half of): a build takes about 4 s
+# (front end) or 14 s (whole core), what Amaranth's simulator does in about 10^5 cycles; a
+# design already in the cache is always taken, and a build one process started is waited
+# for by the others (``compiled_engine.build_lock``)
+WORTH_A_BUILD_CYCLES = 300_000
 
 
 def frontend_design(harness, dut, *, spi, key, cached_only=False):

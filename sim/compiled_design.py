@@ -32,8 +32,8 @@ from amaranth.back import verilog
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
-from .compiled_engine import (HINT, _cache_root, publish, verilator_available,
-                              verilator_version)
+from .compiled_engine import (BUILD_OPTIMISATION, HINT, _cache_root, build_lock, publish,
+                              verilator_available, verilator_version)
 
 
 __all__ = ["CompiledDesign", "NotBuilt", "verilator_available"]
@@ -240,43 +240,24 @@ class CompiledDesign:
             # converting the whole core to Verilog takes seconds: a caller that knows what
             # makes its design (its parameters; the sources are added here) names it instead
             key = "\0".join((repr(self.key), _sources_hash()))
-        key = hashlib.sha256("\0".join((key, cxx, verilator_version())).encode()
+        key = hashlib.sha256("\0".join((key, cxx, verilator_version(),
+                                        BUILD_OPTIMISATION["design"])).encode()
                              ).hexdigest()[:20]
         folder = _cache_root() / f"{self.name}-{key}"
         library = folder / "design.so"
         if self.cached_only and not library.exists():
             raise NotBuilt(f"{self.name}: not in the cache")
-        if library.exists() and text is None:
+        if not library.exists():
+            # one build a design, whoever asks: a second process waits for it here
+            with build_lock(folder):
+                if not library.exists():
+                    if text is None:
+                        text = convert()
+                    self._compile(text, cxx, top, folder)
+        if text is None:
             # the design was never elaborated (the cache had it): its blocks would each warn,
             # when collected, that they were "created but never used"
             _mark_used(design)
-        if not library.exists():
-            if text is None:
-                text = convert()
-            if sys.stderr.isatty():
-                print(f"mpu9250-ahrs: compiling the {self.name} with Verilator (about a "
-                      f"minute, once: cached in {folder.parent}) ...", file=sys.stderr,
-                      flush=True)
-            start = time.perf_counter()
-            folder.parent.mkdir(parents=True, exist_ok=True)
-            with tempfile.TemporaryDirectory(dir=folder.parent) as tmp:
-                tmp = Path(tmp)
-                (tmp / f"{top}.v").write_text(text)
-                (tmp / "api.cpp").write_text(cxx)
-                obj = tmp / "obj"
-                # an "executable" linked as a shared object: Verilator builds its runtime
-                # with the design and our C API (api.cpp), all position-independent
-                cmd = ["verilator", "--cc", "--exe", "--build", "-O3", "-Wno-fatal",
-                       "-Wno-lint", "-Wno-style", "--top-module", top,
-                       "-CFLAGS", "-O3 -fPIC", "-LDFLAGS", "-shared", "--x-assign", "fast",
-                       "--x-initial", "fast", "--noassert", "--Mdir", str(obj),
-                       "-o", "design.so", f"{top}.v", "api.cpp"]
-                result = subprocess.run(cmd, cwd=tmp, capture_output=True, text=True)
-                if result.returncode:
-                    raise RuntimeError(f"verilator failed to build the {self.name}:\n"
-                                       + (result.stderr or result.stdout)[-3000:])
-                publish(obj / "design.so", folder)
-            self.build_s = time.perf_counter() - start
         lib = ctypes.CDLL(str(library))
         lib.sim_new.restype = ctypes.c_void_p
         lib.sim_new.argtypes = [ctypes.c_void_p]
@@ -288,6 +269,34 @@ class CompiledDesign:
         lib.sim_run.argtypes = [ctypes.c_void_p, ctypes.c_uint64, ctypes.c_uint64]
         lib.sim_run.restype = ctypes.c_uint64
         return lib
+
+    def _compile(self, text, cxx, top, folder):
+        """Verilator and g++: ``text`` (the design's Verilog, module ``top``) with ``cxx`` (its
+        C API) into ``folder``/design.so."""
+        if sys.stderr.isatty():
+            print(f"mpu9250-ahrs: compiling the {self.name} with Verilator (5 to 20 s, "
+                  f"once: cached in {folder.parent}) ...", file=sys.stderr, flush=True)
+        start = time.perf_counter()
+        folder.parent.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryDirectory(dir=folder.parent) as tmp:
+            tmp = Path(tmp)
+            (tmp / f"{top}.v").write_text(text)
+            (tmp / "api.cpp").write_text(cxx)
+            obj = tmp / "obj"
+            # an "executable" linked as a shared object: Verilator builds its runtime
+            # with the design and our C API (api.cpp), all position-independent
+            cmd = ["verilator", "--cc", "--exe", "--build", "-O3", "-Wno-fatal",
+                   "-Wno-lint", "-Wno-style", "--top-module", top,
+                   "-CFLAGS", "-fPIC", "-MAKEFLAGS", BUILD_OPTIMISATION["design"],
+                   "-LDFLAGS", "-shared", "--x-assign", "fast",
+                   "--x-initial", "fast", "--noassert", "--Mdir", str(obj),
+                   "-o", "design.so", f"{top}.v", "api.cpp"]
+            result = subprocess.run(cmd, cwd=tmp, capture_output=True, text=True)
+            if result.returncode:
+                raise RuntimeError(f"verilator failed to build the {self.name}:\n"
+                                   + (result.stderr or result.stdout)[-3000:])
+            publish(obj / "design.so", folder)
+        self.build_s = time.perf_counter() - start
 
     def close(self):
         if self._handle is not None:
