@@ -417,6 +417,10 @@ def cmd_replay(args):
               f"unit norm were left out of the score", file=sys.stderr)
     scales = Scales(gyro_fs_dps=args.gyro_fs, accel_fs_g=args.accel_fs)
     counts = quantise(rec.gyr, rec.acc, rec.mag, scales)
+    truth, movement = rec.quat, rec.movement
+    if args.samples is not None:
+        counts = tuple(c[:args.samples] for c in counts)
+        truth, movement = truth[:args.samples], movement[:args.samples]
     params = {"beta": args.beta} if args.beta is not None else {}
     units = {"gyro_lsb_per_dps": scales.gyro_lsb_per_dps,
              "accel_lsb_per_ms2": scales.accel_lsb_per_ms2}
@@ -426,10 +430,23 @@ def cmd_replay(args):
     if engine != "float" and enabled():
         # one call runs the whole recording (tens of seconds): say what is going on
         what = {"fixed": "the bit-exact integer model",
-                "gateware": "the engine's gateware (Verilator) and the integer model"}[engine]
-        print(f"mpu9250-ahrs replay: {len(rec.quat):,} samples through {what} ...",
+                "gateware": "the engine's gateware (Verilator) and the integer model",
+                "board": "the co-simulated board (sensor models, SPI, driver, engine, "
+                         "telemetry, UART) and the integer model"}[engine]
+        print(f"mpu9250-ahrs replay: {len(truth):,} samples through {what} ...",
               file=sys.stderr, flush=True)
-    if engine == "gateware":
+    t = np.arange(len(truth)) * rec.dt
+    if engine == "board":
+        from .progress import bar
+        from .sim.board_replay import replay_board
+        with bar(len(truth), "replay --engine board", "result") as shown:
+            board = replay_board(args.filter, *counts, rec.dt, gyro_fs_dps=args.gyro_fs,
+                                 accel_fs_g=args.accel_fs, progress=shown, **units, **params)
+        # scored on what the host decoded: the samples the telemetry framed
+        quat, truth, movement = board.quat, truth[board.indices], movement[board.indices]
+        t = board.indices * rec.dt
+        extra = board.summary()
+    elif engine == "gateware":
         from .reference.flagship_fixed import q30_to_float
         from .sim.attitude_bench import first_mismatch
         from .sim.compiled_engine import replay_gateware
@@ -448,11 +465,11 @@ def cmd_replay(args):
         quat = run_filter(args.filter, *to_units(*counts, scales), rec.dt, **params)
     elapsed = time.perf_counter() - start
     result = {"file": rec.name, "filter": args.filter, "engine": engine,
-              "fixed": engine != "float", **score(quat, rec.quat, rec.movement),
+              "fixed": engine != "float", **score(quat, truth, movement),
               "filter_s": round(elapsed, 3), "samples_total": len(quat),
               "samples_held": rec.held, "truth_rejected": rec.truth_rejected, **extra}
     if args.out:
-        np.savetxt(args.out, np.column_stack([np.arange(len(quat)) * rec.dt, quat]),
+        np.savetxt(args.out, np.column_stack([t, quat]),
                    delimiter=",", header="t_s,w,x,y,z", comments="", fmt="%.9g")
     print(json.dumps(result, allow_nan=False))
     return 0 if extra.get("bit_exact", True) else 1
@@ -582,12 +599,20 @@ def build_parser():
                    default="flagship",
                    help="the filter to score (flagship); madgwick runs in the float reference "
                         "only")
-    p.add_argument("--engine", choices=("float", "fixed", "gateware"), default="float",
+    p.add_argument("--engine", choices=("float", "fixed", "gateware", "board"),
+                   default="float",
                    help="float: the float reference filter; fixed: the bit-exact integer model "
                         "of the attitude engine; gateware: the engine's Verilog in Verilator "
                         "(built once and cached; needs verilator and g++), compared with the "
                         "fixed model on every sample (bit_exact, first_mismatch; exit 1 on a "
-                        "mismatch). fixed and gateware: kalman, complementary, flagship")
+                        "mismatch); board: the whole core co-simulated (the samples through "
+                        "the sensor models, SPI, driver, engine, telemetry and UART; compiled "
+                        "when Verilator is there), scored on the frames the host decodes (every "
+                        "telemetry_divider-th sample) and each frame compared with the fixed "
+                        "model (about 4 minutes a shared recording). fixed, gateware and "
+                        "board: kalman, complementary, flagship")
+    p.add_argument("--samples", type=_count, default=None, metavar="N",
+                   help="only the recording's first N samples")
     p.add_argument("--fixed", action="store_true", help="the same as --engine fixed")
     p.add_argument("--out", help="write the estimated quaternions (t, w, x, y, z) as CSV")
     p.add_argument("--beta", type=_positive, default=None, help="Madgwick gain (default 0.1)")

@@ -163,6 +163,8 @@ def core_design(harness, core, *, key, cached_only=False):
         harness, spi=True,
         extra_inputs={"cfg_valid": core.cfg.valid, "cfg_payload": core.cfg.payload},
         extra_outputs={"r_valid": results.valid, "imu_int": core.imu_int,
+                       "s_valid": core.engine.samples.valid,
+                       "s_payload": core.engine.samples.payload,
                        "uart_tx": core.uart_tx, "cfg_ready": core.cfg.ready,
                        "r_payload": results.payload, "counters": core.counters,
                        "status": core.status, "asa": core.asa})
@@ -209,10 +211,11 @@ def frontend_loop(design, models, observe, max_cycles, *, spi, ready=None):
 
 
 def core_loop(design, core, models, *, divisor, received, record, more_wanted, max_cycles,
-              writes=(), progress=None):
+              writes=(), progress=None, offered=None):
     """``run_core``'s testbench on the compiled path: every engine result passed to
     ``record(payload_bits, cycle, int_cycle)`` as it is first seen valid, with the cycle of
-    the INT edge before it; the UART's bytes appended to ``received``; ``more_wanted()``
+    the INT edge before it; every sample offered to the engine to ``offered(payload_bits)``
+    (it holds until taken); the UART's bytes appended to ``received``; ``more_wanted()``
     asked at the testbench's wake-ups (a result, an INT edge). Returns the end cycle;
     ``design``: ``core_design``'s."""
     pins = _Models(design, models, True)
@@ -230,8 +233,8 @@ def core_loop(design, core, models, *, divisor, received, record, more_wanted, m
             if ready:
                 break
         design.set("cfg_valid", 0)
-    mask = design.mask("pin_a", "pin_b", "r_valid", "imu_int", "uart_tx")
-    last_int, level, valid_prev, results = None, 0, 0, 0
+    mask = design.mask("pin_a", "pin_b", "r_valid", "imu_int", "uart_tx", "s_valid")
+    last_int, level, valid_prev, results, s_prev = None, 0, 0, 0, 0
     while True:
         pins.poll(cycle)
         uart.poll(cycle)
@@ -252,6 +255,10 @@ def core_loop(design, core, models, *, divisor, received, record, more_wanted, m
             if progress is not None:
                 progress.update(1)
         valid_prev = valid
+        s_valid = design.get("s_valid")
+        if s_valid and not s_prev and offered is not None:
+            offered(design.get("s_payload"))
+        s_prev = s_valid
         if cycle >= max_cycles:
             raise TimeoutError(f"{results} results after {cycle} cycles (compiled)")
         cycle = design.run(min(pins.wake, uart.at, max_cycles), mask)

@@ -30,7 +30,7 @@ from ..host.protocol import to_python
 
 __all__ = ["CosimHarness", "PinModels", "attach_models", "attach_mpu9250", "attach_stuck_miso", "SimSetup",
            "CosimResult", "run_frontend", "CoreRun", "run_core", "simulator_name",
-           "sample_matches", "expected_mag", "sample_read_cycles"]
+           "sample_matches", "expected_mag", "model_reference", "sample_read_cycles"]
 
 
 class CosimHarness(Monitored):
@@ -331,6 +331,22 @@ def sample_matches(design_sample, model_sample):
             tuple(design_sample["gyro"]) == model_sample.gyro)
 
 
+def model_reference(model, n, asa, *, config, flagship, select, magnetometer=True):
+    """The fixed-point engine (``reference.fixed_point.attitude_fixed``, set up with
+    ``config``, ``flagship`` and filter ``select``) over the first ``n`` samples the model was
+    read for, with the AK8963's bytes from the same bursts (``expected_mag``): what the engine
+    must produce for each, whether or not its result was framed. (AttitudeFixed, the
+    ``SensorSample``s read.)"""
+    from ..reference.fixed_point import attitude_fixed
+    reads = [model.samples[k] for k in model.sample_reads[:n]]
+    mags = [expected_mag(model.ext_reads[i], magnetometer,
+                         model.ext_reads[i - 1] if i else None) for i in range(n)]
+    return attitude_fixed([s.gyro for s in reads], [s.accel for s in reads],
+                          [m for m, _ in mags], [f["mag_valid"] for _, f in mags],
+                          asa=asa or (128, 128, 128), config=config, flagship=flagship,
+                          select=select), reads
+
+
 def expected_mag(ak_bytes, mag_ok=True, previous=None):
     """Magnetometer fields and flags a sample must carry, from the AK8963 bytes ST1..ST2 the
     sensor read returned and those of the read before (``previous``: None if there was none),
@@ -578,7 +594,8 @@ def sample_read_cycles(result, setup):
 class CoreRun:
     """What ``run_core`` saw: every engine result (``Attitude`` dicts, in order), the cycle of
     each, the data-ready (INT) edge before each, the frames the UART carried (decoded), the
-    core's counters and driver status at the end, the model and the core."""
+    core's counters and driver status at the end, the model and the core, and every sample
+    offered to the engine (``Sample`` dicts, in order)."""
     results: List[dict]
     result_cycles: List[int]
     int_cycles: List[int]
@@ -591,6 +608,7 @@ class CoreRun:
     asa: List[int] = field(default_factory=list)
     core: Optional[Elaboratable] = None
     compiled: bool = False                  # the compiled path ran
+    samples: List[dict] = field(default_factory=list)   # the engine's inputs (``Sample``s)
 
     def latencies_us(self, clk_freq):
         """Data-ready edge (INT at the pin) to the result leaving the engine, per result."""
@@ -599,7 +617,7 @@ class CoreRun:
 
 def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycles=None,
              baud=921_600, core_kwargs=None, writes=(), vcd=None, progress=None,
-             compiled=None):
+             compiled=None, until=None):
     """The whole ``AHRSCore`` (driver, engine, telemetry) against the models until the engine
     has produced ``n_results`` results and the UART has carried ``n_frames`` frames (either
     may be None). Each result is recorded as it leaves the engine (the telemetry scheduler
@@ -607,13 +625,14 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
     ``CoreRun.latencies_us`` is the data-ready-to-attitude latency. ``writes``: (address,
     value) register writes through the ``cfg`` port at the start. ``progress``: a bar told
     of each result and the cycle reached (``run_frontend``). ``compiled``: as
-    ``run_frontend``'s (``CoreRun.compiled`` says which path ran)."""
+    ``run_frontend``'s (``CoreRun.compiled`` says which path ran). ``until()``: asked at each
+    result and data-ready edge; True ends the run (instead of, or before, the counts)."""
     from ..hdl.top import AHRSCore
     from .streams import stream_put
     from ..host.protocol import FrameDecoder
     from .uart import attach_uart_receiver
-    if n_results is None and n_frames is None:
-        raise ValueError("run_core needs n_results or n_frames")
+    if n_results is None and n_frames is None and until is None:
+        raise ValueError("run_core needs n_results, n_frames or until")
     setup = setup or SimSetup()
     core = AHRSCore(clk_freq=setup.clk_freq, config=setup.config, timing=setup.driver_timing(),
                     baud=baud, **(core_kwargs or {}))
@@ -640,14 +659,18 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
         sim.add_clock(1 / setup.clk_freq)
         attach_mpu9250(sim, model, harness, setup.clk_freq)
         attach_uart_receiver(sim, core.uart_tx, core.uart.divisor, received)
-    out = {"results": [], "cycles": [], "ints": [], "frames": [], "end": None}
+    out = {"results": [], "cycles": [], "ints": [], "frames": [], "end": None, "samples": []}
     results = core.engine.results
+    offered = core.engine.samples
     decoder = FrameDecoder()
 
     def more_wanted():
         out["frames"] += [f for _, _, f in decoder.feed(received)]
         received.clear()
-        return (len(out["results"]) < (n_results or 0) or
+        if until is not None and until():
+            return False
+        return (until is not None and n_results is None and n_frames is None or
+                len(out["results"]) < (n_results or 0) or
                 len(out["frames"]) < (n_frames or 0))
 
     async def testbench(ctx):
@@ -655,6 +678,7 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
             await stream_put(ctx, core.cfg, {"addr": addr, "data": value})
         last_int = None
         level = 0
+        s_prev = 0
         period = 1 / setup.clk_freq
         while more_wanted():
             cycle = ctx.get(harness.cycle)
@@ -669,6 +693,11 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
             if pin and not level:
                 last_int = cycle
             level = pin
+            s_valid = ctx.get(offered.valid)
+            if s_valid and not s_prev:
+                # a sample offered to the engine: it holds until taken
+                out["samples"].append(to_python(ctx.get(offered.payload)))
+            s_prev = s_valid
             if ctx.get(results.valid):
                 # the result as it leaves the engine; recorded once, when it is taken
                 payload, first_cycle = to_python(ctx.get(results.payload)), cycle
@@ -681,7 +710,8 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
                     progress.update(1)
                 await ctx.tick()
                 continue
-            await ctx.changed(results.valid, core.imu_int).delay((max_cycles - cycle) * period)
+            await ctx.changed(results.valid, core.imu_int, offered.valid).delay(
+                (max_cycles - cycle) * period)
         out["end"] = (ctx.get(harness.cycle), to_python(ctx.get(core.counters)),
                       to_python(ctx.get(core.status)), to_python(ctx.get(core.asa)))
         harness.check(ctx)
@@ -699,7 +729,8 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
         end = core_loop(design, core, PinModels(setup.clk_freq, mpu=model, spi=True),
                         divisor=core.uart.divisor, received=received, record=record,
                         more_wanted=more_wanted, max_cycles=max_cycles, writes=writes,
-                        progress=progress)
+                        progress=progress, offered=lambda bits: out["samples"].append(
+                            unpack(offered.payload.shape(), bits)))
         out["end"] = (end, *(unpack(v.shape(), design.get(name)) for name, v in
                              (("counters", core.counters), ("status", core.status),
                               ("asa", core.asa))))
@@ -715,4 +746,4 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
     more_wanted()                       # the bytes that came after the last look
     cycles, counters, status, asa = out["end"]
     return CoreRun(out["results"], out["cycles"], out["ints"], out["frames"], counters, status,
-                   cycles, wall, model, asa, core, compiled)
+                   cycles, wall, model, asa, core, compiled, out["samples"])

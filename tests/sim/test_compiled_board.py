@@ -43,6 +43,7 @@ def test_core_same_on_both_paths():
     slow = run_core(setup, n_results=2, n_frames=1, compiled=False)
     assert fast.compiled and not slow.compiled
     for name in ("results", "result_cycles", "int_cycles", "frames", "counters", "status",
+                 "samples",
                  "asa", "cycles"):
         assert getattr(fast, name) == getattr(slow, name), name
     assert fast.model.transactions == slow.model.transactions

@@ -1,0 +1,202 @@
+"""A recording through the whole board: ``replay FILE --engine board``.
+
+The recording's samples are what the MPU9250 model measures (accelerometer and gyro, body axes)
+and what the AK8963 model measures (the magnetometer, turned into its own axes); the core
+(driver, SPI bus, attitude engine, telemetry scheduler, framer, UART) runs against them in the
+co-simulation (compiled when Verilator is there), and the host's frame decoder reads the UART.
+What the host decodes is scored against the recording's truth, and each frame's attitude is
+checked bit for bit against the fixed-point model run over the samples the board read (the
+same reference ``replay --engine fixed`` and ``--engine gateware`` use, on the bytes the bus
+carried: ``model_reference``).
+
+Time is compressed as in every co-simulation (``SimSetup``): the system clock is
+``REPLAY_CLOCK_HZ``, a sample period a little longer than the sample's read and update, and the
+UART at ``REPLAY_BAUD`` with the telemetry divider set (a register write, as a host would) so
+that every ``divider``-th result is framed: the host gets that share of the recording's
+samples, and the engine filters every one. The engine is set up for the recording's sample
+period by register writes (``configuration_writes``), so the build is the core's own.
+The AK8963 model measures at 100 Hz of the recording's time, as a real one would: a new field
+in one sample of 1/(100 dt) (2.9 at the shared recordings' 286 Hz), where ``--engine fixed``
+takes the recording's field at every sample; the frames equal to ``--engine fixed``'s results
+are counted (``frames_as_engine_fixed``), and every frame equals the fixed-point model run over
+the samples the board read, with the flags the driver gave them.
+"""
+
+import math
+from dataclasses import dataclass, replace
+from typing import List
+
+import numpy as np
+
+from ..hdl.mpu9250_driver import DriverTiming, MPU9250Config
+from .ak8963_model import AK8963Model, AK8963Timing
+from .cosim import SimSetup, run_core, sample_matches
+from .sources import SensorSample
+
+
+__all__ = ["REPLAY_CLOCK_HZ", "REPLAY_BAUD", "BoardReplay", "replay_board"]
+
+
+REPLAY_CLOCK_HZ = 12e6          # fewer cycles per sample than 48 MHz; the same logic
+REPLAY_BAUD = 3_000_000         # four cycles a bit at 12 MHz
+# the sample rate the MPU9250 is set to (its period is then compressed; the engine's own
+# period is the recording's, by register writes)
+REPLAY_ODR_HZ = 100
+
+
+@dataclass
+class _RecordingTime(SimSetup):
+    """``SimSetup`` whose driver times the magnetometer out in the recording's time
+    (``time_per_s``: simulated seconds a recorded second), as the AK8963 model measures."""
+    time_per_s: float = 1.0
+
+    def driver_timing(self):
+        return replace(super().driver_timing(),
+                       mag_timeout_s=DriverTiming.mag_timeout_s * self.time_per_s)
+
+
+@dataclass
+class BoardReplay:
+    """What ``replay_board`` saw: the frames the host decoded (their recording indices,
+    quaternions as floats), whether each frame's attitude equals the fixed-point model's for
+    its sample (and the first difference), whether every engine result does, and the run's
+    figures."""
+    indices: np.ndarray             # recording index of each frame's sample
+    quat: np.ndarray                # each frame's quaternion (w, x, y, z)
+    bit_exact: bool                 # every frame the host decoded
+    first_mismatch: object
+    results_bit_exact: bool         # every result the engine produced (framed or not)
+    frames_as_engine_fixed: int     # frames equal to ``replay --engine fixed``'s result
+    mag_not_valid: int              # samples read whose field the driver did not pass as valid
+    samples_read: int
+    frames: int
+    divider: int
+    cycles: int
+    wall_s: float
+    compiled: bool
+    counters: dict
+
+    def summary(self):
+        return {"bit_exact": self.bit_exact, "first_mismatch": self.first_mismatch,
+                "results_bit_exact": self.results_bit_exact,
+                "frames_as_engine_fixed": self.frames_as_engine_fixed,
+                "mag_not_valid": self.mag_not_valid,
+                "board_samples_read": self.samples_read, "board_frames": self.frames,
+                "telemetry_divider": self.divider, "board_cycles": self.cycles,
+                "board_sim_s": round(self.wall_s, 1),
+                "board_cycles_per_s": round(self.cycles / max(self.wall_s, 1e-9)),
+                "simulator": "compiled (Verilator)" if self.compiled else "python (Amaranth)",
+                "counters": self.counters}
+
+
+def replay_board(filter, gyr_counts, acc_counts, mag_counts, dt, *, gyro_fs_dps=2000,
+                 accel_fs_g=16, samples=None, compiled="prefer", progress=None,
+                 period_cycles=None, divider=None, **units_and_params):
+    """The recording's first ``samples`` (default: all; body-axis counts, period ``dt``)
+    through the co-simulated board, the engine set up for ``filter``: a ``BoardReplay``.
+    ``period_cycles`` (the simulated sample period) and ``divider`` (frame every n-th result)
+    default to the shortest that work."""
+    from ..hdl.attitude_program import TELEMETRY_DIV_ADDR
+    from ..hdl.frame_types import AttitudeFrame, frame_bytes
+    from ..hdl.top import rate_budget
+    from ..reference.evaluate import engine_configs
+    from ..reference.fixed_point import attitude_fixed
+    from ..reference.flagship_fixed import q30_to_float
+    from ..reference.frames import body_to_mag
+    from .attitude_bench import EngineRun, first_mismatch
+    from .compiled_engine import configuration_writes
+
+    total = len(gyr_counts) if samples is None else min(samples, len(gyr_counts))
+    if total < 1:
+        raise ValueError("replay_board needs at least one sample")
+    config = MPU9250Config.for_odr(REPLAY_ODR_HZ, gyro_fs_dps=gyro_fs_dps,
+                                   accel_fs_g=accel_fs_g, self_test=False)
+    # the sample period: the read and the update with a quarter to spare (the engine updates
+    # while the next sample is read)
+    budget = rate_budget(config, REPLAY_CLOCK_HZ, REPLAY_BAUD)
+    if period_cycles is None:
+        period_cycles = 1.25 * budget["cycles_per_sample"]
+    odr_scale = period_cycles / REPLAY_CLOCK_HZ * config.output_data_rate
+    # the driver's magnetometer time-out in the recording's time, as the AK8963's period is
+    setup = _RecordingTime(clk_freq=REPLAY_CLOCK_HZ, config=config, odr_scale=odr_scale,
+                           time_per_s=period_cycles / REPLAY_CLOCK_HZ / dt)
+    frame_cycles = 10 * frame_bytes(AttitudeFrame) * REPLAY_CLOCK_HZ / REPLAY_BAUD
+    if divider is None:
+        divider = math.ceil(frame_cycles * 1.05 / period_cycles)
+
+    gyr = np.asarray(gyr_counts)[:total]
+    acc = np.asarray(acc_counts)[:total]
+    mag_ak = body_to_mag(np.asarray(mag_counts)[:total])
+    table = [SensorSample(accel=tuple(int(v) for v in a), gyro=tuple(int(v) for v in g))
+             for a, g in zip(acc, gyr)]
+    # the recording starts with the first sample the driver reads: the samples the model
+    # makes during bring-up (never read) are the recording's first
+    first = {}
+
+    def source(index, t):
+        if model.sample_reads and "read" not in first:
+            first["read"] = model.sample_reads[0]
+        return table[min(max(index - first.get("read", index), 0), total - 1)]
+    model = setup.model(source=source, aux_devices={})
+    # the AK8963 measures at its own 100 Hz against the recording's rate (``dt``), as on a
+    # real board: the field of the sample the MPU9250 made last, in one sample of 1/(100 dt)
+    period_s = period_cycles / REPLAY_CLOCK_HZ
+    ak = AK8963Model(timing=AK8963Timing().scaled(odr=period_s / (100 * dt) / 0.01),
+                     source=lambda k, t: mag_ak[min(max(len(model.samples) - 1 -
+                                                        first.get("read", 10 ** 9), 0),
+                                                    total - 1)])
+    model.aux_devices[0x0C] = ak
+
+    kalman, flagship = engine_configs(filter, dt, **units_and_params)
+    writes = configuration_writes(filter, kalman, flagship) + [(TELEMETRY_DIV_ADDR, divider)]
+    # samples made during bring-up are never read: the run ends two sample periods after
+    # the model made the recording's last one (its result is out by then), within a budget
+    # of every sample's period and bring-up
+    run = run_core(setup, baud=REPLAY_BAUD, model=model, writes=writes, compiled=compiled,
+                   progress=progress,
+                   until=lambda: len(model.samples) > first.get("read", 10 ** 9) + total + 2,
+                   max_cycles=int(setup.bring_up_budget_cycles() + 40_000 +
+                                  (total + 5) * period_cycles * 1.5))
+    offset = first.get("read", 0)
+    # the reference: the fixed-point model over the samples the engine was given (the
+    # driver's flags with them: a field it judged old or stale is not valid), which are the
+    # model's own (``SensorSample``s and AK8963 bytes: checked per frame below)
+    n = sum(1 for i in model.sample_reads[:len(run.samples)] if i - offset < total)
+    n = min(n, len(run.results))
+    given = run.samples[:n]
+    ref = attitude_fixed([s["gyro"] for s in given], [s["accel"] for s in given],
+                         [s["mag"] for s in given],
+                         [s["flags"]["mag_valid"] for s in given], asa=run.asa,
+                         config=kalman, flagship=flagship, select=filter,
+                         skipped=[s["skipped"] for s in given])
+    frames = [f for f in run.frames if f["sample"]["counter"] < n]
+    sent = [f["sample"]["counter"] for f in frames]
+    got = EngineRun.from_results([{**f["attitude"], "counter": f["sample"]["counter"]}
+                                  for f in frames])
+    mismatch = first_mismatch(got, ref.take(sent)) if frames else "no frame"
+    # the frames' samples are what the model made (the bus and the driver changed nothing)
+    reads = [model.samples[k] for k in model.sample_reads[:n]]
+    wrong = next((k for k in sent if not sample_matches(frames[sent.index(k)]["sample"],
+                                                         reads[k])), None)
+    if mismatch is None and wrong is not None:
+        mismatch = f"sample {wrong}: the frame's sample is not the one the model made"
+    every = EngineRun.from_results(run.results[:n])
+    all_mismatch = first_mismatch(every, ref)
+    # against ``replay --engine fixed`` (the field valid at every sample): the frames equal
+    # to it; they differ only after a field the driver did not take as new (the same bytes
+    # as the read before, both with ST1.DRDY: a read again, by its rule)
+    plain = attitude_fixed(gyr[:n], acc[:n], mag_ak[:n], None, asa=run.asa, config=kalman,
+                           flagship=flagship, select=filter)
+    as_fixed = sum(np.array_equal(q, plain.quat[k]) for q, k in
+                   zip(got.quat, [model.sample_reads[c] - offset for c in sent]))
+    not_new = sum(1 for s in given if not s["flags"]["mag_valid"])
+    quat = q30_to_float(np.array([f["attitude"]["quat"] for f in frames], dtype=np.int64)
+                        .reshape(-1, 4))
+    return BoardReplay(indices=np.array([model.sample_reads[k] - offset for k in sent],
+                                        dtype=int),
+                       quat=quat, bit_exact=mismatch is None, first_mismatch=mismatch,
+                       results_bit_exact=all_mismatch is None,
+                       frames_as_engine_fixed=int(as_fixed), mag_not_valid=not_new,
+                       samples_read=n,
+                       frames=len(frames), divider=divider, cycles=run.cycles,
+                       wall_s=run.wall_s, compiled=run.compiled, counters=run.counters)
