@@ -582,9 +582,9 @@ def build_parser():
                    help="a mid-run fault starts after the design has read N samples (20)")
     p.add_argument("--simulator", choices=("auto", "compiled", "python"), default="auto",
                    help="compiled: the design in Verilator (tens of times faster; built once "
-                        "and cached, needs verilator and g++), python: Amaranth's simulator "
-                        "(what --vcd uses), auto (default): compiled when it can be; the "
-                        "summary's 'simulator' says which ran")
+                        "and cached, needs verilator and g++; with --vcd a build that traces "
+                        "every signal), python: Amaranth's simulator, auto (default): compiled "
+                        "when it can be; the summary's 'simulator' says which ran")
     _add_sensor_options(p)
     p.set_defaults(func=cmd_simulate)
 

@@ -143,9 +143,31 @@ class UARTReader:
 WORTH_A_BUILD_CYCLES = 300_000
 
 
-def frontend_design(harness, dut, *, spi, key, cached_only=False):
+# What a VCD's GTKWave save file shows (``write_gtkw``): the harness's ports, labelled
+TRACES = {
+    "spi": [("pin_a", "cs_n"), ("pin_b", "sclk"), ("copi", "copi"), ("cipo_model", "cipo"),
+            ("int_model", "int")],
+    "i2c": [("pin_a", "scl"), ("pin_b", "sda"), ("scl_model_low", "scl_model_low"),
+            ("sda_model_low", "sda_model_low"), ("int_model", "int")],
+    "frontend": [("samples_valid", "samples.valid"), ("status", "status")],
+    "core": [("r_valid", "results.valid"), ("uart_tx", "uart_tx")],
+}
+
+
+def trace(design, vcd, clk_freq, kinds):
+    """Start ``design``'s VCD (built with ``trace``) into ``vcd`` and write its GTKWave save
+    file beside it (``.gtkw``) with the ``TRACES`` of ``kinds``."""
+    from .compiled_design import write_gtkw
+    design.trace_to(vcd, clk_freq)
+    widths = {n: w for n, w in design._out_width.items()}
+    widths.update(design._in_width)
+    write_gtkw(str(vcd).rsplit(".", 1)[0] + ".gtkw", vcd,
+               [(n, widths[n], label) for kind in kinds for n, label in TRACES[kind]])
+
+
+def frontend_design(harness, dut, *, spi, key, cached_only=False, trace=False):
     """The compiled ``SensorFrontEnd`` in its harness (``CompiledDesign``; ``NotBuilt`` with
-    ``cached_only`` when the cache does not have it)."""
+    ``cached_only`` when the cache does not have it; ``trace``: a build that writes VCDs)."""
     inputs, outputs = board_ports(
         harness, spi=spi, extra_inputs={"samples_ready": dut.samples.ready},
         extra_outputs={"samples_valid": dut.samples.valid, "status": dut.status,
@@ -153,10 +175,10 @@ def frontend_design(harness, dut, *, spi, key, cached_only=False):
                        "rate_errors": dut.rate_errors, "who_am_i": dut.who_am_i,
                        "self_test": dut.self_test})
     return CompiledDesign(harness, inputs, outputs, name="frontend-" + ("spi" if spi else "i2c"),
-                          key=key, cached_only=cached_only)
+                          key=key, cached_only=cached_only, trace=trace)
 
 
-def core_design(harness, core, *, key, cached_only=False):
+def core_design(harness, core, *, key, cached_only=False, trace=False):
     """The compiled ``AHRSCore`` in its harness (``frontend_design``'s rules)."""
     results = core.engine.results
     inputs, outputs = board_ports(
@@ -169,7 +191,7 @@ def core_design(harness, core, *, key, cached_only=False):
                        "r_payload": results.payload, "counters": core.counters,
                        "status": core.status, "asa": core.asa})
     return CompiledDesign(harness, inputs, outputs, name="core", key=key,
-                          cached_only=cached_only)
+                          cached_only=cached_only, trace=trace)
 
 
 def frontend_loop(design, models, observe, max_cycles, *, spi, ready=None):

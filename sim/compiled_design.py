@@ -36,7 +36,7 @@ from .compiled_engine import (BUILD_OPTIMISATION, HINT, _cache_root, build_lock,
                               verilator_available, verilator_version)
 
 
-__all__ = ["CompiledDesign", "NotBuilt", "verilator_available"]
+__all__ = ["CompiledDesign", "NotBuilt", "verilator_available", "write_gtkw"]
 
 
 class _Ports(wiring.Component):
@@ -71,9 +71,31 @@ def _words(width):
     return (width + 31) // 32
 
 
-def _cxx(top, inputs, outputs):
-    """The C API: sim_new, sim_free, sim_set, sim_get, sim_run (see the module docstring)."""
+def _cxx(top, inputs, outputs, trace=False):
+    """The C API: sim_new, sim_free, sim_set, sim_get, sim_run (see the module docstring);
+    with ``trace`` also sim_trace (a VCD of every signal, each clock edge dumped)."""
     cls = f"V{top}"
+    if trace:
+        trace_include = '#include "verilated_vcd_c.h"\n'
+        trace_member = " VerilatedVcdC *tfp; uint64_t half_ps;"
+        trace_init = "    s->tfp = nullptr; s->half_ps = 1;\n    s->ctx->traceEverOn(true);\n"
+        trace_close = "if (s->tfp) { s->tfp->close(); delete s->tfp; } "
+        dump = "if (s->tfp) s->tfp->dump((2 * s->cycle + {}) * s->half_ps); "
+        trace_api = f"""// A VCD of every signal from here on, at each clock edge (``half_ps``: half a period)
+void sim_trace(void *p, const char *path, uint64_t half_ps) {{
+    Sim *s = (Sim *)p;
+    s->tfp = new VerilatedVcdC;
+    s->half_ps = half_ps;
+    s->top->trace(s->tfp, 99);
+    s->tfp->set_time_unit("1ps");
+    s->tfp->set_time_resolution("1ps");
+    s->tfp->open(path);
+    s->tfp->dump(2 * s->cycle * s->half_ps);
+}}
+"""
+    else:
+        trace_include = trace_member = trace_init = trace_close = trace_api = ""
+        dump = ""
     def access(name, width, direction):
         # Verilator: up to 64 bits an integer member, wider a VlWide of 32-bit words
         if width > 64:
@@ -103,8 +125,8 @@ def _cxx(top, inputs, outputs):
 #include <cstdint>
 #include "{cls}.h"
 #include "verilated.h"
-
-struct Sim {{ VerilatedContext *ctx; {cls} *top; uint64_t cycle; uint64_t *snap; }};
+{trace_include}
+struct Sim {{ VerilatedContext *ctx; {cls} *top; uint64_t cycle; uint64_t *snap;{trace_member} }};
 
 // the outputs of up to 64 bits, copied where Python reads them without a call
 static void snapshot(Sim *s) {{
@@ -115,7 +137,7 @@ void *sim_new(uint64_t *snap) {{
     Sim *s = new Sim;
     s->snap = snap;
     s->ctx = new VerilatedContext;
-    s->top = new {cls}(s->ctx);
+{trace_init}    s->top = new {cls}(s->ctx);
     s->cycle = 0;
     s->top->clk = 0; s->top->rst = 0;
     s->top->eval();
@@ -123,8 +145,9 @@ void *sim_new(uint64_t *snap) {{
     return s;
 }}
 void sim_free(void *p) {{
-    Sim *s = (Sim *)p; s->top->final(); delete s->top; delete s->ctx; delete s;
+    Sim *s = (Sim *)p; {trace_close}s->top->final(); delete s->top; delete s->ctx; delete s;
 }}
+{trace_api}
 void sim_set(void *p, int k, const uint32_t *w) {{
     Sim *s = (Sim *)p;
     switch (k) {{
@@ -143,8 +166,8 @@ uint64_t sim_run(void *p, uint64_t until, uint64_t mask) {{
     Sim *s = (Sim *)p;
     uint64_t prev[64];
 {keep}    while (s->cycle < until) {{
-        s->top->clk = 1; s->top->eval();
-        s->top->clk = 0; s->top->eval();
+        s->top->clk = 1; s->top->eval(); {dump.format(1)}
+        s->top->clk = 0; s->top->eval(); {dump.format(2)}
         ++s->cycle;
         bool hit = false;
 {compare}        if (hit) break;
@@ -192,6 +215,17 @@ def _mark_used(root):
             todo.extend(obj.values())
 
 
+def write_gtkw(path, vcd, traces, scope="TOP"):
+    """A GTKWave save file ``path`` that opens the VCD ``vcd`` of a traced ``CompiledDesign``
+    with ``traces`` laid out: (port name, width, label) each, a port of the design's top
+    (Verilator puts them in scope ``TOP``), shown under its label."""
+    lines = [f'[dumpfile] "{Path(vcd).resolve()}"', f"[treeopen] {scope}.", "@22"]
+    for name, width, label in traces:
+        ref = f"{scope}.{name}" + (f"[{width - 1}:0]" if width > 1 else "")
+        lines.append(f"+{{{label}}} {ref}")
+    Path(path).write_text("\n".join(lines) + "\n")
+
+
 class CompiledDesign:
     """``design`` (an ``Elaboratable`` with a ``sync`` domain) compiled with ports for
     ``inputs`` and ``outputs`` (name: signal or value-castable; names must be Verilog
@@ -200,8 +234,10 @@ class CompiledDesign:
     converting the design to Verilog (the package's sources are part of the key).
     ``cached_only``: raise ``NotBuilt`` rather than build."""
 
-    def __init__(self, design, inputs, outputs, *, name="design", key=None, cached_only=False):
+    def __init__(self, design, inputs, outputs, *, name="design", key=None, cached_only=False,
+                 trace=False):
         self.cached_only = cached_only
+        self.trace = trace
         self.name = name
         self.key = key
         self.inputs = {n: Value.cast(v) for n, v in inputs.items()}
@@ -229,7 +265,7 @@ class CompiledDesign:
             raise RuntimeError(f"the compiled co-simulation needs verilator and g++; {HINT}")
         top = self.name.replace("-", "_") + "_top"
         cxx = _cxx(top, [(n, self._in_width[n]) for n in self.inputs],
-                   [(n, self._out_width[n]) for n in self.outputs])
+                   [(n, self._out_width[n]) for n in self.outputs], trace=self.trace)
         def convert():
             return verilog.convert(_Ports(design, self.inputs, self.outputs), name=top,
                                    emit_src=False)
@@ -268,6 +304,8 @@ class CompiledDesign:
         lib.sim_cycle.restype = ctypes.c_uint64
         lib.sim_run.argtypes = [ctypes.c_void_p, ctypes.c_uint64, ctypes.c_uint64]
         lib.sim_run.restype = ctypes.c_uint64
+        if self.trace:
+            lib.sim_trace.argtypes = [ctypes.c_void_p, ctypes.c_char_p, ctypes.c_uint64]
         return lib
 
     def _compile(self, text, cxx, top, folder):
@@ -290,7 +328,7 @@ class CompiledDesign:
                    "-CFLAGS", "-fPIC", "-MAKEFLAGS", BUILD_OPTIMISATION["design"],
                    "-LDFLAGS", "-shared", "--x-assign", "fast",
                    "--x-initial", "fast", "--noassert", "--Mdir", str(obj),
-                   "-o", "design.so", f"{top}.v", "api.cpp"]
+                   "-o", "design.so", f"{top}.v", "api.cpp", *(["--trace"] if self.trace else [])]
             result = subprocess.run(cmd, cwd=tmp, capture_output=True, text=True)
             if result.returncode:
                 raise RuntimeError(f"verilator failed to build the {self.name}:\n"
@@ -345,6 +383,14 @@ class CompiledDesign:
                                  f"the 64th output)")
             bits |= 1 << k
         return bits
+
+    def trace_to(self, path, clk_freq):
+        """Dump every signal from now on into the VCD file ``path`` (a design built with
+        ``trace``), the clock at ``clk_freq``; the file is complete once the design is closed.
+        Its scope ``TOP`` holds the ports by their names (``write_gtkw`` lays some out)."""
+        if not self.trace:
+            raise ValueError("this design was built without trace=True")
+        self._lib.sim_trace(self._handle, str(path).encode(), max(1, round(0.5e12 / clk_freq)))
 
     def run(self, until, mask=0):
         """Clock edges until a watched output (``mask``) changes at one, or the edge count is

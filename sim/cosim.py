@@ -374,18 +374,19 @@ def compiled_wanted(compiled, *, vcd=None, supported=True):
     """Whether a co-simulation takes the compiled path (``sim.compiled_board``):
     ``compiled`` True asks for it (an error if it cannot be had), False for Amaranth's
     simulator, None (auto): the compiled path when Verilator and g++ are there, the run is
-    one it supports (no VCD: waveforms come from Amaranth's simulator) and its build is cached
+    one it supports (no VCD, no stuck CIPO) and its build is cached
     or pays for itself (``_auto_build``); "prefer": the compiled path whenever it can run
     this (built if need be), else Amaranth's simulator (what ``simulate`` does). Returns
-    True, False or None (still auto)."""
+    True, False or None (still auto). A VCD on the compiled path needs a build of its own
+    (Verilator's ``--trace``): auto leaves waveforms to Amaranth's simulator."""
     from .compiled_design import verilator_available
     if compiled == "prefer":
-        return bool(supported and not vcd and verilator_available())
+        return bool(supported and verilator_available())
     if compiled:
-        if vcd or not supported:
-            raise ValueError("the compiled path does not take this run (waveforms or a stuck "
-                             "CIPO): run it in Amaranth's simulator (simulate --simulator "
-                             "python, or compiled=False)")
+        if not supported:
+            raise ValueError("the compiled path does not take this run (a stuck CIPO): run it "
+                             "in Amaranth's simulator (simulate --simulator python, or "
+                             "compiled=False)")
         if not verilator_available():
             raise RuntimeError("the compiled co-simulation needs verilator and g++: "
                                "apt-get install verilator g++")
@@ -457,9 +458,12 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
     harness.monitor(dut.samples, "samples")
     from .compiled_board import frontend_design
     design = _auto_build(compiled, max_cycles, lambda cached_only: frontend_design(
-        harness, dut, spi=bus is None, cached_only=cached_only,
+        harness, dut, spi=bus is None, cached_only=cached_only, trace=bool(vcd),
         key=("frontend", setup.clk_freq, setup.config, setup.driver_timing())))
     compiled = design is not None
+    if compiled and vcd:
+        from .compiled_board import trace
+        trace(design, vcd, setup.clk_freq, ["spi" if bus is None else "i2c", "frontend"])
     sim = None
     if not compiled:
         sim = Simulator(harness)
@@ -550,6 +554,8 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
             out["who_am_i"] = design.get("who_am_i")
             out["self_test"] = unpack(dut.self_test.shape(), design.get("self_test"))
             check_monitors(design, harness)
+        if vcd:
+            design.close()                  # the VCD complete
     elif vcd:
         gtkw = str(vcd).rsplit(".", 1)[0] + ".gtkw"
         if bus is None:
@@ -649,10 +655,13 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
     compiled = compiled_wanted(compiled, vcd=vcd)
     from .compiled_board import core_design, core_key
     design = _auto_build(compiled, max_cycles, lambda cached_only: core_design(
-        harness, core, cached_only=cached_only,
+        harness, core, cached_only=cached_only, trace=bool(vcd),
         key=core_key("core", clk_freq=setup.clk_freq, config=setup.config,
                      timing=setup.driver_timing(), baud=baud, **(core_kwargs or {}))))
     compiled = design is not None
+    if compiled and vcd:
+        from .compiled_board import trace
+        trace(design, vcd, setup.clk_freq, ["spi", "core"])
     received = bytearray()
     if not compiled:
         sim = Simulator(harness)
@@ -735,6 +744,8 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
                              (("counters", core.counters), ("status", core.status),
                               ("asa", core.asa))))
         check_monitors(design, harness)
+        if vcd:
+            design.close()                  # the VCD complete
     elif vcd:
         with sim.write_vcd(str(vcd), str(vcd).rsplit(".", 1)[0] + ".gtkw",
                            traces=[core.imu.cs_n, core.imu.sclk, core.imu.cipo, core.imu_int,

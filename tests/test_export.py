@@ -119,7 +119,10 @@ def test_simulate_command(tmp_path, capsys):
     assert summary["self_test"] == {"done": 1, "mag_done": 1, "fail": 0}
     assert summary["who_am_i"] == 0x71
     assert vcd.stat().st_size > 0 and (tmp_path / "x.gtkw").is_file()
-    assert summary["simulator"] == "python (Amaranth)"          # waveforms: Amaranth's
+    from mpu9250_ahrs.sim.compiled_design import verilator_available
+    # waveforms from the compiled path too (a build that traces)
+    assert summary["simulator"] == ("compiled (Verilator)" if verilator_available()
+                                    else "python (Amaranth)")
 
 
 def test_simulate_i2c_wiring(capsys):

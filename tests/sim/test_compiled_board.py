@@ -52,3 +52,21 @@ def test_core_same_on_both_paths():
 def test_compiled_refuses_what_it_cannot_run():
     with pytest.raises(ValueError, match="compiled path does not take"):
         run_frontend(SimSetup(), n_samples=1, stuck_miso=1, compiled=True)
+
+
+def test_waveforms_from_the_compiled_path(tmp_path):
+    """A VCD from a traced build, and a GTKWave save file whose every trace is in it; the run
+    the same as without the trace."""
+    import re
+    vcd = tmp_path / "fe.vcd"
+    traced = run_frontend(SimSetup(), n_samples=2, vcd=vcd, compiled=True)
+    plain = run_frontend(SimSetup(), n_samples=2, compiled=True)
+    assert traced.compiled and traced.samples == plain.samples
+    assert traced.sample_cycles == plain.sample_cycles
+    text = vcd.read_text()
+    header = text[:text.index("$enddefinitions")]
+    ports = set(re.findall(r"\$var \w+ +\d+ \S+ (\w+)", header))
+    shown = re.findall(r"^\+\{[^}]*\} TOP\.(\w+)", (tmp_path / "fe.gtkw").read_text(), re.M)
+    assert shown and set(shown) <= ports, (shown, sorted(ports)[:20])
+    # the clock edges are there: a few thousand time steps at least
+    assert text.count("\n#") > 1000
