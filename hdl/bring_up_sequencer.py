@@ -238,7 +238,8 @@ class BringUpSequencer(wiring.Component):
     and the next. Failures: ``Fail.RESTART`` restarts the program, ``Fail.MAG`` flags
     the magnetometer and jumps past its part (samples flow without it).
     Latency: a step's command is offered in the cycle the step is fetched, and the next step
-    is fetched the cycle after the response; a restart waits for the step under way.
+    is fetched three cycles after the response (two to read it from the program ROM); a
+    restart waits for the step under way.
     """
 
     def __init__(self, program, *, accepted_who_am_i, poll_cycles):
@@ -280,21 +281,20 @@ class BringUpSequencer(wiring.Component):
 
         # -- program ROM --------------------------------------------------------------------------
         # In an M9K (``FrameRAM`` with the program as its words: ``self.rom``, for ``report``),
-        # not in logic: as a LUT ROM its 45-bit words cost about a third of this block. The ROM
-        # reads the address ``pc`` takes next (``pc_next``), so its word is the step at ``pc``
-        # in the same cycle, as a ROM in logic would give it; only the first cycle after a reset
-        # (START) waits for the first word.
+        # not in logic (as a LUT ROM, about 60 LUTs more by ``report``'s count). The ROM
+        # reads at ``pc`` and its word is registered again (``step``): no path runs from the
+        # block RAM's output through the sequencer's logic back to its address (that loop
+        # limited the routed Fmax, report --timing). So a step is fetched two cycles after
+        # ``pc`` took its index (LOAD0, LOAD1), after a reset too.
         pc = Signal(range(len(program)))
-        pc_next = Signal.like(pc)
-        m.d.comb += pc_next.eq(pc)
-        m.d.sync += pc.eq(pc_next)
         step_layout = self.step_layout
-        step = Signal(step_layout)
+        step = Signal(step_layout, reset_less=True)
         m.submodules.rom = rom = self.rom
-        m.d.comb += [rom.r_en.eq(1), rom.r_addr.eq(pc_next), step.eq(rom.r_data)]
+        m.d.comb += [rom.r_en.eq(1), rom.r_addr.eq(pc)]
+        m.d.sync += step.eq(rom.r_data)
 
         def goto(index):
-            m.d.comb += pc_next.eq(index)
+            m.d.sync += pc.eq(index)
 
         # -- the register port: every read here is one byte, kept as ``last`` -------------------
         port = self.port
@@ -342,7 +342,7 @@ class BringUpSequencer(wiring.Component):
                 m.d.sync += self.restarts.eq(self.restarts + 1)
             with m.If(backoff != BACKOFF_MAX_SHIFT):
                 m.d.sync += backoff.eq(backoff + 1)
-            m.next = "FETCH"
+            m.next = "LOAD0"
 
         def fail(absent):
             """The current step failed: ``absent`` = no acknowledge / time-out, else a bad value."""
@@ -350,7 +350,7 @@ class BringUpSequencer(wiring.Component):
                 goto(skip_mag)
                 m.d.sync += [self.mag_absent.eq(absent),
                              self.mag_wia_error.eq(~absent)]
-                m.next = "FETCH"
+                m.next = "LOAD0"
             with m.Else():
                 with m.If(absent):
                     m.d.sync += [self.no_response.eq(1), self.whoami_error.eq(0)]
@@ -361,7 +361,7 @@ class BringUpSequencer(wiring.Component):
                 goto(pc + 1)
             else:
                 goto(Mux(reconfiguring & (pc == mag_start - 1), skip_mag, pc + 1))
-            m.next = "FETCH"
+            m.next = "LOAD0"
 
         with m.If(self.mag_nack):
             # the AK8963 stopped answering: down until a set-up finds it (the reader stops
@@ -373,9 +373,12 @@ class BringUpSequencer(wiring.Component):
         offered = Signal()
         m.d.sync += offered.eq(port.cmd.valid & ~port.cmd.ready)
 
-        with m.FSM(init="START"):
-            with m.State("START"):
-                # the ROM reads the first step (pc is 0)
+        with m.FSM(init="LOAD0"):
+            with m.State("LOAD0"):
+                # the ROM reads the step at pc
+                m.next = "LOAD1"
+            with m.State("LOAD1"):
+                # ``step`` takes it
                 m.next = "FETCH"
             with m.State("FETCH"):
                 with m.If(restart_pending & ~offered):
@@ -458,11 +461,11 @@ class BringUpSequencer(wiring.Component):
                 with m.Elif(self.mag_lost):
                     goto(mag_start or 0)
                     m.d.sync += [self.mag_ok.eq(0), self.mag_setup.eq(1)]
-                    m.next = "FETCH"
+                    m.next = "LOAD0"
                 with m.Elif(self.reconfigure):
                     goto(config_start)
                     m.d.sync += reconfiguring.eq(1)
-                    m.next = "FETCH"
+                    m.next = "LOAD0"
         return m
 
     def _fetch(self, m, step, command, timer, next_step, reconfiguring, backoff, reads):

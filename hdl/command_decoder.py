@@ -146,13 +146,15 @@ class CommandDecoder(wiring.Component):
         too_long = Signal(reset_less=True)
         empty = Signal(reset_less=True)
         crc_ok = Signal(reset_less=True)
-        crc_high = Signal(8, reset_less=True)
+        # the CRC's high byte matched: judged when it is taken (the CRC holds from then on),
+        # so that the low byte's look compares 8 bits, not 16
+        high_ok = Signal(reset_less=True)
         with m.If(take):
             m.d.sync += looked.eq(0)
         with m.Elif(src.valid):
             m.d.sync += [looked.eq(1), is_sync0.eq(byte == SYNC[0]), is_sync1.eq(byte == SYNC[1]),
                          too_long.eq(byte > MAX_COMMAND_PAYLOAD), empty.eq(byte == 0),
-                         crc_ok.eq(Cat(byte, crc_high) == crc.crc)]
+                         crc_ok.eq(high_ok & (byte == crc.crc[:8]))]
 
         # data registers, written before they are read in every frame, need no reset (on a
         # MAX10 a synchronous reset costs logic per bit)
@@ -274,7 +276,7 @@ class CommandDecoder(wiring.Component):
                 with m.If(count + 1 == length):
                     m.next = "CRC_HIGH"
             with receiving("CRC_HIGH", checked=False):
-                m.d.sync += crc_high.eq(byte)
+                m.d.sync += high_ok.eq(byte == crc.crc[8:])
                 m.next = "CRC_LOW"
             with receiving("CRC_LOW", checked=False):
                 with m.If(crc_ok):
