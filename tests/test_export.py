@@ -3,6 +3,7 @@ project written by ``build``. Needs the system tools iverilog and verilator
 (Debian: ``apt-get install iverilog verilator``)."""
 
 import json
+import re
 import subprocess
 
 import pytest
@@ -120,9 +121,17 @@ def test_simulate_command(tmp_path, capsys):
     assert summary["who_am_i"] == 0x71
     assert vcd.stat().st_size > 0 and (tmp_path / "x.gtkw").is_file()
     from mpu9250_ahrs.sim.compiled_design import verilator_available
-    # waveforms from the compiled path too (a build that traces)
+    # waveforms from the compiled path too (a build that traces); the save file's traces
+    # are in the VCD (a traced run equals an untraced one: the slow step,
+    # tests/sim/test_compiled_board.py)
     assert summary["simulator"] == ("compiled (Verilator)" if verilator_available()
                                     else "python (Amaranth)")
+    text = vcd.read_text()
+    header = text[:text.index("$enddefinitions")]
+    gtkw = (tmp_path / "x.gtkw").read_text()
+    traced = re.findall(r"^(?:\+\{[^}]*\} )?([\w.]+)", gtkw.split("@22", 1)[1], re.M)
+    assert traced and all(re.search(rf"\$var \w+ +\d+ \S+ {re.escape(t.rsplit('.', 1)[1])}"
+                                    rf"(?: \[[\d:]+\])? \$end", header) for t in traced)
 
 
 def test_simulate_i2c_wiring(capsys):

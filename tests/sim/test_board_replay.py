@@ -20,6 +20,7 @@ pytestmark = [pytest.mark.skipif(not RECORDINGS, reason="shared/data/broad not b
               pytest.mark.skipif(not verilator_available(), reason="needs verilator and g++")]
 
 
+@pytest.mark.slow          # its core's build (14 s) is most of it; the whole trial is slow too
 def test_first_samples_of_a_shared_trial_bit_exact():
     rec = load_broad(RECORDINGS[0])
     scales = Scales()

@@ -54,6 +54,7 @@ def test_compiled_refuses_what_it_cannot_run():
         run_frontend(SimSetup(), n_samples=1, stuck_miso=1, compiled=True)
 
 
+@pytest.mark.slow
 def test_waveforms_from_the_compiled_path(tmp_path):
     """A VCD from a traced build, and a GTKWave save file whose every trace is in it; the run
     the same as without the trace."""
