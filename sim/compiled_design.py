@@ -81,7 +81,7 @@ def _cxx(top, inputs, outputs, trace=False):
         trace_init = "    s->tfp = nullptr; s->half_ps = 1;\n    s->ctx->traceEverOn(true);\n"
         trace_close = "if (s->tfp) { s->tfp->close(); delete s->tfp; } "
         dump = "if (s->tfp) s->tfp->dump((2 * s->cycle + {}) * s->half_ps); "
-        trace_api = f"""// A VCD of every signal from here on, at each clock edge (``half_ps``: half a period)
+        trace_api = f"""// A VCD of every signal from here on, at each clock edge (half_ps: half a period)
 void sim_trace(void *p, const char *path, uint64_t half_ps) {{
     Sim *s = (Sim *)p;
     s->tfp = new VerilatedVcdC;
@@ -328,7 +328,8 @@ class CompiledDesign:
                    "-CFLAGS", "-fPIC", "-MAKEFLAGS", BUILD_OPTIMISATION["design"],
                    "-LDFLAGS", "-shared", "--x-assign", "fast",
                    "--x-initial", "fast", "--noassert", "--Mdir", str(obj),
-                   "-o", "design.so", f"{top}.v", "api.cpp", *(["--trace"] if self.trace else [])]
+                   "-o", "design.so", f"{top}.v", "api.cpp",
+                   *(["--trace"] if self.trace else [])]
             result = subprocess.run(cmd, cwd=tmp, capture_output=True, text=True)
             if result.returncode:
                 raise RuntimeError(f"verilator failed to build the {self.name}:\n"
