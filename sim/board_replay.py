@@ -149,14 +149,16 @@ def replay_board(filter, gyr_counts, acc_counts, mag_counts, dt, *, gyro_fs_dps=
 
     kalman, flagship = engine_configs(filter, dt, **units_and_params)
     writes = configuration_writes(filter, kalman, flagship) + [(TELEMETRY_DIV_ADDR, divider)]
-    # samples made during bring-up are never read: the run ends two sample periods after
-    # the model made the recording's last one (its result is out by then), within a budget
-    # of every sample's period and bring-up
+    # samples made during bring-up are never read: the run ends once the model made the
+    # recording's last sample and the periods a frame takes after it (its result is out and
+    # a frame of it on the wire by then), within a budget of every sample's period and
+    # bring-up
+    tail = 2 + math.ceil(frame_cycles / period_cycles)
     run = run_core(setup, baud=REPLAY_BAUD, model=model, writes=writes, compiled=compiled,
                    progress=progress,
-                   until=lambda: len(model.samples) > first.get("read", 10 ** 9) + total + 2,
+                   until=lambda: len(model.samples) > first.get("read", 10 ** 9) + total + tail,
                    max_cycles=int(setup.bring_up_budget_cycles() + 40_000 +
-                                  (total + 5) * period_cycles * 1.5))
+                                  (total + tail + 3) * period_cycles * 1.5))
     offset = first.get("read", 0)
     # the reference: the fixed-point model over the samples the engine was given (the
     # driver's flags with them: a field it judged old or stale is not valid), which are the
