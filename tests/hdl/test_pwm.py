@@ -255,3 +255,53 @@ def test_no_output_high_for_a_whole_period_unless_asked(ops):
     sim.add_testbench(tb)
     sim.run()
     assert not failures, failures
+
+
+def test_an_asynchronous_reset_drops_the_outputs_at_once():
+    """As a board builds it (``hdl/top.py``: the core's domain has an asynchronous reset), a
+    reset takes every output low at once, before any clock edge, and they stay low after it
+    (every channel disabled at reset)."""
+    from amaranth import ClockDomain, Elaboratable, Module
+
+    class InAsyncReset(Elaboratable):
+        def __init__(self, dut):
+            self.dut = dut
+            self.domain = ClockDomain("sync", async_reset=True)
+
+        def elaborate(self, platform):
+            m = Module()
+            m.domains += self.domain
+            m.submodules.dut = self.dut
+            return m
+
+    dut = PWMOutputs(clk_freq=CLK)
+    top = InAsyncReset(dut)
+    sim = Simulator(top)
+    sim.add_clock(1 / CLK)
+    out = {}
+
+    async def tb(ctx):
+        for name, value in (("PWM_MODE", 0b1111), ("PWM_MOTOR_PERIOD", 400),
+                            *((f"PWM_HIGH{k}", 400) for k in range(4)),   # high all period
+                            ("PWM_ENABLE", 0b1111)):
+            ctx.set(dut.bus.addr, PWM_REGS[name])
+            ctx.set(dut.bus.w_data, value)
+            ctx.set(dut.bus.w_en, 1)
+            await ctx.tick()
+        ctx.set(dut.bus.w_en, 0)
+        await ctx.tick().repeat(1_000)
+        out["running"] = ctx.get(dut.pwm)
+        await ctx.delay(0.1 / CLK)                 # between clock edges
+        ctx.set(top.domain.rst, 1)
+        await ctx.delay(0.1 / CLK)                 # still no edge since
+        out["in_reset"] = ctx.get(dut.pwm)
+        await ctx.delay(3 / CLK)                   # three clock periods in reset
+        ctx.set(top.domain.rst, 0)
+        await ctx.tick().repeat(1_000)
+        out["after"] = ctx.get(dut.pwm)
+        ctx.set(dut.bus.addr, PWM_REGS["PWM_ENABLE"])
+        out["enable"] = ctx.get(dut.bus.r_data)
+    sim.add_testbench(tb)
+    sim.run()
+    assert out["running"] == 0b1111
+    assert out["in_reset"] == 0 and out["after"] == 0 and out["enable"] == 0
