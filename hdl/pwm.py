@@ -44,9 +44,10 @@ class PWMOutputs(wiring.Component):
                         clears the watchdog's ``tripped``.
     PWM_MODE (0x01)     bits 3:0: 0 = servo (high time in µs), 1 = motor (in clock cycles). A
                         change to the mode of an enabled channel is refused. A channel whose
-                        mode changes has its high time set to 0 (it reads 0): the value it held was in the
-                        other unit (1,500 µs read as 1,500 cycles could exceed the motor
-                        period), so it stays low until a high time is written in its new unit.
+                        mode changes has its high time set to 0 (it reads 0): the value it
+                        held was in the other unit (1,500 µs read as 1,500 cycles could
+                        exceed the motor period), so it stays low until a high time is
+                        written in its new unit.
     PWM_WATCHDOG_MS     0..65535: with a channel enabled, no accepted command for this long disables
     (0x02)              every channel (outputs low) and sets ``tripped``; 0 = off. 500 at
                         reset. Writing it starts the count again, as a command does.
@@ -85,7 +86,6 @@ class PWMOutputs(wiring.Component):
     def __init__(self, *, clk_freq):
         self.clk_freq = clk_freq
         self.us_cycles = max(1, round(clk_freq / 1e6))
-        self.ms_cycles = max(1, round(clk_freq / 1e3))
         self.motor_min = math.ceil(clk_freq / MOTOR_MAX_HZ)
         if self.motor_min >= 1 << PERIOD_BITS:
             raise ValueError(f"a {MOTOR_MAX_HZ} Hz motor period at {clk_freq / 1e6:g} MHz "

@@ -68,8 +68,8 @@ from .uart_rx import UARTReceiver
 from .uart_tx import UARTTransmitter
 
 
-__all__ = ["AHRSCore", "AsyncResetCore", "core_verilog", "BoardTop", "telemetry_divider_for", "rate_budget", "VERSION",
-           "version_word", "io_constraints", "io_register_settings"]
+__all__ = ["AHRSCore", "AsyncResetCore", "core_verilog", "BoardTop", "telemetry_divider_for",
+           "rate_budget", "VERSION", "version_word", "io_constraints", "io_register_settings"]
 
 
 VERSION = (0, 2)        # major, minor: the version/build word's top bytes
@@ -390,16 +390,16 @@ def core_verilog(core, name="mpu9250_ahrs_core"):
 class AsyncResetCore(Elaboratable):
     """A design (``AHRSCore``) in a ``sync`` domain with an asynchronous reset: what a board
     builds (``BoardTop``) and what ``build --verilog-only``, ``report`` and ``report --timing``
-    convert (``core_verilog``). The design's own
-    module gets the domain, so the hierarchy and the port names are the design's, plus
-    ``clk`` and ``rst``.
+    convert (``core_verilog``). The design's own module gets the domain, so the hierarchy and
+    the port names are the design's, plus ``clk`` and ``rst``.
 
     Why asynchronous: it is Intel's recommended reset for its devices (asserted at any time,
     released in step with the clock by a ``ResetSynchronizer``), and the MAX10 LE's register
     clears asynchronously at no cost, where Yosys 0.23's MAX10 mapping builds a synchronous
     reset from a LUT in front of each register bit that has one (about 750 LEs of this design
-    by ``report``'s count). The simulations clock the core with Amaranth's default synchronous
-    reset; no test asserts it, so both behave the same cycle for cycle.
+    by ``report``'s count). The co-simulations clock the core with Amaranth's default
+    synchronous reset and never assert it, so both behave the same cycle for cycle
+    (``tests/hdl/test_pwm.py`` asserts the asynchronous one on the PWM outputs).
 
     Members
         ``clk``, ``rst`` (in): the clock, and the reset (active high; assert it at any time,
@@ -442,22 +442,25 @@ class BoardTop(Elaboratable):
 
     def elaborate(self, platform):
         m = Module()
-        osc_hz = platform.default_clk_frequency
-        if self.clk_freq != osc_hz:
-            osc = platform.request(platform.default_clk, 0, dir="-")
-            m.submodules.osc_buf = osc_buf = io.Buffer("i", osc)
+        osc = platform.request(platform.default_clk, 0, dir="-")
+        m.submodules.osc_buf = osc_buf = io.Buffer("i", osc)
+        # an asynchronous reset (``AsyncResetCore`` says why), released in step with the clock
+        # by the synchroniser: after the PLL locks, or (no PLL) after configuration and the
+        # board's reset input if it has one, as the platform's own default domain would
+        m.domains.sync = ClockDomain("sync", async_reset=True)
+        if self.clk_freq != platform.default_clk_frequency:
             # the platform's own PLL: the MAX10's altpll, the ECP5's EHXPLLL
             m.submodules.pll = pll = platform.system_pll(self.clk_freq)
-            # an asynchronous reset (``AsyncResetCore`` says why), released by the synchroniser
-            m.domains.sync = ClockDomain("sync", async_reset=True)
             m.d.comb += [pll.clk_in.eq(osc_buf.i), ClockSignal("sync").eq(pll.clk_out)]
-            m.submodules.reset_sync = ResetSynchronizer(~pll.locked, domain="sync")
+            reset = ~pll.locked
         else:
-            # the oscillator clocks the design; no reset but the registers' initial values
-            osc = platform.request(platform.default_clk, 0, dir="-")
-            m.submodules.osc_buf = osc_buf = io.Buffer("i", osc)
-            m.domains.sync = ClockDomain("sync", async_reset=True)
             m.d.comb += ClockSignal("sync").eq(osc_buf.i)
+            reset = C(0)
+            if platform.default_rst is not None:
+                rst = platform.request(platform.default_rst, 0, dir="-")
+                m.submodules.rst_buf = rst_buf = io.Buffer("i", rst)
+                reset = rst_buf.i
+        m.submodules.reset_sync = ResetSynchronizer(reset, domain="sync")
         m.submodules.core = core = AHRSCore(clk_freq=self.clk_freq, **self.core_kwargs)
         config = core.config
         uart = platform.request("uart", 0, dir="-")

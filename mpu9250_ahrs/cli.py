@@ -319,7 +319,8 @@ def cmd_simulate(args):
                                    "sample_period": setup.odr_scale}})
     print(json.dumps(summary), file=sys.stderr if args.quiet_summary else sys.stdout)
     if args.vcd:
-        print(f"wrote {args.vcd} and {str(args.vcd).rsplit('.', 1)[0]}.gtkw")
+        from .sim.cosim import gtkw_beside
+        print(f"wrote {args.vcd} and {gtkw_beside(args.vcd)}")
     return 1 if violations else 0
 
 

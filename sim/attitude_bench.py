@@ -99,7 +99,8 @@ def run_engine(dut, gyro, accel, mag_ak, mag_valid=None, *, asa=(128, 128, 128),
     sim.add_clock(1e-6)
     sim.add_testbench(testbench)
     if vcd and gtkw is None:
-        gtkw = str(vcd).rsplit(".", 1)[0] + ".gtkw"
+        from .cosim import gtkw_beside
+        gtkw = gtkw_beside(vcd)
     traces = [dut.samples.valid, dut.samples.ready, dut.busy, dut.results.valid,
               dut.results.payload.quat, dut.results.payload.angles, dut.results.payload.bias,
               dut.results.payload.flags]

@@ -30,7 +30,7 @@ import numpy as np
 
 from ..hdl.mpu9250_driver import DriverTiming, MPU9250Config
 from .ak8963_model import AK8963Model, AK8963Timing
-from .cosim import SimSetup, run_core, sample_matches
+from .cosim import SimSetup, run_core, sample_matches, simulator_name
 from .sources import SensorSample
 
 
@@ -85,7 +85,7 @@ class BoardReplay:
                 "telemetry_divider": self.divider, "board_cycles": self.cycles,
                 "board_sim_s": round(self.wall_s, 1),
                 "board_cycles_per_s": round(self.cycles / max(self.wall_s, 1e-9)),
-                "simulator": "compiled (Verilator)" if self.compiled else "python (Amaranth)",
+                "simulator": simulator_name(self.compiled),
                 "counters": self.counters}
 
 

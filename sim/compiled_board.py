@@ -9,8 +9,9 @@ and frames (``tests/sim/test_compiled_board.py``). ``run_frontend``/``run_core``
 ``compiled``: True (this path), False (Amaranth's simulator), None (auto, the default: this
 path when Verilator and g++ are there and the build is cached or the run's cycle budget is at
 least ``WORTH_A_BUILD_CYCLES``), "prefer" (this path whenever it can run the job: what
-``simulate`` and the simulated board use). Waveforms (VCD) and a stuck CIPO stay with
-Amaranth's simulator. ``CosimResult.compiled`` / ``CoreRun.compiled`` say which path ran.
+``simulate`` and the simulated board use). A stuck CIPO stays with Amaranth's simulator; a
+VCD is written by a build of its own (``trace``), which auto leaves to Amaranth's simulator.
+``CosimResult.compiled`` / ``CoreRun.compiled`` say which path ran.
 
 Speed (``python -m mpu9250_ahrs.sim.compiled_board``): prints both paths' cycles per second on
 the same short run of the core and the front end.
@@ -143,7 +144,8 @@ class UARTReader:
 WORTH_A_BUILD_CYCLES = 300_000
 
 
-# What a VCD's GTKWave save file shows (``write_gtkw``): the harness's ports, labelled
+# What a VCD's GTKWave save file shows (``CompiledDesign.trace_to``): the harness's ports,
+# labelled
 TRACES = {
     "spi": [("pin_a", "cs_n"), ("pin_b", "sclk"), ("copi", "copi"), ("cipo_model", "cipo"),
             ("int_model", "int")],
@@ -152,17 +154,6 @@ TRACES = {
     "frontend": [("samples_valid", "samples.valid"), ("status", "status")],
     "core": [("r_valid", "results.valid"), ("uart_tx", "uart_tx")],
 }
-
-
-def trace(design, vcd, clk_freq, kinds):
-    """Start ``design``'s VCD (built with ``trace``) into ``vcd`` and write its GTKWave save
-    file beside it (``.gtkw``) with the ``TRACES`` of ``kinds``."""
-    from .compiled_design import write_gtkw
-    design.trace_to(vcd, clk_freq)
-    widths = {n: w for n, w in design._out_width.items()}
-    widths.update(design._in_width)
-    write_gtkw(str(vcd).rsplit(".", 1)[0] + ".gtkw", vcd,
-               [(n, widths[n], label) for kind in kinds for n, label in TRACES[kind]])
 
 
 def frontend_design(harness, dut, *, spi, key, cached_only=False, trace=False):

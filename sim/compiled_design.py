@@ -21,10 +21,6 @@ raises ``RuntimeError`` with a hint, and callers fall back to Amaranth's simulat
 import ctypes
 import functools
 import hashlib
-import subprocess
-import sys
-import tempfile
-import time
 from pathlib import Path
 
 from amaranth import Module, Signal, Value
@@ -32,11 +28,11 @@ from amaranth.back import verilog
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
-from .compiled_engine import (BUILD_OPTIMISATION, HINT, _cache_root, build_lock, publish,
-                              verilator_available, verilator_version)
+from .compiled_engine import (BUILD_OPTIMISATION, HINT, _cache_root, verilator_available,
+                              verilator_build, verilator_version)
 
 
-__all__ = ["CompiledDesign", "NotBuilt", "verilator_available", "write_gtkw"]
+__all__ = ["CompiledDesign", "NotBuilt", "verilator_available"]
 
 
 class _Ports(wiring.Component):
@@ -215,10 +211,10 @@ def _mark_used(root):
             todo.extend(obj.values())
 
 
-def write_gtkw(path, vcd, traces, scope="TOP"):
-    """A GTKWave save file ``path`` that opens the VCD ``vcd`` of a traced ``CompiledDesign``
-    with ``traces`` laid out: (port name, width, label) each, a port of the design's top
-    (Verilator puts them in scope ``TOP``), shown under its label."""
+def _write_gtkw(path, vcd, traces, scope="TOP"):
+    """A GTKWave save file ``path`` that opens the VCD ``vcd`` with ``traces`` laid out:
+    (port name, width, label) each, a port of the design's top (Verilator puts them in scope
+    ``TOP``), shown under its label."""
     lines = [f'[dumpfile] "{Path(vcd).resolve()}"', f"[treeopen] {scope}.", "@22"]
     for name, width, label in traces:
         ref = f"{scope}.{name}" + (f"[{width - 1}:0]" if width > 1 else "")
@@ -269,9 +265,15 @@ class CompiledDesign:
         def convert():
             return verilog.convert(_Ports(design, self.inputs, self.outputs), name=top,
                                    emit_src=False)
-        text = None
+        converted = []                  # the design's Verilog, once made
+
+        def verilog_text():
+            if not converted:
+                converted.append(verilog.convert(_Ports(design, self.inputs, self.outputs),
+                                                 name=top, emit_src=False))
+            return converted[0]
         if self.key is None:
-            text = key = convert()
+            key = verilog_text()
         else:
             # converting the whole core to Verilog takes seconds: a caller that knows what
             # makes its design (its parameters; the sources are added here) names it instead
@@ -283,14 +285,15 @@ class CompiledDesign:
         library = folder / "design.so"
         if self.cached_only and not library.exists():
             raise NotBuilt(f"{self.name}: not in the cache")
-        if not library.exists():
-            # one build a design, whoever asks: a second process waits for it here
-            with build_lock(folder):
-                if not library.exists():
-                    if text is None:
-                        text = convert()
-                    self._compile(text, cxx, top, folder)
-        if text is None:
+        # an "executable" linked as a shared object: Verilator builds its runtime with the
+        # design and our C API (api.cpp), all position-independent
+        self.build_s = verilator_build(
+            folder, "design.so", {f"{top}.v": verilog_text, "api.cpp": cxx}, top=top,
+            what=self.name, options=[
+                "-CFLAGS", "-fPIC", "-MAKEFLAGS", BUILD_OPTIMISATION["design"],
+                "-LDFLAGS", "-shared", "--x-assign", "fast", "--x-initial", "fast",
+                "--noassert", *(["--trace"] if self.trace else [])])
+        if not converted:
             # the design was never elaborated (the cache had it): its blocks would each warn,
             # when collected, that they were "created but never used"
             _mark_used(design)
@@ -307,35 +310,6 @@ class CompiledDesign:
         if self.trace:
             lib.sim_trace.argtypes = [ctypes.c_void_p, ctypes.c_char_p, ctypes.c_uint64]
         return lib
-
-    def _compile(self, text, cxx, top, folder):
-        """Verilator and g++: ``text`` (the design's Verilog, module ``top``) with ``cxx`` (its
-        C API) into ``folder``/design.so."""
-        if sys.stderr.isatty():
-            print(f"mpu9250-ahrs: compiling the {self.name} with Verilator (5 to 20 s, "
-                  f"once: cached in {folder.parent}) ...", file=sys.stderr, flush=True)
-        start = time.perf_counter()
-        folder.parent.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryDirectory(dir=folder.parent) as tmp:
-            tmp = Path(tmp)
-            (tmp / f"{top}.v").write_text(text)
-            (tmp / "api.cpp").write_text(cxx)
-            obj = tmp / "obj"
-            # an "executable" linked as a shared object: Verilator builds its runtime
-            # with the design and our C API (api.cpp), all position-independent
-            cmd = ["verilator", "--cc", "--exe", "--build", "-O3", "-Wno-fatal",
-                   "-Wno-lint", "-Wno-style", "--top-module", top,
-                   "-CFLAGS", "-fPIC", "-MAKEFLAGS", BUILD_OPTIMISATION["design"],
-                   "-LDFLAGS", "-shared", "--x-assign", "fast",
-                   "--x-initial", "fast", "--noassert", "--Mdir", str(obj),
-                   "-o", "design.so", f"{top}.v", "api.cpp",
-                   *(["--trace"] if self.trace else [])]
-            result = subprocess.run(cmd, cwd=tmp, capture_output=True, text=True)
-            if result.returncode:
-                raise RuntimeError(f"verilator failed to build the {self.name}:\n"
-                                   + (result.stderr or result.stdout)[-3000:])
-            publish(obj / "design.so", folder)
-        self.build_s = time.perf_counter() - start
 
     def close(self):
         if self._handle is not None:
@@ -385,13 +359,17 @@ class CompiledDesign:
             bits |= 1 << k
         return bits
 
-    def trace_to(self, path, clk_freq):
+    def trace_to(self, path, clk_freq, gtkw=None, shown=()):
         """Dump every signal from now on into the VCD file ``path`` (a design built with
         ``trace``), the clock at ``clk_freq``; the file is complete once the design is closed.
-        Its scope ``TOP`` holds the ports by their names (``write_gtkw`` lays some out)."""
+        Its scope ``TOP`` holds the ports by their names. ``gtkw``: a GTKWave save file to
+        write, with the ports ``shown`` ((name, label) each) laid out."""
         if not self.trace:
             raise ValueError("this design was built without trace=True")
         self._lib.sim_trace(self._handle, str(path).encode(), max(1, round(0.5e12 / clk_freq)))
+        if gtkw is not None:
+            widths = {**self._in_width, **self._out_width}
+            _write_gtkw(gtkw, path, [(name, widths[name], label) for name, label in shown])
 
     def run(self, until, mask=0):
         """Clock edges until a watched output (``mask``) changes at one, or the edge count is

@@ -223,6 +223,38 @@ def publish(built, folder):
             raise
 
 
+def verilator_build(folder, output, sources, *, top, what, options=()):
+    """``folder``/``output`` built by Verilator and g++ unless the cache has it, one process
+    at a time (``build_lock``: another waits for the build and takes it). ``sources``: file
+    name: its text, or a callable giving it (asked only when a build is needed), in the order
+    Verilator takes them; ``top``: the top module; ``options``: Verilator's, beside the
+    common ones. Returns the seconds spent building (0 when the cache had it)."""
+    target = folder / output
+    if target.exists():
+        return 0.0
+    with build_lock(folder):
+        if target.exists():
+            return 0.0
+        if sys.stderr.isatty():
+            # a one-time wait worth a word (the build is cached afterwards)
+            print(f"mpu9250-ahrs: compiling the {what} with Verilator (seconds, once: cached "
+                  f"in {folder.parent}) ...", file=sys.stderr, flush=True)
+        start = time.perf_counter()
+        with tempfile.TemporaryDirectory(dir=folder.parent) as tmp:
+            tmp = Path(tmp)
+            for name, text in sources.items():
+                (tmp / name).write_text(text() if callable(text) else text)
+            cmd = ["verilator", "--cc", "--exe", "--build", "-O3", "-Wno-fatal", "-Wno-lint",
+                   "-Wno-style", "--top-module", top, *options, "--Mdir", str(tmp / "obj"),
+                   "-o", output, *sources]
+            result = subprocess.run(cmd, cwd=tmp, capture_output=True, text=True)
+            if result.returncode:
+                raise RuntimeError(f"verilator failed to build the {what}:\n"
+                                   + (result.stderr or result.stdout)[-3000:])
+            publish(tmp / "obj" / output, folder)
+        return time.perf_counter() - start
+
+
 class CompiledEngine:
     """One engine design (``make_engine()`` returns a fresh ``AttitudeEngine``) as a compiled
     Verilator model; ``build()`` is implicit in ``run``."""
@@ -248,35 +280,12 @@ class CompiledEngine:
                                         BUILD_OPTIMISATION["engine"])).encode()
                              ).hexdigest()[:20]
         folder = _cache_root() / f"engine-{key}"
-        binary = folder / "engine_sim"
-        with build_lock(folder):
-            if not binary.exists():
-                self._build(text, folder)
-        self.binary = binary
-        return binary
-
-    def _build(self, text, folder):
-        if sys.stderr.isatty():
-            # a one-time wait worth a word (the binary is cached afterwards)
-            print("mpu9250-ahrs: building the engine with Verilator (about 15 s, once: "
-                  f"cached in {folder.parent}) ...", file=sys.stderr, flush=True)
-        start = time.perf_counter()
-        folder.parent.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryDirectory(dir=folder.parent) as tmp:
-            tmp = Path(tmp)
-            (tmp / "engine_harness.v").write_text(text)
-            (tmp / "driver.cpp").write_text(_DRIVER)
-            cmd = ["verilator", "--cc", "--exe", "--build", "-O3", "-Wno-fatal",
-                   "-Wno-lint", "-Wno-style", "--top-module", "engine_harness",
-                   "-MAKEFLAGS", BUILD_OPTIMISATION["engine"],
-                   "--Mdir", str(tmp / "obj"), "-o", "engine_sim",
-                   "engine_harness.v", "driver.cpp"]
-            result = subprocess.run(cmd, cwd=tmp, capture_output=True, text=True)
-            if result.returncode:
-                raise RuntimeError("verilator failed to build the engine:\n"
-                                   + (result.stderr or result.stdout)[-3000:])
-            publish(tmp / "obj" / "engine_sim", folder)
-        self.build_s = time.perf_counter() - start
+        self.build_s = verilator_build(
+            folder, "engine_sim", {"engine_harness.v": text, "driver.cpp": _DRIVER},
+            top="engine_harness", what="engine",
+            options=["-MAKEFLAGS", BUILD_OPTIMISATION["engine"]])
+        self.binary = folder / "engine_sim"
+        return self.binary
 
     def run(self, gyro, accel, mag_ak, mag_valid=None, *, asa=(128, 128, 128), writes=None,
             counter=None, overrun=None):

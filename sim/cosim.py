@@ -29,8 +29,8 @@ from ..host.protocol import to_python
 
 
 __all__ = ["CosimHarness", "PinModels", "attach_models", "attach_mpu9250", "attach_stuck_miso", "SimSetup",
-           "CosimResult", "run_frontend", "CoreRun", "run_core", "simulator_name",
-           "sample_matches", "expected_mag", "model_reference", "sample_read_cycles"]
+           "CosimResult", "run_frontend", "CoreRun", "run_core", "simulator_name", "gtkw_beside",
+           "sample_matches", "expected_mag", "sample_read_cycles"]
 
 
 class CosimHarness(Monitored):
@@ -331,22 +331,6 @@ def sample_matches(design_sample, model_sample):
             tuple(design_sample["gyro"]) == model_sample.gyro)
 
 
-def model_reference(model, n, asa, *, config, flagship, select, magnetometer=True):
-    """The fixed-point engine (``reference.fixed_point.attitude_fixed``, set up with
-    ``config``, ``flagship`` and filter ``select``) over the first ``n`` samples the model was
-    read for, with the AK8963's bytes from the same bursts (``expected_mag``): what the engine
-    must produce for each, whether or not its result was framed. (AttitudeFixed, the
-    ``SensorSample``s read.)"""
-    from ..reference.fixed_point import attitude_fixed
-    reads = [model.samples[k] for k in model.sample_reads[:n]]
-    mags = [expected_mag(model.ext_reads[i], magnetometer,
-                         model.ext_reads[i - 1] if i else None) for i in range(n)]
-    return attitude_fixed([s.gyro for s in reads], [s.accel for s in reads],
-                          [m for m, _ in mags], [f["mag_valid"] for _, f in mags],
-                          asa=asa or (128, 128, 128), config=config, flagship=flagship,
-                          select=select), reads
-
-
 def expected_mag(ak_bytes, mag_ok=True, previous=None):
     """Magnetometer fields and flags a sample must carry, from the AK8963 bytes ST1..ST2 the
     sensor read returned and those of the read before (``previous``: None if there was none),
@@ -363,6 +347,11 @@ def expected_mag(ak_bytes, mag_ok=True, previous=None):
     hofl = bool(st2 & A.ST2_HOFL)
     return mag, {"mag_valid": int(new and not hofl), "mag_overflow": int(new and hofl),
                  "mag_new": int(new), "mag_dor": int(new and bool(st1 & A.ST1_DOR))}
+
+
+def gtkw_beside(vcd):
+    """The GTKWave save file written beside the VCD ``vcd`` (its name, ``.gtkw``)."""
+    return str(vcd).rsplit(".", 1)[0] + ".gtkw"
 
 
 def simulator_name(compiled):
@@ -462,8 +451,9 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
         key=("frontend", setup.clk_freq, setup.config, setup.driver_timing())))
     compiled = design is not None
     if compiled and vcd:
-        from .compiled_board import trace
-        trace(design, vcd, setup.clk_freq, ["spi" if bus is None else "i2c", "frontend"])
+        from .compiled_board import TRACES
+        design.trace_to(vcd, setup.clk_freq, gtkw_beside(vcd),
+                        TRACES["spi" if bus is None else "i2c"] + TRACES["frontend"])
     sim = None
     if not compiled:
         sim = Simulator(harness)
@@ -557,7 +547,7 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
         if vcd:
             design.close()                  # the VCD complete
     elif vcd:
-        gtkw = str(vcd).rsplit(".", 1)[0] + ".gtkw"
+        gtkw = gtkw_beside(vcd)
         if bus is None:
             traces = [dut.pins.cs_n, dut.pins.sclk, dut.pins.copi, dut.pins.cipo]
         else:
@@ -660,8 +650,8 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
                      timing=setup.driver_timing(), baud=baud, **(core_kwargs or {}))))
     compiled = design is not None
     if compiled and vcd:
-        from .compiled_board import trace
-        trace(design, vcd, setup.clk_freq, ["spi", "core"])
+        from .compiled_board import TRACES
+        design.trace_to(vcd, setup.clk_freq, gtkw_beside(vcd), TRACES["spi"] + TRACES["core"])
     received = bytearray()
     if not compiled:
         sim = Simulator(harness)
@@ -676,10 +666,12 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
     def more_wanted():
         out["frames"] += [f for _, _, f in decoder.feed(received)]
         received.clear()
-        if until is not None and until():
-            return False
-        return (until is not None and n_results is None and n_frames is None or
-                len(out["results"]) < (n_results or 0) or
+        if until is not None:
+            if until():
+                return False
+            if n_results is None and n_frames is None:
+                return True                 # no count: until() alone ends the run
+        return (len(out["results"]) < (n_results or 0) or
                 len(out["frames"]) < (n_frames or 0))
 
     async def testbench(ctx):
@@ -747,7 +739,7 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
         if vcd:
             design.close()                  # the VCD complete
     elif vcd:
-        with sim.write_vcd(str(vcd), str(vcd).rsplit(".", 1)[0] + ".gtkw",
+        with sim.write_vcd(str(vcd), gtkw_beside(vcd),
                            traces=[core.imu.cs_n, core.imu.sclk, core.imu.cipo, core.imu_int,
                                    results.valid, core.uart_tx]):
             sim.run()

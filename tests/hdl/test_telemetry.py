@@ -9,9 +9,9 @@ from amaranth.sim import Simulator
 from mpu9250_ahrs.hdl.frame_types import SYNC, SensorFrame
 from mpu9250_ahrs.hdl.telemetry import TelemetryFramer
 from mpu9250_ahrs.hdl.uart_tx import UARTTransmitter
+from mpu9250_ahrs.reference.fixed_point import attitude_fixed
 from mpu9250_ahrs.sim.attitude_bench import EngineRun, first_mismatch
 from mpu9250_ahrs.sim.cosim import SimSetup, sample_matches
-from mpu9250_ahrs.sim.cosim import model_reference as cosim_model_reference
 from mpu9250_ahrs.sim.cosim import run_core as cosim_run_core
 from mpu9250_ahrs.sim.streams import check_stream_rules, stream_put
 from mpu9250_ahrs.host.protocol import (FrameDecoder, FrameError, crc16, decode_frames,
@@ -135,9 +135,14 @@ def run_core(setup, n_frames, *, baud, max_cycles, vcd=None, writes=(), **core_k
 def model_reference(core, model, n, asa, select):
     """The fixed-point engine over the first ``n`` samples the model was read for (the AK8963's
     bytes from the same bursts), whether or not their results were sent."""
-    return cosim_model_reference(model, n, asa, config=core.engine.config,
-                                 flagship=core.engine.flagship, select=select,
-                                 magnetometer=core.config.magnetometer)
+    from mpu9250_ahrs.sim.cosim import expected_mag
+    reads = [model.samples[k] for k in model.sample_reads[:n]]
+    mags = [expected_mag(model.ext_reads[i], core.config.magnetometer,
+                         model.ext_reads[i - 1] if i else None) for i in range(n)]
+    return attitude_fixed([s.gyro for s in reads], [s.accel for s in reads],
+                          [m for m, _ in mags], [f["mag_valid"] for _, f in mags],
+                          asa=asa or (128, 128, 128), config=core.engine.config,
+                          flagship=core.engine.flagship, select=select), reads
 
 
 def test_core_end_to_end_over_uart(vcd):
