@@ -147,11 +147,15 @@ class SPIController(wiring.Component):
         margin), early enough that the bit has not yet changed; the bit is shifted in
         ``capture_delay`` = 2 + ``cipo_delay`` cycles after the rising edge.
 
-    Throughput: 8 bits take ``16 * half`` cycles, plus ``capture_delay`` cycles between bytes
-    (the controller waits for a byte's last bit before shifting the next one, which keeps the
-    receive path a plain shift register) and one cycle per byte hand-off.
-    Latency: a byte's result is offered 16·``half`` + 2 or 3 cycles after the byte is taken;
-    the first byte of a transaction adds the chip-select setup (``half``).
+    Throughput: 8 bits take ``16 * half`` cycles. Within a transaction the next byte's first
+    falling edge follows the last rising edge by ``half`` (SCLK runs without a pause) when that
+    byte is offered in time and every earlier result has been taken; the byte in flight is
+    still captured (its result held in the receive shift register until the one before it is
+    taken, so none is lost). Otherwise the controller waits for its byte's result to be
+    handed over, then for the next byte: ``capture_delay`` + 2 or more cycles between bytes.
+    Latency: a byte's result is offered 16·``half`` + ``capture_delay`` - ``half`` + 1 cycles
+    after its first falling edge; the first byte of a transaction adds the chip-select setup
+    (``half``).
     """
     def __init__(self, timing):
         self.timing = timing
@@ -186,8 +190,22 @@ class SPIController(wiring.Component):
         with m.If(strobe[-1]):
             m.d.sync += [rx.eq(Cat(cipo, rx[:-1])), rx_count.eq(rx_count + 1)]
 
+        # A received byte is handed over as soon as the output is free, whatever the state.
+        handover = (rx_count == 8) & ~self.o_stream.valid
+        with m.If(handover):
+            m.d.sync += [self.o_stream.payload.eq(rx), self.o_stream.valid.eq(1),
+                         rx_count.eq(0)]
         with m.If(self.o_stream.valid & self.o_stream.ready):
             m.d.sync += self.o_stream.valid.eq(0)
+
+        # Bytes whose last rising edge has gone out and whose result has not been taken yet.
+        # A byte may follow the one in flight without a pause only if this is at most 1 (the
+        # one in flight: results are taken in order, so every earlier one was): its result
+        # then finds the output free or holding only the one before it, so it waits in ``rx``
+        # at worst and the next byte's first capture cannot overwrite it.
+        owed = Signal(2)
+        clocked = Signal()      # the last bit's rising edge goes out this cycle
+        m.d.sync += owed.eq(owed + clocked - (self.o_stream.valid & self.o_stream.ready))
 
         def start_bit(value):
             m.d.sync += [self.pins.sclk.eq(0), self.pins.copi.eq(value[7]), timer.eq(half - 1)]
@@ -213,23 +231,30 @@ class SPIController(wiring.Component):
                 m.d.sync += timer.eq(timer - 1)
                 with m.If(timer == 0):
                     m.d.sync += [self.pins.sclk.eq(1), timer.eq(half - 1)]
-                    m.d.comb += rise.eq(1)
+                    m.d.comb += [rise.eq(1), clocked.eq(bit == 7)]
                     m.next = "HIGH"
             with m.State("HIGH"):
                 m.d.sync += timer.eq(timer - 1)
                 with m.If(timer == 0):
                     with m.If(bit == 7):
-                        m.next = "DRAIN"
+                        with m.If(~last & self.i_stream.valid & ~owed[1]):
+                            # the next byte at once: SCLK keeps its rhythm
+                            m.d.comb += self.i_stream.ready.eq(1)
+                            m.d.sync += [tx.eq(self.i_stream.payload.data), bit.eq(0),
+                                         last.eq(self.i_stream.payload.last)]
+                            start_bit(self.i_stream.payload.data)
+                            m.next = "LOW"
+                        with m.Else():
+                            m.next = "DRAIN"
                     with m.Else():
                         m.d.sync += [bit.eq(bit + 1), tx.eq(tx << 1)]
                         start_bit(tx << 1)
                         m.next = "LOW"
             with m.State("DRAIN"):
                 # Wait for the last bit through the capture delay line and for the previous
-                # byte to be taken, then hand this one over.
-                with m.If((rx_count == 8) & ~self.o_stream.valid):
-                    m.d.sync += [self.o_stream.payload.eq(rx), self.o_stream.valid.eq(1),
-                                 rx_count.eq(0)]
+                # byte to be taken: this byte is handed over (above) as this state ends, or
+                # already was (a capture delay shorter than the high level).
+                with m.If(handover | ((rx_count == 0) & (strobe == 0))):
                     with m.If(last):
                         m.d.sync += timer.eq(t.cs_hold - 1)
                         m.next = "HOLD"

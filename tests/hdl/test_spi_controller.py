@@ -140,6 +140,17 @@ def test_transfers(timing, length, vcd):
     assert min(lv["gap"]) >= timing.cs_gap
 
 
+@pytest.mark.parametrize("timing", TIMINGS, ids=lambda t: f"slow{t.slow_half}_fast{t.fast_half}")
+def test_a_burst_clocks_without_a_pause(timing):
+    """Bytes offered in time and results taken at once: SCLK keeps its rhythm across the
+    bytes of a transaction (every level ``half``), so a burst takes 16·``half`` cycles a byte."""
+    dev, got = run(timing, [(bytes(range(1, 17)), 1), (bytes(range(1, 5)), 0)])
+    assert got == [response_byte(i) for i in range(20)]
+    lv = levels(dev["events"])
+    assert set(lv["high"]) == set(lv["low"]) == {timing.fast_half, timing.slow_half}
+    assert lv["high"].count(timing.fast_half) == 16 * 8 - 1
+
+
 @pytest.mark.parametrize("timing", TIMINGS[:2], ids=lambda t: f"slow{t.slow_half}")
 def test_consumer_backpressure(timing):
     transactions = [(bytes(range(1, 9)), 1)]
@@ -206,3 +217,20 @@ def test_cipo_sampling_point_against_the_output_delay(sdo_delay_ns, reads_right)
         assert len(matches) == 2 and all(matches)
     else:
         assert not any(matches) and result.status["bad_burst"]
+
+
+def test_the_sample_burst_runs_without_a_pause():
+    """Issue #23 (latency): at the default 48 MHz the whole sample burst (INT_STATUS to the
+    AK8963's ST2, ``SAMPLE_BYTES`` + 1 bytes) is clocked without a pause between its bytes: CS
+    low for the CS setup, 16 levels a byte, and the CS hold; and within
+    ``sample_read_cycles``' bound, which ``build`` and ``report`` use for the rate check."""
+    from mpu9250_ahrs.hdl.mpu9250_driver import MPU9250Config
+    from mpu9250_ahrs.hdl.sample_reader import SAMPLE_BYTES
+    from mpu9250_ahrs.hdl.sensor_frontend import sample_read_cycles as bound
+    from mpu9250_ahrs.sim.cosim import SimSetup, run_frontend, sample_read_cycles
+    setup = SimSetup(config=MPU9250Config(), odr_scale=0.1)
+    t = SPITiming.for_clock(setup.clk_freq)
+    result = run_frontend(setup, n_samples=2)
+    gap_free = t.fast_half + (SAMPLE_BYTES + 1) * 16 * t.fast_half + t.cs_hold
+    assert gap_free <= sample_read_cycles(result, setup) <= gap_free + 2
+    assert sample_read_cycles(result, setup) < bound(setup.config, setup.clk_freq)
