@@ -11,9 +11,10 @@ the tests and ``python -m mpu9250_ahrs simulate`` use.
 import math
 import time
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 from typing import List, Optional
 
-from amaranth import Elaboratable, Signal
+from amaranth import Elaboratable, Signal, Value
 from amaranth.sim import Simulator
 
 from ..hdl.clocking import SYSTEM_CLOCK_HZ
@@ -354,6 +355,46 @@ def gtkw_beside(vcd):
     return str(vcd).rsplit(".", 1)[0] + ".gtkw"
 
 
+# The width of GTKWave's wave area the save file's zoom is set for, pixels.
+GTKW_WIDTH_PX = 1000
+
+
+def gtkw_window(gtkw, window_s, timescale_s):
+    """Make the GTKWave save file ``gtkw`` open on ``window_s`` = (start, end), seconds of
+    simulated time (a VCD whose time unit is ``timescale_s``), about ``GTKW_WIDTH_PX`` pixels
+    wide: ``[timestart]`` and the zoom line. GTKWave shows ``2**-zoom`` time units per 200
+    pixels (its zoom base, 2 unless changed in its settings)."""
+    start, end = window_s
+    span = max(end - start, 1e-9) / timescale_s
+    zoom = -math.log2(span * 200 / GTKW_WIDTH_PX)
+    lines = [line for line in Path(gtkw).read_text().splitlines()
+             if not line.startswith(("[timestart]", "*"))]
+    at = max(i for i, line in enumerate(lines) if line.startswith("[dumpfile")) + 1
+    lines[at:at] = [f"[timestart] {max(0, round(start / timescale_s))}",
+                    f"*{zoom:.6f} -1" + " -1" * 26]
+    Path(gtkw).write_text("\n".join(lines) + "\n")
+
+
+def first_transaction_window(model, bus, margin=0.25):
+    """(start, end) of the first sensor transaction, seconds, widened by ``margin`` of its
+    length either side: the SPI model's first chip select, or the I2C bus's first START to
+    STOP. None if there was none."""
+    spans = bus.frames if bus is not None else (model.transactions if model else [])
+    if not spans:
+        return None
+    start, end = spans[0][0], spans[0][1]
+    pad = (end - start) * margin
+    return start - pad, end + pad
+
+
+def open_on_first_transaction(vcd, model, bus, *, compiled):
+    """The save file beside ``vcd`` opens on the first sensor transaction (the compiled
+    path's VCD counts picoseconds, Amaranth's femtoseconds)."""
+    window = first_transaction_window(model, bus)
+    if window is not None:
+        gtkw_window(gtkw_beside(vcd), window, 1e-12 if compiled else 1e-15)
+
+
 def simulator_name(compiled):
     """Which simulator ran, as summaries say it."""
     return "compiled (Verilator)" if compiled else "python (Amaranth)"
@@ -552,11 +593,14 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
             traces = [dut.pins.cs_n, dut.pins.sclk, dut.pins.copi, dut.pins.cipo]
         else:
             traces = [harness.scl, harness.sda, dut.pins.scl_oe, dut.pins.sda_oe]
-        traces += [dut.int_pin, dut.samples.valid, dut.status]
+        # the status as a plain value: Amaranth would put a View's rows in a group "view"
+        traces += [dut.int_pin, dut.samples.valid, Value.cast(dut.status)]
         with sim.write_vcd(str(vcd), gtkw, traces=traces):
             sim.run()
     else:
         sim.run()
+    if vcd:
+        open_on_first_transaction(vcd, model, bus, compiled=compiled)
     wall = time.perf_counter() - start
     return CosimResult(out["samples"], out["status"], out["cycles"], out["bring_up"], wall,
                        model, bus, out["log"], out["asa"], out["sample_cycles"],
@@ -745,6 +789,8 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
             sim.run()
     else:
         sim.run()
+    if vcd:
+        open_on_first_transaction(vcd, model, None, compiled=compiled)
     wall = time.perf_counter() - start
     more_wanted()                       # the bytes that came after the last look
     cycles, counters, status, asa = out["end"]

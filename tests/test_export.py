@@ -132,6 +132,19 @@ def test_simulate_command(tmp_path, capsys):
     traced = re.findall(r"^(?:\+\{[^}]*\} )?([\w.]+)", gtkw.split("@22", 1)[1], re.M)
     assert traced and all(re.search(rf"\$var \w+ +\d+ \S+ {re.escape(t.rsplit('.', 1)[1])}"
                                     rf"(?: \[[\d:]+\])? \$end", header) for t in traced)
+    # it opens on the first sensor transaction (chip select low to high) at a readable scale:
+    # from [timestart], 2**-zoom time units per 200 pixels of a 1000-pixel wave area
+    from mpu9250_ahrs.sim.cosim import GTKW_WIDTH_PX
+    start = int(re.search(r"^\[timestart\] (\d+)$", gtkw, re.M).group(1))
+    zoom = float(re.search(r"^\*(-?[\d.]+) ", gtkw, re.M).group(1))
+    end = start + 2 ** -zoom * GTKW_WIDTH_PX / 200
+    unit = {"1ps": 1e-12, "1 fs": 1e-15}[re.search(r"\$timescale\s*(.*?)\s*\$end",
+                                                  header).group(1)]
+    cs = re.search(r"\$var \w+ +1 (\S+) (?:pin_a|pins__cs_n) \$end", header).group(1)
+    body = text[len(header):]
+    edges = [m.start() for m in re.finditer(rf"^[01]{re.escape(cs)}$", body, re.M)][1:3]
+    fall, rise = (int(re.findall(r"^#(\d+)$", body[:at], re.M)[-1]) for at in edges)
+    assert start < fall < rise < end and (end - start) * unit < 100e-6
 
 
 def test_simulate_i2c_wiring(capsys):
