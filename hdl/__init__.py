@@ -11,7 +11,8 @@ microcode ``attitude_program`` / ``flagship_microcode``. Link: ``telemetry_sched
 ``platform`` (the MAX10), ``ulx3s`` (the open ECP5 flow), ``clocking``.
 Layouts: ``sample``, ``driver_status``, ``attitude_result``, ``config_write``, ``frame_types``;
 the numeric contract with ``reference/``: ``numeric_contract``; register maps:
-``mpu9250_regs``, ``ak8963_regs``.
+``mpu9250_regs``, ``ak8963_regs``; defaults the command line shares (the baud rate):
+``defaults``.
 
 Nothing here imports ``sim/`` or ``reference/`` (``tests/test_imports.py``).
 """

@@ -4,7 +4,7 @@ A microcoded sequencer (program and register map in ``hdl/attitude_program.py``,
 routine in ``hdl/flagship_microcode.py``, instruction set in ``hdl/attitude_isa.py``) drives one
 datapath: a 32×32 multiplier with a 66-bit accumulator (rounding and saturation on write-back),
 a saturating/wrapping adder, an iterative CORDIC (``hdl/cordic.py``) and a divider
-(``hdl/divider.py``). Results equal ``reference.fixed_point.EngineModel`` bit for bit. Three
+(``hdl/divider.py``). Results equal ``reference.engine_model.EngineModel`` bit for bit. Three
 filters, selected at run time: the flagship quaternion filter (the reset default), the per-axis
 Kalman filter and the complementary filter.
 
@@ -83,7 +83,7 @@ class AttitudeEngine(wiring.Component):
     Members
         ``samples`` (in, stream of ``Sample``): one update per sample. Taken when the engine is
             idle and the previous result has been taken; the sample is read from the payload while
-            it is loaded (12 cycles), then acknowledged.
+            it is loaded (one cycle per ``LOAD_ORDER`` word: 13), then acknowledged.
         ``asa`` (in, 3 × 8 bits): the AK8963's fuse-ROM sensitivity bytes (from the driver).
         ``cfg`` (in, stream of ``ConfigWrite``): register writes (``attitude_program`` has the
             map); accepted while the engine is idle. Only ``HOST_WRITABLE`` addresses are written:

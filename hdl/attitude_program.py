@@ -2,7 +2,7 @@
 filter (``hdl/flagship_microcode.py``), the per-axis Kalman filter, the complementary filter,
 and the result quaternion (or angles) each of them reports.
 
-The microcode computes exactly ``reference.fixed_point.EngineModel`` (formats in
+The microcode computes exactly ``reference.engine_model.EngineModel`` (formats in
 ``reference/FIXED_POINT.md``); it is written from those formulas, step by step, and the tests
 compare the gateware with the reference sample by sample.
 
@@ -83,7 +83,7 @@ CONTROL_ADDR = REG_COUNT - 1
 
 @dataclass(frozen=True)
 class FilterRoutine:
-    """One filter of the engine: its ``name`` (``reference.fixed_point.EngineModel`` steps the
+    """One filter of the engine: its ``name`` (``reference.engine_model.EngineModel`` steps the
     filter of the same name), its ``code`` (CONTROL bits 1:0 and ``AttitudeFlags.filter``) and
     ``emit(asm, regs)``, which writes its microcode from the calibrated sample (G, A, M, the
     zero tests ACC_OK and MAG_OK) to QOUT, THETA and BIAS, ending in END or a branch to the
@@ -455,7 +455,7 @@ def _flagship(asm, r):
 
 # The filters, in ROM order: the first one is reached by falling through the dispatch. A new
 # filter is one entry here, its routine, its run-time registers in CONFIG_REGS and its step in
-# ``reference.fixed_point.EngineModel``.
+# ``reference.engine_model.EngineModel``.
 FILTERS = (FilterRoutine("kalman", 0, _kalman),
            FilterRoutine("complementary", 1, _complementary),
            FilterRoutine("flagship", 2, _flagship))

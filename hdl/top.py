@@ -1,17 +1,16 @@
 """Top levels.
 
 ``AHRSCore`` is everything that is not a pin buffer: the sensor front end, the attitude engine
-(calibration and filters, ``attitude=True``), and the telemetry framer with its UART. It is what
+(calibration and filters), and the telemetry framer with its UART. It is what
 ``build --verilog-only`` exports and what simulations of the whole design drive. Ports:
 ``imu`` (SPI pins, or I2C pins with ``config.wiring == "i2c"``), ``imu_int``, ``uart_tx``,
-``status``, ``asa``, ``samples_seen`` (counts samples, for a heartbeat LED), and with the
-engine ``cfg`` (register writes to the engine, before the command channel's; tie ``valid``
-low on a board) and ``cfg_read`` / ``cfg_read_data`` (read-back), ``uart_rx`` (the command
+``status``, ``asa``, ``samples_seen`` (counts samples, for a heartbeat LED), ``cfg``
+(register writes to the engine, before the command channel's; tie ``valid`` low on a board) and ``cfg_read`` / ``cfg_read_data`` (read-back), ``uart_rx`` (the command
 channel, ``hdl/FRAMES.md``) and ``pwm`` (four PWM outputs, ``hdl/pwm.py``).
 
-Telemetry: with the engine, an ``AttitudeFrame`` (type 0x02: the result, the raw sample it
-came from, the driver status latched with it, the counters) for every ``TELEMETRY_DIV``-th
-result, while every sample is filtered; without it, one ``SensorFrame`` (0x01) per sample.
+Telemetry: an ``AttitudeFrame`` (type 0x02: the result, the raw sample it came from, the
+driver status latched with it, the counters) for every ``TELEMETRY_DIV``-th result, while every
+sample is filtered; in raw-sample mode (a host command) a ``SensorFrame`` (0x01) instead.
 The engine's filters are set up for the sensor configuration: T = 1/ODR, gyro LSB per °/s
 from the full scale, the published Q, R, P₀ converted from physical units at that rate
 (``FilterRates``). ``rate_budget`` says what the design sustains at a clock; ``build`` and
@@ -65,6 +64,7 @@ from .frame_types import (CRC, AttitudeFrame, Reply, SensorFrame, TelemetryCount
 from .telemetry import TelemetryFramer
 from .telemetry_scheduler import TelemetryScheduler
 from .uart_rx import UARTReceiver
+from .defaults import DEFAULT_BAUD
 from .uart_tx import UARTTransmitter
 
 
@@ -94,7 +94,7 @@ def telemetry_divider_for(config, baud, divider=None):
     return divider
 
 
-def rate_budget(config, clk_freq, baud=921_600, telemetry_divider=None):
+def rate_budget(config, clk_freq, baud=DEFAULT_BAUD, telemetry_divider=None):
     """What the design sustains for ``config`` at ``clk_freq`` (a dict): ``read_cycles`` (a
     sample's read, ``sample_read_cycles``), ``update_cycles`` (the engine's worst update,
     ``WORST_UPDATE_CYCLES``), ``cycles_per_sample`` (the larger: the driver reads the next
@@ -154,7 +154,7 @@ class AHRSCore(wiring.Component):
     its frame's turn on the UART.
     """
     def __init__(self, *, clk_freq=SYSTEM_CLOCK_HZ, config=MPU9250Config(),
-                 timing=DriverTiming(), baud=921_600, attitude=True, filter_config=None,
+                 timing=DriverTiming(), baud=DEFAULT_BAUD, filter_config=None,
                  calibration=None, flagship_config=None, filter="flagship",
                  telemetry_divider=None, command_timeout_s=0.005, commands=True, pwm=None):
         if pwm is None:
@@ -162,48 +162,41 @@ class AHRSCore(wiring.Component):
         if pwm and not commands:
             raise ValueError("the PWM outputs are set through the command channel: "
                              "pwm=True needs commands=True")
-        self.commands = commands and attitude
+        self.commands = commands
         self.has_pwm = pwm and self.commands
         self.clk_freq = clk_freq
         self.config = config
-        self.attitude = attitude
         self.baud = baud
         # checked before any component exists, so that a bad value is one clear error
-        if attitude:
-            telemetry_divider = telemetry_divider_for(config, baud, telemetry_divider)
+        telemetry_divider = telemetry_divider_for(config, baud, telemetry_divider)
         self.frontend = SensorFrontEnd(clk_freq=clk_freq, config=config, timing=timing)
-        if attitude:
-            if filter_config is None:
-                filter_config = default_filter_config(config)
-            if flagship_config is None:
-                flagship_config = default_flagship_config(config)
-            self.framer = TelemetryFramer(AttitudeFrame, ATTITUDE, buffered=True,
-                                          short=(SENSOR, SensorFrame))
-            self.telemetry_divider = telemetry_divider
-            self.engine = AttitudeEngine(filter_config, calibration, flagship_config,
-                                         filter=filter,
-                                         extra_registers={"TELEMETRY_DIV": telemetry_divider})
-            self.scheduler = TelemetryScheduler()
-            # the build's options in the version word only when they leave something out,
-            # so that the default build's word is as before
-            left_out = {k: False for k, on in (("commands", self.commands),
-                                               ("pwm", self.has_pwm)) if not on}
-            self.version = version_word(clk_freq=clk_freq, baud=baud, config=repr(config),
-                                        filter=filter, **left_out)
-            if self.commands:
-                self.receiver = UARTReceiver(divisor=UARTTransmitter.divisor_for(clk_freq, baud))
-                self.decoder = CommandDecoder(writable=HOST_WRITABLE, version=self.version,
-                                              timeout=cycles(command_timeout_s, clk_freq))
-                self.reply_framer = TelemetryFramer(Reply, REPLY)
-                self.arbiter = FrameArbiter(2)             # replies first, then telemetry
-            else:
-                self.arbiter = FrameArbiter(1)
-            if self.has_pwm:
-                self.pwm_block = PWMOutputs(clk_freq=clk_freq)
+        if filter_config is None:
+            filter_config = default_filter_config(config)
+        if flagship_config is None:
+            flagship_config = default_flagship_config(config)
+        self.framer = TelemetryFramer(AttitudeFrame, ATTITUDE, buffered=True,
+                                      short=(SENSOR, SensorFrame))
+        self.telemetry_divider = telemetry_divider
+        self.engine = AttitudeEngine(filter_config, calibration, flagship_config,
+                                     filter=filter,
+                                     extra_registers={"TELEMETRY_DIV": telemetry_divider})
+        self.scheduler = TelemetryScheduler()
+        # the build's options in the version word only when they leave something out,
+        # so that the default build's word is as before
+        left_out = {k: False for k, on in (("commands", self.commands),
+                                           ("pwm", self.has_pwm)) if not on}
+        self.version = version_word(clk_freq=clk_freq, baud=baud, config=repr(config),
+                                    filter=filter, **left_out)
+        if self.commands:
+            self.receiver = UARTReceiver(divisor=UARTTransmitter.divisor_for(clk_freq, baud))
+            self.decoder = CommandDecoder(writable=HOST_WRITABLE, version=self.version,
+                                          timeout=cycles(command_timeout_s, clk_freq))
+            self.reply_framer = TelemetryFramer(Reply, REPLY)
+            self.arbiter = FrameArbiter(2)             # replies first, then telemetry
         else:
-            self.framer = TelemetryFramer()
-            self.telemetry_divider = 1
             self.arbiter = FrameArbiter(1)
+        if self.has_pwm:
+            self.pwm_block = PWMOutputs(clk_freq=clk_freq)
         self.uart = UARTTransmitter.for_baud(clk_freq, baud)
         ports = {
             "imu": Out(SPIPinsSignature() if config.wiring == "spi" else I2CPinsSignature()),
@@ -212,13 +205,12 @@ class AHRSCore(wiring.Component):
             "status": Out(DriverStatus),
             "asa": Out(data.ArrayLayout(8, 3)),
             "samples_seen": Out(8),
+            "cfg": In(stream.Signature(ConfigWrite)),
+            "cfg_read": In(stream.Signature(REG_BITS)),
+            "cfg_read_data": Out(stream.Signature(signed(32))),
+            "counters": Out(TelemetryCounters),
+            "cfg_refused": Out(16),
         }
-        if attitude:
-            ports["cfg"] = In(stream.Signature(ConfigWrite))
-            ports["cfg_read"] = In(stream.Signature(REG_BITS))
-            ports["cfg_read_data"] = Out(stream.Signature(signed(32)))
-            ports["counters"] = Out(TelemetryCounters)
-            ports["cfg_refused"] = Out(16)
         if self.commands:
             ports["uart_rx"] = In(1, init=1)
             ports["command_stats"] = Out(CommandStats)
@@ -238,49 +230,39 @@ class AHRSCore(wiring.Component):
         m.d.comb += [fe.int_pin.eq(self.imu_int), self.status.eq(fe.status),
                      self.asa.eq(fe.asa), self.uart_tx.eq(uart.tx)]
 
-        if self.attitude:
-            # Sample -> engine -> scheduler (every result taken; every n-th framed) -> UART.
-            # The engine takes a sample only when its previous result is out, and the scheduler
-            # takes results at once, so one held copy of the sample (and of the status read
-            # with it) belongs to the result the scheduler sees.
-            m.submodules.engine = engine = self.engine
-            m.submodules.scheduler = sched = self.scheduler
-            connect(m, fe.samples, engine.samples)
-            connect(m, engine.results, sched.results)
-            connect(m, sched.frames, framer.i_stream)
-            held = Signal(Sample, reset_less=True)
-            held_status = Signal(DriverStatus, reset_less=True)
-            with m.If(fe.samples.valid & fe.samples.ready):
-                m.d.sync += [held.eq(fe.samples.payload), held_status.eq(fe.status)]
+        # Sample -> engine -> scheduler (every result taken; every n-th framed) -> UART.
+        # The engine takes a sample only when its previous result is out, and the scheduler
+        # takes results at once, so one held copy of the sample (and of the status read
+        # with it) belongs to the result the scheduler sees.
+        m.submodules.engine = engine = self.engine
+        m.submodules.scheduler = sched = self.scheduler
+        connect(m, fe.samples, engine.samples)
+        connect(m, engine.results, sched.results)
+        connect(m, sched.frames, framer.i_stream)
+        held = Signal(Sample, reset_less=True)
+        held_status = Signal(DriverStatus, reset_less=True)
+        with m.If(fe.samples.valid & fe.samples.ready):
+            m.d.sync += [held.eq(fe.samples.payload), held_status.eq(fe.status)]
 
-            if self.commands:
-                self._command_channel(m, engine, framer, arbiter, fe)
-            else:
-                connect(m, flipped(self.cfg), engine.cfg)
-                connect(m, flipped(self.cfg_read), engine.cfg_read)
-                connect(m, engine.cfg_read_data, flipped(self.cfg_read_data))
-                connect(m, framer.o_stream, arbiter.i0)
-            # the divider register: the engine keeps its copy for read-back
-            divider = Signal(16, init=self.telemetry_divider)
-            with m.If(engine.cfg.valid & engine.cfg.ready &
-                      (engine.cfg.payload.addr == TELEMETRY_DIV_ADDR)):
-                m.d.sync += divider.eq(engine.cfg.payload.data[:16])
-            m.d.comb += [
-                engine.asa.eq(fe.asa),
-                sched.sample.eq(held), sched.status.eq(held_status),
-                sched.divider.eq(divider), self.counters.eq(sched.counters),
-                sched.cfg_refused.eq(engine.cfg_refused), self.cfg_refused.eq(engine.cfg_refused),
-                sched.framer_idle.eq(framer.idle),
-            ]
+        if self.commands:
+            self._command_channel(m, engine, framer, arbiter, fe)
         else:
-            # Sample stream -> frame (sample + status at the moment it was taken) -> UART.
-            m.d.comb += [
-                framer.i_stream.valid.eq(fe.samples.valid),
-                framer.i_stream.payload.sample.eq(fe.samples.payload),
-                framer.i_stream.payload.status.eq(fe.status),
-                fe.samples.ready.eq(framer.i_stream.ready),
-            ]
+            connect(m, flipped(self.cfg), engine.cfg)
+            connect(m, flipped(self.cfg_read), engine.cfg_read)
+            connect(m, engine.cfg_read_data, flipped(self.cfg_read_data))
             connect(m, framer.o_stream, arbiter.i0)
+        # the divider register: the engine keeps its copy for read-back
+        divider = Signal(16, init=self.telemetry_divider)
+        with m.If(engine.cfg.valid & engine.cfg.ready &
+                  (engine.cfg.payload.addr == TELEMETRY_DIV_ADDR)):
+            m.d.sync += divider.eq(engine.cfg.payload.data[:16])
+        m.d.comb += [
+            engine.asa.eq(fe.asa),
+            sched.sample.eq(held), sched.status.eq(held_status),
+            sched.divider.eq(divider), self.counters.eq(sched.counters),
+            sched.cfg_refused.eq(engine.cfg_refused), self.cfg_refused.eq(engine.cfg_refused),
+            sched.framer_idle.eq(framer.idle),
+        ]
         m.d.comb += framer.seq.eq(arbiter.seq)
         connect(m, arbiter.o_stream, uart.i_stream)
         with m.If(fe.samples.valid & fe.samples.ready):

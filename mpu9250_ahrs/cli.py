@@ -7,6 +7,8 @@ import sys
 import time
 from pathlib import Path
 
+from .hdl.defaults import DEFAULT_BAUD
+
 
 VERBS_HELP = """verbs:
   build      write the Quartus project for the 10M08SCU169 (top.v, top.qsf, top.sdc, build
@@ -109,7 +111,7 @@ def check_rates(config, clk_freq, args, *, out=None):
     """Refuse (ValueError, one line) a sample rate the design cannot filter at ``clk_freq``;
     warn (one line on ``out``) when the telemetry cannot carry every result."""
     from .hdl.top import rate_budget
-    budget = rate_budget(config, clk_freq, getattr(args, "baud", 921_600),
+    budget = rate_budget(config, clk_freq, getattr(args, "baud", DEFAULT_BAUD),
                          _core_options(args).get("telemetry_divider"))
     if budget["sample_rate_hz"] > budget["max_sample_rate_hz"]:
         raise ValueError(
@@ -129,11 +131,18 @@ def check_rates(config, clk_freq, args, *, out=None):
     return budget
 
 
-def _add_sensor_options(p):
-    p.add_argument("--gyro-fs", type=int, default=2000, metavar="DPS",
-                   help="gyro full scale: 250, 500, 1000 or 2000 °/s (default 2000)")
+def _add_full_scale_options(p, *, gyro=True, whose=""):
+    """``--gyro-fs`` (unless ``gyro`` is False) and ``--accel-fs``: the one declaration of
+    the full scales every verb that needs them shares (``whose``: e.g. "the board's ")."""
+    if gyro:
+        p.add_argument("--gyro-fs", type=int, default=2000, metavar="DPS",
+                       help=f"{whose}gyro full scale: 250, 500, 1000 or 2000 °/s (default 2000)")
     p.add_argument("--accel-fs", type=int, default=16, metavar="G",
-                   help="accelerometer full scale: 2, 4, 8 or 16 g (default 16)")
+                   help=f"{whose}accelerometer full scale: 2, 4, 8 or 16 g (default 16)")
+
+
+def _add_sensor_options(p):
+    _add_full_scale_options(p)
     p.add_argument("--odr", type=_positive, default=None, metavar="HZ",
                    help="output data rate: 8000, or 1000/n for n = 1..256; sets DLPF_CFG and "
                         "SMPLRT_DIV (default 1000)")
@@ -142,7 +151,8 @@ def _add_sensor_options(p):
                    help="SMPLRT_DIV: rate = 1 kHz / (1 + div) (default 0)")
     p.add_argument("--clk-freq", type=_positive, default=None, metavar="HZ",
                    help="system clock (default 48e6: the board's PLL output)")
-    p.add_argument("--baud", type=_count, default=921_600, help="telemetry UART (921600)")
+    p.add_argument("--baud", type=_count, default=DEFAULT_BAUD,
+                   help=f"telemetry UART ({DEFAULT_BAUD})")
     p.add_argument("--euler-rates", action="store_true",
                    help="the per-axis filters predict with Euler-angle rates (register "
                         "EULER_RATES) instead of the published body rates")
@@ -319,7 +329,7 @@ def cmd_simulate(args):
                                    "sample_period": setup.odr_scale}})
     print(json.dumps(summary), file=sys.stderr if args.quiet_summary else sys.stdout)
     if args.vcd:
-        from .sim.cosim import gtkw_beside
+        from .sim.waveforms import gtkw_beside
         print(f"wrote {args.vcd} and {gtkw_beside(args.vcd)}")
     return 1 if violations else 0
 
@@ -617,10 +627,7 @@ def build_parser():
     p.add_argument("--fixed", action="store_true", help="the same as --engine fixed")
     p.add_argument("--out", help="write the estimated quaternions (t, w, x, y, z) as CSV")
     p.add_argument("--beta", type=_positive, default=None, help="Madgwick gain (default 0.1)")
-    p.add_argument("--gyro-fs", type=int, default=2000,
-                   help="gyro full scale: 250, 500, 1000 or 2000 °/s (2000)")
-    p.add_argument("--accel-fs", type=int, default=16,
-                   help="accelerometer full scale: 2, 4, 8 or 16 g (16)")
+    _add_full_scale_options(p, whose="the recording's ")
     p.set_defaults(func=cmd_replay)
 
     p = sub.add_parser("report", parents=[quiet], help="resources (Yosys) and cycles per update, as JSON",
@@ -653,7 +660,8 @@ def _add_port_options(p):
     p.add_argument("port", metavar="PORT",
                    help="serial device (/dev/ttyUSB0, COM3), or 'sim': the co-simulated design "
                         "behind a pseudo-terminal, started here")
-    p.add_argument("--baud", type=_count, default=921_600, help="the board's UART (921600)")
+    p.add_argument("--baud", type=_count, default=DEFAULT_BAUD,
+                   help=f"the board's UART ({DEFAULT_BAUD})")
     p.add_argument("--timeout", type=_positive, default=1.0, metavar="S",
                    help="seconds without a valid frame (or a reply) before giving up (1)")
 
@@ -692,8 +700,7 @@ def _add_host_verbs(sub, quiet):
     _add_port_options(p)
     p.add_argument("--out", default="calibration.json", metavar="FILE",
                    help="where to save the result (calibration.json)")
-    p.add_argument("--accel-fs", type=int, default=16, help="the board's accelerometer full "
-                   "scale in g (16)")
+    _add_full_scale_options(p, gyro=False, whose="the board's ")
     p.add_argument("--quick", action="store_true",
                    help="collect less and skip the read-back (for a simulated board; the "
                         "default with PORT=sim)")
@@ -721,9 +728,20 @@ def _add_host_verbs(sub, quiet):
     p.set_defaults(func=cmd_plot)
 
 
-def _open(args, **kwargs):
+def _open(args):
+    """The link of a host verb: ``--port sim`` starts a simulated board here and hands it to
+    the link (which stops it on close)."""
     from .host.link import open_link
-    return open_link(args.port, args.baud, timeout=args.timeout, **kwargs)
+    board = None
+    if args.port == "sim":
+        from .sim.board import SimulatedBoard
+        board = SimulatedBoard().start()
+    try:
+        return open_link(args.port, args.baud, timeout=args.timeout, board=board)
+    except Exception:
+        if board is not None:
+            board.stop()
+        raise
 
 
 def _progress(what, k, n):

@@ -57,8 +57,8 @@ def engine_configs(name, dt, *, gyro_lsb_per_dps=16.4, accel_lsb_per_ms2=2048 / 
 def run_fixed(name, gyr_counts, acc_counts, mag_counts, dt, *, gyro_lsb_per_dps=16.4,
               accel_lsb_per_ms2=2048 / 9.80665, mag_valid=None, **params):
     """Raw body-axis counts -> quaternions body->ENU from the bit-exact model of the engine
-    running ``name`` (``fixed_point.attitude_fixed``: the quaternion the gateware reports)."""
-    from .fixed_point import attitude_fixed
+    running ``name`` (``engine_model.attitude_fixed``: the quaternion the gateware reports)."""
+    from .engine_model import attitude_fixed
     from .flagship_fixed import q30_to_float
     from .frames import body_to_mag
     kalman, flagship = engine_configs(name, dt, gyro_lsb_per_dps=gyro_lsb_per_dps,

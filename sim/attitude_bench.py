@@ -2,7 +2,7 @@
 
 ``run_engine`` feeds raw samples (and optional register writes before chosen samples) to an
 ``AttitudeEngine`` and returns its results and the cycles each update took;
-``first_mismatch`` compares them with ``reference.fixed_point.attitude_fixed`` field by field
+``first_mismatch`` compares them with ``reference.engine_model.attitude_fixed`` field by field
 and describes the first difference (``None`` when all match).
 """
 
@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from amaranth.sim import Simulator
 
-from ..reference.fixed_point import RESULT_FIELDS, RESULT_FLAGS
+from ..reference.engine_model import RESULT_FIELDS, RESULT_FLAGS
 from .streams import Monitored, stream_put
 
 
@@ -99,7 +99,7 @@ def run_engine(dut, gyro, accel, mag_ak, mag_valid=None, *, asa=(128, 128, 128),
     sim.add_clock(1e-6)
     sim.add_testbench(testbench)
     if vcd and gtkw is None:
-        from .cosim import gtkw_beside
+        from .waveforms import gtkw_beside
         gtkw = gtkw_beside(vcd)
     traces = [dut.samples.valid, dut.samples.ready, dut.busy, dut.results.valid,
               dut.results.payload.quat, dut.results.payload.angles, dut.results.payload.bias,

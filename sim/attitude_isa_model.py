@@ -1,6 +1,6 @@
 """Instruction-level model of the attitude engine: runs the microcode ROM in Python.
 
-Not a reference (``reference.fixed_point.EngineModel`` is, written independently of the
+Not a reference (``reference.engine_model.EngineModel`` is, written independently of the
 microcode): a fast way to check the microcode against the reference on thousands of samples
 before the slower gateware simulation, and to debug a program one instruction at a time
 (``trace=True``). The datapath primitives are the reference's, so only the program's logic is

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..hdl import ak8963_regs as A
+from ..hdl.defaults import DEFAULT_BAUD
 from ..hdl.mpu9250_driver import MPU9250Config
 from ..reference.frames import body_to_mag, euler_to_quat, quat_to_matrix
 from .cosim import CosimHarness, SimSetup, attach_mpu9250
@@ -39,7 +40,7 @@ __all__ = ["SensorErrors", "SimulatedBoard", "board_setup", "garble", "pty_baud"
 
 
 SIM_CLOCK_HZ = 4e6
-NOMINAL_BAUD = 921_600
+NOMINAL_BAUD = DEFAULT_BAUD
 
 
 @dataclass(frozen=True)
@@ -266,7 +267,8 @@ class SimulatedBoard:
         to look at the pseudo-terminal."""
         from .compiled_board import UARTReader, _Models, board_ports
         from .compiled_design import CompiledDesign
-        from .cosim import NEVER, PinModels
+        from .compiled_design import NEVER
+        from .cosim import PinModels
         core, master = self.core, self._master
         inputs, outputs = board_ports(harness, spi=True,
                                       extra_inputs={"uart_rx": core.uart_rx},

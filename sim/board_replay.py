@@ -100,7 +100,7 @@ def replay_board(filter, gyr_counts, acc_counts, mag_counts, dt, *, gyro_fs_dps=
     from ..hdl.frame_types import AttitudeFrame, frame_bytes
     from ..hdl.top import rate_budget
     from ..reference.evaluate import engine_configs
-    from ..reference.fixed_point import attitude_fixed
+    from ..reference.engine_model import attitude_fixed
     from ..reference.flagship_fixed import q30_to_float
     from ..reference.frames import body_to_mag
     from .attitude_bench import EngineRun, first_mismatch

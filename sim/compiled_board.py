@@ -13,12 +13,11 @@ least ``WORTH_A_BUILD_CYCLES``), "prefer" (this path whenever it can run the job
 VCD is written by a build of its own (``trace``), which auto leaves to Amaranth's simulator.
 ``CosimResult.compiled`` / ``CoreRun.compiled`` say which path ran.
 
-Speed (``python -m mpu9250_ahrs.sim.compiled_board``): prints both paths' cycles per second on
+Speed (``python -m mpu9250_ahrs.sim.speed``): prints both paths' cycles per second on
 the same short run of the core and the front end.
 """
 
-from .compiled_design import CompiledDesign, verilator_available
-from .cosim import NEVER
+from .compiled_design import NEVER, CompiledDesign, verilator_available
 
 
 __all__ = ["frontend_loop", "core_loop", "board_ports", "verilator_available"]
@@ -140,7 +139,7 @@ class UARTReader:
 # a run that ends on its samples or condition may use a half of): a build takes about 4 s
 # (front end) or 14 s (whole core), what Amaranth's simulator does in about 10^5 cycles; a
 # design already in the cache is always taken, and a build one process started is waited
-# for by the others (``compiled_engine.build_lock``)
+# for by the others (``verilator.build_lock``)
 WORTH_A_BUILD_CYCLES = 300_000
 
 
@@ -276,38 +275,3 @@ def core_loop(design, core, models, *, divisor, received, record, more_wanted, m
             raise TimeoutError(f"{results} results after {cycle} cycles (compiled)")
         cycle = design.run(min(pins.wake, uart.at, max_cycles), mask)
     return cycle
-
-
-def speed(samples=20):
-    """Both paths on the same stimulus (``SimSetup``'s defaults: 48 MHz, 1 kHz scaled 0.2,
-    the I2C wiring in real time), each build cached first: cycles per second of each and
-    their ratio, and whether the results were the same. A benchmark, not a test: the figures
-    depend on the machine."""
-    from ..hdl.mpu9250_driver import MPU9250Config
-    from .cosim import SimSetup, run_core, run_frontend
-    spi = SimSetup()
-    i2c_config = MPU9250Config(wiring="i2c")
-    i2c = SimSetup(config=i2c_config, odr_scale=SimSetup.default_odr_scale(i2c_config))
-    runs = {
-        "frontend_spi": (lambda c: run_frontend(spi, n_samples=samples, compiled=c),
-                         ("samples", "sample_cycles")),
-        "frontend_i2c": (lambda c: run_frontend(i2c, n_samples=max(2, samples // 4),
-                                                compiled=c), ("samples", "sample_cycles")),
-        "core_spi": (lambda c: run_core(spi, n_results=samples, compiled=c),
-                     ("results", "result_cycles", "frames")),
-    }
-    out = {}
-    for name, (run, fields) in runs.items():
-        run(True)                   # the build, cached
-        fast, slow = run(True), run(False)
-        out[name] = {"cycles": fast.cycles,
-                     "same": all(getattr(fast, f) == getattr(slow, f) for f in fields),
-                     "python_cycles_per_s": round(slow.cycles / slow.wall_s),
-                     "compiled_cycles_per_s": round(fast.cycles / fast.wall_s),
-                     "ratio": round(slow.wall_s / fast.wall_s * fast.cycles / slow.cycles)}
-    return out
-
-
-if __name__ == "__main__":
-    import json
-    print(json.dumps(speed(), indent=1))

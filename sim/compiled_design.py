@@ -28,11 +28,15 @@ from amaranth.back import verilog
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
-from .compiled_engine import (BUILD_OPTIMISATION, HINT, _cache_root, verilator_available,
-                              verilator_build, verilator_version)
+from .verilator import (BUILD_OPTIMISATION, HINT, cache_root, verilator_available,
+                        verilator_build, verilator_version)
 
 
-__all__ = ["CompiledDesign", "NotBuilt", "verilator_available"]
+__all__ = ["CompiledDesign", "NotBuilt", "NEVER", "verilator_available"]
+
+
+# A cycle no run reaches: "no wake-up wanted" for the models at the pins.
+NEVER = (1 << 40) - 1
 
 
 class _Ports(wiring.Component):
@@ -281,7 +285,7 @@ class CompiledDesign:
         key = hashlib.sha256("\0".join((key, cxx, verilator_version(),
                                         BUILD_OPTIMISATION["design"])).encode()
                              ).hexdigest()[:20]
-        folder = _cache_root() / f"{self.name}-{key}"
+        folder = cache_root() / f"{self.name}-{key}"
         library = folder / "design.so"
         if self.cached_only and not library.exists():
             raise NotBuilt(f"{self.name}: not in the cache")

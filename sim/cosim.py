@@ -11,13 +11,13 @@ the tests and ``python -m mpu9250_ahrs simulate`` use.
 import math
 import time
 from dataclasses import dataclass, field, replace
-from pathlib import Path
 from typing import List, Optional
 
 from amaranth import Elaboratable, Signal, Value
 from amaranth.sim import Simulator
 
 from ..hdl.clocking import SYSTEM_CLOCK_HZ
+from ..hdl.defaults import DEFAULT_BAUD
 from ..hdl.mpu9250_driver import DriverTiming, MPU9250Config
 from ..hdl.sensor_frontend import SensorFrontEnd
 from .i2c_bus import I2CBusModel
@@ -25,7 +25,9 @@ from .mpu9250_model import MPU9250Model, MPU9250Timing
 from ..hdl import ak8963_regs as A
 from .ak8963_model import AK8963Model, AK8963Timing
 from .sources import counting_field, counting_source
+from .compiled_design import NEVER
 from .streams import Monitored
+from .waveforms import gtkw_beside, open_on_first_transaction
 from ..host.protocol import to_python
 
 
@@ -77,8 +79,6 @@ class CosimHarness(Monitored):
                          self.i2c.scl_i.eq(self.scl), self.i2c.sda_i.eq(self.sda)]
         return m
 
-
-NEVER = (1 << 40) - 1
 
 
 class PinModels:
@@ -350,51 +350,6 @@ def expected_mag(ak_bytes, mag_ok=True, previous=None):
                  "mag_new": int(new), "mag_dor": int(new and bool(st1 & A.ST1_DOR))}
 
 
-def gtkw_beside(vcd):
-    """The GTKWave save file written beside the VCD ``vcd`` (its name, ``.gtkw``)."""
-    return str(vcd).rsplit(".", 1)[0] + ".gtkw"
-
-
-# The width of GTKWave's wave area the save file's zoom is set for, pixels.
-GTKW_WIDTH_PX = 1000
-
-
-def gtkw_window(gtkw, window_s, timescale_s):
-    """Make the GTKWave save file ``gtkw`` open on ``window_s`` = (start, end), seconds of
-    simulated time (a VCD whose time unit is ``timescale_s``), about ``GTKW_WIDTH_PX`` pixels
-    wide: ``[timestart]`` and the zoom line. GTKWave shows ``2**-zoom`` time units per 200
-    pixels (its zoom base, 2 unless changed in its settings)."""
-    start, end = window_s
-    span = max(end - start, 1e-9) / timescale_s
-    zoom = -math.log2(span * 200 / GTKW_WIDTH_PX)
-    lines = [line for line in Path(gtkw).read_text().splitlines()
-             if not line.startswith(("[timestart]", "*"))]
-    at = max(i for i, line in enumerate(lines) if line.startswith("[dumpfile")) + 1
-    lines[at:at] = [f"[timestart] {max(0, round(start / timescale_s))}",
-                    f"*{zoom:.6f} -1" + " -1" * 26]
-    Path(gtkw).write_text("\n".join(lines) + "\n")
-
-
-def first_transaction_window(model, bus, margin=0.25):
-    """(start, end) of the first sensor transaction, seconds, widened by ``margin`` of its
-    length either side: the SPI model's first chip select, or the I2C bus's first START to
-    STOP. None if there was none."""
-    spans = bus.frames if bus is not None else (model.transactions if model else [])
-    if not spans:
-        return None
-    start, end = spans[0][0], spans[0][1]
-    pad = (end - start) * margin
-    return start - pad, end + pad
-
-
-def open_on_first_transaction(vcd, model, bus, *, compiled):
-    """The save file beside ``vcd`` opens on the first sensor transaction (the compiled
-    path's VCD counts picoseconds, Amaranth's femtoseconds)."""
-    window = first_transaction_window(model, bus)
-    if window is not None:
-        gtkw_window(gtkw_beside(vcd), window, 1e-12 if compiled else 1e-15)
-
-
 def simulator_name(compiled):
     """Which simulator ran, as summaries say it."""
     return "compiled (Verilator)" if compiled else "python (Amaranth)"
@@ -656,7 +611,7 @@ class CoreRun:
 
 
 def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycles=None,
-             baud=921_600, core_kwargs=None, writes=(), vcd=None, progress=None,
+             baud=DEFAULT_BAUD, core_kwargs=None, writes=(), vcd=None, progress=None,
              compiled=None, until=None):
     """The whole ``AHRSCore`` (driver, engine, telemetry) against the models until the engine
     has produced ``n_results`` results and the UART has carried ``n_frames`` frames (either

@@ -134,7 +134,7 @@ def test_simulate_command(tmp_path, capsys):
                                     rf"(?: \[[\d:]+\])? \$end", header) for t in traced)
     # it opens on the first sensor transaction (chip select low to high) at a readable scale:
     # from [timestart], 2**-zoom time units per 200 pixels of a 1000-pixel wave area
-    from mpu9250_ahrs.sim.cosim import GTKW_WIDTH_PX
+    from mpu9250_ahrs.sim.waveforms import GTKW_WIDTH_PX
     start = int(re.search(r"^\[timestart\] (\d+)$", gtkw, re.M).group(1))
     zoom = float(re.search(r"^\*(-?[\d.]+) ", gtkw, re.M).group(1))
     end = start + 2 ** -zoom * GTKW_WIDTH_PX / 200

@@ -7,7 +7,9 @@
   register encodings and register maps; no Amaranth in them);
 - ``sim/`` may import both (it drives the gateware and compares it with the reference), and of
   the host side only the frame format (``host.protocol``);
-- the command line (``mpu9250_ahrs/``, ``host/``) imports all.
+- the command line (``mpu9250_ahrs/``) imports all; the host tool (``mpu9250_ahrs/host/``)
+  all but ``sim/``;
+- and no module imports, through any chain, one that imports it (no import loop).
 
 Every import counts, including those inside functions.
 """
@@ -89,3 +91,95 @@ def test_checker_sees_a_bad_import(tmp_path):
                       "from . import alu\nimport mpu9250_ahrs.host.link\n")
     assert _imports(source, "hdl") == [(1, "reference", "fixed_point"), (3, "sim", "board"),
                                        (4, "hdl", "alu"), (5, "host", "link")]
+
+
+PACKAGE_DIRS = {"mpu9250_ahrs": ROOT / "mpu9250_ahrs", "mpu9250_ahrs.hdl": ROOT / "hdl",
+                "mpu9250_ahrs.sim": ROOT / "sim", "mpu9250_ahrs.reference": ROOT / "reference",
+                "mpu9250_ahrs.host": ROOT / "mpu9250_ahrs" / "host"}
+
+
+def _modules():
+    """Every module of the distribution package: dotted name -> path."""
+    found = {}
+    for package, folder in PACKAGE_DIRS.items():
+        for path in folder.glob("*.py"):
+            found[package if path.stem == "__init__" else f"{package}.{path.stem}"] = path
+    return found
+
+
+def _import_graph(modules):
+    """Module -> the project's modules it imports (anywhere in it, functions included):
+    ``from a.b import c`` counts as ``a.b.c`` if that is a module, else ``a.b``."""
+    graph = {}
+    for name, path in modules.items():
+        package = name if path.stem == "__init__" else name.rsplit(".", 1)[0]
+        targets = set()
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, ast.Import):
+                candidates = [alias.name for alias in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                base = package.split(".")[:len(package.split(".")) - node.level + 1] \
+                    if node.level else []
+                stem = ".".join(base + (node.module.split(".") if node.module else []))
+                candidates = [f"{stem}.{alias.name}" if f"{stem}.{alias.name}" in modules
+                              else stem for alias in node.names]
+            else:
+                continue
+            targets |= {c for c in candidates if c in modules and c != name}
+        graph[name] = targets
+    return graph
+
+
+def _loops(graph):
+    """The import loops of ``graph``: each a sorted list of the modules in one strongly
+    connected component of more than one module (Tarjan's algorithm)."""
+    index, low, stack, on_stack, out = {}, {}, [], set(), []
+
+    def visit(v):
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in graph[v]:
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                out.append(sorted(component))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return out
+
+
+def test_no_import_loop():
+    """No module imports, directly or through others, a module that imports it: not at the
+    top and not inside a function (a loop works only as long as the imports stay in the
+    right place, and makes the two halves one unit)."""
+    loops = _loops(_import_graph(_modules()))
+    assert not loops, "import loops:\n" + "\n".join(" <-> ".join(c) for c in loops)
+
+
+def test_loop_finder_sees_a_loop():
+    graph = {"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}, "e": {"e2"}, "e2": set()}
+    assert _loops(graph) == [["a", "b", "c"]]
+
+
+def test_the_host_tool_imports_no_simulation():
+    """``host/`` (the host tool, a board's link) imports nothing of ``sim/``: for ``--port
+    sim`` the command line starts the simulated board and hands it to the link."""
+    graph = _import_graph(_modules())
+    bad = [f"{m} imports {t}" for m, targets in sorted(graph.items())
+           if m.startswith("mpu9250_ahrs.host") for t in sorted(targets)
+           if t.startswith("mpu9250_ahrs.sim")]
+    assert not bad, "\n".join(bad)

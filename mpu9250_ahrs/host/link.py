@@ -1,10 +1,12 @@
 """A board on a serial port: frames in, commands out, with time-outs and one-line errors.
 
 ``open_link(port, baud)`` opens a serial device with pyserial (``exclusive``: a port another
-program holds is "busy"), or with ``port == "sim"`` starts a ``sim.board.SimulatedBoard`` in
-this process and opens its pseudo-terminal. Against a simulated board in this process (``sim``,
-or the path of one started here) time-outs count the board's own time, not the wall clock's:
-the co-simulation runs about a thousand times slower than the hardware.
+program holds is "busy"); given a ``board`` (a ``sim.board.SimulatedBoard`` the caller started
+in this process: the command line does for ``--port sim``) it opens that board's
+pseudo-terminal and stops the board when the link closes. Against a simulated board in this
+process (``board``, or the path of one registered in ``SIM_BOARDS``) time-outs count the
+board's own time, not the wall clock's: the co-simulation runs slower than the hardware. This
+module imports nothing of the simulation: the caller hands the board over.
 """
 
 import errno
@@ -12,6 +14,7 @@ import time
 
 from ..hdl.command_decoder import REGMAP_VERSION
 from ..hdl.frame_types import REPLY
+from ..hdl.defaults import DEFAULT_BAUD
 from .protocol import FrameDecoder, encode_command, reply_of
 
 
@@ -24,7 +27,7 @@ SIM_BOARDS = {}
 
 
 class BoardError(RuntimeError):
-    """A failure worth one line to the user (the command line prints it and exits 1)."""
+    """A failure worth one line to the user (the command line prints it and exits 2)."""
 
 
 class Link:
@@ -170,16 +173,14 @@ class Link:
         self.close()
 
 
-def open_link(port, baud=921_600, *, timeout=1.0, board_kwargs=None):
-    """A ``Link`` on ``port`` ("sim": a simulated board started here). Raises ``BoardError``
-    for a missing or busy port."""
+def open_link(port, baud=DEFAULT_BAUD, *, timeout=1.0, board=None):
+    """A ``Link`` on ``port``, or on ``board``'s port (a started simulated board, which the
+    link then owns: it stops it on close). Raises ``BoardError`` for a missing or busy port."""
     import serial
-    own = False
-    if port == "sim":
-        from ..sim.board import SimulatedBoard
-        board = SimulatedBoard(**(board_kwargs or {})).start()
+    own = board is not None
+    if own:
         SIM_BOARDS[board.port] = board
-        port, own = board.port, True
+        port = board.port
     board = SIM_BOARDS.get(port)
     try:
         ser = serial.Serial(port, baud, timeout=0.02, exclusive=True)

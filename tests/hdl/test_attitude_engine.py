@@ -13,8 +13,8 @@ from hypothesis import given, settings, strategies as st
 
 from mpu9250_ahrs.hdl.attitude_engine import WORST_UPDATE_CYCLES, AttitudeEngine
 from mpu9250_ahrs.hdl.attitude_program import CONFIG_REGS, CONTROL_ADDR, REGS, control_word
-from mpu9250_ahrs.reference.fixed_point import (CalibrationFixed, KalmanFixedConfig,
-                                                attitude_fixed, bam_to_deg)
+from mpu9250_ahrs.reference.fixed_point import CalibrationFixed, KalmanFixedConfig, bam_to_deg
+from mpu9250_ahrs.reference.engine_model import attitude_fixed
 from mpu9250_ahrs.reference.frames import body_to_mag
 from mpu9250_ahrs.reference.kalman import KalmanParams, kalman_filter
 from mpu9250_ahrs.sim.attitude_bench import first_mismatch, random_inputs, run_engine
@@ -285,7 +285,7 @@ def test_euler_rate_prediction_bit_exact(select):
 def test_euler_rates_follow_a_coning_motion_better():
     """Tilted 45° in roll, turning about the vertical: body rates put the turn partly on the
     pitch axis; Euler-angle rates keep roll and pitch where they are (float, no measurement)."""
-    from mpu9250_ahrs.reference.fixed_point import EngineModel
+    from mpu9250_ahrs.reference.engine_model import EngineModel
     n, dt = 200, 0.01
     rate = np.radians(90.0)
     # the vertical turn in body axes at roll 45°: ω_body = (0, sin φ, cos φ)·ψ̇

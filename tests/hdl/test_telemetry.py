@@ -9,7 +9,7 @@ from amaranth.sim import Simulator
 from mpu9250_ahrs.hdl.frame_types import SYNC, SensorFrame
 from mpu9250_ahrs.hdl.telemetry import TelemetryFramer
 from mpu9250_ahrs.hdl.uart_tx import UARTTransmitter
-from mpu9250_ahrs.reference.fixed_point import attitude_fixed
+from mpu9250_ahrs.reference.engine_model import attitude_fixed
 from mpu9250_ahrs.sim.attitude_bench import EngineRun, first_mismatch
 from mpu9250_ahrs.sim.cosim import SimSetup, sample_matches
 from mpu9250_ahrs.sim.cosim import run_core as cosim_run_core

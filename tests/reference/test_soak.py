@@ -45,7 +45,7 @@ def test_flagship_at_every_supported_rate(rate):
     filter (the engine's, bit for bit) stays with its float version and keeps the inclination
     of the synthetic motion, without a saturated result."""
     import numpy as np
-    from mpu9250_ahrs.reference.fixed_point import attitude_fixed
+    from mpu9250_ahrs.reference.engine_model import attitude_fixed
     from mpu9250_ahrs.reference.flagship import flagship_filter
     from mpu9250_ahrs.reference.flagship_fixed import FlagshipFixedConfig, q30_to_float
     from mpu9250_ahrs.reference.frames import body_to_mag, quat_conj, quat_mul

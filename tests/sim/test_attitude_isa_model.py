@@ -6,7 +6,8 @@ import numpy as np
 
 from mpu9250_ahrs.hdl.attitude_isa import ROM_DEPTH, Flag
 from mpu9250_ahrs.hdl.attitude_program import build_program
-from mpu9250_ahrs.reference.fixed_point import RESULT_FLAGS, CalibrationFixed, EngineModel
+from mpu9250_ahrs.reference.fixed_point import CalibrationFixed
+from mpu9250_ahrs.reference.engine_model import RESULT_FLAGS, EngineModel
 from mpu9250_ahrs.reference.frames import body_to_mag
 from mpu9250_ahrs.sim.attitude_isa_model import AttitudeISAModel
 from mpu9250_ahrs.sim.motion import SensorModel, concat, static, turn

@@ -15,7 +15,7 @@ from hypothesis import given, settings, strategies as st
 from mpu9250_ahrs.hdl.attitude_engine import WORST_UPDATE_CYCLES, AttitudeEngine
 from mpu9250_ahrs.hdl.attitude_program import (CONFIG_REGS, CONTROL_ADDR, FILTER_CODES,
                                                control_word)
-from mpu9250_ahrs.reference.fixed_point import FILTERS, attitude_fixed
+from mpu9250_ahrs.reference.engine_model import FILTERS, attitude_fixed
 from mpu9250_ahrs.reference.frames import body_to_mag
 from mpu9250_ahrs.sim.attitude_bench import RESULT_FIELDS, first_mismatch, run_engine
 from mpu9250_ahrs.sim.compiled_engine import CompiledEngine, replay_gateware
