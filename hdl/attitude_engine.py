@@ -37,7 +37,7 @@ from .divider import Divider
 from .memories import MicrocodeROM, RegisterFile
 from .multiplier import Multiplier
 from .numeric_contract import (INV_GAIN_Q30, CalibrationFixed, FilterRates, FlagshipFixedConfig,
-                               KalmanFixedConfig, calibration_registers)
+                               KalmanFixedConfig, calibration_registers, mag_period)
 from .attitude_result import Attitude
 from .config_write import ConfigWrite
 from .sample import Sample
@@ -63,11 +63,15 @@ def default_filter_config(sensor, rates=None):
 
 
 def default_flagship_config(sensor):
-    """The flagship's registers for an ``MPU9250Config``: T = 1/ODR and the LSBs of its full
-    scales (rad/s and m/s²), the published parameters otherwise."""
-    return FlagshipFixedConfig(dt=1 / sensor.output_data_rate,
+    """The flagship's registers for an ``MPU9250Config``: T = 1/ODR, the LSBs of its full
+    scales (rad/s and m/s²) and the magnetometer's gains for its own period (``mag_period``:
+    a new field every 10 ms at any rate of 100 Hz or more), the published parameters
+    otherwise."""
+    dt = 1 / sensor.output_data_rate
+    return FlagshipFixedConfig(dt=dt,
                                gyro_lsb_per_rad=32768 / sensor.gyro_fs_dps * 180 / math.pi,
-                               accel_lsb_per_ms2=32768 / sensor.accel_fs_g / 9.80665)
+                               accel_lsb_per_ms2=32768 / sensor.accel_fs_g / 9.80665,
+                               mag_dt=mag_period(dt, sensor.magnetometer))
 
 
 class AttitudeEngine(wiring.Component):

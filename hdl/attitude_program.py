@@ -31,16 +31,17 @@ address  name            meaning, format                                        
                          (read-only to the host)
 0x70     K_RAD           flagship: T / LSB_per_rad · 2⁴⁴ (v = (ω−b)·K_RAD >> 30)    from dt
 0x71-75  A_DET, A_REST,  flagship low-pass gains 1 − exp(−T/τ), Q0.30 (τ = 0.5 s,   from dt
-         A_ACC, A_MAG,   tau_rest, tau_acc, tau_mag, min(tau_mag, 0.2 s))
-         A_MAG_FAST
+         A_ACC, A_MAG,   tau_rest, tau_acc, tau_mag, min(tau_mag, 0.2 s)); A_MAG,  (A_MAG*:
+         A_MAG_FAST      A_MAG_FAST with T the magnetometer's period (a new field   from the
+                         every 10 ms: ``numeric_contract.mag_period``)              field's)
 0x76-77  REST_GYRO2,     flagship rest thresholds, counts² / 4                      from LSB
          REST_ACC2
 0x78     GATE_NORM       flagship field-norm gate, relative, Q0.30                  0.1
 0x79     GATE_DIP        flagship dip gate, BAM32                                   10°
 0x7A-7D  K_REST, K_REF,  flagship times in samples (rest, reference learning, fast  from dt
          K_FAST, K_NEW   heading, new reference)
-0x7E     A_REF           flagship gain of the reference's low-pass while learnt,    from dt
-                         Q0.30 (tau_ref)
+0x7E     A_REF           flagship gain of the reference's low-pass while learnt,    from the
+                         Q0.30 (tau_ref; T the magnetometer's period)               field's
 0x7F     EULER_RATES     per-axis filters: 0 = body rates (the published form),    0
                          else Euler-angle rates (reference.fixed_point.
                          euler_rates_fixed; right at any attitude but ±90° pitch)

@@ -23,7 +23,7 @@ __all__ = ["CONTROL_RESET", "CONTROL_KEEP", "CONTROL_BITS", "control_fields",
            "CORDIC_ITERATIONS", "ATAN_TABLE", "INV_GAIN_Q30", "CalibrationFixed",
            "calibration_registers", "calibration_of",
            "KalmanFixedConfig", "FilterRates", "FlagshipParams", "sample_counts",
-           "FlagshipFixedConfig"]
+           "AK8963_RATE_HZ", "mag_period", "FlagshipFixedConfig"]
 
 
 # The engine's CONTROL register (0xFF): bits 1:0 the filter's code, bit 2 reset the filter
@@ -216,13 +216,30 @@ def sample_counts(params, dt):
     return k(params.rest_s), k(params.mag_ref_s), k(params.mag_fast_s), k(params.mag_new_s)
 
 
+# The AK8963's measurement rate in the mode the driver runs it (continuous mode 2).
+AK8963_RATE_HZ = 100.0
+
+
+def mag_period(dt, magnetometer=True):
+    """The time between two new magnetometer fields at sample period ``dt``: the AK8963
+    measures at ``AK8963_RATE_HZ``, so at a faster sample rate only one sample in
+    ``dt``/(1/100 s) brings a new field (``None`` without a magnetometer)."""
+    return max(dt, 1 / AK8963_RATE_HZ) if magnetometer else None
+
+
 @dataclass(frozen=True)
 class FlagshipFixedConfig:
-    """Run-time registers of the fixed-point flagship, from the float parameters."""
+    """Run-time registers of the fixed-point flagship, from the float parameters.
+    ``mag_dt``: the time between two new magnetometer fields (``mag_period``); the heading's
+    gains (``A_MAG``, ``A_MAG_FAST``) and the field reference's (``A_REF``) act once per new
+    field, so they are set for it: its time constants are then ``tau_mag``, ``tau_ref`` in
+    seconds whatever the sample rate. None: a field every sample (``dt``), as in a recording
+    that has one."""
     dt: float = 0.01
     gyro_lsb_per_rad: float = 16.4 * 180 / math.pi
     accel_lsb_per_ms2: float = 2048 / 9.80665
     params: FlagshipParams = FlagshipParams()
+    mag_dt: float = None
 
     @classmethod
     def matching(cls, kalman):
@@ -232,7 +249,8 @@ class FlagshipFixedConfig:
 
     def registers(self):
         p, dt = self.params, self.dt
-        gain = lambda tau: int(round((1 - math.exp(-dt / tau)) * _Q30))     # Q0.30
+        mag_dt = dt if self.mag_dt is None else self.mag_dt
+        gain = lambda tau, t=dt: int(round((1 - math.exp(-t / tau)) * _Q30))     # Q0.30
         # rest tests: deviations in Q.6 counts (x / 2¹⁰ of Q16.16), squared and summed with
         # shift 14: thresholds in counts² / 4
         rest_gyro = p.rest_gyro * self.gyro_lsb_per_rad
@@ -242,8 +260,9 @@ class FlagshipFixedConfig:
             # v [Q2.30 rad] = mul(ω·2¹⁶ − b, K_RAD, 30): T / LSB_per_rad · 2⁴⁴
             "K_RAD": int(round(dt / self.gyro_lsb_per_rad * 2 ** 44)),
             "A_DET": gain(0.5), "A_REST": gain(p.tau_rest), "A_ACC": gain(p.tau_acc),
-            "A_MAG": gain(p.tau_mag), "A_MAG_FAST": gain(min(p.tau_mag, 0.2)),
-            "A_REF": gain(p.tau_ref),
+            # once per new field: for the field's period
+            "A_MAG": gain(p.tau_mag, mag_dt), "A_MAG_FAST": gain(min(p.tau_mag, 0.2), mag_dt),
+            "A_REF": gain(p.tau_ref, mag_dt),
             "REST_GYRO2": int(round(rest_gyro ** 2 / 4)),
             "REST_ACC2": int(round(rest_acc ** 2 / 4)),
             "GATE_NORM": int(round(p.mag_norm_gate * _Q30)),

@@ -31,7 +31,8 @@ def run_filter(name, gyr, acc, mag, dt, **params):
     if name == "madgwick":
         return madgwick_filter(gyr, acc, mag, dt, beta=params.get("beta", 0.1))
     if name == "flagship":
-        return flagship_filter(gyr, acc, mag, dt, params.get("flagship", FlagshipParams()))
+        return flagship_filter(gyr, acc, mag, dt, params.get("flagship", FlagshipParams()),
+                               mag_valid=params.get("mag_valid"), mag_dt=params.get("mag_dt"))
     raise ValueError(f"unknown filter {name!r}; choose from {', '.join(FILTERS)}")
 
 
@@ -50,7 +51,8 @@ def engine_configs(name, dt, *, gyro_lsb_per_dps=16.4, accel_lsb_per_ms2=2048 / 
                                q_bias=p.q_bias, r=p.r, p0=p.p0,
                                a=coefficient(params.get("tau", 0.8), dt))
     flagship = FlagshipFixedConfig(dt, gyro_lsb_per_dps * 180 / np.pi, accel_lsb_per_ms2,
-                                   params.get("flagship", FlagshipParams()))
+                                   params.get("flagship", FlagshipParams()),
+                                   mag_dt=params.get("mag_dt"))
     return kalman, flagship
 
 

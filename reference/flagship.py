@@ -72,14 +72,16 @@ def _rot(q, v):
 
 
 def flagship_filter(gyr, acc, mag, dt, params=FlagshipParams(), *, mag_valid=None,
-                    return_bias=False):
+                    return_bias=False, mag_dt=None):
     """gyr rad/s, acc m/s² (any unit: only directions and deviations matter, rest_acc is in the
     same unit), mag any unit or None (6-axis). Returns quaternions body->ENU (N,4).
 
     Causal, as the gateware must be: the first sample starts the filter (q_g = q_a = 1, the
     inclination step then tilts q_a onto that sample's specific force in one go), the heading
     δ is taken from the first usable field and then follows it. Times are sample counts
-    (``sample_counts``); each countdown is decremented at the start of a sample."""
+    (``sample_counts``); each countdown is decremented at the start of a sample. ``mag_dt``:
+    the time between new fields (``mag_valid`` true), for the heading's and the reference's
+    gains; ``dt`` if None (a field every sample)."""
     p = params
     gyr, acc, magv, valid = filter_inputs(gyr, acc, mag, mag_valid)
     n = len(gyr)
@@ -96,11 +98,14 @@ def flagship_filter(gyr, acc, mag, dt, params=FlagshipParams(), *, mag_valid=Non
     a_acc = 1 - math.exp(-dt / p.tau_acc)
     a_rest = 1 - math.exp(-dt / p.tau_rest)
     a_det = 1 - math.exp(-dt / 0.5)
-    a_mag, a_mag_fast = 1 - math.exp(-dt / p.tau_mag), 1 - math.exp(-dt / min(p.tau_mag, 0.2))
+    # the heading's and the field reference's gains act once per new field: for its period
+    # (``mag_dt``, ``FlagshipFixedConfig.mag_dt``; ``dt`` when every sample has one)
+    mdt = dt if mag_dt is None else mag_dt
+    a_mag, a_mag_fast = 1 - math.exp(-mdt / p.tau_mag), 1 - math.exp(-mdt / min(p.tau_mag, 0.2))
     rest_left, fast_left, ref_left, cand_left = k_rest, k_fast, k_ref, 0
     ref = None                          # (norm, dip)
     ref_norm = ref_dip = None           # the reference being learnt
-    a_ref = 1 - math.exp(-dt / p.tau_ref)
+    a_ref = 1 - math.exp(-mdt / p.tau_ref)
     cand = None                         # (norm, dip)
     out = np.empty((n, 4))
     biases = np.empty((n, 3))

@@ -29,6 +29,7 @@ from typing import List
 import numpy as np
 
 from ..hdl.mpu9250_driver import DriverTiming, MPU9250Config
+from ..hdl.numeric_contract import mag_period
 from .ak8963_model import AK8963Model, AK8963Timing
 from .cosim import SimSetup, run_core, sample_matches, simulator_name
 from .sources import SensorSample
@@ -147,6 +148,9 @@ def replay_board(filter, gyr_counts, acc_counts, mag_counts, dt, *, gyro_fs_dps=
                                                     total - 1)])
     model.aux_devices[0x0C] = ak
 
+    # the flagship's magnetometer gains for the AK8963's period, as the board sets them
+    # (``attitude_engine.default_flagship_config``)
+    units_and_params.setdefault("mag_dt", mag_period(dt))
     kalman, flagship = engine_configs(filter, dt, **units_and_params)
     writes = configuration_writes(filter, kalman, flagship) + [(TELEMETRY_DIV_ADDR, divider)]
     # samples made during bring-up are never read: the run ends once the model made the

@@ -64,3 +64,45 @@ def test_recorded_stretch():
     gc, ac, mc = quantise(rec.gyr[:8000], rec.acc[:8000], rec.mag[:8000], SCALES)
     rms, peak, _ = difference_deg(gc, ac, mc, rec.dt)
     assert rms < 0.02 and peak < 0.05, (rms, peak)
+
+
+@pytest.mark.skipif(not RECORDINGS, reason="shared/data/broad not beside the checkout")
+def test_recorded_stretch_with_the_field_at_100_hz():
+    """As on the board: the AK8963's new fields at 100 Hz of the recording's time (one sample
+    in about three at 286 Hz), the heading's and the reference's gains set for that period
+    (``mag_dt``): the fixed flagship still follows the float one."""
+    from mpu9250_ahrs.hdl.numeric_contract import mag_period
+    rec = load_broad(RECORDINGS[1])
+    n = 8000
+    gc, ac, mc = quantise(rec.gyr[:n], rec.acc[:n], rec.mag[:n], SCALES)
+    valid = np.diff(np.floor(np.arange(n + 1) * rec.dt * 100)) > 0
+    mag_dt = mag_period(rec.dt)
+    assert mag_dt == 0.01 and 0.3 < valid.mean() < 0.4
+    qf = flagship_filter(*to_units(gc, ac, mc, SCALES), rec.dt, mag_valid=valid, mag_dt=mag_dt)
+    qi, _ = flagship_fixed(gc, ac, mc, FlagshipFixedConfig(rec.dt, SCALES.gyro_lsb_per_rad,
+                                                           SCALES.accel_lsb_per_ms2,
+                                                           mag_dt=mag_dt), mag_valid=valid)
+    d = np.degrees(orientation_errors(q30_to_float(qi), qf)[:, 0])
+    assert np.sqrt(np.mean(d ** 2)) < 0.02 and d.max() < 0.05
+
+
+@pytest.mark.parametrize("odr, field_period", [(1000, 0.01), (8000, 0.01), (200, 0.01),
+                                              (100, 0.01), (50, 0.02)])
+def test_the_magnetometer_gains_follow_its_own_rate(odr, field_period):
+    """Issue #26: the board's flagship registers (``default_flagship_config``) set the heading's
+    and the reference's gains for the AK8963's period (10 ms), not the sample period: their
+    time constants are ``tau_mag`` and ``tau_ref`` seconds at any rate (at 1 kHz they were ten
+    times that). A rate slower than the AK8963's brings a new field every sample."""
+    import math
+    from mpu9250_ahrs.hdl.attitude_engine import default_flagship_config
+    from mpu9250_ahrs.hdl.mpu9250_driver import MPU9250Config
+    from mpu9250_ahrs.hdl.numeric_contract import FlagshipParams
+    p = FlagshipParams()
+    regs = default_flagship_config(MPU9250Config.for_odr(odr)).registers()
+    q30 = lambda tau, t: int(round((1 - math.exp(-t / tau)) * 2 ** 30))
+    assert regs["A_MAG"] == q30(p.tau_mag, field_period)
+    assert regs["A_MAG_FAST"] == q30(min(p.tau_mag, 0.2), field_period)
+    assert regs["A_REF"] == q30(p.tau_ref, field_period)
+    assert regs["A_ACC"] == q30(p.tau_acc, 1 / odr)          # every sample: the sample period
+    without = default_flagship_config(MPU9250Config.for_odr(odr, magnetometer=False))
+    assert without.registers()["A_MAG"] == q30(p.tau_mag, 1 / odr)
