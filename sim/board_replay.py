@@ -106,6 +106,7 @@ def replay_board(filter, gyr_counts, acc_counts, mag_counts, dt, *, gyro_fs_dps=
     from ..reference.frames import body_to_mag
     from .attitude_bench import EngineRun, first_mismatch
     from .compiled_engine import configuration_writes
+    from ..hdl.uart_tx import UARTTransmitter
 
     total = len(gyr_counts) if samples is None else min(samples, len(gyr_counts))
     if total < 1:
@@ -121,9 +122,15 @@ def replay_board(filter, gyr_counts, acc_counts, mag_counts, dt, *, gyro_fs_dps=
     # the driver's magnetometer time-out in the recording's time, as the AK8963's period is
     setup = _RecordingTime(clk_freq=REPLAY_CLOCK_HZ, config=config, odr_scale=odr_scale,
                            time_per_s=period_cycles / REPLAY_CLOCK_HZ / dt)
-    frame_cycles = 10 * frame_bytes(AttitudeFrame) * REPLAY_CLOCK_HZ / REPLAY_BAUD
+    # a frame on the wire: each byte ten bits and the cycle the UART takes the next one
+    divisor = UARTTransmitter.divisor_for(REPLAY_CLOCK_HZ, REPLAY_BAUD)
+    frame_cycles = frame_bytes(AttitudeFrame) * (10 * divisor + 1)
     if divider is None:
-        divider = math.ceil(frame_cycles * 1.05 / period_cycles)
+        # 15 % to spare: the first frames start later against their samples than the rest
+        # (the first update after a reset is the longest), and a due result that finds the
+        # framer still busy is not framed (4 % was too little once the SPI burst lost its
+        # pauses and the sample period with it)
+        divider = math.ceil(frame_cycles * 1.15 / period_cycles)
 
     gyr = np.asarray(gyr_counts)[:total]
     acc = np.asarray(acc_counts)[:total]
