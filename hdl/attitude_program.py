@@ -31,9 +31,11 @@ address  name            meaning, format                                        
                          (read-only to the host)
 0x70     K_RAD           flagship: T / LSB_per_rad · 2⁴⁴ (v = (ω−b)·K_RAD >> 30)    from dt
 0x71-75  A_DET, A_REST,  flagship low-pass gains 1 − exp(−T/τ), Q0.30 (τ = 0.5 s,   from dt
-         A_ACC, A_MAG,   tau_rest, tau_acc, tau_mag, min(tau_mag, 0.2 s)); A_MAG,  (A_MAG*:
+         A_ACC, A_MAG,   tau_rest, tau_mag, min(tau_mag, 0.2 s)); A_MAG,            (A_MAG*:
          A_MAG_FAST      A_MAG_FAST with T the magnetometer's period (a new field   from the
-                         every 10 ms: ``numeric_contract.mag_period``)              field's)
+                         every 10 ms: ``numeric_contract.mag_period``); A_ACC: the  field's)
+                         inclination's second-order low-pass, 2·sin(π·f_c·T), f_c =
+                         √2/(2π·tau_acc), Q0.30
 0x76-77  REST_GYRO2,     flagship rest thresholds, counts² / 4                      from LSB
          REST_ACC2
 0x78     GATE_NORM       flagship field-norm gate, relative, Q0.30                  0.1
@@ -65,6 +67,7 @@ registers above and CONTROL only (``HOST_WRITABLE``): a write anywhere else is r
 counted (the engine's ``cfg_refused``, carried in attitude frames).
 """
 
+import math
 from dataclasses import dataclass
 from typing import Callable
 
@@ -160,7 +163,8 @@ def _allocate():
 # by 2¹⁰ (rounded); the rest are operands of the flagship (``reference.flagship_fixed``).
 CONSTANTS = {"SHL12": 1 << 26, "SHL15": 1 << 29, "ONE": 1 << 30, "HALF": 1 << 29,
              "EIGHTH": 1 << 27, "ONE_48": (1 << 30) // 48, "THREE_HALVES": 3 << 29,
-             "SHR10": 1 << 20, "INT1": 1, "SHL14": 1 << 28, "COS_PITCH_MIN": 1 << 23}
+             "SHR10": 1 << 20, "INT1": 1, "SHL14": 1 << 28, "COS_PITCH_MIN": 1 << 23,
+             "SQRT2": round(math.sqrt(2) * (1 << 30))}
 
 
 REGS = _allocate()

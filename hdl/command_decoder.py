@@ -48,7 +48,7 @@ BOARD_REGS = {
 }
 # Bumped whenever an address, a format or a meaning in the register map changes (engine,
 # board, PWM); the host tool refuses to configure a board whose map it does not know.
-REGMAP_VERSION = 4
+REGMAP_VERSION = 5
 
 
 class CommandStats(data.Struct):

@@ -21,7 +21,7 @@ FLAGSHIP_REGISTERS = ("K_RAD", "A_DET", "A_REST", "A_ACC", "A_MAG", "A_MAG_FAST"
                       "REST_ACC2", "GATE_NORM", "GATE_DIP", "K_REST", "K_REF", "K_FAST",
                       "K_NEW", "A_REF")
 
-_VEC3 = ("G16", "A16", "U", "DG", "DA", "V", "AI", "E", "LP", "GLP", "ALP")
+_VEC3 = ("G16", "A16", "U", "DG", "DA", "V", "AI", "E", "LP", "GLP", "ALP", "BAND")
 _QUAT = ("QG", "QA", "QAG", "QT")
 _STATE = ("DELTA", "DELTA_OK", "REST_LEFT", "FAST_LEFT", "REF_LEFT", "CAND_LEFT", "REF_OK",
           "REF_SEEN", "REF_NORM", "REF_DIP", "CAND_NORM", "CAND_DIP")
@@ -121,6 +121,26 @@ def _low_pass(asm, r, states, inputs, gain):
             asm.add(s, s, t)
 
 
+def _butterworth(asm, r, low, band, inputs, gain):
+    """The second-order low-pass (state-variable form, ``reference.flagship_fixed``), each
+    axis: low += mul(gain, band, 30); then band += mul(gain, input − low − mul(band, √2, 30),
+    30). MULs back to back where they can be."""
+    with asm.scratch(len(low)) as t, asm.scratch(len(low)) as u:
+        for ti, b in zip(t, band):
+            asm.mul(ti, r[gain], b, Q30)
+        for ti, lo in zip(t, low):
+            asm.add(lo, lo, ti)
+        for ti, b in zip(t, band):
+            asm.mul(ti, b, r["SQRT2"], Q30)
+        for ui, x, lo, ti in zip(u, inputs, low, t):
+            asm.sub(ui, x, lo)
+            asm.sub(ui, ui, ti)
+        for ui in u:
+            asm.mul(ui, r[gain], ui, Q30)
+        for ui, b in zip(u, band):
+            asm.add(b, b, ui)
+
+
 def flagship_routine(asm, r):
     """The flagship, from the calibrated sample (G, A, M, ACC_OK, MAG_OK) to QOUT, THETA and
     BIAS; ends with END. Working registers beyond its own come from ``asm.scratch``."""
@@ -183,7 +203,7 @@ def flagship_routine(asm, r):
     asm.br("f_no_acc", Cond.A_ZERO, a=r["ACC_OK"])
     _matrix(asm, r, "RG", "QG")
     _rotate(asm, r, "AI", "RG", "A16")
-    _low_pass(asm, r, v("LP"), v("AI"), "A_ACC")
+    _butterworth(asm, r, v("LP"), v("BAND"), v("AI"), "A_ACC")
     _matrix(asm, r, "RA", "QA")
     _rotate(asm, r, "E", "RA", "LP")
     asm.vec(r["F_PHI"], r["E0"], r["E1"])                    # φ, s·K
@@ -325,6 +345,7 @@ def flagship_routine(asm, r):
             asm.add(r[f"{q}{i}"], ZERO, ZERO)
     for i in range(3):
         asm.add(r[f"LP{i}"], r[f"A16{i}"], ZERO)
+        asm.add(r[f"BAND{i}"], ZERO, ZERO)
         asm.add(r[f"ALP{i}"], r[f"A16{i}"], ZERO)
         asm.add(r[f"GLP{i}"], r[f"G16{i}"], ZERO)
     for name, value in (("REST_LEFT", "K_REST"), ("FAST_LEFT", "K_FAST"),

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 __all__ = ["CONTROL_RESET", "CONTROL_KEEP", "CONTROL_BITS", "control_fields",
            "CORDIC_ITERATIONS", "ATAN_TABLE", "INV_GAIN_Q30", "CalibrationFixed",
            "calibration_registers", "calibration_of",
-           "KalmanFixedConfig", "FilterRates", "FlagshipParams", "sample_counts",
+           "KalmanFixedConfig", "FilterRates", "FlagshipParams", "svf_gain", "sample_counts",
            "AK8963_RATE_HZ", "mag_period", "FlagshipFixedConfig"]
 
 
@@ -195,7 +195,7 @@ class FilterRates:
 @dataclass(frozen=True)
 class FlagshipParams:
     """The flagship filter's parameters (``reference.flagship`` says what each does)."""
-    tau_acc: float = 5.0            # s, low-pass of the specific force in the inertial frame
+    tau_acc: float = 3.0            # s, second-order low-pass of the specific force (inertial)
     tau_mag: float = 15.0           # s, heading correction
     mag_fast_s: float = 3.0         # s of fast heading convergence at start-up
     mag_ref_s: float = 2.0          # s over which the reference field is learnt
@@ -207,6 +207,14 @@ class FlagshipParams:
     rest_acc: float = 0.5           # m/s²
     rest_s: float = 1.5
     tau_rest: float = 3.0
+
+
+def svf_gain(tau, dt):
+    """The gain f = 2·sin(π·f_c·T) of a state-variable (Chamberlin) low-pass with VQF's cut-off
+    for a time constant ``tau``, f_c = √2/(2π·tau), at sample period ``dt`` (``T``). With the
+    damping √2 it is a second-order Butterworth low-pass: low += f·band; band += f·(x − low −
+    √2·band)."""
+    return 2 * math.sin(math.pi * math.sqrt(2) / (2 * math.pi * tau) * dt)
 
 
 def sample_counts(params, dt):
@@ -259,7 +267,10 @@ class FlagshipFixedConfig:
         regs = {
             # v [Q2.30 rad] = mul(ω·2¹⁶ − b, K_RAD, 30): T / LSB_per_rad · 2⁴⁴
             "K_RAD": int(round(dt / self.gyro_lsb_per_rad * 2 ** 44)),
-            "A_DET": gain(0.5), "A_REST": gain(p.tau_rest), "A_ACC": gain(p.tau_acc),
+            "A_DET": gain(0.5), "A_REST": gain(p.tau_rest),
+            # the inclination's second-order Butterworth low-pass (a state-variable filter):
+            # f = 2·sin(π·f_c·T), f_c = √2/(2π·tau_acc), as VQF's cut-off for its tau_acc
+            "A_ACC": int(round(svf_gain(p.tau_acc, dt) * _Q30)),
             # once per new field: for the field's period
             "A_MAG": gain(p.tau_mag, mag_dt), "A_MAG_FAST": gain(min(p.tau_mag, 0.2), mag_dt),
             "A_REF": gain(p.tau_ref, mag_dt),

@@ -10,7 +10,10 @@ written from the paper's description, simplified:
 - q_g integrates the bias-corrected gyro: q_g ← q_g ⊗ exp((ω − b)·T). It maps the body to an
   almost-inertial frame I.
 - Inclination (q_a, a rotation about horizontal axes): the specific force is rotated into I,
-  a_I = R(q_g)·a, and low-passed there with time constant ``tau_acc``. Linear accelerations
+  a_I = R(q_g)·a, and low-passed there by a second-order Butterworth filter with VQF's cut-off
+  for ``tau_acc``, f_c = √2/(2π·tau_acc) (VQF's choice too; a first-order one let about twice
+  the linear acceleration through on the translation trials), built as a state-variable
+  filter, which fixed point runs well with its poles this close to 1 (``svf_gain``). Linear accelerations
   average out in I while gravity does not, and no correction ever touches I, so the low-pass
   sees no feedback. Each sample, q_a is set so that R(q_a)·LP(a_I) points up.
 - Heading (δ, a rotation about the vertical): the field in the tilt-corrected frame,
@@ -35,7 +38,7 @@ import math
 
 import numpy as np
 
-from ..hdl.numeric_contract import FlagshipParams, sample_counts
+from ..hdl.numeric_contract import FlagshipParams, sample_counts, svf_gain
 from .frames import filter_inputs
 
 
@@ -95,7 +98,8 @@ def flagship_filter(gyr, acc, mag, dt, params=FlagshipParams(), *, mag_valid=Non
     # the low-passes start at the first sample
     lp, acc_lp, gyr_lp = (list(x[0]) if n else [] for x in (acc_l, acc_l, gyr_l))
     b = [0.0, 0.0, 0.0]
-    a_acc = 1 - math.exp(-dt / p.tau_acc)
+    f_acc = svf_gain(p.tau_acc, dt)
+    band = [0.0, 0.0, 0.0]                      # the low-pass's second state
     a_rest = 1 - math.exp(-dt / p.tau_rest)
     a_det = 1 - math.exp(-dt / 0.5)
     # the heading's and the field reference's gains act once per new field: for its period
@@ -135,7 +139,8 @@ def flagship_filter(gyr, acc, mag, dt, params=FlagshipParams(), *, mag_valid=Non
         if any(a):
             aI = _rot(qg, a)
             for i in range(3):
-                lp[i] += a_acc * (aI[i] - lp[i])
+                lp[i] += f_acc * band[i]
+                band[i] += f_acc * (aI[i] - lp[i] - math.sqrt(2) * band[i])
             e = _rot(qa, lp)
             s = math.hypot(e[0], e[1])
             if s > 0:

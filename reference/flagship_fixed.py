@@ -17,6 +17,7 @@ over arrays; ``engine_outputs`` gives what the engine reports for any filter (qu
 angles), so that the per-axis filters' results carry a quaternion too.
 """
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -40,6 +41,7 @@ FLAGSHIP_CONSTANTS = {
     "THREE_HALVES": 3 << 29,   # 1.5 in Q2.30
     "SHR10": 1 << 20,          # mul(x, SHR10, 30) = x / 2¹⁰ rounded
     "INT1": 1,
+    "SQRT2": round(math.sqrt(2) * 2 ** 30),   # √2 in Q2.30: the Butterworth's damping 2ζ
 }
 
 
@@ -113,6 +115,7 @@ class FlagshipFixed:
         self.qg = self.qa = (ONE, 0, 0, 0)
         self.delta, self.delta_ok = 0, False
         self.lp, self.acc_lp, self.gyr_lp = list(a16), list(a16), list(g16)
+        self.band = [0, 0, 0]
         self.rest_left, self.fast_left = reg["K_REST"], reg["K_FAST"]
         self.ref_left, self.cand_left = reg["K_REF"], 0
         self.ref_ok, self.ref_seen, self.ref_norm, self.ref_dip = False, False, 0, 0
@@ -165,9 +168,14 @@ class FlagshipFixed:
         # -- inclination --------------------------------------------------------------------------
         if any(a):
             a_i = _rotate(_matrix(self.qg, st), a16, st)
+            # second-order low-pass (state-variable form): lp += f·band, then
+            # band += f·(a_I − lp − √2·band), each axis, in the microcode's order
             for i in range(3):
-                self.lp[i] = sat32(self.lp[i] + mul(reg["A_ACC"], sat32(a_i[i] - self.lp[i], st),
-                                                    30, st), st)
+                self.lp[i] = sat32(self.lp[i] + mul(reg["A_ACC"], self.band[i], 30, st), st)
+            for i in range(3):
+                d = sat32(sat32(a_i[i] - self.lp[i], st)
+                          - mul(self.band[i], FLAGSHIP_CONSTANTS["SQRT2"], 30, st), st)
+                self.band[i] = sat32(self.band[i] + mul(reg["A_ACC"], d, 30, st), st)
             e = _rotate(_matrix(self.qa, st), self.lp, st)
             phi, sk = cordic_vector(e[0], e[1], st)              # e_xy = s·(cos φ, sin φ)
             if sk != 0:

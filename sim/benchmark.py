@@ -27,7 +27,7 @@ from ..reference.evaluate import run_filter, run_fixed, score
 from ..reference.kalman import KalmanParams
 
 
-__all__ = ["FILTER_SET", "run_trial", "main"]
+__all__ = ["FILTER_SET", "run_trial", "table", "split_table", "main"]
 
 # (row name, kind, filter, parameters): one parameter set for all trials
 FILTER_SET = [
@@ -99,6 +99,28 @@ def table(results):
     return "\n".join(lines)
 
 
+# the rows the inclination/heading split is printed for (those present)
+SPLIT_ROWS = ("flagship (float)", "vqf")
+
+
+def split_table(results, rows=SPLIT_ROWS):
+    """Inclination / heading RMSE (degrees) per trial and their means, for ``rows``: where
+    each filter's error comes from (tilt, or heading)."""
+    trials = sorted(results)
+    short = [t.split("_")[0] for t in trials]
+    lines = ["| inclination / heading | " + " | ".join(short) + " | mean |",
+             "|---" * (len(trials) + 2) + "|"]
+    for row in rows:
+        if not all(row in results[t] for t in trials):
+            continue
+        pairs = [(results[t][row]["inclination_rmse_deg"], results[t][row]["heading_rmse_deg"])
+                 for t in trials]
+        cells = [f"{i:.2f} / {h:.2f}" for i, h in pairs]
+        mean_i, mean_h = np.mean(pairs, axis=0)
+        lines.append(f"| {row} | " + " | ".join(cells) + f" | {mean_i:.2f} / {mean_h:.2f} |")
+    return "\n".join(lines)
+
+
 def figure(path, out_png, filter_name="flagship"):
     """Estimated vs true roll, pitch, yaw over time for one trial."""
     import matplotlib
@@ -165,6 +187,8 @@ def main(argv=None):
         print(f"benchmark: error: {e}", file=sys.stderr)
         return 2
     print(table(results))
+    print()
+    print(split_table(results))
     if args.json:
         with open(args.json, "w") as f:
             json.dump(results, f, indent=1)

@@ -44,8 +44,11 @@ def test_quarter_turn_east_to_north_and_random_motion(name):
                   static((0, 0, 0), 10))
     e = errors(name, traj)
     # 200 °/s and 0.3 g of linear acceleration throughout the random part: Madgwick follows
-    # the accelerometer into it, the flagship's inertial-frame low-pass much less.
-    assert np.sqrt(np.mean(e[800:, 0] ** 2)) < {"madgwick": 10, "flagship": 4}[name]
+    # the accelerometer into it, the flagship's inertial-frame low-pass much less. (4.3° since
+    # the flagship's low-pass is VQF's second order at 3 s, chosen on the recordings where it
+    # halves the inclination error under translation: this motion's acceleration is slow
+    # enough to sit in its pass band; 3.1° with the first order at 5 s before.)
+    assert np.sqrt(np.mean(e[800:, 0] ** 2)) < {"madgwick": 10, "flagship": 5}[name]
     assert e[-100:, 0].mean() < 1.5
 
 

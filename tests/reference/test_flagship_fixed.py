@@ -96,13 +96,14 @@ def test_the_magnetometer_gains_follow_its_own_rate(odr, field_period):
     import math
     from mpu9250_ahrs.hdl.attitude_engine import default_flagship_config
     from mpu9250_ahrs.hdl.mpu9250_driver import MPU9250Config
-    from mpu9250_ahrs.hdl.numeric_contract import FlagshipParams
+    from mpu9250_ahrs.hdl.numeric_contract import FlagshipParams, svf_gain
     p = FlagshipParams()
     regs = default_flagship_config(MPU9250Config.for_odr(odr)).registers()
     q30 = lambda tau, t: int(round((1 - math.exp(-t / tau)) * 2 ** 30))
     assert regs["A_MAG"] == q30(p.tau_mag, field_period)
     assert regs["A_MAG_FAST"] == q30(min(p.tau_mag, 0.2), field_period)
     assert regs["A_REF"] == q30(p.tau_ref, field_period)
-    assert regs["A_ACC"] == q30(p.tau_acc, 1 / odr)          # every sample: the sample period
+    # every sample: the sample period (the inclination's second-order low-pass)
+    assert regs["A_ACC"] == int(round(svf_gain(p.tau_acc, 1 / odr) * 2 ** 30))
     without = default_flagship_config(MPU9250Config.for_odr(odr, magnetometer=False))
     assert without.registers()["A_MAG"] == q30(p.tau_mag, 1 / odr)

@@ -19,9 +19,9 @@ from tests.conftest import broad_files
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 
 
-def readme_table():
+def readme_table(header="| filter | 02 | 07 |"):
     text = (ROOT / "README.md").read_text()
-    start = text.index("| filter | 02 | 07 |")
+    start = text.index(header)
     rows = {}
     for line in text[start:].splitlines()[2:]:
         if not line.startswith("|"):
@@ -37,7 +37,7 @@ def test_readme_accuracy_table_is_the_benchmarks():
     if len(files) != 7:
         pytest.skip("the seven shared BROAD recordings are not beside the checkout")
     from concurrent.futures import ProcessPoolExecutor
-    from mpu9250_ahrs.sim.benchmark import run_trial, table
+    from mpu9250_ahrs.sim.benchmark import run_trial, split_table, table
     with ProcessPoolExecutor(2) as pool:
         results = dict(pool.map(run_trial, files))
     measured = {}
@@ -51,3 +51,11 @@ def test_readme_accuracy_table_is_the_benchmarks():
         for k, (got, want) in enumerate(zip(cells, written[row])):
             assert re.fullmatch(r"[\d.]+", got), (row, got)       # no "≠": gateware = fixed
             assert abs(float(got) - float(want)) <= tolerance + 1e-9, (row, k, got, want)
+    # the inclination / heading split of the flagship and VQF (float rows: 0.05°)
+    written = readme_table("| inclination / heading |")
+    for line in split_table(results).splitlines()[2:]:
+        cells = [c.strip() for c in line.strip("|").split("|")]
+        assert cells[0] in written, cells[0]
+        for got, want in zip(cells[1:], written[cells[0]]):
+            for g, w in zip(got.split(" / "), want.split(" / ")):
+                assert abs(float(g) - float(w)) <= 0.05 + 1e-9, (cells[0], got, want)
