@@ -190,22 +190,19 @@ class CommandDecoder(wiring.Component):
             m.next = "REPLY"
 
         m.d.comb += [crc.data.eq(byte)]
-        board_regs = {
-            BOARD_REGS["RAW_MODE"]: self.raw_mode,
-            BOARD_REGS["VERSION"]: C(self.version, 32),
-            BOARD_REGS["REGMAP_VERSION"]: C(REGMAP_VERSION, 32),
-            BOARD_REGS["RX_FRAMING_ERRORS"]: self.rx_framing_errors,
-            BOARD_REGS["RX_OVERRUNS"]: self.rx_overruns,
-            BOARD_REGS["CMD_DISCARDED"]: stats.discarded,
-            BOARD_REGS["CMD_CRC_ERRORS"]: stats.crc_errors,
-            BOARD_REGS["CMD_MALFORMED"]: stats.malformed,
-            BOARD_REGS["CMD_OK"]: stats.ok,
-            BOARD_REGS["CMD_REFUSED"]: stats.refused,
-            BOARD_REGS["FRAMES_SENT"]: self.frames_sent,
-            BOARD_REGS["RATE_ERRORS"]: self.rate_errors,
-            BOARD_REGS["WHO_AM_I"]: self.who_am_i,
-            BOARD_REGS["SELF_TEST"]: self.self_test.as_value(),
+        # what each board register (``BOARD_REGS``: the one map of names and addresses, which
+        # the host's register map reads too) reads back
+        sources = {
+            "RAW_MODE": self.raw_mode, "VERSION": C(self.version, 32),
+            "REGMAP_VERSION": C(REGMAP_VERSION, 32),
+            "RX_FRAMING_ERRORS": self.rx_framing_errors, "RX_OVERRUNS": self.rx_overruns,
+            "CMD_DISCARDED": stats.discarded, "CMD_CRC_ERRORS": stats.crc_errors,
+            "CMD_MALFORMED": stats.malformed, "CMD_OK": stats.ok, "CMD_REFUSED": stats.refused,
+            "FRAMES_SENT": self.frames_sent, "RATE_ERRORS": self.rate_errors,
+            "WHO_AM_I": self.who_am_i, "SELF_TEST": self.self_test.as_value(),
         }
+        assert list(sources) == list(BOARD_REGS), "a board register without its source"
+        board_regs = {BOARD_REGS[name]: value for name, value in sources.items()}
         # an engine write the engine would refuse is answered "refused" here (the host learns
         # why): an address it may not write, or a CONTROL word with no meaning
         writable = address_in(low, self.writable) & (
