@@ -141,24 +141,10 @@ def _butterworth(asm, r, low, band, inputs, gain):
             asm.add(b, b, ui)
 
 
-def flagship_routine(asm, r):
-    """The flagship, from the calibrated sample (G, A, M, ACC_OK, MAG_OK) to QOUT, THETA and
-    BIAS; ends with END. Working registers beyond its own come from ``asm.scratch``."""
-    r = _aliases(r)
+def _rest_and_bias(asm, r):
+    """The flagship's rest detection and bias at rest (``flagship_routine``'s part)."""
     v = lambda name: [r[f"{name}{i}"] for i in range(3)]
-    ONE, ZERO, INT1 = r["ONE"], r["ZERO"], r["INT1"]
-    for i in range(3):
-        asm.mul(r[f"G16{i}"], r[f"G{i}"], ONE, Q14)          # << 16
-    for i in range(3):
-        asm.mul(r[f"A16{i}"], r[f"A{i}"], ONE, Q14)
-    asm.br("f_start", Cond.FIRST)
-    asm.label("f_started")
-    for t in ("FAST_LEFT", "REF_LEFT", "CAND_LEFT"):         # countdowns, stopping at 0
-        asm.br(f"f_{t}_0", Cond.A_ZERO, a=r[t])
-        asm.sub(r[t], r[t], INT1)
-        asm.label(f"f_{t}_0")
-
-    # -- rest detection and bias at rest ---------------------------------------------------------
+    ZERO, INT1 = r["ZERO"], r["INT1"]
     _low_pass(asm, r, v("GLP") + v("ALP"), v("G16") + v("A16"), "A_DET")
     for i in range(3):
         asm.sub(r[f"U{i}"], r[f"G16{i}"], r[f"BIAS{i}"])     # ω − b, Q16.16
@@ -185,7 +171,11 @@ def flagship_routine(asm, r):
     _low_pass(asm, r, v("BIAS"), v("GLP"), "A_REST")
     asm.label("f_not_at_rest")
 
-    # -- strapdown: q_g ⊗ exp(v), v = (ω − b)·T ------------------------------------------------
+
+def _strapdown(asm, r):
+    """The flagship's strapdown: q_g ⊗ exp(v), v = (ω − b)·T (``flagship_routine``'s part)."""
+    v = lambda name: [r[f"{name}{i}"] for i in range(3)]
+    ONE = r["ONE"]
     for i in range(3):
         asm.mul(r[f"V{i}"], r[f"U{i}"], r["STEP_N"], Q30)    # STEP_N = K_RAD · NPER
     asm.mac(r["F_V2"], [(x, x) for x in v("V")], Q30)
@@ -199,7 +189,11 @@ def flagship_routine(asm, r):
     _qmul(asm, r, "QT", "QG", "QV")
     _normalise(asm, r, "QG", "QT")
 
-    # -- inclination ---------------------------------------------------------------------------
+
+def _inclination(asm, r):
+    """The flagship's inclination (``flagship_routine``'s part)."""
+    v = lambda name: [r[f"{name}{i}"] for i in range(3)]
+    ZERO = r["ZERO"]
     asm.br("f_no_acc", Cond.A_ZERO, a=r["ACC_OK"])
     _matrix(asm, r, "RG", "QG")
     _rotate(asm, r, "AI", "RG", "A16")
@@ -230,7 +224,10 @@ def flagship_routine(asm, r):
     _qmul(asm, r, "QAG", "QA", "QG")
     _matrix(asm, r, "RAG", "QAG")
 
-    # -- heading -------------------------------------------------------------------------------
+
+def _heading(asm, r):
+    """The flagship's heading (``flagship_routine``'s part)."""
+    ONE, ZERO, INT1 = r["ONE"], r["ZERO"], r["INT1"]
     asm.br("f_no_mag", Cond.A_ZERO, a=r["MAG_OK"])
     for i in range(3):
         asm.mul(r[f"M16{i}"], r[f"M{i}"], ONE, Q14)
@@ -317,7 +314,11 @@ def flagship_routine(asm, r):
         asm.add(r["DELTA"], r["DELTA"], t0, wrap=True)
     asm.label("f_no_mag")
 
-    # -- output: q = (cos δ/2, 0, 0, sin δ/2) ⊗ q_a ⊗ q_g, and its angles ---------------------
+
+def _output(asm, r):
+    """The flagship's output: q = (cos δ/2, 0, 0, sin δ/2) ⊗ q_a ⊗ q_g, and its angles
+    (``flagship_routine``'s part)."""
+    ZERO = r["ZERO"]
     with asm.scratch(2) as (t0, t1):
         asm.mul(t0, r["DELTA"], r["HALF"], Q30)
         asm.rot(r["F_CD"], t0)
@@ -337,7 +338,11 @@ def flagship_routine(asm, r):
         asm.add(r["THETA2"], r["DELTA"], r["F_YAW"], wrap=True)
     asm.end()
 
-    # -- start-up (first sample after a reset or a filter switch; the bias is kept) -------------
+
+def _start_up(asm, r):
+    """The flagship's start-up: the first sample after a reset or a filter switch; the bias is
+    kept (``flagship_routine``'s part, after its END: reached by the branch to ``f_start``)."""
+    ONE, ZERO = r["ONE"], r["ZERO"]
     asm.label("f_start")
     for q in ("QG", "QA"):
         asm.add(r[f"{q}0"], ONE, ZERO)
@@ -355,3 +360,26 @@ def flagship_routine(asm, r):
                  "CAND_NORM", "CAND_DIP"):
         asm.add(r[name], ZERO, ZERO)
     asm.br("f_started")
+
+
+def flagship_routine(asm, r):
+    """The flagship, from the calibrated sample (G, A, M, ACC_OK, MAG_OK) to QOUT, THETA and
+    BIAS; ends with END. Working registers beyond its own come from ``asm.scratch``."""
+    r = _aliases(r)
+    ONE, INT1 = r["ONE"], r["INT1"]
+    for i in range(3):
+        asm.mul(r[f"G16{i}"], r[f"G{i}"], ONE, Q14)          # << 16
+    for i in range(3):
+        asm.mul(r[f"A16{i}"], r[f"A{i}"], ONE, Q14)
+    asm.br("f_start", Cond.FIRST)
+    asm.label("f_started")
+    for t in ("FAST_LEFT", "REF_LEFT", "CAND_LEFT"):         # countdowns, stopping at 0
+        asm.br(f"f_{t}_0", Cond.A_ZERO, a=r[t])
+        asm.sub(r[t], r[t], INT1)
+        asm.label(f"f_{t}_0")
+    _rest_and_bias(asm, r)
+    _strapdown(asm, r)
+    _inclination(asm, r)
+    _heading(asm, r)
+    _output(asm, r)
+    _start_up(asm, r)
