@@ -2,6 +2,7 @@
 checked whole before anything is done, executed, and answered with a reply frame."""
 
 from contextlib import contextmanager
+from types import SimpleNamespace
 
 from amaranth import *
 from amaranth.lib import data, stream, wiring
@@ -285,79 +286,10 @@ class CommandDecoder(wiring.Component):
                     m.next = "HUNT"
 
             with m.State("EXECUTE"):
-                expected = Signal(8)
-                known = Signal()
-                with m.Switch(ctype):
-                    for name, (code, n) in COMMANDS.items():
-                        with m.Case(code):
-                            m.d.comb += [expected.eq(n), known.eq(1)]
-                with m.If(~known | (length != expected)):
-                    count_up(stats.malformed)
-                    answer(RESULTS["bad_command"])
-                with m.Elif(ctype == COMMANDS["write"][0]):
-                    with m.If(space == SPACES["engine"]):
-                        with m.If(writable):
-                            m.d.sync += [write.addr.eq(low),
-                                         write.data.eq(value)]
-                            m.next = "ENGINE_WRITE"
-                        with m.Else():
-                            answer(RESULTS["refused"])
-                    with m.Elif(space == SPACES["board"]):
-                        with m.If(low == BOARD_REGS["RAW_MODE"]):
-                            m.d.sync += self.raw_mode.eq(value[0])
-                            answer(RESULTS["ok"])
-                        with m.Elif(address_in(low, BOARD_REGS.values())):
-                            answer(RESULTS["refused"])
-                        with m.Else():
-                            answer(RESULTS["bad_address"])
-                    with m.Elif(space == SPACES["pwm"]):
-                        with m.If(self.pwm.exists & self.pwm.ok):
-                            m.d.comb += self.pwm.w_en.eq(1)
-                            answer(RESULTS["ok"])
-                        with m.Elif(self.pwm.exists):
-                            answer(RESULTS["refused"])
-                        with m.Else():
-                            answer(RESULTS["bad_address"])
-                    with m.Else():
-                        answer(RESULTS["bad_address"])
-                with m.Elif(ctype == COMMANDS["read"][0]):
-                    with m.If(space == SPACES["engine"]):
-                        m.next = "ENGINE_READ"
-                    with m.Elif(space == SPACES["board"]):
-                        with m.Switch(low):
-                            for a, signal in board_regs.items():
-                                with m.Case(a):
-                                    answer(RESULTS["ok"], value_=signal)
-                            with m.Default():
-                                answer(RESULTS["bad_address"], value_=0)
-                    with m.Elif(space == SPACES["pwm"]):
-                        with m.If(self.pwm.exists):
-                            answer(RESULTS["ok"], value_=self.pwm.r_data)
-                        with m.Else():
-                            answer(RESULTS["bad_address"], value_=0)
-                    with m.Else():
-                        answer(RESULTS["bad_address"], value_=0)
-                with m.Elif(ctype == COMMANDS["filter"][0]):
-                    with m.If(payload[:8] <= max(FILTER_CODES.values())):
-                        m.d.sync += [write.addr.eq(CONTROL_ADDR),
-                                     write.data.eq(payload[:8])]
-                        m.next = "ENGINE_WRITE"
-                    with m.Else():
-                        answer(RESULTS["refused"], addr_=CONTROL_ADDR, value_=payload[:8])
-                with m.Elif(ctype == COMMANDS["reset"][0]):
-                    m.d.sync += [write.addr.eq(CONTROL_ADDR),
-                                 write.data.eq(CONTROL_KEEP | CONTROL_RESET)]
-                    m.next = "ENGINE_WRITE"
-                with m.Elif(ctype == COMMANDS["rate"][0]):
-                    m.d.sync += [write.addr.eq(TELEMETRY_DIV_ADDR),
-                                 write.data.eq(payload[:16])]
-                    m.next = "ENGINE_WRITE"
-                with m.Elif(ctype == COMMANDS["raw"][0]):
-                    m.d.sync += self.raw_mode.eq(payload[0])
-                    answer(RESULTS["ok"], addr_=(SPACES["board"] << 8) | BOARD_REGS["RAW_MODE"],
-                           value_=payload[0])
-                with m.Else():                                  # who
-                    answer(RESULTS["ok"], addr_=REGMAP_VERSION, value_=self.version)
+                self._execute(m, SimpleNamespace(
+                    ctype=ctype, length=length, payload=payload, space=space, low=low,
+                    value=value, write=write, writable=writable, board_regs=board_regs,
+                    answer=answer, count_up=count_up, stats=stats))
 
             with m.State("ENGINE_WRITE"):
                 m.d.comb += self.cfg.valid.eq(1)
@@ -386,3 +318,86 @@ class CommandDecoder(wiring.Component):
             count_up(stats.malformed)
             m.d.sync += gap.eq(0)
         return m
+
+    def _execute(self, m, c):
+        """EXECUTE, the cycle after a whole command passed its CRC: the command checked
+        against its type (known, its length) and done, or answered at once: a board
+        register, a PWM register, the raw-sample mode, "who"; an engine write or read
+        goes on to ENGINE_WRITE / ENGINE_READ. ``c``: the parser's registers and helpers."""
+        (ctype, length, payload, space, low, value,
+         write, writable, board_regs, answer, count_up, stats) = (
+            c.ctype, c.length, c.payload, c.space, c.low, c.value,
+            c.write, c.writable, c.board_regs, c.answer, c.count_up, c.stats)
+        expected = Signal(8)
+        known = Signal()
+        with m.Switch(ctype):
+            for name, (code, n) in COMMANDS.items():
+                with m.Case(code):
+                    m.d.comb += [expected.eq(n), known.eq(1)]
+        with m.If(~known | (length != expected)):
+            count_up(stats.malformed)
+            answer(RESULTS["bad_command"])
+        with m.Elif(ctype == COMMANDS["write"][0]):
+            with m.If(space == SPACES["engine"]):
+                with m.If(writable):
+                    m.d.sync += [write.addr.eq(low),
+                                 write.data.eq(value)]
+                    m.next = "ENGINE_WRITE"
+                with m.Else():
+                    answer(RESULTS["refused"])
+            with m.Elif(space == SPACES["board"]):
+                with m.If(low == BOARD_REGS["RAW_MODE"]):
+                    m.d.sync += self.raw_mode.eq(value[0])
+                    answer(RESULTS["ok"])
+                with m.Elif(address_in(low, BOARD_REGS.values())):
+                    answer(RESULTS["refused"])
+                with m.Else():
+                    answer(RESULTS["bad_address"])
+            with m.Elif(space == SPACES["pwm"]):
+                with m.If(self.pwm.exists & self.pwm.ok):
+                    m.d.comb += self.pwm.w_en.eq(1)
+                    answer(RESULTS["ok"])
+                with m.Elif(self.pwm.exists):
+                    answer(RESULTS["refused"])
+                with m.Else():
+                    answer(RESULTS["bad_address"])
+            with m.Else():
+                answer(RESULTS["bad_address"])
+        with m.Elif(ctype == COMMANDS["read"][0]):
+            with m.If(space == SPACES["engine"]):
+                m.next = "ENGINE_READ"
+            with m.Elif(space == SPACES["board"]):
+                with m.Switch(low):
+                    for a, signal in board_regs.items():
+                        with m.Case(a):
+                            answer(RESULTS["ok"], value_=signal)
+                    with m.Default():
+                        answer(RESULTS["bad_address"], value_=0)
+            with m.Elif(space == SPACES["pwm"]):
+                with m.If(self.pwm.exists):
+                    answer(RESULTS["ok"], value_=self.pwm.r_data)
+                with m.Else():
+                    answer(RESULTS["bad_address"], value_=0)
+            with m.Else():
+                answer(RESULTS["bad_address"], value_=0)
+        with m.Elif(ctype == COMMANDS["filter"][0]):
+            with m.If(payload[:8] <= max(FILTER_CODES.values())):
+                m.d.sync += [write.addr.eq(CONTROL_ADDR),
+                             write.data.eq(payload[:8])]
+                m.next = "ENGINE_WRITE"
+            with m.Else():
+                answer(RESULTS["refused"], addr_=CONTROL_ADDR, value_=payload[:8])
+        with m.Elif(ctype == COMMANDS["reset"][0]):
+            m.d.sync += [write.addr.eq(CONTROL_ADDR),
+                         write.data.eq(CONTROL_KEEP | CONTROL_RESET)]
+            m.next = "ENGINE_WRITE"
+        with m.Elif(ctype == COMMANDS["rate"][0]):
+            m.d.sync += [write.addr.eq(TELEMETRY_DIV_ADDR),
+                         write.data.eq(payload[:16])]
+            m.next = "ENGINE_WRITE"
+        with m.Elif(ctype == COMMANDS["raw"][0]):
+            m.d.sync += self.raw_mode.eq(payload[0])
+            answer(RESULTS["ok"], addr_=(SPACES["board"] << 8) | BOARD_REGS["RAW_MODE"],
+                   value_=payload[0])
+        with m.Else():                                  # who
+            answer(RESULTS["ok"], addr_=REGMAP_VERSION, value_=self.version)
