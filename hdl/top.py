@@ -5,8 +5,9 @@
 ``build --verilog-only`` exports and what simulations of the whole design drive. Ports:
 ``imu`` (SPI pins, or I2C pins with ``config.wiring == "i2c"``), ``imu_int``, ``uart_tx``,
 ``status``, ``asa``, ``samples_seen`` (counts samples, for a heartbeat LED), ``cfg``
-(register writes to the engine, before the command channel's; tie ``valid`` low on a board) and ``cfg_read`` / ``cfg_read_data`` (read-back), ``uart_rx`` (the command
-channel, ``hdl/FRAMES.md``) and ``pwm`` (four PWM outputs, ``hdl/pwm.py``).
+(register writes to the engine, before the command channel's; tie ``valid`` low on a board)
+and ``cfg_read`` / ``cfg_read_data`` (read-back), ``uart_rx`` (the command channel,
+``hdl/FRAMES.md``) and ``pwm`` (four PWM outputs, ``hdl/pwm.py``).
 
 Telemetry: an ``AttitudeFrame`` (type 0x02: the result, the raw sample it came from, the
 driver status latched with it, the counters) for every ``TELEMETRY_DIV``-th result, while every

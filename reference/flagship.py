@@ -13,9 +13,9 @@ written from the paper's description, simplified:
   a_I = R(q_g)·a, and low-passed there by a second-order Butterworth filter with VQF's cut-off
   for ``tau_acc``, f_c = √2/(2π·tau_acc) (VQF's choice too; a first-order one let about twice
   the linear acceleration through on the translation trials), built as a state-variable
-  filter, which fixed point runs well with its poles this close to 1 (``svf_gain``). Linear accelerations
-  average out in I while gravity does not, and no correction ever touches I, so the low-pass
-  sees no feedback. Each sample, q_a is set so that R(q_a)·LP(a_I) points up.
+  filter, which fixed point runs well with its poles this close to 1 (``svf_gain``). Linear
+  accelerations average out in I while gravity does not, and no correction ever touches I, so
+  the low-pass sees no feedback. Each sample, q_a is set so that R(q_a)·LP(a_I) points up.
 - Heading (δ, a rotation about the vertical): the field in the tilt-corrected frame,
   m_E = R(q_a ⊗ q_g)·m, must point North: δ follows atan2(m_E,x, m_E,y) with time constant
   ``tau_mag`` (faster in the first ``mag_fast_s`` seconds, for start-up). A field whose norm or

@@ -128,8 +128,8 @@ def replay_board(filter, gyr_counts, acc_counts, mag_counts, dt, *, gyro_fs_dps=
     if divider is None:
         # 15 % to spare: the first frames start later against their samples than the rest
         # (the first update after a reset is the longest), and a due result that finds the
-        # framer still busy is not framed (4 % was too little once the SPI burst lost its
-        # pauses and the sample period with it)
+        # framer still busy is not framed (the 5 % it had was too little once the SPI burst
+        # lost its pauses, and the sample period with it)
         divider = math.ceil(frame_cycles * 1.15 / period_cycles)
 
     gyr = np.asarray(gyr_counts)[:total]

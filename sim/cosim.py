@@ -80,7 +80,6 @@ class CosimHarness(Monitored):
         return m
 
 
-
 class PinModels:
     """What the models do at one wake-up: given the cycle and the watched pins' levels, they
     take the edges, and say which levels they drive (``cipo_model``, ``int_model``,
@@ -555,7 +554,7 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
     else:
         sim.run()
     if vcd:
-        open_on_first_transaction(vcd, model, bus, compiled=compiled)
+        open_on_first_transaction(vcd, model, bus)
     wall = time.perf_counter() - start
     return CosimResult(out["samples"], out["status"], out["cycles"], out["bring_up"], wall,
                        model, bus, out["log"], out["asa"], out["sample_cycles"],
@@ -745,7 +744,7 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
     else:
         sim.run()
     if vcd:
-        open_on_first_transaction(vcd, model, None, compiled=compiled)
+        open_on_first_transaction(vcd, model, None)
     wall = time.perf_counter() - start
     more_wanted()                       # the bytes that came after the last look
     cycles, counters, status, asa = out["end"]

@@ -2,11 +2,12 @@
 (the first sensor transaction, at a readable scale)."""
 
 import math
+import re
 from pathlib import Path
 
 
 __all__ = ["gtkw_beside", "GTKW_WIDTH_PX", "gtkw_window", "first_transaction_window",
-           "open_on_first_transaction"]
+           "vcd_timescale_s", "open_on_first_transaction"]
 
 
 def gtkw_beside(vcd):
@@ -46,9 +47,23 @@ def first_transaction_window(model, bus, margin=0.25):
     return start - pad, end + pad
 
 
-def open_on_first_transaction(vcd, model, bus, *, compiled):
-    """The save file beside ``vcd`` opens on the first sensor transaction (the compiled
-    path's VCD counts picoseconds, Amaranth's femtoseconds)."""
+_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9, "ps": 1e-12, "fs": 1e-15}
+
+
+def vcd_timescale_s(vcd):
+    """The time unit of the VCD file ``vcd``, seconds, from its ``$timescale`` header (the
+    compiled path's counts picoseconds, Amaranth's femtoseconds)."""
+    with open(vcd) as f:
+        head = f.read(4096)
+    found = re.search(r"\$timescale\s*(\d+)\s*([munpf]?s)\s*\$end", head)
+    if found is None:
+        raise ValueError(f"{vcd}: no $timescale in its header")
+    return int(found.group(1)) * _UNITS[found.group(2)]
+
+
+def open_on_first_transaction(vcd, model, bus):
+    """The save file beside ``vcd`` opens on the first sensor transaction, in the VCD's own
+    time unit."""
     window = first_transaction_window(model, bus)
     if window is not None:
-        gtkw_window(gtkw_beside(vcd), window, 1e-12 if compiled else 1e-15)
+        gtkw_window(gtkw_beside(vcd), window, vcd_timescale_s(vcd))
