@@ -157,6 +157,12 @@ class AttitudeEngine(wiring.Component):
         xvalid = Signal()
         xa = Signal(signed(32), reset_less=True)          # its operands, registered
         xb = Signal(signed(32), reset_less=True)
+        # ``x``'s adder controls, decoded as ``x`` is loaded (not from its opcode in the cycle:
+        # the adder's carry chain starts at flip-flops, report --timing). Like ``x``, they
+        # matter only while ``xvalid``, which rises only at an ``advance`` that loads them
+        x_alu = Signal(reset_less=True)                   # ADD, SUB or OR
+        x_sub = Signal(reset_less=True)
+        x_or = Signal(reset_less=True)
         phase = Signal(2)
         advance = Signal()
         flush = Signal()
@@ -180,7 +186,7 @@ class AttitudeEngine(wiring.Component):
         ]
         opa, opb = xa, xb
         m.d.comb += [
-            alu.a.eq(opa), alu.b.eq(opb), alu.sub.eq(x.op == Op.SUB), alu.or_.eq(x.op == Op.OR),
+            alu.a.eq(opa), alu.b.eq(opb), alu.sub.eq(x_sub), alu.or_.eq(x_or),
             alu.wrap.eq(x.wrap), alu.sat16.eq(x.sat16),
             mac.a.eq(opa), mac.b.eq(opb), mac.ins.eq(x),
             cordic.x_in.eq(opa), cordic.y_in.eq(opb), cordic.angle_in.eq(opa),
@@ -206,6 +212,12 @@ class AttitudeEngine(wiring.Component):
         # -- the write port: loader, host, or the execute stage (MAC write-back, then ALU,
         # DIV, CORDIC: never two in one cycle, the sequencer sees to it) -----------------------
         w_en, w_addr, w_data, w_sat = Signal(), Signal(REG_BITS), Signal(signed(32)), Signal()
+        # the ALU's result joins the write data last (``alu_w``: the ALU writes now), after the
+        # other sources' multiplexer (``w_other``): the forwarding below takes it from the
+        # ALU directly, so the adder's path to the operand registers has no write multiplexer
+        w_other, w_sat_other, alu_w = Signal(signed(32)), Signal(), Signal()
+        m.d.comb += [w_data.eq(Mux(alu_w, alu.result, w_other)),
+                     w_sat.eq(Mux(alu_w, alu.saturated, w_sat_other))]
         # the register file is written a cycle later, from registers: the execute stage's
         # multiplexers end at flip-flops, not at the block RAM's data inputs (a read at the same
         # edge as that write sees it: the register file is transparent)
@@ -215,7 +227,7 @@ class AttitudeEngine(wiring.Component):
         m.d.sync += [wr_en.eq(w_en), wr_addr.eq(w_addr), wr_data.eq(w_data)]
         m.d.comb += [rf.w_en.eq(wr_en), rf.w_addr.eq(wr_addr), rf.w_data.eq(wr_data)]
         with m.If(host.w_en):
-            m.d.comb += [w_en.eq(1), w_addr.eq(host.w_addr), w_data.eq(host.w_data)]
+            m.d.comb += [w_en.eq(1), w_addr.eq(host.w_addr), w_other.eq(host.w_data)]
         # the result is snooped from the register writes (no copy at the end of an update)
         snooped = [(out.quat[i], f"QOUT{i}") for i in range(4)]
         snooped += [(out.angles[i], f"THETA{i}") for i in range(3)]
@@ -250,8 +262,12 @@ class AttitudeEngine(wiring.Component):
             facts[port] = (x_wd & eq_x) | (x_wd1 & eq_x1) | (~x_wd & ~x_wd1 & mac.wb_en & eq_wb)
             reads_xd[port] = eq_x
         hit_a, hit_b = facts["a"], facts["b"]
-        o_a = Mux(hit_a, w_data, Mux(o_held_a, o_hold_a, rf.ra_data))
-        o_b = Mux(hit_b, w_data, Mux(o_held_b, o_hold_b, rf.rb_data))
+        # the ALU's result forwarded straight from the adder (``x_wd & eq_x`` for an ALU
+        # instruction, which writes ``x.d`` whatever else is pending: its write wins); any
+        # other write through the write multiplexer without the ALU
+        alu_a, alu_b = (xvalid & x_alu & reads_xd[port] for port in ("a", "b"))
+        o_a = Mux(alu_a, alu.result, Mux(hit_a, w_other, Mux(o_held_a, o_hold_a, rf.ra_data)))
+        o_b = Mux(alu_b, alu.result, Mux(hit_b, w_other, Mux(o_held_b, o_hold_b, rf.rb_data)))
         # snooped from the registered write (a cycle after the execute stage's): the ALU's and
         # the write multiplexer's paths end at ``wr_data``, not at the result's 320 flip-flops
         # as well. The last write of an update is at the latest in the cycle before END
@@ -285,14 +301,12 @@ class AttitudeEngine(wiring.Component):
             """The execute stage for ``x`` (an FSM state body)."""
             m.d.comb += advance.eq(1)                       # overridden below by stalls
             with m.If(mac.wb_en):
-                m.d.comb += [w_en.eq(1), w_addr.eq(mac.wb_addr), w_data.eq(mac.wb_data),
-                             w_sat.eq(mac.wb_saturated)]
+                m.d.comb += [w_en.eq(1), w_addr.eq(mac.wb_addr), w_other.eq(mac.wb_data),
+                             w_sat_other.eq(mac.wb_saturated)]
             with m.If(xvalid):
                 with m.Switch(x.op):
                     with m.Case(Op.ADD, Op.SUB, Op.OR):
-                        m.d.comb += [w_en.eq(1), w_addr.eq(x.d), x_wd.eq(1),
-                                     w_data.eq(alu.result),
-                                     w_sat.eq(alu.saturated)]
+                        m.d.comb += [w_en.eq(1), w_addr.eq(x.d), x_wd.eq(1), alu_w.eq(1)]
                     with m.Case(Op.MUL):
                         # the write-back comes two cycles after the issue: the MUL stays
                         # until then, unless the next instruction is a MUL (it writes nothing
@@ -318,7 +332,8 @@ class AttitudeEngine(wiring.Component):
                         with m.Else():
                             m.d.sync += phase.eq(0)
                             m.d.comb += [w_en.eq(1), w_addr.eq(x.d), x_wd.eq(1),
-                                         w_data.eq(divider.quotient), w_sat.eq(divider.saturated)]
+                                         w_other.eq(divider.quotient),
+                                         w_sat_other.eq(divider.saturated)]
                     with m.Case(Op.VEC, Op.ROT):
                         is_rot = x.op == Op.ROT
                         with m.If(phase == 0):
@@ -328,13 +343,13 @@ class AttitudeEngine(wiring.Component):
                             m.d.comb += advance.eq(0)
                             with m.If(cordic.done):
                                 m.d.comb += [w_en.eq(1), w_addr.eq(x.d), x_wd.eq(1),
-                                             w_data.eq(Mux(is_rot, cordic.cos, cordic.angle))]
+                                             w_other.eq(Mux(is_rot, cordic.cos, cordic.angle))]
                                 m.d.sync += phase.eq(2)
                         with m.Else():
                             m.d.sync += phase.eq(0)
                             m.d.comb += [w_en.eq(1), w_addr.eq(x.d + 1), x_wd1.eq(1),
-                                         w_data.eq(Mux(is_rot, cordic.sin, cordic.magnitude)),
-                                         w_sat.eq(~is_rot & cordic.saturated)]
+                                         w_other.eq(Mux(is_rot, cordic.sin, cordic.magnitude)),
+                                         w_sat_other.eq(~is_rot & cordic.saturated)]
                     with m.Case(Op.BR):
                         with m.If(cond ^ x.inv):
                             m.d.comb += [flush.eq(1), branch_to.eq(x.target)]
@@ -343,6 +358,8 @@ class AttitudeEngine(wiring.Component):
             with m.If(advance):
                 m.d.sync += [
                     x.eq(o), xvalid.eq(ovalid & ~flush),
+                    x_alu.eq(o.op.matches(Op.ADD, Op.SUB, Op.OR)),
+                    x_sub.eq(o.op == Op.SUB), x_or.eq(o.op == Op.OR),
                     o.eq(rom.data), ovalid.eq(rvalid & ~flush),
                     o_held_a.eq(w_en & (w_addr == rinstr.a)), o_hold_a.eq(w_data),
                     o_held_b.eq(w_en & (w_addr == rinstr.b)), o_hold_b.eq(w_data),
@@ -409,7 +426,7 @@ class AttitudeEngine(wiring.Component):
                     m.d.comb += host.open.eq(1)
             with m.State("LOAD"):
                 m.d.comb += [self.busy.eq(1), w_en.eq(1), w_addr.eq(LOAD_BASE | load_index),
-                             w_data.eq(load_data[load_index])]
+                             w_other.eq(load_data[load_index])]
                 m.d.sync += load_index.eq(load_index + 1)
                 with m.If(load_index == len(LOAD_ORDER) - 1):
                     m.d.comb += self.samples.ready.eq(1)

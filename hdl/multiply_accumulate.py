@@ -13,8 +13,8 @@ __all__ = ["MultiplyAccumulate"]
 
 
 class MultiplyAccumulate(wiring.Component):
-    """A MUL instruction in three steps: ``issue`` registers the product a·b and the
-    instruction; the next cycle (``pending``) adds it (inverted, plus one, when the instruction
+    """A MUL instruction in three steps: ``issue`` registers the product a·b (in the
+    ``Multiplier``'s two parts) and the instruction; the next cycle (``pending``) adds it (inverted, plus one, when the instruction
     subtracts) to the accumulator — or to the rounding constant 2^(s−1)
     when the instruction starts a sum —; the cycle after, if the instruction writes back, it
     offers ``acc >> s`` saturated to 32 bits (= rshift_round of the exact sum, then sat32).
@@ -57,7 +57,10 @@ class MultiplyAccumulate(wiring.Component):
         m = Module()
         m.submodules.multiplier = mult = self.multiplier
         # datapath registers without reset: qualified by ``pending``
-        product = Signal(signed(64), reset_less=True)       # a·b as it is (``ins.neg`` below)
+        # a·b in the multiplier's two parts (``Multiplier``), added with the accumulation:
+        # the blocks and one adder, not two, are in front of these registers
+        outer = Signal(signed(64), reset_less=True)
+        middle = Signal(signed(33), reset_less=True)
         acc = Signal(signed(66), reset_less=True)
         acc_next = Signal(signed(66))
         rounding = Signal(signed(66))
@@ -68,9 +71,11 @@ class MultiplyAccumulate(wiring.Component):
             for code, s in enumerate(MUL_SHIFTS):
                 with m.Case(code):
                     m.d.comb += rounding.eq(1 << (s - 1))
-        # ± product with one adder: base + (~product if neg) + neg. The inversion is here, not
-        # before the product register: the 18x18 blocks and the adders that combine their
-        # products are the longest path into that register (report --timing)
+        # ± product: base + (~product if neg) + neg. The inversion is here, not before the
+        # product's registers: the 18x18 blocks and the adder that combines their products are
+        # the longest path into them (report --timing)
+        product = Signal(signed(64))
+        m.d.comb += product.eq(outer + (middle << 17))
         m.d.comb += acc_next.eq(Mux(ins.acc, acc, rounding) +
                                 (product.as_unsigned() ^ ins.neg.replicate(64)).as_signed() +
                                 ins.neg)
@@ -100,6 +105,6 @@ class MultiplyAccumulate(wiring.Component):
                          wb_slice.eq(slice_next),
                          self.pending.eq(0)]
         with m.If(self.issue):
-            m.d.sync += [product.eq(mult.p), ins.eq(self.ins),
+            m.d.sync += [outer.eq(mult.outer), middle.eq(mult.middle), ins.eq(self.ins),
                          self.pending.eq(1)]
         return m

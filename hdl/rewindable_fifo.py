@@ -85,11 +85,15 @@ class RewindableFIFO(wiring.Component):
         # results: the same function as the pointers' next values compared directly
         # (read_next = rewind ? keep + 1 : read + take; keep_next = rewind ? keep + 1 :
         # mark & take ? read : release ? read_next : keep; valid: a byte at read_next).
-        stored_next = (write + put)[:bits]
-
+        # A byte at ``r`` is waiting after this cycle, ``k`` the oldest kept: r - k < write' - k
+        # with write' = write + put. ``put`` only chooses between two comparisons of registers
+        # (< without a byte put, <= with one), so the input's ready is not in front of the
+        # subtractions (that path limited the routed Fmax, report --timing). Equal in every
+        # state, reachable or not (an induction proof starts anywhere): where write - k + 1
+        # wraps to 0, nothing is below it.
         def offered(r, k):
-            # a byte at ``r`` is waiting, ``k`` the oldest kept: r - k < write - k
-            return (r - k)[:bits] < (stored_next - k)[:bits]
+            ahead, stored_k = (r - k)[:bits], (write - k)[:bits]
+            return Mux(put, (ahead <= stored_k) & ~stored_k.all(), ahead < stored_k)
 
         read_1, keep_1 = (read + 1)[:bits], (keep + 1)[:bits]
         read_next = Signal(bits)
