@@ -38,7 +38,9 @@ address  name            meaning, format                                        
                          √2/(2π·tau_acc), Q0.30
 0x76-77  REST_GYRO2,     flagship rest thresholds, counts² / 4                      from LSB
          REST_ACC2
-0x78     GATE_NORM       flagship field-norm gate, relative, Q0.30                  0.1
+0x78     GATE_NORM       flagship field-norm gate, relative, Q0.30; a rejected      0.05
+                         field is steady (a new reference) while its norm stays
+                         within it of the first one's
 0x79     GATE_DIP        flagship dip gate, BAM32                                   10°
 0x7A-7D  K_REST, K_REF,  flagship times in samples (rest, reference learning, fast  from dt
          K_FAST, K_NEW   heading, new reference)

@@ -49,7 +49,7 @@ BOARD_REGS = {
 }
 # Bumped whenever an address, a format or a meaning in the register map changes (engine,
 # board, PWM); the host tool refuses to configure a board whose map it does not know.
-REGMAP_VERSION = 5
+REGMAP_VERSION = 6     # 6: GATE_NORM is also the new field's steadiness tolerance
 
 
 class CommandStats(data.Struct):

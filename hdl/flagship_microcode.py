@@ -29,7 +29,7 @@ _STATE = ("DELTA", "DELTA_OK", "REST_LEFT", "FAST_LEFT", "REF_LEFT", "CAND_LEFT"
 _PAIRS = ("F_PHI", "F_SK", "F_TH", "F_THK", "F_CPHI", "F_SPHI", "F_CH", "F_SH", "F_PSI", "F_HK",
           "F_DIP", "F_NK", "F_CD", "F_SD", "F_YAW", "F_YAWK")
 _WORK = ("F_SG", "F_SA", "F_V2", "F_C", "F_S", "F_N2", "F_F", "F_SXY",
-         "F_CX", "F_CY", "F_HORIZ", "F_MN", "F_LIM", "F_HN", "F_HD", "F_GAIN")
+         "F_CX", "F_CY", "F_HORIZ", "F_MN", "F_LIM", "F_HD", "F_GAIN")
 
 
 def flagship_names():
@@ -274,10 +274,9 @@ def _heading(asm, r):
         asm.br("f_good")
         asm.label("f_bad")
         asm.setf(Flag.MAG_DISTURBED)
-        asm.mul(r["F_HN"], r["GATE_NORM"], r["HALF"], Q30)
         asm.mul(r["F_HD"], r["GATE_DIP"], r["HALF"], Q30)
         asm.br("f_moved", Cond.A_ZERO, a=r["CAND_NORM"])
-        asm.mul(t1, r["CAND_NORM"], r["F_HN"], Q30)
+        asm.mul(t1, r["CAND_NORM"], r["GATE_NORM"], Q30)       # steady: within the gate
         asm.sub(t0, mn, r["CAND_NORM"])
         _abs(asm, r, t0, "f_abs_cnorm")
         asm.sub(t0, t1, t0)

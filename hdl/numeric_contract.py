@@ -200,7 +200,9 @@ class FlagshipParams:
     mag_fast_s: float = 3.0         # s of fast heading convergence at start-up
     mag_ref_s: float = 2.0          # s over which the reference field is learnt
     tau_ref: float = 0.5            # s, low-pass of the field's norm and dip while it is learnt
-    mag_norm_gate: float = 0.1
+    # relative; VQF's 10 % let most of a magnet fixed to the board through (trial 33). A new
+    # field counts as steady while its norm stays within this of its first value
+    mag_norm_gate: float = 0.05
     mag_dip_gate: float = 10.0      # degrees
     mag_new_s: float = 20.0
     rest_gyro: float = math.radians(2.0)   # rad/s

@@ -21,7 +21,8 @@ written from the paper's description, simplified:
   ``tau_mag`` (faster in the first ``mag_fast_s`` seconds, for start-up). A field whose norm or
   dip differs from the reference (low-passed over the first ``mag_ref_s`` seconds) by more than
   ``mag_norm_gate`` (relative) or ``mag_dip_gate`` (degrees) is rejected; one that stays
-  different but steady for ``mag_new_s`` seconds becomes the new reference.
+  different but steady (its norm within ``mag_norm_gate`` of the first such field's, its dip
+  within half ``mag_dip_gate``) for ``mag_new_s`` seconds becomes the new reference.
 - Gyro bias b: at rest (gyro within ``rest_gyro`` of the bias and accelerometer within
   ``rest_acc`` of its mean for ``rest_s`` seconds) b follows the low-passed gyro (time constant
   ``tau_rest``). (VQF also estimates the bias in motion; an integral term on the corrections
@@ -171,7 +172,7 @@ def flagship_filter(gyr, acc, mag, dt, params=FlagshipParams(), *, mag_valid=Non
                     good = abs(mn - ref[0]) < ref[0] * p.mag_norm_gate and \
                         abs(dip - ref[1]) < p.mag_dip_gate
                     if not good:
-                        if cand is None or abs(mn - cand[0]) > cand[0] * p.mag_norm_gate / 2 \
+                        if cand is None or abs(mn - cand[0]) > cand[0] * p.mag_norm_gate \
                                 or abs(dip - cand[1]) > p.mag_dip_gate / 2:
                             cand, cand_left = (mn, dip), k_new
                         elif cand_left == 0:

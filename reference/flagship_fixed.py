@@ -243,10 +243,9 @@ class FlagshipFixed:
             self.cand_norm = 0
             return True
         flags.add("mag_disturbed")
-        half_norm = mul(reg["GATE_NORM"], HALF, 30, st)
         half_dip = mul(reg["GATE_DIP"], HALF, 30, st)
         moved = (self.cand_norm == 0
-                 or sat32(mul(self.cand_norm, half_norm, 30, st) - _abs(sat32(
+                 or sat32(mul(self.cand_norm, reg["GATE_NORM"], 30, st) - _abs(sat32(
                      mn - self.cand_norm, st), st), st) < 0
                  or sat32(half_dip - _abs(wrap32(dip - self.cand_dip), st), st) < 0)
         if moved:
