@@ -191,19 +191,7 @@ class CommandDecoder(wiring.Component):
             m.next = "REPLY"
 
         m.d.comb += [crc.data.eq(byte)]
-        # what each board register (``BOARD_REGS``: the one map of names and addresses, which
-        # the host's register map reads too) reads back
-        sources = {
-            "RAW_MODE": self.raw_mode, "VERSION": C(self.version, 32),
-            "REGMAP_VERSION": C(REGMAP_VERSION, 32),
-            "RX_FRAMING_ERRORS": self.rx_framing_errors, "RX_OVERRUNS": self.rx_overruns,
-            "CMD_DISCARDED": stats.discarded, "CMD_CRC_ERRORS": stats.crc_errors,
-            "CMD_MALFORMED": stats.malformed, "CMD_OK": stats.ok, "CMD_REFUSED": stats.refused,
-            "FRAMES_SENT": self.frames_sent, "RATE_ERRORS": self.rate_errors,
-            "WHO_AM_I": self.who_am_i, "SELF_TEST": self.self_test.as_value(),
-        }
-        assert list(sources) == list(BOARD_REGS), "a board register without its source"
-        board_regs = {BOARD_REGS[name]: value for name, value in sources.items()}
+        board_regs = self._board_regs(stats)
         # an engine write the engine would refuse is answered "refused" here (the host learns
         # why): an address it may not write, or a CONTROL word with no meaning
         writable = address_in(low, self.writable) & (
@@ -214,76 +202,12 @@ class CommandDecoder(wiring.Component):
         in_frame = Signal()
         timed_out = (gap == self.timeout) & ~take & in_frame
         with m.FSM() as fsm:
-            with m.State("HUNT"):
-                m.d.comb += src.ready.eq(looked)
-                with m.If(take):
-                    with m.If(is_sync0):
-                        # a frame may start here: kept until it is done or failed
-                        m.d.comb += fifo.mark.eq(1)
-                        m.next = "SYNC1"
-                    with m.Else():
-                        m.d.comb += fifo.release.eq(1)
-                        count_up(stats.discarded)
-
-            @contextmanager
-            def receiving(state, *, checked=True):
-                """A parsing state: takes a byte (into the CRC if ``checked``), or gives up
-                on the frame at the time-out."""
-                with m.State(state):
-                    with m.If(timed_out):
-                        m.d.comb += fifo.release.eq(1)
-                        m.next = "HUNT"
-                    m.d.comb += src.ready.eq(looked)
-                    if checked:
-                        m.d.comb += crc.valid.eq(take)
-                    with m.If(take):
-                        yield
-
-            with m.State("SYNC1"):
-                with m.If(timed_out):
-                    m.d.comb += fifo.release.eq(1)
-                    m.next = "HUNT"
-                # a byte other than the sync's second goes back to the hunt untaken (the hunt
-                # counts it, or starts on it if it is 0xA5); the 0xA5 before it began nothing
-                m.d.comb += src.ready.eq(looked & is_sync1)
-                with m.If(looked):
-                    with m.If(is_sync1):
-                        m.next = "TYPE"
-                    with m.Else():
-                        count_up(stats.discarded)
-                        m.next = "HUNT"
-            with receiving("TYPE"):
-                m.d.comb += crc.start.eq(1)
-                m.d.sync += ctype.eq(byte)
-                m.next = "SEQ"
-            with receiving("SEQ"):
-                m.d.sync += seq.eq(byte)
-                m.next = "LENGTH"
-            with receiving("LENGTH"):
-                m.d.sync += [length.eq(byte), count.eq(0), payload.eq(0)]
-                with m.If(too_long):
-                    count_up(stats.malformed)
-                    m.d.comb += fifo.rewind.eq(1)           # search the rest for a header
-                    m.next = "HUNT"
-                with m.Elif(empty):
-                    m.next = "CRC_HIGH"
-                with m.Else():
-                    m.next = "PAYLOAD"
-            with receiving("PAYLOAD"):
-                m.d.sync += [payload.word_select(count, 8).eq(byte), count.eq(count + 1)]
-                with m.If(count + 1 == length):
-                    m.next = "CRC_HIGH"
-            with receiving("CRC_HIGH", checked=False):
-                m.d.sync += high_ok.eq(byte == crc.crc[8:])
-                m.next = "CRC_LOW"
-            with receiving("CRC_LOW", checked=False):
-                with m.If(crc_ok):
-                    m.d.comb += fifo.release.eq(1)
-                    m.next = "EXECUTE"
-                with m.Else():
-                    count_up(stats.crc_errors)
-                    m.d.comb += fifo.rewind.eq(1)           # search the rest for a header
-                    m.next = "HUNT"
+            self._parse(m, SimpleNamespace(
+                src=src, fifo=fifo, crc=crc, take=take, byte=byte, looked=looked,
+                is_sync0=is_sync0, is_sync1=is_sync1, too_long=too_long, empty=empty,
+                crc_ok=crc_ok, high_ok=high_ok, timed_out=timed_out, ctype=ctype, seq=seq,
+                length=length, count=count, payload=payload, count_up=count_up,
+                stats=stats))
 
             with m.State("EXECUTE"):
                 self._execute(m, SimpleNamespace(
@@ -318,6 +242,100 @@ class CommandDecoder(wiring.Component):
             count_up(stats.malformed)
             m.d.sync += gap.eq(0)
         return m
+
+    def _board_regs(self, stats):
+        """What each board register reads back, by address (``BOARD_REGS``: the one map of
+        names and addresses, which the host's register map reads too)."""
+        sources = {
+            "RAW_MODE": self.raw_mode, "VERSION": C(self.version, 32),
+            "REGMAP_VERSION": C(REGMAP_VERSION, 32),
+            "RX_FRAMING_ERRORS": self.rx_framing_errors, "RX_OVERRUNS": self.rx_overruns,
+            "CMD_DISCARDED": stats.discarded, "CMD_CRC_ERRORS": stats.crc_errors,
+            "CMD_MALFORMED": stats.malformed, "CMD_OK": stats.ok, "CMD_REFUSED": stats.refused,
+            "FRAMES_SENT": self.frames_sent, "RATE_ERRORS": self.rate_errors,
+            "WHO_AM_I": self.who_am_i, "SELF_TEST": self.self_test.as_value(),
+        }
+        assert list(sources) == list(BOARD_REGS), "a board register without its source"
+        return {BOARD_REGS[name]: value for name, value in sources.items()}
+
+    def _parse(self, m, c):
+        """The parsing states of the decoder's FSM, HUNT to CRC_LOW (EXECUTE follows a frame
+        that passed its CRC). ``c``: the parser's registers, the FIFO's head and helpers."""
+        (src, fifo, crc, take, byte, looked, is_sync0, is_sync1, too_long, empty, crc_ok,
+         high_ok, timed_out, ctype, seq, length, count, payload, count_up, stats) = (
+            c.src, c.fifo, c.crc, c.take, c.byte, c.looked, c.is_sync0, c.is_sync1,
+            c.too_long, c.empty, c.crc_ok, c.high_ok, c.timed_out, c.ctype, c.seq, c.length,
+            c.count, c.payload, c.count_up, c.stats)
+        with m.State("HUNT"):
+            m.d.comb += src.ready.eq(looked)
+            with m.If(take):
+                with m.If(is_sync0):
+                    # a frame may start here: kept until it is done or failed
+                    m.d.comb += fifo.mark.eq(1)
+                    m.next = "SYNC1"
+                with m.Else():
+                    m.d.comb += fifo.release.eq(1)
+                    count_up(stats.discarded)
+
+        @contextmanager
+        def receiving(state, *, checked=True):
+            """A parsing state: takes a byte (into the CRC if ``checked``), or gives up
+            on the frame at the time-out."""
+            with m.State(state):
+                with m.If(timed_out):
+                    m.d.comb += fifo.release.eq(1)
+                    m.next = "HUNT"
+                m.d.comb += src.ready.eq(looked)
+                if checked:
+                    m.d.comb += crc.valid.eq(take)
+                with m.If(take):
+                    yield
+
+        with m.State("SYNC1"):
+            with m.If(timed_out):
+                m.d.comb += fifo.release.eq(1)
+                m.next = "HUNT"
+            # a byte other than the sync's second goes back to the hunt untaken (the hunt
+            # counts it, or starts on it if it is 0xA5); the 0xA5 before it began nothing
+            m.d.comb += src.ready.eq(looked & is_sync1)
+            with m.If(looked):
+                with m.If(is_sync1):
+                    m.next = "TYPE"
+                with m.Else():
+                    count_up(stats.discarded)
+                    m.next = "HUNT"
+        with receiving("TYPE"):
+            m.d.comb += crc.start.eq(1)
+            m.d.sync += ctype.eq(byte)
+            m.next = "SEQ"
+        with receiving("SEQ"):
+            m.d.sync += seq.eq(byte)
+            m.next = "LENGTH"
+        with receiving("LENGTH"):
+            m.d.sync += [length.eq(byte), count.eq(0), payload.eq(0)]
+            with m.If(too_long):
+                count_up(stats.malformed)
+                m.d.comb += fifo.rewind.eq(1)           # search the rest for a header
+                m.next = "HUNT"
+            with m.Elif(empty):
+                m.next = "CRC_HIGH"
+            with m.Else():
+                m.next = "PAYLOAD"
+        with receiving("PAYLOAD"):
+            m.d.sync += [payload.word_select(count, 8).eq(byte), count.eq(count + 1)]
+            with m.If(count + 1 == length):
+                m.next = "CRC_HIGH"
+        with receiving("CRC_HIGH", checked=False):
+            m.d.sync += high_ok.eq(byte == crc.crc[8:])
+            m.next = "CRC_LOW"
+        with receiving("CRC_LOW", checked=False):
+            with m.If(crc_ok):
+                m.d.comb += fifo.release.eq(1)
+                m.next = "EXECUTE"
+            with m.Else():
+                count_up(stats.crc_errors)
+                m.d.comb += fifo.rewind.eq(1)           # search the rest for a header
+                m.next = "HUNT"
 
     def _execute(self, m, c):
         """EXECUTE, the cycle after a whole command passed its CRC: the command checked

@@ -3,6 +3,7 @@ style, set through the command channel, low until enabled, and returned to low b
 watchdog when the host goes silent."""
 
 import math
+from typing import NamedTuple
 
 from amaranth import *
 from amaranth.lib import wiring
@@ -27,6 +28,18 @@ PWM_REGS = {
     "PWM_SERVO_PERIOD": 0x04, "PWM_MOTOR_PERIOD": 0x05,
     **{f"PWM_HIGH{k}": 0x10 + k for k in range(PWM_CHANNELS)},
 }
+
+
+class _Registers(NamedTuple):
+    """What ``PWMOutputs._registers`` builds, for the watchdog and the outputs."""
+    enable: Signal
+    mode: Signal
+    watchdog_ms: Signal
+    period: list
+    high: list
+    given: Signal
+    write: Value
+    restart: Signal
 
 
 class PWMOutputs(wiring.Component):
@@ -99,6 +112,13 @@ class PWMOutputs(wiring.Component):
 
     def elaborate(self, platform):
         m = Module()
+        regs = self._registers(m)
+        us_tick = self._watchdog(m, regs)
+        self._outputs(m, regs, us_tick)
+        return m
+
+    def _registers(self, m):
+        """The registers, their read-back and the range checks of a write (``_Registers``)."""
         n = PWM_CHANNELS
         bus = self.bus
         enable = Signal(n)
@@ -160,8 +180,10 @@ class PWMOutputs(wiring.Component):
                 for k in range(n):
                     with m.Case(PWM_REGS[f"PWM_HIGH{k}"]):
                         m.d.sync += [high[k].eq(low), given[k].eq(1)]
+        return _Registers(enable, mode, watchdog_ms, period, high, given, write, restart)
 
-        # the time bases' microsecond
+    def _watchdog(self, m, r):
+        """The microsecond tick of the time bases (returned) and the command watchdog."""
         us_timer = Signal(range(self.us_cycles), reset_less=True)
         us_tick = us_timer == 0
         m.d.sync += us_timer.eq(Mux(us_tick, self.us_cycles - 1, us_timer - 1))
@@ -174,12 +196,18 @@ class PWMOutputs(wiring.Component):
         left = Signal(16, init=WATCHDOG_MS_AT_RESET)
         with m.If(us_tick):
             m.d.sync += ms_us.eq(Mux(ms_us == 0, 999, ms_us - 1))
-        with m.If(restart):
-            m.d.sync += [left.eq(watchdog_ms), ms_us.eq(999)]
+        with m.If(r.restart):
+            m.d.sync += [left.eq(r.watchdog_ms), ms_us.eq(999)]
         with m.Elif(ms_tick & (left != 0)):
             m.d.sync += left.eq(left - 1)
-        with m.If((watchdog_ms != 0) & (left == 0) & ~restart & (enable != 0) & ~write):
-            m.d.sync += [enable.eq(0), self.tripped.eq(1)]
+        with m.If((r.watchdog_ms != 0) & (left == 0) & ~r.restart & (r.enable != 0) & ~r.write):
+            m.d.sync += [r.enable.eq(0), self.tripped.eq(1)]
+        return us_tick
+
+    def _outputs(self, m, r, us_tick):
+        """The two time bases (servo in microseconds, motor in cycles) and the channels."""
+        n = PWM_CHANNELS
+        enable, mode, period, high, given = r.enable, r.mode, r.period, r.high, r.given
 
         # the two time bases: a counter each, its period taken at each wrap. The counter stays
         # below its active period (it starts at 0 at a wrap), so the wrap is an equality, not
@@ -231,4 +259,3 @@ class PWMOutputs(wiring.Component):
             with m.Elif(reaches):
                 m.d.sync += below.eq(0)
             m.d.comb += self.pwm[k].eq(enable[k] & below)
-        return m
