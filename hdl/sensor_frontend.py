@@ -17,14 +17,14 @@ __all__ = ["SensorFrontEnd", "sample_read_cycles"]
 def sample_read_cycles(config, clk_freq, bus_timing=None):
     """An upper bound of the cycles from a data-ready edge to the sample leaving the driver:
     the synchroniser and the driver's hand-offs, plus the bus: one fast SPI burst of
-    ``SAMPLE_BYTES`` + 1 bytes (each 16 SCLK levels without a pause, the driver taking every
+    ``SAMPLE_BYTES`` + 1 bytes (each 8 SCLK periods without a pause, the driver taking every
     byte at once; the last byte's capture delay and hand-off; CS setup, hold and gap), or on I2C the MPU9250 read and the AK8963 read (9 SCL periods a byte
     plus START, repeated START, STOP). ``simulate``'s measured ``sample_read_us`` stays below it
     (a test checks)."""
     overhead = 16
     if config.wiring == "spi":
         t = bus_timing or SPITiming.for_clock(clk_freq)
-        burst = (SAMPLE_BYTES + 1) * 16 * t.fast_half + t.capture_delay + 3
+        burst = (SAMPLE_BYTES + 1) * 8 * t.period(fast=True) + t.capture_delay + 3
         return overhead + burst + t.fast_half + t.cs_hold + t.cs_gap
     t = bus_timing or I2CTiming.for_clock(clk_freq)
     period = t.low + t.high

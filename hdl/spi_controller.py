@@ -52,17 +52,33 @@ IO_BUDGET = IOBudget()
 @dataclass(frozen=True)
 class SPITiming:
     slow_half: int       # cycles per SCLK level, slow rate
-    fast_half: int       # cycles per SCLK level, fast rate
+    fast_half: int       # cycles of SCLK's low level (and of the CS setup), fast rate
     cs_hold: int         # cycles from the last rising SCLK edge to CS rising, at least
     cs_gap: int          # cycles CS stays high between transactions
     cipo_delay: int = 1  # cycles from a rising SCLK edge to the edge that samples CIPO's pin
+    fast_high: int = None   # cycles of SCLK's high level, fast rate (None: ``fast_half``)
 
     def __post_init__(self):
-        for name in ("slow_half", "fast_half", "cs_hold", "cs_gap"):
+        if self.fast_high is None:
+            object.__setattr__(self, "fast_high", self.fast_half)
+        for name in ("slow_half", "fast_half", "fast_high", "cs_hold", "cs_gap"):
             if getattr(self, name) < 1:
                 raise ValueError(f"SPITiming.{name} must be at least 1 cycle")
         if self.cipo_delay < 0:
             raise ValueError("SPITiming.cipo_delay cannot be negative")
+
+    def low(self, fast):
+        """Cycles of SCLK's low level (the first of a bit: COPI and the device's SDO change
+        at its start)."""
+        return self.fast_half if fast else self.slow_half
+
+    def high(self, fast):
+        """Cycles of SCLK's high level (the device latches COPI at its start)."""
+        return self.fast_high if fast else self.slow_half
+
+    def period(self, fast):
+        """Cycles of one SCLK period, a bit."""
+        return self.low(fast) + self.high(fast)
 
     @property
     def capture_delay(self):
@@ -77,8 +93,7 @@ class SPITiming:
     def sample_window(self, fast):
         """(first, last) cycle after a falling SCLK edge leaves its register at which CIPO's
         pin is sampled for that bit: (sample point, the cycle before the next falling edge)."""
-        half = self.fast_half if fast else self.slow_half
-        return half + self.cipo_delay, 2 * half - 1
+        return self.low(fast) + self.cipo_delay, self.period(fast) - 1
 
     @classmethod
     def for_clock(cls, clk_freq, *, slow_hz=1e6, fast_hz=20e6, cs_hold_s=500e-9,
@@ -92,24 +107,27 @@ class SPITiming:
         can change from ``earliest`` after the next falling edge. The pin is sampled on the
         first clock edge after ``latest`` and it must come before the next falling edge plus
         ``earliest``: so an SCLK period longer than ``latest - earliest`` is needed, whatever
-        the clock (at most about 8 MHz with the defaults; 6 MHz at 48 MHz). ``fast_half`` is
-        the shortest level (at least ``min_half`` cycles, SCLK at most ``fast_hz``) with such
-        a sampling edge; ``cipo_delay`` places it.
+        the clock (at most about 8 MHz with the defaults; 48/7 MHz at 48 MHz). The fast
+        period is the shortest whole number of cycles (each level at least ``min_half``,
+        SCLK at most ``fast_hz``) with such a sampling edge; it need not be even: the low
+        level gets the odd cycle (``fast_half``, ``fast_high``), and ``cipo_delay`` places
+        the edge in the high level.
         """
         def half(hz):
             return cycles(1 / (2 * hz), clk_freq, minimum=min_half)
         earliest, latest = io_budget.sdo_window_s
         first = math.floor(latest * clk_freq + 1e-9) + 1    # first edge strictly after latest
-        fast = half(fast_hz)
-        while first > 2 * fast - 1 + math.floor(earliest * clk_freq + 1e-9):
-            fast += 1
-        slow = max(half(slow_hz), fast)
+        period = max(2 * min_half, cycles(1 / fast_hz, clk_freq))
+        while first > period - 1 + math.floor(earliest * clk_freq + 1e-9):
+            period += 1
+        low = (period + 1) // 2
+        slow = max(half(slow_hz), low)
         hold = cycles(cs_hold_s, clk_freq)
-        return cls(slow_half=slow, fast_half=fast, cs_hold=hold, cs_gap=max(hold, slow),
-                   cipo_delay=max(0, first - fast))
+        return cls(slow_half=slow, fast_half=low, fast_high=period - low, cs_hold=hold,
+                   cs_gap=max(hold, slow), cipo_delay=max(0, first - low))
 
     def sclk_hz(self, clk_freq, fast):
-        return clk_freq / (2 * (self.fast_half if fast else self.slow_half))
+        return clk_freq / self.period(fast)
 
 
 class SPIPinsSignature(wiring.Signature):
@@ -137,25 +155,27 @@ class SPIController(wiring.Component):
                             (raw: it goes through an ``FFSynchronizer`` here).
 
     Timing (``SPITiming``, all in system clock cycles)
-        Each SCLK level lasts ``half`` cycles (``slow_half`` or ``fast_half``). Chip select falls
-        ``half`` cycles before the first falling SCLK edge (setup) and rises at least ``cs_hold``
-        cycles after the last rising edge; it then stays high for ``cs_gap`` cycles.
+        Each SCLK level lasts ``slow_half`` cycles at the slow rate; at the fast rate the low
+        level lasts ``fast_half`` and the high level ``fast_high`` (a period need not be even:
+        ``for_clock``). Chip select falls a low level's cycles before the first falling SCLK
+        edge (setup) and rises at least ``cs_hold`` cycles after the last rising edge; it then
+        stays high for ``cs_gap`` cycles.
         Mode 3: SCLK idles high, COPI changes on the falling edge. CIPO's pin is sampled (the
         synchroniser's first flip-flop) ``cipo_delay`` cycles after the rising edge leaves its
-        register, so ``half + cipo_delay`` cycles after the falling edge the device answers: late
+        register, so ``low + cipo_delay`` cycles after the falling edge the device answers: late
         enough for the round trip (``IOBudget``: the output delay, the I/O, the board, a
         margin), early enough that the bit has not yet changed; the bit is shifted in
         ``capture_delay`` = 2 + ``cipo_delay`` cycles after the rising edge.
 
-    Throughput: 8 bits take ``16 * half`` cycles. Within a transaction the next byte's first
-    falling edge follows the last rising edge by ``half`` (SCLK runs without a pause) when that
+    Throughput: 8 bits take 8 periods (``period``). Within a transaction the next byte's first
+    falling edge follows the last rising edge by a high level (SCLK runs without a pause) when that
     byte is offered in time and every earlier result has been taken; the byte in flight is
     still captured (its result held in the receive shift register until the one before it is
     taken, so none is lost). Otherwise the controller waits for its byte's result to be
     handed over, then for the next byte: ``capture_delay`` + 2 or more cycles between bytes.
-    Latency: a byte's result is offered 16·``half`` + ``capture_delay`` - ``half`` + 1 cycles
+    Latency: a byte's result is offered 8·``period`` + ``capture_delay`` - ``high`` + 1 cycles
     after its first falling edge; the first byte of a transaction adds the chip-select setup
-    (``half``).
+    (a low level).
     """
     def __init__(self, timing):
         self.timing = timing
@@ -172,13 +192,15 @@ class SPIController(wiring.Component):
         cipo = Signal()
         m.submodules.cipo_sync = FFSynchronizer(self.pins.cipo, cipo, stages=SYNC_STAGES)
 
-        timer = Signal(range(max(t.slow_half, t.fast_half, t.cs_hold, t.cs_gap) + 1))
+        timer = Signal(range(max(t.slow_half, t.fast_half, t.fast_high, t.cs_hold, t.cs_gap) + 1))
         fast = Signal()         # rate of the current transaction
         last = Signal()         # current byte ends the transaction
         tx = Signal(8, reset_less=True)     # loaded with each byte
         bit = Signal(range(8))
-        half = Signal.like(timer)
-        m.d.comb += half.eq(Mux(fast, t.fast_half, t.slow_half))
+        half = Signal.like(timer)       # the low level (and the CS setup)
+        high = Signal.like(timer)
+        m.d.comb += [half.eq(Mux(fast, t.fast_half, t.slow_half)),
+                     high.eq(Mux(fast, t.fast_high, t.slow_half))]
 
         # The capture strobe follows each rising edge through a delay line as long as the
         # round trip, so the received bit is the one the device drove for that edge.
@@ -230,7 +252,7 @@ class SPIController(wiring.Component):
             with m.State("LOW"):
                 m.d.sync += timer.eq(timer - 1)
                 with m.If(timer == 0):
-                    m.d.sync += [self.pins.sclk.eq(1), timer.eq(half - 1)]
+                    m.d.sync += [self.pins.sclk.eq(1), timer.eq(high - 1)]
                     m.d.comb += [rise.eq(1), clocked.eq(bit == 7)]
                     m.next = "HIGH"
             with m.State("HIGH"):

@@ -21,6 +21,8 @@ pytestmark = pytest.mark.formal
 TIMING = SPITiming(slow_half=3, fast_half=2, cs_hold=2, cs_gap=3, cipo_delay=1)
 # the smallest timing: SCLK levels of 2 (slow) and 1 (fast) cycles
 SMALL = SPITiming(slow_half=2, fast_half=1, cs_hold=1, cs_gap=2, cipo_delay=0)
+# an odd fast period, as ``SPITiming.for_clock`` makes at 48 MHz: a low level of 2, a high of 1
+ODD = SPITiming(slow_half=2, fast_half=2, fast_high=1, cs_hold=1, cs_gap=2, cipo_delay=0)
 
 
 def spi_harness(t=TIMING, dut=None, *, counting=True):
@@ -63,9 +65,10 @@ def spi_harness(t=TIMING, dut=None, *, counting=True):
     with m.If(take):
         m.d.sync += sent[in_flight - pop].eq(p.data)
     m.d.sync += in_flight.eq(in_flight + take - pop)
-    # the transaction's half-period as the harness saw it chosen; k-induction cannot relate the
-    # harness's copy to the controller's, so the proof uses the shorter of the two
-    half = Mux(fast, t.fast_half, t.slow_half) if counting else min(t.fast_half, t.slow_half)
+    # the transaction's SCLK levels as the harness saw its rate chosen; k-induction cannot
+    # relate the harness's copy to the controller's, so the proof uses the shorter of the two
+    low = Mux(fast, t.fast_half, t.slow_half) if counting else min(t.fast_half, t.slow_half)
+    high = Mux(fast, t.fast_high, t.slow_half) if counting else min(t.fast_high, t.slow_half)
 
     # cycles since each event (0 in the cycle after it)
     level = counter(m, 5, clear=sclk != sclk_was, name="level")   # SCLK held
@@ -87,11 +90,12 @@ def spi_harness(t=TIMING, dut=None, *, counting=True):
         Assert((copi == copi_was) | fell, "copi_stable"),
     ]
     with m.If((sclk != sclk_was) & ~cs_fell):
-        # the level that just ended lasted at least the configured half-period (level counts
-        # the cycles before this one: a level of n cycles reads n - 1 here, plus this one)
-        m.d.comb += Assert(level + 1 >= half, "sclk_half_period")
+        # the level that just ended (low before a rising edge, high before a falling one)
+        # lasted at least the configured cycles (level counts the cycles before this one: a
+        # level of n cycles reads n - 1 here, plus this one)
+        m.d.comb += Assert(level + 1 >= Mux(rose, low, high), "sclk_level")
     with m.If(fell & first_fall):
-        m.d.comb += Assert(since_cs + 1 >= half, "cs_setup")
+        m.d.comb += Assert(since_cs + 1 >= low, "cs_setup")
     with m.If(cs_rose):
         m.d.comb += Assert(since_rise + 1 >= t.cs_hold, "cs_hold")
     with m.If(cs_rose & counting):
@@ -131,3 +135,10 @@ def test_spi_transactions(formal):
 @pytest.mark.slow
 def test_spi_cover(formal):
     formal(spi_harness(SMALL), name="spi_cover", mode="cover", depth=64)
+
+
+# The odd period (a high level shorter than the low one) from reset to depth 64: a two-byte fast
+# transaction (1 + 2 + 2 × (24 + 3) + 1 + 2 = 60) or a one-byte slow one.
+@pytest.mark.slow
+def test_spi_transactions_odd_period(formal):
+    formal(spi_harness(ODD), name="spi_transactions_odd", mode="bmc", depth=64)

@@ -115,12 +115,12 @@ def levels(events):
 TIMINGS = [
     SPITiming(slow_half=3, fast_half=1, cs_hold=2, cs_gap=3),
     SPITiming(slow_half=6, fast_half=2, cs_hold=6, cs_gap=6),
-    SPITiming(slow_half=5, fast_half=3, cs_hold=1, cs_gap=1),
+    SPITiming(slow_half=5, fast_half=3, cs_hold=1, cs_gap=1, fast_high=2),   # an odd period
     SPITiming(slow_half=7, fast_half=4, cs_hold=9, cs_gap=2, cipo_delay=1),
 ]
 
 
-@pytest.mark.parametrize("timing", TIMINGS, ids=lambda t: f"slow{t.slow_half}_fast{t.fast_half}")
+@pytest.mark.parametrize("timing", TIMINGS, ids=lambda t: f"slow{t.slow_half}_fast{t.fast_half}_{t.fast_high}")
 @pytest.mark.parametrize("length", [1, 2, 16])
 def test_transfers(timing, length, vcd):
     transactions = [(bytes((0xA5 ^ (i * 29)) & 0xFF for i in range(length)), fast)
@@ -131,24 +131,24 @@ def test_transfers(timing, length, vcd):
     assert got == [response_byte(i) for i in range(len(sent))]
 
     lv = levels(dev["events"])
-    # SCLK levels: exactly ``half`` inside a byte; a high level between bytes may be longer.
-    halves = {timing.slow_half, timing.fast_half}
-    assert set(lv["low"]) <= halves
-    assert min(lv["high"]) in halves
+    # SCLK levels: exactly the rate's inside a byte; a high level between bytes may be longer.
+    assert set(lv["low"]) <= {timing.slow_half, timing.fast_half}
+    assert min(lv["high"]) in {timing.slow_half, timing.fast_high}
     assert lv["setup"] == [timing.slow_half, timing.fast_half]
     assert min(lv["hold"]) >= timing.cs_hold
     assert min(lv["gap"]) >= timing.cs_gap
 
 
-@pytest.mark.parametrize("timing", TIMINGS, ids=lambda t: f"slow{t.slow_half}_fast{t.fast_half}")
+@pytest.mark.parametrize("timing", TIMINGS, ids=lambda t: f"slow{t.slow_half}_fast{t.fast_half}_{t.fast_high}")
 def test_a_burst_clocks_without_a_pause(timing):
     """Bytes offered in time and results taken at once: SCLK keeps its rhythm across the
-    bytes of a transaction (every level ``half``), so a burst takes 16·``half`` cycles a byte."""
+    bytes of a transaction (every level the rate's), so a burst takes 8 periods a byte."""
     dev, got = run(timing, [(bytes(range(1, 17)), 1), (bytes(range(1, 5)), 0)])
     assert got == [response_byte(i) for i in range(20)]
     lv = levels(dev["events"])
-    assert set(lv["high"]) == set(lv["low"]) == {timing.fast_half, timing.slow_half}
-    assert lv["high"].count(timing.fast_half) == 16 * 8 - 1
+    assert set(lv["low"]) == {timing.fast_half, timing.slow_half}
+    assert set(lv["high"]) == {timing.fast_high, timing.slow_half}
+    assert lv["high"].count(timing.fast_high) == 16 * 8 - 1
 
 
 @pytest.mark.parametrize("timing", TIMINGS[:2], ids=lambda t: f"slow{t.slow_half}")
@@ -166,7 +166,7 @@ def test_timing_for_clock_meets_datasheet(clk_freq):
     assert t.slow_half / clk_freq >= 400e-9              # SCLK high/low at the slow rate
     assert t.sclk_hz(clk_freq, fast=True) <= 20e6 + 1e-6
     assert t.cs_hold / clk_freq >= 500e-9 - 1e-12
-    assert t.fast_half >= 2
+    assert t.fast_half >= 2 and t.fast_high >= 2
 
 
 def test_timing_rejects_zero():
@@ -177,7 +177,8 @@ def test_timing_rejects_zero():
 def test_the_sample_point_leaves_the_io_budget_its_margin():
     """Issue #23: at the default 48 MHz the round trip of a CIPO bit (``IOBudget``: SDO's
     100 ns, the FPGA's output and input, the board both ways: 114 ns) leaves at least 10 ns
-    before the sampling edge (125 ns); the fast SCLK is 6 MHz for it (8 MHz left 4 ns)."""
+    before the sampling edge (125 ns); the fast SCLK is 48/7 MHz for it (a period of 7 cycles,
+    low 4 and high 3, with the sample 2 cycles into the high level; 8 MHz left 4 ns)."""
     from mpu9250_ahrs.hdl.spi_controller import IO_BUDGET
     timing = SPITiming.for_clock(48e6)
     assert IO_BUDGET.arrival_ns == 114
@@ -203,7 +204,7 @@ def test_cipo_sampling_point_against_the_output_delay(sdo_delay_ns, reads_right)
     setup = SimSetup(config=MPU9250Config(magnetometer=False), odr_scale=0.1)
     assert setup.clk_freq == SYSTEM_CLOCK_HZ
     timing = SPITiming.for_clock(setup.clk_freq)
-    assert timing.sample_window(fast=True) == (6, 7) and timing.sclk_hz(48e6, True) == 6e6
+    assert timing.sample_window(fast=True) == (6, 6) and timing.sclk_hz(48e6, True) == 48e6 / 7
     model = MPU9250Model(timing=replace(setup.model_timing(), sdo_delay_s=sdo_delay_ns * 1e-9),
                          source=counting_source())
     # read wrongly, the bursts fail the driver's checks (bad_burst, then a restart) or, if one
@@ -222,7 +223,7 @@ def test_cipo_sampling_point_against_the_output_delay(sdo_delay_ns, reads_right)
 def test_the_sample_burst_runs_without_a_pause():
     """Issue #23 (latency): at the default 48 MHz the whole sample burst (INT_STATUS to the
     AK8963's ST2, ``SAMPLE_BYTES`` + 1 bytes) is clocked without a pause between its bytes: CS
-    low for the CS setup, 16 levels a byte, and the CS hold; and within
+    low for the CS setup, 8 SCLK periods a byte, and the CS hold; and within
     ``sample_read_cycles``' bound, which ``build`` and ``report`` use for the rate check."""
     from mpu9250_ahrs.hdl.mpu9250_driver import MPU9250Config
     from mpu9250_ahrs.hdl.sample_reader import SAMPLE_BYTES
@@ -231,6 +232,6 @@ def test_the_sample_burst_runs_without_a_pause():
     setup = SimSetup(config=MPU9250Config(), odr_scale=0.1)
     t = SPITiming.for_clock(setup.clk_freq)
     result = run_frontend(setup, n_samples=2)
-    gap_free = t.fast_half + (SAMPLE_BYTES + 1) * 16 * t.fast_half + t.cs_hold
+    gap_free = t.fast_half + (SAMPLE_BYTES + 1) * 8 * t.period(fast=True) + t.cs_hold
     assert gap_free <= sample_read_cycles(result, setup) <= gap_free + 2
     assert sample_read_cycles(result, setup) < bound(setup.config, setup.clk_freq)
