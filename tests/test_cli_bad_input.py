@@ -299,16 +299,18 @@ def test_output_folders_are_made_before_the_work(capsys, tmp_path):
 def test_an_interrupted_verb_says_what_it_kept(monkeypatch, tmp_path, capsys):
     """Issue #29: Ctrl-C gives one line saying what was kept, no traceback, exit 130."""
     import mpu9250_ahrs.cli as cli
+    from mpu9250_ahrs.cli import gateware, host_verbs
 
     def interrupted(args):
         (tmp_path / "partial.csv").write_text("host_time_s\n")
         raise KeyboardInterrupt
-    monkeypatch.setattr(cli, "cmd_monitor", interrupted)
+    monkeypatch.setattr(host_verbs, "cmd_monitor", interrupted)
     assert cli.main(["monitor", "sim", "--csv", str(tmp_path / "partial.csv")]) == 130
     err = capsys.readouterr().err.strip().splitlines()
     assert err == [f"mpu9250-ahrs monitor: interrupted; kept as far as it got: "
                    f"{tmp_path / 'partial.csv'}"]
-    monkeypatch.setattr(cli, "cmd_report", lambda args: (_ for _ in ()).throw(KeyboardInterrupt))
+    monkeypatch.setattr(gateware, "cmd_report",
+                        lambda args: (_ for _ in ()).throw(KeyboardInterrupt))
     assert cli.main(["report"]) == 130
     assert capsys.readouterr().err.strip() == \
         "mpu9250-ahrs report: interrupted; nothing was written"

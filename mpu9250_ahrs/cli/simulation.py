@@ -1,0 +1,318 @@
+"""The verbs that run the design or a filter without a board: ``simulate`` (co-simulation,
+faults, waveforms) and ``replay`` (a recording through a filter, the engine or the whole
+simulated board)."""
+
+import json
+import sys
+import time
+
+from .options import (_add_full_scale_options, _add_sensor_options, _clock, _config, _count,
+                      _core_options, _number, _positive, check_rates)
+
+
+__all__ = ["add_simulate", "add_replay", "cmd_simulate", "cmd_replay", "attitude_json",
+           "sample_read_time"]
+
+
+def add_simulate(sub, quiet):
+    """``simulate``: its options."""
+    p = sub.add_parser("simulate", parents=[quiet], help="co-simulate the gateware with the MPU9250 model",
+                       description="Bring-up plus N samples, compiled (Verilator) or in "
+                                   "Amaranth's simulator (--simulator), with real time scaled "
+                                   "down (delays and sample period) to save cycles.")
+    p.add_argument("--samples", type=_count, default=20, help="samples to read (default 20)")
+    p.add_argument("--vcd", default=None, help="write a VCD (and a GTKWave .gtkw beside it)")
+    p.add_argument("--who-am-i", type=_number("a byte", low=0, integer=True), default=0x71,
+                   help="WHO_AM_I of the modelled part (default 0x71; 0x73 is an MPU9255)")
+    p.add_argument("--delay-scale", type=_positive, default=1e-3,
+                   help="scale of start-up and reset delays (default 1e-3)")
+    p.add_argument("--odr-scale", type=_positive, default=None,
+                   help="scale of the sample period (default 0.2 with SPI up to 1 kHz, else 1)")
+    p.add_argument("--quiet-summary", action="store_true", help="summary to stderr")
+    p.add_argument("--pose", default=None, metavar="ROLL,PITCH,YAW",
+                   help="the models read a board held still at this attitude (degrees, with "
+                        "sensor noise) instead of the counting test pattern")
+    p.add_argument("--attitude", action="store_true",
+                   help="also run the samples through the attitude engine and print its result "
+                        "per sample (quaternion, roll/pitch/yaw, bias, flags)")
+    p.add_argument("--filter", choices=("flagship", "kalman", "complementary"),
+                   default="flagship", help="the engine's filter with --attitude (flagship)")
+    p.add_argument("--fault", default=None, metavar="NAME",
+                   help="inject a fault of the catalogue (hdl/FAULTS.md) into the models and "
+                        "report what the design did: detected_after_samples, flags, recovered, "
+                        "stale_valid_samples (exit 1 unless detected, recovered, none stale); "
+                        "--fault list prints the names")
+    p.add_argument("--fault-at", type=_count, default=20, metavar="N",
+                   help="a mid-run fault starts after the design has read N samples (20)")
+    p.add_argument("--simulator", choices=("auto", "compiled", "python"), default="auto",
+                   help="compiled: the design in Verilator (tens of times faster; built once "
+                        "and cached, needs verilator and g++; with --vcd a build that traces "
+                        "every signal), python: Amaranth's simulator, auto (default): compiled "
+                        "when it can be; the summary's 'simulator' says which ran")
+    _add_sensor_options(p)
+    p.set_defaults(func=cmd_simulate)
+
+
+def add_replay(sub, quiet):
+    """``replay``: its options."""
+    p = sub.add_parser("replay", parents=[quiet], help="score a reference filter on a recording",
+                       description="Quantise a BROAD-format recording (imu_gyr rad/s, imu_acc "
+                                   "m/s², imu_mag µT, opt_quat, movement, sampling_rate) to "
+                                   "MPU9250/AK8963 counts, run a filter, and print one JSON line "
+                                   "with total/heading/inclination RMSE (BROAD's metric, degrees, "
+                                   "over the movement samples).")
+    p.add_argument("file", help="HDF5 recording, e.g. ../shared/data/broad/02_*.hdf5")
+    p.add_argument("--filter", choices=("kalman", "complementary", "madgwick", "flagship"),
+                   default="flagship",
+                   help="the filter to score (flagship); madgwick runs in the float reference "
+                        "only")
+    p.add_argument("--engine", choices=("float", "fixed", "gateware", "board"),
+                   default="float",
+                   help="float: the float reference filter; fixed: the bit-exact integer model "
+                        "of the attitude engine; gateware: the engine's Verilog in Verilator "
+                        "(built once and cached; needs verilator and g++), compared with the "
+                        "fixed model on every sample (bit_exact, first_mismatch; exit 1 on a "
+                        "mismatch); board: the whole core co-simulated (the samples through "
+                        "the sensor models, SPI, driver, engine, telemetry and UART; compiled "
+                        "when Verilator is there), scored on the frames the host decodes (every "
+                        "telemetry_divider-th sample) and each frame compared with the fixed "
+                        "model (about 4 minutes a shared recording). fixed, gateware and "
+                        "board: kalman, complementary, flagship")
+    p.add_argument("--samples", type=_count, default=None, metavar="N",
+                   help="only the recording's first N samples")
+    p.add_argument("--fixed", action="store_true", help="the same as --engine fixed")
+    p.add_argument("--out", help="write the estimated quaternions (t, w, x, y, z) as CSV")
+    p.add_argument("--beta", type=_positive, default=None, help="Madgwick gain (default 0.1)")
+    _add_full_scale_options(p, whose="the recording's ")
+    p.set_defaults(func=cmd_replay)
+
+
+def cmd_simulate(args):
+    from .. import progress
+    from ..sim.cosim import SimSetup, run_core, run_frontend, simulator_name
+
+    if args.fault == "list":
+        from ..sim.faults import FAULTS
+        for name, fault in FAULTS.items():
+            print(f"{name:24s} {'/'.join(fault.wirings):8s} {fault.description}")
+        return 0
+    config = _config(args)
+    clk_freq = _clock(args)
+    budget = check_rates(config, clk_freq, args)
+    odr_scale = args.odr_scale if args.odr_scale is not None else \
+        SimSetup.default_odr_scale(config)
+    # the self-tests as built (the fault tests choose their own: ``catalogue_setup``)
+    setup = SimSetup(clk_freq=clk_freq, config=config, delay_scale=args.delay_scale,
+                     odr_scale=odr_scale, self_test=config.self_test)
+    compiled = _simulator_choice(args)
+    if args.fault is not None:
+        return _simulate_fault(args, setup, compiled)
+    sources = _pose_sources(args.pose, args.samples, config, setup) if args.pose else {}
+    model = setup.model(who_am_i=args.who_am_i, magnetometer=not args.no_mag, **sources)
+    summary = {"wiring": config.wiring, "clock_hz": clk_freq,
+               "odr_hz": config.output_data_rate, "dlpf_cfg": config.dlpf_cfg,
+               "smplrt_div": config.smplrt_div}
+    if args.attitude:
+        with progress.bar(args.samples, "simulate (whole core)", "result") as shown:
+            run = run_core(setup, n_results=args.samples, model=model, baud=args.baud,
+                           core_kwargs={"filter": args.filter, **_core_options(args)},
+                           vcd=args.vcd, progress=shown, compiled=compiled)
+        for r in run.results:
+            print(json.dumps(attitude_json(r, args.filter)))
+        latency = run.latencies_us(clk_freq)
+        summary.update({
+            "samples_filtered": run.counters["filtered"],
+            "samples_lost": run.counters["lost"],
+            "saturated_results": sum(r["flags"]["saturated"] for r in run.results),
+            "results_not_sent": run.counters["not_sent"],
+            "frames_received": len(run.frames),
+            "telemetry_divider": budget["telemetry_divider"],
+            "latency_us": {"drdy_to_attitude": round(max(latency), 2) if latency else None},
+            "cycles": run.cycles, "wall_s": round(run.wall_s, 3),
+            "cycles_per_s": round(run.cycles / run.wall_s) if run.wall_s else None,
+            "simulator": simulator_name(run.compiled),
+            "status": run.status, "asa": run.asa})
+        violations = [str(v) for who in (model, *model.aux_devices.values())
+                      for v in who.violations]
+    else:
+        with progress.bar(args.samples, "simulate (sensor front end)", "sample") as shown:
+            result = run_frontend(setup, n_samples=args.samples, model=model, vcd=args.vcd,
+                                  progress=shown, compiled=compiled)
+        for s in result.samples:
+            print(json.dumps({"counter": s["counter"], "accel": s["accel"], "temp": s["temp"],
+                              "gyro": s["gyro"], "mag": s["mag"], "flags": s["flags"],
+                              "skipped": s["skipped"]}))
+        read = sample_read_time(result, setup)
+        violations = [str(v) for who in (model, result.bus, *model.aux_devices.values())
+                      if who is not None for v in who.violations]
+        # ``skipped`` counts both: samples never read and samples read but dropped
+        lost = sum(s["skipped"] for s in result.samples)
+        summary.update({
+            "samples": len(result.samples), "samples_filtered": None, "samples_lost": lost,
+            "saturated_results": None, "sample_read_us": read, "cycles": result.cycles,
+            "bring_up_cycles": result.bring_up_cycles,
+            "bring_up_us": result.bring_up_cycles and
+            result.bring_up_cycles / setup.clk_freq * 1e6,
+            "wall_s": round(result.wall_s, 3), "cycles_per_s": round(result.cycles_per_s),
+            "simulator": simulator_name(result.compiled), "status": result.status,
+            "asa": result.asa, "who_am_i": result.who_am_i, "self_test": result.self_test})
+    summary.update({"violations": violations,
+                    "time_scale": {"delays": setup.delay_scale,
+                                   "sample_period": setup.odr_scale}})
+    print(json.dumps(summary), file=sys.stderr if args.quiet_summary else sys.stdout)
+    if args.vcd:
+        from ..sim.waveforms import gtkw_beside
+        print(f"wrote {args.vcd} and {gtkw_beside(args.vcd)}")
+    return 1 if violations else 0
+
+
+def _simulator_choice(args):
+    """``--simulator`` as ``run_frontend``'s ``compiled``: True, False or "prefer" (auto:
+    compiled, built once if need be, where the run allows it). Auto without Verilator and g++
+    says so in one line and runs Amaranth's simulator."""
+    from ..sim.compiled_design import verilator_available
+    if args.simulator == "compiled":
+        return True
+    if args.simulator == "python":
+        return False
+    if not verilator_available():
+        print("mpu9250-ahrs: verilator or g++ not found: simulating in Amaranth's simulator "
+              "(slower; apt-get install verilator g++ for the compiled path)", file=sys.stderr)
+        return False
+    return "prefer"
+
+
+def _simulate_fault(args, setup, compiled=None):
+    """``simulate --fault NAME``: the front end with one fault of the catalogue."""
+    from .. import progress
+    from ..sim.faults import run_fault
+    if args.attitude or args.pose:
+        raise ValueError("--fault runs the sensor front end with its test pattern: leave out "
+                         "--attitude and --pose")
+    with progress.bar(None, f"simulate --fault {args.fault}", "sample") as shown:
+        summary = run_fault(args.fault, setup, at=args.fault_at, vcd=args.vcd, progress=shown,
+                            compiled=compiled)
+    summary["time_scale"] = {"delays": setup.delay_scale, "sample_period": setup.odr_scale}
+    print(json.dumps(summary), file=sys.stderr if args.quiet_summary else sys.stdout)
+    ok = summary["detected_after_samples"] is not None and summary["recovered"] and \
+        summary["stale_valid_samples"] == 0
+    return 0 if ok else 1
+
+
+def attitude_json(result, filter):
+    """One engine result (an ``Attitude`` as dicts) for printing: quaternion, roll/pitch/yaw
+    in degrees, bias in gyro counts, flags."""
+    from ..reference.fixed_point import bam_to_deg
+    from ..reference.flagship_fixed import q30_to_float
+    return {"counter": result["counter"], "filter": filter,
+            "quat": [round(float(v), 6) for v in q30_to_float(result["quat"])],
+            "roll_pitch_yaw_deg": [round(float(v), 4) for v in bam_to_deg(result["angles"])],
+            "bias_counts": [round(v / 65536, 4) for v in result["bias"]],
+            **{k: bool(v) for k, v in result["flags"].items() if k != "filter"}}
+
+
+def _pose_sources(pose, samples, config, setup):
+    """Model sources for a board held still at ``pose`` ("roll,pitch,yaw" in degrees), with
+    the sensor error model's noise: MPU9250 and AK8963 values in counts."""
+    from ..hdl import ak8963_regs as A
+    from ..sim.motion import SensorModel, accel_gyro_source, mag_source, static
+    from ..reference.recording import Scales
+    euler = [float(v) for v in pose.split(",")]
+    if len(euler) != 3:
+        raise ValueError("--pose takes roll,pitch,yaw in degrees, e.g. 30,-10,45")
+    rate = config.output_data_rate
+    traj = static(euler, (samples + 10) / rate, rate=rate)
+    gc, ac, mc = SensorModel(seed=0).counts(
+        traj, Scales(gyro_fs_dps=config.gyro_fs_dps, accel_fs_g=config.accel_fs_g))
+    out = {"source": accel_gyro_source(gc, ac)}
+    if config.magnetometer:
+        out["aux_devices"] = {A.I2C_ADDRESS: setup.ak8963(source=mag_source(mc))}
+    return out
+
+
+def sample_read_time(result, setup):
+    """Simulated time of one full sample read, from the interrupt's data to the sample, in µs:
+    the SPI burst, or the two I2C reads, as the status log shows them (first and last sample
+    times cannot be told apart from there, so this measures the bus, not the whole latency)."""
+    from ..sim.cosim import sample_read_cycles
+    cycles = sample_read_cycles(result, setup)
+    return None if cycles is None else round(cycles / setup.clk_freq * 1e6, 2)
+
+
+def cmd_replay(args):
+    import numpy as np
+    from ..reference.evaluate import FIXED_FILTERS, run_filter, run_fixed, score
+    from ..reference.recording import Scales, load_broad, quantise, to_units
+
+    engine = "fixed" if args.fixed else args.engine
+    if engine != "float" and args.filter not in FIXED_FILTERS:
+        raise ValueError(f"--engine {engine} runs {', '.join(FIXED_FILTERS)}, not "
+                         f"{args.filter}")
+    from ..hdl import mpu9250_regs as R
+    R.gyro_config(args.gyro_fs)             # the full scales the part has, as simulate checks
+    R.accel_config(args.accel_fs)
+    rec = load_broad(args.file)
+    if rec.held:
+        print(f"mpu9250-ahrs replay: warning: {rec.held} samples with NaN or infinite sensor "
+              f"values were held at the previous sample's values", file=sys.stderr)
+    if rec.truth_rejected:
+        print(f"mpu9250-ahrs replay: warning: {rec.truth_rejected} truth quaternions not of "
+              f"unit norm were left out of the score", file=sys.stderr)
+    scales = Scales(gyro_fs_dps=args.gyro_fs, accel_fs_g=args.accel_fs)
+    counts = quantise(rec.gyr, rec.acc, rec.mag, scales)
+    truth, movement = rec.quat, rec.movement
+    if args.samples is not None:
+        counts = tuple(c[:args.samples] for c in counts)
+        truth, movement = truth[:args.samples], movement[:args.samples]
+    params = {"beta": args.beta} if args.beta is not None else {}
+    units = {"gyro_lsb_per_dps": scales.gyro_lsb_per_dps,
+             "accel_lsb_per_ms2": scales.accel_lsb_per_ms2}
+    extra = {}
+    start = time.perf_counter()
+    from ..progress import enabled
+    if engine != "float" and enabled():
+        # one call runs the whole recording (tens of seconds): say what is going on
+        what = {"fixed": "the bit-exact integer model",
+                "gateware": "the engine's gateware (Verilator) and the integer model",
+                "board": "the co-simulated board (sensor models, SPI, driver, engine, "
+                         "telemetry, UART) and the integer model"}[engine]
+        print(f"mpu9250-ahrs replay: {len(truth):,} samples through {what} ...",
+              file=sys.stderr, flush=True)
+    t = np.arange(len(truth)) * rec.dt
+    if engine == "board":
+        from ..progress import bar
+        from ..sim.board_replay import replay_board
+        with bar(len(truth), "replay --engine board", "result") as shown:
+            board = replay_board(args.filter, *counts, rec.dt, gyro_fs_dps=args.gyro_fs,
+                                 accel_fs_g=args.accel_fs, progress=shown, **units, **params)
+        # scored on what the host decoded: the samples the telemetry framed
+        quat, truth, movement = board.quat, truth[board.indices], movement[board.indices]
+        t = board.indices * rec.dt
+        extra = board.summary()
+    elif engine == "gateware":
+        from ..reference.flagship_fixed import q30_to_float
+        from ..sim.attitude_bench import first_mismatch
+        from ..sim.compiled_engine import replay_gateware
+        run, ref, compiled = replay_gateware(args.filter, *counts, rec.dt, **units, **params)
+        quat = q30_to_float(run.quat)
+        mismatch = first_mismatch(run, ref)
+        extra = {"bit_exact": mismatch is None, "first_mismatch": mismatch,
+                 "build_s": round(compiled.build_s, 1),
+                 "gateware_sim_s": round(compiled.last_wall_s, 3),
+                 "gateware_cycles": compiled.last_cycles,
+                 "gateware_cycles_per_s": round(compiled.cycles_per_s),
+                 "cycles_per_update_max": max(run.cycles[1:], default=None)}
+    elif engine == "fixed":
+        quat = run_fixed(args.filter, *counts, rec.dt, **units, **params)
+    else:
+        quat = run_filter(args.filter, *to_units(*counts, scales), rec.dt, **params)
+    elapsed = time.perf_counter() - start
+    result = {"file": rec.name, "filter": args.filter, "engine": engine,
+              "fixed": engine != "float", **score(quat, truth, movement),
+              "filter_s": round(elapsed, 3), "samples_total": len(quat),
+              "samples_held": rec.held, "truth_rejected": rec.truth_rejected, **extra}
+    if args.out:
+        np.savetxt(args.out, np.column_stack([t, quat]),
+                   delimiter=",", header="t_s,w,x,y,z", comments="", fmt="%.9g")
+    print(json.dumps(result, allow_nan=False))
+    return 0 if extra.get("bit_exact", True) else 1
