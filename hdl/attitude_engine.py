@@ -21,6 +21,7 @@ costs three bubbles.
 """
 
 import math
+from types import SimpleNamespace
 
 from amaranth import *
 from amaranth.lib import data, stream, wiring
@@ -144,7 +145,24 @@ class AttitudeEngine(wiring.Component):
         wiring.connect(m, wiring.flipped(self.cfg_read), host.cfg_read)
         wiring.connect(m, host.cfg_read_data, wiring.flipped(self.cfg_read_data))
         m.d.comb += self.cfg_refused.eq(host.refused)
+        # the parts below share the units (``u``) and the pipeline's signals (``p``)
+        u = SimpleNamespace(cordic=cordic, divider=divider, alu=alu, mac=mac, host=host, rf=rf,
+                            rom=rom)
+        p = self._state(rom)
+        self._operands(m, u, p)
+        self._write_port(m, u, p)
+        # ``xa``/``xb`` are loaded every cycle, not only with ``x``: every unit reads them in
+        # the first cycle of ``x``'s instruction only (the ALU and the branch test then; the
+        # MAC, divider and CORDIC take them at their issue or start, in that cycle), and at an
+        # ``advance`` they take ``o``'s operands as ``x`` takes ``o``. Without an enable, the
+        # stall logic (``advance``) is not in the operands' path
+        m.d.sync += [p.xa.eq(p.o_a), p.xb.eq(p.o_b)]
+        self._control(m, u, p)
+        return m
 
+    def _state(self, rom):
+        """The sequencer's and the pipeline's signals (the module docstring has the pipeline),
+        as a namespace for the parts of ``elaborate``."""
         # -- sequencer state ------------------------------------------------------------------
         fetch_pc = Signal(range(len(self.program) + 1))
         rvalid = Signal()                                 # rom.data is a real instruction
@@ -176,7 +194,20 @@ class AttitudeEngine(wiring.Component):
         flag_sat = Signal()
         out = Signal(Attitude, reset_less=True)
         result_valid = Signal()
+        return SimpleNamespace(fetch_pc=fetch_pc, rvalid=rvalid, rinstr=rinstr, o=o, ovalid=ovalid,
+                               x=x, xvalid=xvalid, xa=xa, xb=xb, x_alu=x_alu, x_sub=x_sub,
+                               x_or=x_or, phase=phase, advance=advance, flush=flush,
+                               branch_to=branch_to, first=first, init_pending=init_pending,
+                               running_init=running_init, mag_valid=mag_valid, flags_set=flags_set,
+                               flag_sat=flag_sat, out=out, result_valid=result_valid)
 
+    def _operands(self, m, u, p):
+        """The read ports' addresses, the units' operands (``xa``, ``xb``) and the branch
+        condition of ``x`` (``p.cond``)."""
+        (xa, xb, fetch_pc, advance, out, x_sub, x_or, x, rinstr, rf, first, rom, host, alu, mac,
+         cordic, divider, mag_valid) = (
+            p.xa, p.xb, p.fetch_pc, p.advance, p.out, p.x_sub, p.x_or, p.x, p.rinstr, u.rf,
+            p.first, u.rom, u.host, u.alu, u.mac, u.cordic, u.divider, p.mag_valid)
         # read port A: the instruction being fetched, or the host's read-back while idle
         m.d.comb += [
             rom.addr.eq(fetch_pc), rom.en.eq(advance),
@@ -208,7 +239,16 @@ class AttitudeEngine(wiring.Component):
                 m.d.comb += cond.eq(first)
             with m.Case(Cond.FILTER):
                 m.d.comb += cond.eq(host.select == x.sh[:len(host.select)])
+        (p.cond) = (
+            cond)
 
+    def _write_port(self, m, u, p):
+        """The register file's write port (loader, host or the execute stage), the result
+        snooped from it, and the forwarding of a write into ``o``'s operands (``p.o_a``,
+        ``p.o_b``) with the facts it and the MUL's stall test use."""
+        (mac, o, rinstr, alu, host, xvalid, x_alu, flag_sat, advance, rf, out, x) = (
+            u.mac, p.o, p.rinstr, u.alu, u.host, p.xvalid, p.x_alu, p.flag_sat, p.advance, u.rf,
+            p.out, p.x)
         # -- the write port: loader, host, or the execute stage (MAC write-back, then ALU,
         # DIV, CORDIC: never two in one cycle, the sequencer sees to it) -----------------------
         w_en, w_addr, w_data, w_sat = Signal(), Signal(REG_BITS), Signal(signed(32)), Signal()
@@ -296,90 +336,105 @@ class AttitudeEngine(wiring.Component):
                                Mux(mac.issue, reads(rinstr, x.d), reads(rinstr, mac.wb_next_addr)),
                                Mux(mac.issue, reads(o, x.d), o_reads_acc))),
         ]
+        (p.w_en, p.w_addr, p.w_data, p.w_other, p.w_sat_other, p.alu_w, p.o_hold_a, p.o_hold_b,
+         p.o_held_a, p.o_held_b, p.x_wd, p.x_wd1, p.hit_a, p.hit_b, p.o_a, p.o_b, p.o_reads_x,
+         p.o_reads_acc) = (
+            w_en, w_addr, w_data, w_other, w_sat_other, alu_w, o_hold_a, o_hold_b, o_held_a,
+            o_held_b, x_wd, x_wd1, hit_a, hit_b, o_a, o_b, o_reads_x, o_reads_acc)
 
-        def execute():
-            """The execute stage for ``x`` (an FSM state body)."""
-            m.d.comb += advance.eq(1)                       # overridden below by stalls
-            with m.If(mac.wb_en):
-                m.d.comb += [w_en.eq(1), w_addr.eq(mac.wb_addr), w_other.eq(mac.wb_data),
-                             w_sat_other.eq(mac.wb_saturated)]
-            with m.If(xvalid):
-                with m.Switch(x.op):
-                    with m.Case(Op.ADD, Op.SUB, Op.OR):
-                        m.d.comb += [w_en.eq(1), w_addr.eq(x.d), x_wd.eq(1), alu_w.eq(1)]
-                    with m.Case(Op.MUL):
-                        # the write-back comes two cycles after the issue: the MUL stays
-                        # until then, unless the next instruction is a MUL (it writes nothing
-                        # in its issue cycle) that reads no result still to be written (its
-                        # operands are taken as it goes on)
-                        overlap = ovalid & (o.op == Op.MUL) & ~(x.wb & o_reads_x)
-                        with m.If(phase == 0):
-                            m.d.comb += mac.issue.eq(1)
-                            with m.If(~overlap | (mac.wb_next & o_reads_acc)):
-                                m.d.comb += advance.eq(0)
-                                m.d.sync += phase.eq(1)
-                        with m.Elif((phase == 1) & ~overlap):
+    def _execute(self, m, u, p):
+        """The execute stage for ``x`` (an FSM state body)."""
+        (advance, xvalid, mac, o, w_data, hit_a, hit_b, w_en, w_addr, w_other, w_sat_other, x,
+         ovalid, x_alu, x_sub, x_or, rom, rvalid, o_held_a, o_hold_a, o_held_b, o_hold_b, fetch_pc,
+         flush, branch_to, x_wd, alu_w, o_reads_x, phase, cond, rinstr, divider, cordic, x_wd1,
+         flags_set, o_reads_acc) = (
+            p.advance, p.xvalid, u.mac, p.o, p.w_data, p.hit_a, p.hit_b, p.w_en, p.w_addr,
+            p.w_other, p.w_sat_other, p.x, p.ovalid, p.x_alu, p.x_sub, p.x_or, u.rom, p.rvalid,
+            p.o_held_a, p.o_hold_a, p.o_held_b, p.o_hold_b, p.fetch_pc, p.flush, p.branch_to,
+            p.x_wd, p.alu_w, p.o_reads_x, p.phase, p.cond, p.rinstr, u.divider, u.cordic, p.x_wd1,
+            p.flags_set, p.o_reads_acc)
+        m.d.comb += advance.eq(1)                       # overridden below by stalls
+        with m.If(mac.wb_en):
+            m.d.comb += [w_en.eq(1), w_addr.eq(mac.wb_addr), w_other.eq(mac.wb_data),
+                         w_sat_other.eq(mac.wb_saturated)]
+        with m.If(xvalid):
+            with m.Switch(x.op):
+                with m.Case(Op.ADD, Op.SUB, Op.OR):
+                    m.d.comb += [w_en.eq(1), w_addr.eq(x.d), x_wd.eq(1), alu_w.eq(1)]
+                with m.Case(Op.MUL):
+                    # the write-back comes two cycles after the issue: the MUL stays
+                    # until then, unless the next instruction is a MUL (it writes nothing
+                    # in its issue cycle) that reads no result still to be written (its
+                    # operands are taken as it goes on)
+                    overlap = ovalid & (o.op == Op.MUL) & ~(x.wb & o_reads_x)
+                    with m.If(phase == 0):
+                        m.d.comb += mac.issue.eq(1)
+                        with m.If(~overlap | (mac.wb_next & o_reads_acc)):
                             m.d.comb += advance.eq(0)
-                            m.d.sync += phase.eq(2)
-                        with m.Else():
-                            m.d.sync += phase.eq(0)
-                    with m.Case(Op.DIV):
-                        with m.If(phase == 0):
-                            m.d.comb += [advance.eq(0), divider.start.eq(1)]
                             m.d.sync += phase.eq(1)
-                        with m.Elif(~divider.done):
-                            m.d.comb += advance.eq(0)
-                        with m.Else():
-                            m.d.sync += phase.eq(0)
+                    with m.Elif((phase == 1) & ~overlap):
+                        m.d.comb += advance.eq(0)
+                        m.d.sync += phase.eq(2)
+                    with m.Else():
+                        m.d.sync += phase.eq(0)
+                with m.Case(Op.DIV):
+                    with m.If(phase == 0):
+                        m.d.comb += [advance.eq(0), divider.start.eq(1)]
+                        m.d.sync += phase.eq(1)
+                    with m.Elif(~divider.done):
+                        m.d.comb += advance.eq(0)
+                    with m.Else():
+                        m.d.sync += phase.eq(0)
+                        m.d.comb += [w_en.eq(1), w_addr.eq(x.d), x_wd.eq(1),
+                                     w_other.eq(divider.quotient),
+                                     w_sat_other.eq(divider.saturated)]
+                with m.Case(Op.VEC, Op.ROT):
+                    is_rot = x.op == Op.ROT
+                    with m.If(phase == 0):
+                        m.d.comb += [advance.eq(0), cordic.start.eq(1)]
+                        m.d.sync += phase.eq(1)
+                    with m.Elif(phase == 1):
+                        m.d.comb += advance.eq(0)
+                        with m.If(cordic.done):
                             m.d.comb += [w_en.eq(1), w_addr.eq(x.d), x_wd.eq(1),
-                                         w_other.eq(divider.quotient),
-                                         w_sat_other.eq(divider.saturated)]
-                    with m.Case(Op.VEC, Op.ROT):
-                        is_rot = x.op == Op.ROT
-                        with m.If(phase == 0):
-                            m.d.comb += [advance.eq(0), cordic.start.eq(1)]
-                            m.d.sync += phase.eq(1)
-                        with m.Elif(phase == 1):
-                            m.d.comb += advance.eq(0)
-                            with m.If(cordic.done):
-                                m.d.comb += [w_en.eq(1), w_addr.eq(x.d), x_wd.eq(1),
-                                             w_other.eq(Mux(is_rot, cordic.cos, cordic.angle))]
-                                m.d.sync += phase.eq(2)
-                        with m.Else():
-                            m.d.sync += phase.eq(0)
-                            m.d.comb += [w_en.eq(1), w_addr.eq(x.d + 1), x_wd1.eq(1),
-                                         w_other.eq(Mux(is_rot, cordic.sin, cordic.magnitude)),
-                                         w_sat_other.eq(~is_rot & cordic.saturated)]
-                    with m.Case(Op.BR):
-                        with m.If(cond ^ x.inv):
-                            m.d.comb += [flush.eq(1), branch_to.eq(x.target)]
-                    with m.Case(Op.SETF):
-                        m.d.sync += flags_set.bit_select(x.sh, 1).eq(1)
-            with m.If(advance):
-                m.d.sync += [
-                    x.eq(o), xvalid.eq(ovalid & ~flush),
-                    x_alu.eq(o.op.matches(Op.ADD, Op.SUB, Op.OR)),
-                    x_sub.eq(o.op == Op.SUB), x_or.eq(o.op == Op.OR),
-                    o.eq(rom.data), ovalid.eq(rvalid & ~flush),
-                    o_held_a.eq(w_en & (w_addr == rinstr.a)), o_hold_a.eq(w_data),
-                    o_held_b.eq(w_en & (w_addr == rinstr.b)), o_hold_b.eq(w_data),
-                    fetch_pc.eq(Mux(flush, branch_to, fetch_pc + 1)), rvalid.eq(~flush),
-                ]
-            with m.Else():
-                # a write while ``o`` waits (a CORDIC's first result, a stalled MUL's) is kept
-                # for it: its register-file read happened when it came in
-                with m.If(hit_a):
-                    m.d.sync += [o_hold_a.eq(w_data), o_held_a.eq(1)]
-                with m.If(hit_b):
-                    m.d.sync += [o_hold_b.eq(w_data), o_held_b.eq(1)]
+                                         w_other.eq(Mux(is_rot, cordic.cos, cordic.angle))]
+                            m.d.sync += phase.eq(2)
+                    with m.Else():
+                        m.d.sync += phase.eq(0)
+                        m.d.comb += [w_en.eq(1), w_addr.eq(x.d + 1), x_wd1.eq(1),
+                                     w_other.eq(Mux(is_rot, cordic.sin, cordic.magnitude)),
+                                     w_sat_other.eq(~is_rot & cordic.saturated)]
+                with m.Case(Op.BR):
+                    with m.If(cond ^ x.inv):
+                        m.d.comb += [flush.eq(1), branch_to.eq(x.target)]
+                with m.Case(Op.SETF):
+                    m.d.sync += flags_set.bit_select(x.sh, 1).eq(1)
+        with m.If(advance):
+            m.d.sync += [
+                x.eq(o), xvalid.eq(ovalid & ~flush),
+                x_alu.eq(o.op.matches(Op.ADD, Op.SUB, Op.OR)),
+                x_sub.eq(o.op == Op.SUB), x_or.eq(o.op == Op.OR),
+                o.eq(rom.data), ovalid.eq(rvalid & ~flush),
+                o_held_a.eq(w_en & (w_addr == rinstr.a)), o_hold_a.eq(w_data),
+                o_held_b.eq(w_en & (w_addr == rinstr.b)), o_hold_b.eq(w_data),
+                fetch_pc.eq(Mux(flush, branch_to, fetch_pc + 1)), rvalid.eq(~flush),
+            ]
+        with m.Else():
+            # a write while ``o`` waits (a CORDIC's first result, a stalled MUL's) is kept
+            # for it: its register-file read happened when it came in
+            with m.If(hit_a):
+                m.d.sync += [o_hold_a.eq(w_data), o_held_a.eq(1)]
+            with m.If(hit_b):
+                m.d.sync += [o_hold_b.eq(w_data), o_held_b.eq(1)]
 
-        # ``xa``/``xb`` are loaded every cycle, not only with ``x``: every unit reads them in
-        # the first cycle of ``x``'s instruction only (the ALU and the branch test then; the
-        # MAC, divider and CORDIC take them at their issue or start, in that cycle), and at an
-        # ``advance`` they take ``o``'s operands as ``x`` takes ``o``. Without an enable, the
-        # stall logic (``advance``) is not in the operands' path
-        m.d.sync += [xa.eq(o_a), xb.eq(o_b)]
-
+    def _control(self, m, u, p):
+        """The engine's states: IDLE (a result offered, the host's port open), LOAD (the
+        sample into the register file), RUN (the program, ``_execute``)."""
+        (result_valid, host, first, init_pending, fetch_pc, rvalid, ovalid, xvalid, phase, w_en,
+         w_addr, w_other, running_init, flags_set, flag_sat, mag_valid, out, x) = (
+            p.result_valid, u.host, p.first, p.init_pending, p.fetch_pc, p.rvalid, p.ovalid,
+            p.xvalid, p.phase, p.w_en, p.w_addr, p.w_other, p.running_init, p.flags_set,
+            p.flag_sat, p.mag_valid, p.out, p.x)
         def start(entry):
             m.d.sync += [fetch_pc.eq(entry), rvalid.eq(0), ovalid.eq(0), xvalid.eq(0),
                          phase.eq(0)]
@@ -445,5 +500,4 @@ class AttitudeEngine(wiring.Component):
                             m.d.sync += out.flags[flag.name.lower()].eq(flags_set[flag])
                     m.next = "IDLE"
                 with m.Else():
-                    execute()
-        return m
+                    self._execute(m, u, p)
