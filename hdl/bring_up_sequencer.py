@@ -7,6 +7,7 @@ owns the status a bring-up decides: WHO_AM_I, the magnetometer's, the restarts.
 """
 
 from dataclasses import dataclass, replace
+from types import SimpleNamespace
 
 from amaranth import *
 from amaranth.lib import data, enum, wiring
@@ -374,99 +375,114 @@ class BringUpSequencer(wiring.Component):
         m.d.sync += offered.eq(port.cmd.valid & ~port.cmd.ready)
 
         with m.FSM(init="LOAD0"):
-            with m.State("LOAD0"):
-                # the ROM reads the step at pc
-                m.next = "LOAD1"
-            with m.State("LOAD1"):
-                # ``step`` takes it
-                m.next = "FETCH"
-            with m.State("FETCH"):
-                with m.If(restart_pending & ~offered):
-                    restart()
-                with m.Else():
-                    self._fetch(m, step, command, timer, next_step, reconfiguring, backoff, reads)
-            with m.State("WAIT"):
-                m.d.sync += timer.eq(timer - 1)
-                with m.If(timer == 0):
-                    next_step()
-            with m.State("ACCESS"):
-                with m.If(port.rsp.valid):
-                    with m.If(port.rsp.payload.error):
-                        fail(absent=1)
-                    with m.Elif(step.op == Op.CHECK):
-                        with m.If(step.check_wia):
-                            with m.If(last == A.WIA_VALUE):
-                                next_step()
-                            with m.Else():
-                                fail(absent=0)
-                        with m.Else():
-                            good = Cat(last == v for v in self.accepted_who_am_i).any()
-                            m.d.sync += [self.who_am_i.eq(last), self.whoami_error.eq(~good),
-                                         self.no_response.eq((last == 0x00) | (last == 0xFF))]
-                            with m.If(good):
-                                next_step()
-                            with m.Else():
-                                restart()
-                    with m.Elif(step.op == Op.STORE):
-                        m.d.sync += self.asa[step.value[:2]].eq(last)
-                        next_step()
-                    with m.Else():
-                        next_step()
-            with m.State("TEST"):
-                command(test=True)
-                m.d.sync += offset.eq(0)
-                with m.If(port.cmd.ready):
-                    m.next = "TEST_READ"
-            with m.State("TEST_READ"):
-                m.d.comb += test.valid.eq(port.rx.valid)
-                with m.If(port.rx.valid):
-                    m.d.sync += offset.eq(offset + 1)
-                with m.If(port.rsp.valid):
-                    with m.If(port.rsp.payload.error):
-                        fail(absent=1)
-                    with m.Elif(reads == 0):
-                        m.next = "TEST_END"
-                    with m.Else():
-                        m.d.sync += [reads.eq(reads - 1), timer.eq(step.wait)]
-                        m.next = "TEST_WAIT"
-            with m.State("TEST_WAIT"):
-                m.d.sync += timer.eq(timer - 1)
-                with m.If(timer == 0):
-                    m.next = "TEST"
-            with m.State("TEST_END"):
-                with m.If(~self.test_busy):
-                    next_step()
-            with m.State("POLL"):
-                with m.If(timer != 0):
-                    m.d.sync += timer.eq(timer - 1)
-                command()
-                with m.If(port.cmd.ready):
-                    m.next = "POLL_WAIT"
-            with m.State("POLL_WAIT"):
-                with m.If(timer != 0):
-                    m.d.sync += timer.eq(timer - 1)
-                with m.If(port.rsp.valid):
-                    with m.If(port.rsp.payload.error | (last & step.mask).any()):
-                        fail(absent=1)
-                    with m.Elif((last & step.value).any()):
-                        next_step()
-                    with m.Elif(timer == 0):
-                        fail(absent=1)
-                    with m.Else():
-                        m.next = "POLL"
-            with m.State("RUNNING"):
-                # streaming; the magnetometer's part again when it went quiet
-                with m.If(restart_pending):
-                    restart()
-                with m.Elif(self.mag_lost):
-                    goto(mag_start or 0)
-                    m.d.sync += [self.mag_ok.eq(0), self.mag_setup.eq(1)]
-                    m.next = "LOAD0"
-                with m.Elif(self.reconfigure):
-                    goto(config_start)
-                    m.d.sync += reconfiguring.eq(1)
-                    m.next = "LOAD0"
+            self._states(m, SimpleNamespace(command=command, restart=restart, step=step,
+                timer=timer, next_step=next_step, reconfiguring=reconfiguring, backoff=backoff,
+                reads=reads, offset=offset, restart_pending=restart_pending, goto=goto,
+                config_start=config_start, fail=fail, last=last, test=test, port=port,
+                mag_start=mag_start, offered=offered))
         return m
+
+    def _states(self, m, c):
+        """The sequencer's states: a step loaded from the program ROM and fetched, then
+        waited for, accessed, tested or polled, and RUNNING once the program is done.
+        ``c``: the sequencer's signals and helpers (``elaborate``)."""
+        (command, restart, step, timer, next_step, reconfiguring, backoff, reads, offset,
+         restart_pending, goto, config_start, fail, last, test, port, mag_start, offered) = (
+            c.command, c.restart, c.step, c.timer, c.next_step, c.reconfiguring, c.backoff,
+            c.reads, c.offset, c.restart_pending, c.goto, c.config_start, c.fail, c.last, c.test,
+            c.port, c.mag_start, c.offered)
+        with m.State("LOAD0"):
+            # the ROM reads the step at pc
+            m.next = "LOAD1"
+        with m.State("LOAD1"):
+            # ``step`` takes it
+            m.next = "FETCH"
+        with m.State("FETCH"):
+            with m.If(restart_pending & ~offered):
+                restart()
+            with m.Else():
+                self._fetch(m, step, command, timer, next_step, reconfiguring, backoff, reads)
+        with m.State("WAIT"):
+            m.d.sync += timer.eq(timer - 1)
+            with m.If(timer == 0):
+                next_step()
+        with m.State("ACCESS"):
+            with m.If(port.rsp.valid):
+                with m.If(port.rsp.payload.error):
+                    fail(absent=1)
+                with m.Elif(step.op == Op.CHECK):
+                    with m.If(step.check_wia):
+                        with m.If(last == A.WIA_VALUE):
+                            next_step()
+                        with m.Else():
+                            fail(absent=0)
+                    with m.Else():
+                        good = Cat(last == v for v in self.accepted_who_am_i).any()
+                        m.d.sync += [self.who_am_i.eq(last), self.whoami_error.eq(~good),
+                                     self.no_response.eq((last == 0x00) | (last == 0xFF))]
+                        with m.If(good):
+                            next_step()
+                        with m.Else():
+                            restart()
+                with m.Elif(step.op == Op.STORE):
+                    m.d.sync += self.asa[step.value[:2]].eq(last)
+                    next_step()
+                with m.Else():
+                    next_step()
+        with m.State("TEST"):
+            command(test=True)
+            m.d.sync += offset.eq(0)
+            with m.If(port.cmd.ready):
+                m.next = "TEST_READ"
+        with m.State("TEST_READ"):
+            m.d.comb += test.valid.eq(port.rx.valid)
+            with m.If(port.rx.valid):
+                m.d.sync += offset.eq(offset + 1)
+            with m.If(port.rsp.valid):
+                with m.If(port.rsp.payload.error):
+                    fail(absent=1)
+                with m.Elif(reads == 0):
+                    m.next = "TEST_END"
+                with m.Else():
+                    m.d.sync += [reads.eq(reads - 1), timer.eq(step.wait)]
+                    m.next = "TEST_WAIT"
+        with m.State("TEST_WAIT"):
+            m.d.sync += timer.eq(timer - 1)
+            with m.If(timer == 0):
+                m.next = "TEST"
+        with m.State("TEST_END"):
+            with m.If(~self.test_busy):
+                next_step()
+        with m.State("POLL"):
+            with m.If(timer != 0):
+                m.d.sync += timer.eq(timer - 1)
+            command()
+            with m.If(port.cmd.ready):
+                m.next = "POLL_WAIT"
+        with m.State("POLL_WAIT"):
+            with m.If(timer != 0):
+                m.d.sync += timer.eq(timer - 1)
+            with m.If(port.rsp.valid):
+                with m.If(port.rsp.payload.error | (last & step.mask).any()):
+                    fail(absent=1)
+                with m.Elif((last & step.value).any()):
+                    next_step()
+                with m.Elif(timer == 0):
+                    fail(absent=1)
+                with m.Else():
+                    m.next = "POLL"
+        with m.State("RUNNING"):
+            # streaming; the magnetometer's part again when it went quiet
+            with m.If(restart_pending):
+                restart()
+            with m.Elif(self.mag_lost):
+                goto(mag_start or 0)
+                m.d.sync += [self.mag_ok.eq(0), self.mag_setup.eq(1)]
+                m.next = "LOAD0"
+            with m.Elif(self.reconfigure):
+                goto(config_start)
+                m.d.sync += reconfiguring.eq(1)
+                m.next = "LOAD0"
 
     def _fetch(self, m, step, command, timer, next_step, reconfiguring, backoff, reads):
         """FETCH: start the step at ``pc``."""

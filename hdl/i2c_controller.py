@@ -2,6 +2,7 @@
 
 from contextlib import contextmanager
 from dataclasses import dataclass
+from types import SimpleNamespace
 
 from amaranth import *
 from amaranth.lib import data, enum, stream, wiring
@@ -207,98 +208,112 @@ class I2CController(wiring.Component):
                                 wait(t.low // 2)
                                 m.next = "BIT_HOLD"
 
-            # -- START on an idle bus: SDA falls while SCL is high ------------------------------
-            with m.State("START_IDLE"):
-                # A device may still hold SCL low (stretching past a time-out that aborted the
-                # last transfer): wait for it, as long as a time-out. After an abort a device
-                # may be mid-transfer: a START and a STOP first put every device back to idle.
-                m.d.sync += timer.eq(timer - 1)
-                with m.If(scl & ~sda):
-                    m.d.sync += recover.eq(0)
-                    m.next = "REC"
-                with m.Elif(scl):
-                    with m.If(aborted):
-                        m.d.sync += [aborted.eq(0), reset_first.eq(1)]
-                    m.next = "START_A"
-                with m.Elif(timer == 0):
-                    abort(self.status.timeout)
-            with m.State("START_A"):
-                m.d.sync += self.pins.sda_oe.eq(1)
-                wait(t.high)
-                m.next = "START_B"
-            with timed("START_B"):
-                m.d.sync += [self.pins.scl_oe.eq(1), held.eq(1)]
-                with m.If(reset_first):
-                    # the START of a START-STOP that resets the devices; then the real START
-                    m.d.sync += [reset_first.eq(0), then_start.eq(1)]
-                    wait(t.low // 2)
-                    m.next = "STOP_HOLD"
-                with m.Else():
-                    m.d.sync += [self.status.timeout.eq(0), self.status.bus_stuck.eq(0),
-                                 self.status.arbitration.eq(0)]
-                    respond()
 
-            # -- repeated START: SCL up with SDA released, set-up time, then a START ------------
-            clock_up("RS", "RS_SETUP", t.low)
-            with timed("RS_SETUP"):
-                m.next = "START_A"
-
-            # -- STOP: SDA low in the middle of SCL low, SCL up, then SDA up --------------------
-            with timed("STOP_HOLD"):
-                m.d.sync += self.pins.sda_oe.eq(1)
-                wait(t.low - t.low // 2)
-                m.next = "STOP_LOW"
-            clock_up("STOP", "STOP_SETUP", t.high)
-            with timed("STOP_SETUP"):
-                m.d.sync += [self.pins.sda_oe.eq(0), held.eq(0)]
-                wait(t.low)                  # bus-free time before the next START
-                m.next = "STOP_FREE"
-            with timed("STOP_FREE"):
-                with m.If(then_start):
-                    m.d.sync += then_start.eq(0)
-                    m.next = "START_A"
-                with m.Else():
-                    respond()
-
-            # -- one bit: SDA set in the middle of SCL low, sampled at the end of SCL high ------
-            with timed("BIT_HOLD"):
-                m.d.sync += [self.pins.sda_oe.eq(~shreg[8]), sent.eq(shreg[8])]
-                wait(t.low - t.low // 2)
-                m.next = "BIT_LOW"
-            clock_up("BIT", "BIT_HIGH", t.high)
-            with timed("BIT_HIGH"):
-                m.d.sync += [self.pins.scl_oe.eq(1), shreg.eq(shreg << 1), bit.eq(bit + 1)]
-                with m.If(bit < 8):
-                    m.d.sync += rx.eq(Cat(sda, rx[:-1]))
-                # A 1 we sent must read back as 1, except where the other side answers
-                # (ACK of a WRITE, the data bits of a READ).
-                is_ours = Mux(op.op == I2COp.WRITE, bit < 8, bit == 8)
-                with m.If(sent & ~sda & is_ours):
-                    abort(self.status.arbitration)
-                with m.Elif(bit == 8):
-                    respond(ack=~sda)
-                with m.Else():
-                    wait(t.low // 2)
-                    m.next = "BIT_HOLD"
-
-            # -- stuck-bus recovery: clock until SDA is released, then STOP ---------------------
-            with m.State("REC"):
-                m.d.sync += self.pins.scl_oe.eq(1)
-                wait(t.low)
-                m.next = "REC_LOW"
-            clock_up("REC", "REC_HIGH", t.high)
-            with timed("REC_HIGH"):
-                m.d.sync += recover.eq(recover + 1)
-                with m.If(sda):
-                    # Released: a STOP (SDA low during SCL low, then up), then the START.
-                    with m.If(self.status.recoveries != 15):
-                        m.d.sync += self.status.recoveries.eq(self.status.recoveries + 1)
-                    m.d.sync += [self.pins.scl_oe.eq(1), held.eq(1), then_start.eq(1)]
-                    wait(t.low // 2)
-                    m.next = "STOP_HOLD"
-                with m.Elif(recover == 8):
-                    abort(self.status.bus_stuck)
-                with m.Else():
-                    m.next = "REC"
+            self._bus_states(m, SimpleNamespace(clock_up=clock_up, wait=wait, timed=timed, t=t,
+                timer=timer, scl=scl, abort=abort, reset_first=reset_first, respond=respond,
+                then_start=then_start, bit=bit, recover=recover, sda=sda, aborted=aborted,
+                held=held, sent=sent, shreg=shreg, rx=rx, op=op))
 
         return m
+
+    def _bus_states(self, m, c):
+        """The bus states of the FSM after IDLE: START (on an idle bus, or repeated),
+        STOP, the bits of a byte and the stuck-bus recovery. ``c``: the controller's
+        signals and helpers (``elaborate``)."""
+        (clock_up, wait, timed, t, timer, scl, abort, reset_first, respond, then_start, bit,
+         recover, sda, aborted, held, sent, shreg, rx, op) = (
+            c.clock_up, c.wait, c.timed, c.t, c.timer, c.scl, c.abort, c.reset_first, c.respond,
+            c.then_start, c.bit, c.recover, c.sda, c.aborted, c.held, c.sent, c.shreg, c.rx, c.op)
+        # -- START on an idle bus: SDA falls while SCL is high ------------------------------
+        with m.State("START_IDLE"):
+            # A device may still hold SCL low (stretching past a time-out that aborted the
+            # last transfer): wait for it, as long as a time-out. After an abort a device
+            # may be mid-transfer: a START and a STOP first put every device back to idle.
+            m.d.sync += timer.eq(timer - 1)
+            with m.If(scl & ~sda):
+                m.d.sync += recover.eq(0)
+                m.next = "REC"
+            with m.Elif(scl):
+                with m.If(aborted):
+                    m.d.sync += [aborted.eq(0), reset_first.eq(1)]
+                m.next = "START_A"
+            with m.Elif(timer == 0):
+                abort(self.status.timeout)
+        with m.State("START_A"):
+            m.d.sync += self.pins.sda_oe.eq(1)
+            wait(t.high)
+            m.next = "START_B"
+        with timed("START_B"):
+            m.d.sync += [self.pins.scl_oe.eq(1), held.eq(1)]
+            with m.If(reset_first):
+                # the START of a START-STOP that resets the devices; then the real START
+                m.d.sync += [reset_first.eq(0), then_start.eq(1)]
+                wait(t.low // 2)
+                m.next = "STOP_HOLD"
+            with m.Else():
+                m.d.sync += [self.status.timeout.eq(0), self.status.bus_stuck.eq(0),
+                             self.status.arbitration.eq(0)]
+                respond()
+
+        # -- repeated START: SCL up with SDA released, set-up time, then a START ------------
+        clock_up("RS", "RS_SETUP", t.low)
+        with timed("RS_SETUP"):
+            m.next = "START_A"
+
+        # -- STOP: SDA low in the middle of SCL low, SCL up, then SDA up --------------------
+        with timed("STOP_HOLD"):
+            m.d.sync += self.pins.sda_oe.eq(1)
+            wait(t.low - t.low // 2)
+            m.next = "STOP_LOW"
+        clock_up("STOP", "STOP_SETUP", t.high)
+        with timed("STOP_SETUP"):
+            m.d.sync += [self.pins.sda_oe.eq(0), held.eq(0)]
+            wait(t.low)                  # bus-free time before the next START
+            m.next = "STOP_FREE"
+        with timed("STOP_FREE"):
+            with m.If(then_start):
+                m.d.sync += then_start.eq(0)
+                m.next = "START_A"
+            with m.Else():
+                respond()
+
+        # -- one bit: SDA set in the middle of SCL low, sampled at the end of SCL high ------
+        with timed("BIT_HOLD"):
+            m.d.sync += [self.pins.sda_oe.eq(~shreg[8]), sent.eq(shreg[8])]
+            wait(t.low - t.low // 2)
+            m.next = "BIT_LOW"
+        clock_up("BIT", "BIT_HIGH", t.high)
+        with timed("BIT_HIGH"):
+            m.d.sync += [self.pins.scl_oe.eq(1), shreg.eq(shreg << 1), bit.eq(bit + 1)]
+            with m.If(bit < 8):
+                m.d.sync += rx.eq(Cat(sda, rx[:-1]))
+            # A 1 we sent must read back as 1, except where the other side answers
+            # (ACK of a WRITE, the data bits of a READ).
+            is_ours = Mux(op.op == I2COp.WRITE, bit < 8, bit == 8)
+            with m.If(sent & ~sda & is_ours):
+                abort(self.status.arbitration)
+            with m.Elif(bit == 8):
+                respond(ack=~sda)
+            with m.Else():
+                wait(t.low // 2)
+                m.next = "BIT_HOLD"
+
+        # -- stuck-bus recovery: clock until SDA is released, then STOP ---------------------
+        with m.State("REC"):
+            m.d.sync += self.pins.scl_oe.eq(1)
+            wait(t.low)
+            m.next = "REC_LOW"
+        clock_up("REC", "REC_HIGH", t.high)
+        with timed("REC_HIGH"):
+            m.d.sync += recover.eq(recover + 1)
+            with m.If(sda):
+                # Released: a STOP (SDA low during SCL low, then up), then the START.
+                with m.If(self.status.recoveries != 15):
+                    m.d.sync += self.status.recoveries.eq(self.status.recoveries + 1)
+                m.d.sync += [self.pins.scl_oe.eq(1), held.eq(1), then_start.eq(1)]
+                wait(t.low // 2)
+                m.next = "STOP_HOLD"
+            with m.Elif(recover == 8):
+                abort(self.status.bus_stuck)
+            with m.Else():
+                m.next = "REC"

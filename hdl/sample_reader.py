@@ -21,6 +21,8 @@ The rules it applies (``hdl/FAULTS.md`` has what each catches):
   The sample itself is real and is passed on (flagged).
 """
 
+from types import SimpleNamespace
+
 from amaranth import *
 from amaranth.lib import stream, wiring
 from amaranth.lib.cdc import FFSynchronizer
@@ -165,6 +167,19 @@ class SampleReader(wiring.Component):
         with m.If(port.rx.valid & (rx_index < SAMPLE_BYTES)):
             m.d.sync += [buf[rx_index].eq(port.rx.payload), rx_index.eq(rx_index + 1)]
 
+        # the parts below share their signals and helpers through ``n``
+        n = SimpleNamespace()
+        (n.spi, n.port, n.buf, n.rx_index) = (
+            spi, port, buf, rx_index)
+        self._interrupt(m, n)
+        self._judging(m, n)
+        self._sample_register(m, n)
+        self._states(m, n)
+        return m
+
+
+    def _interrupt(self, m, n):
+        """The data-ready edges, and the clocks that measure the intervals between them."""
         # -- interrupt ----------------------------------------------------------------------------
         int_sync = Signal()
         m.submodules.int_sync = FFSynchronizer(self.int_pin, int_sync)
@@ -228,7 +243,25 @@ class SampleReader(wiring.Component):
         def copy_clock(dst, src):
             """``dst`` takes ``src``'s value, advanced by this cycle's count."""
             m.d.sync += [d.eq(v) for d, v in zip(dst, advanced(src))]
+        (n.m, n.int_active, n.int_edge, n.int_pending, n.since_sample, n.since_edge, n.since_next,
+         n.phase, n.periods, n.tick, n.skipped, n.early, n.seen_edge, n.pending_edge, n.read_edge,
+         n.deferred, n.deferred_base, n.dropped, n.early_phase, n.reading, n.restart_clock,
+         n.copy_clock) = (
+            m, int_active, int_edge, int_pending, since_sample, since_edge, since_next, phase,
+            periods, tick, skipped, early, seen_edge, pending_edge, read_edge, deferred,
+            deferred_base, dropped, early_phase, reading, restart_clock, copy_clock)
 
+
+    def _judging(self, m, n):
+        """Judging an edge's interval (samples skipped, too early), and what a burst's start
+        and check do to the clocks."""
+        (phase, periods, int_edge, read_edge, seen_edge, m, reading, restart_clock, since_next,
+         since_edge, since_sample, pending_edge, copy_clock, deferred, skipped, early, int_pending,
+         deferred_base, early_phase) = (
+            n.phase, n.periods, n.int_edge, n.read_edge, n.seen_edge, n.m, n.reading,
+            n.restart_clock, n.since_next, n.since_edge, n.since_sample, n.pending_edge,
+            n.copy_clock, n.deferred, n.skipped, n.early, n.int_pending, n.deferred_base,
+            n.early_phase)
         # one judge for the three places an edge is judged (the last that applies wins, as
         # a statement would): the interval and whether its base is known, then the figures
         judging = Signal()
@@ -279,7 +312,15 @@ class SampleReader(wiring.Component):
                 m.d.sync += deferred.eq(0)
                 judge([Mux(~spurious, e, b) for e, b in zip(snap_edge, deferred_base)],
                       base_ok)
+        (n.read_started, n.checked) = (
+            read_started, checked)
 
+
+    def _sample_register(self, m, n):
+        """The sample offered, the time-outs, the start and the magnetometer's freshness."""
+        (m, int_active, port, int_pending, seen_edge, pending_edge, deferred, skipped, early, tick) = (
+            n.m, n.int_active, n.port, n.int_pending, n.seen_edge, n.pending_edge, n.deferred,
+            n.skipped, n.early, n.tick)
         # the sample offered: written whole before it is offered, so no reset (on a MAX10 a
         # synchronous reset costs logic per bit)
         sample = Signal.like(self.samples.payload, reset_less=True)
@@ -330,7 +371,23 @@ class SampleReader(wiring.Component):
         # read and passed on as usual.
         offered = Signal()
         m.d.sync += offered.eq(port.cmd.valid & ~port.cmd.ready)
+        (n.sample, n.gyro_jumped, n.have_base, n.timer, n.counter, n.overrun, n.resumed,
+         n.bad_bursts, n.mag_age, n.prev_field, n.prev_drdy, n.mag_read_failed, n.command,
+         n.offered) = (
+            sample, gyro_jumped, have_base, timer, counter, overrun, resumed, bad_bursts, mag_age,
+            prev_field, prev_drdy, mag_read_failed, command, offered)
 
+
+    def _states(self, m, n):
+        """The reader's states: waiting for an edge, the burst's reads, its check."""
+        (m, reading, command, checked, rx_index, spi, sample, buf, counter, overrun, dropped,
+         skipped, resumed, prev_field, prev_drdy, mag_age, mag_read_failed, offered, read_started,
+         timer, gyro_jumped, have_base, early, int_pending, int_edge, port, bad_bursts, int_active,
+         pending_edge) = (
+            n.m, n.reading, n.command, n.checked, n.rx_index, n.spi, n.sample, n.buf, n.counter,
+            n.overrun, n.dropped, n.skipped, n.resumed, n.prev_field, n.prev_drdy, n.mag_age,
+            n.mag_read_failed, n.offered, n.read_started, n.timer, n.gyro_jumped, n.have_base,
+            n.early, n.int_pending, n.int_edge, n.port, n.bad_bursts, n.int_active, n.pending_edge)
         with m.FSM() as fsm:
             m.d.comb += reading.eq(fsm.ongoing("READ_MPU") | fsm.ongoing("MAG_CMD") |
                                    fsm.ongoing("READ_MAG"))
@@ -427,7 +484,6 @@ class SampleReader(wiring.Component):
                                prev_field, prev_drdy, mag_age, mag_read_failed)
                     with m.If(~self.samples.valid):
                         m.d.sync += have_base.eq(1)      # this one is the payload now
-        return m
 
     def _emit(self, m, sample, buf, counter, overrun, dropped, skipped, resumed, prev_field,
               prev_drdy, mag_age, mag_read_failed):
