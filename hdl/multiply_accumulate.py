@@ -14,10 +14,11 @@ __all__ = ["MultiplyAccumulate"]
 
 class MultiplyAccumulate(wiring.Component):
     """A MUL instruction in three steps: ``issue`` registers the product a·b (in the
-    ``Multiplier``'s two parts) and the instruction; the next cycle (``pending``) adds it (inverted, plus one, when the instruction
-    subtracts) to the accumulator — or to the rounding constant 2^(s−1)
-    when the instruction starts a sum —; the cycle after, if the instruction writes back, it
-    offers ``acc >> s`` saturated to 32 bits (= rshift_round of the exact sum, then sat32).
+    ``Multiplier``'s two parts) and the instruction; the next cycle (``pending``) adds it
+    (inverted, plus one, when the instruction subtracts) to the accumulator — or to the
+    rounding constant 2^(s−1) when the instruction starts a sum —; the cycle after, if the
+    instruction writes back, it offers ``acc >> s`` saturated to 32 bits (= rshift_round of the
+    exact sum, then sat32).
 
     Parameters
         ``multiplier``: the 32×32 ``Multiplier`` (a blackbox one for ``report``).

@@ -243,11 +243,11 @@ class SampleReader(wiring.Component):
         def copy_clock(dst, src):
             """``dst`` takes ``src``'s value, advanced by this cycle's count."""
             m.d.sync += [d.eq(v) for d, v in zip(dst, advanced(src))]
-        (n.m, n.int_active, n.int_edge, n.int_pending, n.since_sample, n.since_edge, n.since_next,
+        (n.int_active, n.int_edge, n.int_pending, n.since_sample, n.since_edge, n.since_next,
          n.phase, n.periods, n.tick, n.skipped, n.early, n.seen_edge, n.pending_edge, n.read_edge,
          n.deferred, n.deferred_base, n.dropped, n.early_phase, n.reading, n.restart_clock,
          n.copy_clock) = (
-            m, int_active, int_edge, int_pending, since_sample, since_edge, since_next, phase,
+            int_active, int_edge, int_pending, since_sample, since_edge, since_next, phase,
             periods, tick, skipped, early, seen_edge, pending_edge, read_edge, deferred,
             deferred_base, dropped, early_phase, reading, restart_clock, copy_clock)
 
@@ -255,13 +255,12 @@ class SampleReader(wiring.Component):
     def _judging(self, m, n):
         """Judging an edge's interval (samples skipped, too early), and what a burst's start
         and check do to the clocks."""
-        (phase, periods, int_edge, read_edge, seen_edge, m, reading, restart_clock, since_next,
+        (phase, periods, int_edge, read_edge, seen_edge, reading, restart_clock, since_next,
          since_edge, since_sample, pending_edge, copy_clock, deferred, skipped, early, int_pending,
          deferred_base, early_phase) = (
-            n.phase, n.periods, n.int_edge, n.read_edge, n.seen_edge, n.m, n.reading,
-            n.restart_clock, n.since_next, n.since_edge, n.since_sample, n.pending_edge,
-            n.copy_clock, n.deferred, n.skipped, n.early, n.int_pending, n.deferred_base,
-            n.early_phase)
+            n.phase, n.periods, n.int_edge, n.read_edge, n.seen_edge, n.reading, n.restart_clock,
+            n.since_next, n.since_edge, n.since_sample, n.pending_edge, n.copy_clock, n.deferred,
+            n.skipped, n.early, n.int_pending, n.deferred_base, n.early_phase)
         # one judge for the three places an edge is judged (the last that applies wins, as
         # a statement would): the interval and whether its base is known, then the figures
         judging = Signal()
@@ -318,8 +317,8 @@ class SampleReader(wiring.Component):
 
     def _sample_register(self, m, n):
         """The sample offered, the time-outs, the start and the magnetometer's freshness."""
-        (m, int_active, port, int_pending, seen_edge, pending_edge, deferred, skipped, early, tick) = (
-            n.m, n.int_active, n.port, n.int_pending, n.seen_edge, n.pending_edge, n.deferred,
+        (int_active, port, int_pending, seen_edge, pending_edge, deferred, skipped, early, tick) = (
+            n.int_active, n.port, n.int_pending, n.seen_edge, n.pending_edge, n.deferred,
             n.skipped, n.early, n.tick)
         # the sample offered: written whole before it is offered, so no reset (on a MAX10 a
         # synchronous reset costs logic per bit)
@@ -380,11 +379,11 @@ class SampleReader(wiring.Component):
 
     def _states(self, m, n):
         """The reader's states: waiting for an edge, the burst's reads, its check."""
-        (m, reading, command, checked, rx_index, spi, sample, buf, counter, overrun, dropped,
-         skipped, resumed, prev_field, prev_drdy, mag_age, mag_read_failed, offered, read_started,
-         timer, gyro_jumped, have_base, early, int_pending, int_edge, port, bad_bursts, int_active,
+        (reading, command, checked, rx_index, spi, sample, buf, counter, overrun, dropped, skipped,
+         resumed, prev_field, prev_drdy, mag_age, mag_read_failed, offered, read_started, timer,
+         gyro_jumped, have_base, early, int_pending, int_edge, port, bad_bursts, int_active,
          pending_edge) = (
-            n.m, n.reading, n.command, n.checked, n.rx_index, n.spi, n.sample, n.buf, n.counter,
+            n.reading, n.command, n.checked, n.rx_index, n.spi, n.sample, n.buf, n.counter,
             n.overrun, n.dropped, n.skipped, n.resumed, n.prev_field, n.prev_drdy, n.mag_age,
             n.mag_read_failed, n.offered, n.read_started, n.timer, n.gyro_jumped, n.have_base,
             n.early, n.int_pending, n.int_edge, n.port, n.bad_bursts, n.int_active, n.pending_edge)
