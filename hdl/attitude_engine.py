@@ -145,6 +145,7 @@ class AttitudeEngine(wiring.Component):
         wiring.connect(m, wiring.flipped(self.cfg_read), host.cfg_read)
         wiring.connect(m, host.cfg_read_data, wiring.flipped(self.cfg_read_data))
         m.d.comb += self.cfg_refused.eq(host.refused)
+
         # the parts below share the units (``u``) and the pipeline's signals (``p``)
         u = SimpleNamespace(cordic=cordic, divider=divider, alu=alu, mac=mac, host=host, rf=rf,
                             rom=rom)

@@ -13,8 +13,9 @@ __all__ = ["add_build", "add_report", "cmd_build", "cmd_report"]
 
 def add_build(sub, quiet):
     """``build``: its options."""
-    p = sub.add_parser("build", parents=[quiet], help="write the Quartus project (or plain Verilog), or build "
-                                     "a ULX3S bitstream with the open tools",
+    p = sub.add_parser("build", parents=[quiet],
+                       help="write the Quartus project (or plain Verilog), or build a ULX3S "
+                            "bitstream with the open tools",
                        description="Write the Quartus Prime project for a 10M08SCU169C8G "
                                    "without running Quartus; or, with --board ulx3s, build a "
                                    "bitstream for the ULX3S (ECP5-25F) with the open tools from "
@@ -38,7 +39,8 @@ def add_build(sub, quiet):
 
 def add_report(sub, quiet):
     """``report``: its options."""
-    p = sub.add_parser("report", parents=[quiet], help="resources (Yosys) and cycles per update, as JSON",
+    p = sub.add_parser("report", parents=[quiet],
+                       help="resources (Yosys) and cycles per update, as JSON",
                        description="Synthesise the attitude datapath alone and the whole design "
                                    "with Debian's Yosys 0.23 (synth_intel -family max10; "
                                    "apt-get install yosys) and simulate a few updates; print "

@@ -49,7 +49,8 @@ def add_host_verbs(sub, quiet):
     p.add_argument("args", nargs="*", metavar="ARG", help="the action's arguments")
     p.set_defaults(func=cmd_config)
 
-    p = sub.add_parser("calibrate", parents=[quiet], help="guided calibration, written to the board and saved",
+    p = sub.add_parser("calibrate", parents=[quiet],
+                       help="guided calibration, written to the board and saved",
                        description="Gyro bias at rest, the accelerometer in six poses, the "
                                    "magnetometer turned through all orientations; each step "
                                    "checked; the result written to the board and saved as "

@@ -16,7 +16,8 @@ __all__ = ["add_simulate", "add_replay", "cmd_simulate", "cmd_replay", "attitude
 
 def add_simulate(sub, quiet):
     """``simulate``: its options."""
-    p = sub.add_parser("simulate", parents=[quiet], help="co-simulate the gateware with the MPU9250 model",
+    p = sub.add_parser("simulate", parents=[quiet],
+                       help="co-simulate the gateware with the MPU9250 model",
                        description="Bring-up plus N samples, compiled (Verilator) or in "
                                    "Amaranth's simulator (--simulator), with real time scaled "
                                    "down (delays and sample period) to save cycles.")
