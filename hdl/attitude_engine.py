@@ -240,8 +240,7 @@ class AttitudeEngine(wiring.Component):
                 m.d.comb += cond.eq(first)
             with m.Case(Cond.FILTER):
                 m.d.comb += cond.eq(host.select == x.sh[:len(host.select)])
-        (p.cond) = (
-            cond)
+        p.cond = cond
 
     def _write_port(self, m, u, p):
         """The register file's write port (loader, host or the execute stage), the result

@@ -5,11 +5,16 @@ from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
 
-__all__ = ["Multiplier", "BLACKBOX_NAME", "BLACKBOX_STUB"]
+__all__ = ["Multiplier", "whole_product", "BLACKBOX_NAME", "BLACKBOX_STUB"]
 
 BLACKBOX_NAME = "mpu9250_ahrs_mul18x18"
 BLACKBOX_STUB = (f"(* blackbox *) module {BLACKBOX_NAME}(input signed [17:0] a, "
                  f"input signed [17:0] b, output signed [35:0] p);\nendmodule\n")
+
+
+def whole_product(outer, middle):
+    """The product from the ``Multiplier``'s two parts: ``outer`` + ``middle``·2¹⁷."""
+    return outer + (middle << 17)
 
 
 class Multiplier(wiring.Component):
@@ -62,6 +67,6 @@ class Multiplier(wiring.Component):
         m.d.comb += [
             self.middle.eq(products["lh"] + products["hl"]),
             self.outer.eq(Cat(products["ll"][:34], products["hh"][:30]).as_signed()),
-            self.p.eq(self.outer + (self.middle << 17)),
+            self.p.eq(whole_product(self.outer, self.middle)),
         ]
         return m

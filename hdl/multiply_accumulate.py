@@ -6,7 +6,7 @@ from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
 from .attitude_isa import MUL_SHIFTS, REG_BITS, Instr
-from .multiplier import Multiplier
+from .multiplier import Multiplier, whole_product
 
 
 __all__ = ["MultiplyAccumulate"]
@@ -76,7 +76,7 @@ class MultiplyAccumulate(wiring.Component):
         # product's registers: the 18x18 blocks and the adder that combines their products are
         # the longest path into them (report --timing)
         product = Signal(signed(64))
-        m.d.comb += product.eq(outer + (middle << 17))
+        m.d.comb += product.eq(whole_product(outer, middle))
         m.d.comb += acc_next.eq(Mux(ins.acc, acc, rounding) +
                                 (product.as_unsigned() ^ ins.neg.replicate(64)).as_signed() +
                                 ins.neg)
