@@ -44,7 +44,13 @@ from .config_write import ConfigWrite
 from .sample import Sample
 
 
-__all__ = ["AttitudeEngine", "default_filter_config", "default_flagship_config"]
+__all__ = ["AttitudeEngine", "PEEKED", "default_filter_config", "default_flagship_config"]
+
+
+# The result's words ``peek_data`` reads, in ``Attitude``'s order: the registers its
+# quaternion, angles and bias are snooped from
+PEEKED = (*(f"QOUT{i}" for i in range(4)), *(f"THETA{i}" for i in range(3)),
+          *(f"BIAS{i}" for i in range(3)))
 
 
 # An upper bound of the cycles of one update (sample taken to result out), whatever the filter
@@ -102,6 +108,12 @@ class AttitudeEngine(wiring.Component):
         ``results`` (out, stream of ``Attitude``): one per sample — quaternion, angles, bias,
             counter, flags — valid (and unchanging) until taken.
         ``busy`` (out): an update or a filter reset is running.
+        ``peek_en``, ``peek_index`` (in, 0..9) / ``peek_data`` (out, signed 32): the offered
+            result's words read from the register file (``PEEKED``: the quaternion, angles and
+            bias, in ``Attitude``'s order; the word the cycle after ``peek_en``), equal to
+            ``results.payload``'s while ``results`` is valid: the framer copies them from here
+            rather than through a multiplexer of the result's bits. Only while ``results``
+            is valid (the engine is idle then).
     Latency (sample valid to result valid) and throughput (one sample per update): ``report``'s
     ``cycles_per_update`` per filter; every instruction has a fixed time, so only the branches
     taken (measurements skipped or rejected) make an update shorter.
@@ -130,6 +142,8 @@ class AttitudeEngine(wiring.Component):
             "results": Out(stream.Signature(Attitude)),
             "busy": Out(1),
             "cfg_refused": Out(16),
+            "peek_en": In(1), "peek_index": In(range(len(PEEKED))),
+            "peek_data": Out(signed(32)),
         })
 
     def elaborate(self, platform):
@@ -212,8 +226,12 @@ class AttitudeEngine(wiring.Component):
         # read port A: the instruction being fetched, or the host's read-back while idle
         m.d.comb += [
             rom.addr.eq(fetch_pc), rom.en.eq(advance),
-            rf.ra_addr.eq(Mux(host.r_en, host.r_addr, rinstr.a)), rf.rb_addr.eq(rinstr.b),
-            rf.r_en.eq(advance | host.r_en), host.r_data.eq(rf.ra_data),
+            rf.ra_addr.eq(Mux(host.r_en, host.r_addr, rinstr.a)),
+            rf.rb_addr.eq(Mux(self.peek_en,
+                              Array(C(REGS[name], REG_BITS) for name in PEEKED)[self.peek_index],
+                              rinstr.b)),
+            rf.r_en.eq(advance | host.r_en | self.peek_en), host.r_data.eq(rf.ra_data),
+            self.peek_data.eq(rf.rb_data),
             self.results.payload.eq(out),
         ]
         opa, opb = xa, xb
@@ -269,9 +287,9 @@ class AttitudeEngine(wiring.Component):
         with m.If(host.w_en):
             m.d.comb += [w_en.eq(1), w_addr.eq(host.w_addr), w_other.eq(host.w_data)]
         # the result is snooped from the register writes (no copy at the end of an update)
-        snooped = [(out.quat[i], f"QOUT{i}") for i in range(4)]
-        snooped += [(out.angles[i], f"THETA{i}") for i in range(3)]
-        snooped += [(out.bias[i], f"BIAS{i}") for i in range(3)]
+        fields = [*(out.quat[i] for i in range(4)), *(out.angles[i] for i in range(3)),
+                  *(out.bias[i] for i in range(3))]
+        snooped = list(zip(fields, PEEKED))
         # the operands of ``o``, as they are now: the register file's read when it came in,
         # a write since or in the cycle it came in (which reached the register file after
         # its read: ``o_hold_*``), or the write in this very cycle (forwarded)

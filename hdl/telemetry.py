@@ -4,7 +4,7 @@ the layouts, ``hdl/FRAMES.md`` the reasons).
 """
 
 from amaranth import *
-from amaranth.lib import stream, wiring
+from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
 from .frame_types import CRC, SYNC, FrameByte, SensorFrame, payload_bytes, frame_bytes
@@ -32,6 +32,13 @@ class TelemetryFramer(wiring.Component):
             bits of ``layout``, in whole bytes). A frame offered while the ``short`` input is
             high is sent as that type, cut to that length (raw-sample mode sends the sample
             and status of an attitude frame so).
+        ``fetch`` (buffered only): None, or ``(offset, n)``: the payload's ``n`` 32-bit words
+            from bit ``offset`` (a multiple of 8) are not read from ``i_stream``'s payload but
+            through a read port, one a cycle during the copy, word ``k`` from index ``k``
+            (the attitude engine's result, read from its register file: in a LUT4 fabric a
+            multiplexer costs about a LUT per input bit, and the copy's is most of the
+            framer). The producer's port must give the word the payload would hold, the
+            cycle after ``fetch_en``, while ``i_stream`` is valid.
     Members
         ``i_stream`` (in, stream of ``layout``); ``o_stream`` (out, stream of ``FrameByte``:
             to a ``FrameArbiter``, or a UART taking ``data``).
@@ -40,11 +47,14 @@ class TelemetryFramer(wiring.Component):
         ``short`` (in): see above; sampled when the copy starts.
         ``idle`` (out): buffered: no frame is being copied or sent (a frame offered now is
             copied at once). Unbuffered: no frame is being sent.
+        ``fetch_en``, ``fetch_index`` (out), ``fetch_data`` (in, 32): with ``fetch``, the read
+            port (above).
     Throughput: ``length + 7`` bytes per frame.
     Latency: the first sync byte is offered in the cycle the payload is (unbuffered), or once
     the copy ends, ⌈``length``/4⌉ cycles after it (buffered).
     """
-    def __init__(self, layout=SensorFrame, frame_type=0x01, *, buffered=False, short=None):
+    def __init__(self, layout=SensorFrame, frame_type=0x01, *, buffered=False, short=None,
+                 fetch=None):
         self.layout = layout
         self.frame_type = frame_type
         self.buffered = buffered
@@ -56,17 +66,30 @@ class TelemetryFramer(wiring.Component):
             raise ValueError("a short frame type needs a buffered framer")
         self.short_type = None if short is None else short[0]
         self.short_length = None if short is None else payload_bytes(short[1])
-        # the copy goes a 32-bit word per cycle: a 23-way multiplexer of words costs fewer
-        # LUTs than a 92-way one of bytes
+        # the copy goes a 32-bit word per cycle: a 22-way multiplexer of words costs fewer
+        # LUTs than an 85-way one of bytes
         self.words = (self.length + 3) // 4
         self.ram = FrameRAM(self.words, 32) if buffered else None
-        super().__init__({
+        members = {
             "i_stream": In(stream.Signature(layout)),
             "o_stream": Out(stream.Signature(FrameByte)),
             "seq": In(8),
             "short": In(1),
             "idle": Out(1),
-        })
+        }
+        self.fetch = fetch
+        if fetch is not None:
+            offset, n = fetch
+            if not buffered:
+                raise ValueError("fetched words need a buffered framer")
+            # word 0 is fetched the cycle before its frame word is copied: not the first
+            if offset % 8 or offset < 32 or n < 1 or \
+                    offset + 32 * n > data.Layout.cast(layout).size:
+                raise ValueError(f"fetch {fetch}: {n} words from a bit offset that is a "
+                                 f"multiple of 8, at least 32, inside the payload")
+            members.update({"fetch_en": Out(1), "fetch_index": Out(range(n)),
+                            "fetch_data": In(32)})
+        super().__init__(members)
 
     def elaborate(self, platform):
         m = Module()
@@ -90,11 +113,14 @@ class TelemetryFramer(wiring.Component):
             words = self.words
             copy_index = Signal(range(words))
             wide = Cat(value, C(0, 32 * words - len(value)))
-            payload_words = Array(wide[32 * i:32 * i + 32] for i in range(words))
+            payload_words = [wide[32 * i:32 * i + 32] for i in range(words)]
+            fetched = C(0, 32)
+            if self.fetch is not None:
+                payload_words, fetched = self._fetched(m, payload_words, copy_index, sending)
             # copy: the payload's words into the RAM, one per cycle, through one multiplexer
             with m.If(self.i_stream.valid & ~sending):
                 m.d.comb += [ram.w_en.eq(1), ram.w_addr.eq(copy_index),
-                             ram.w_data.eq(payload_words[copy_index])]
+                             ram.w_data.eq(Array(payload_words)[copy_index] | fetched)]
                 m.d.sync += copy_index.eq(copy_index + 1)
                 if self.short_type is not None:
                     with m.If(copy_index == 0):
@@ -154,3 +180,34 @@ class TelemetryFramer(wiring.Component):
         with m.If(sent):
             m.d.sync += index.eq(Mux(end, 0, index + 1))
         return m
+
+    def _fetched(self, m, payload_words, copy_index, sending):
+        """The copy with ``fetch``: the payload's words with the fetched bits left out (zero:
+        no multiplexer inputs), and the fetched bits of the word copied now, to be ORed in.
+        Word ``k`` is fetched a cycle before the copy writes the frame word that holds its
+        low bits; its high bits (``offset`` not a multiple of 32) go into the next frame
+        word, from ``held``."""
+        offset, n = self.fetch
+        first, shift = divmod(offset, 32)       # the frame word of fetched word 0, bit shift
+        low = 32 - shift                        # the fetched word's bits in its first frame word
+        copying = self.i_stream.valid & ~sending
+        m.d.comb += [self.fetch_en.eq(copying & (copy_index >= first - 1) &
+                                      (copy_index < first + n - 1)),
+                     self.fetch_index.eq(copy_index - first + 1)]
+        held = Signal(max(shift, 1), reset_less=True)
+        if shift:
+            with m.If(copying):
+                m.d.sync += held.eq(self.fetch_data[low:])
+        in_low = (copy_index >= first) & (copy_index < first + n)      # fetched low bits
+        in_high = (copy_index > first) & (copy_index <= first + n)     # held high bits
+        fetched = Cat(Mux(in_high, held, 0)[:shift], Mux(in_low, self.fetch_data[:low], 0))
+        words = []
+        for i, word in enumerate(payload_words):
+            keep = [1] * 32
+            if first <= i < first + n:
+                keep[shift:] = [0] * low
+            if first < i <= first + n:
+                keep[:shift] = [0] * shift
+            mask = sum(b << j for j, b in enumerate(keep))
+            words.append(word & mask if mask != (1 << 32) - 1 else word)
+        return words, fetched

@@ -25,7 +25,7 @@ class TelemetryScheduler(wiring.Component):
     Members
         ``results`` (in, stream of ``Attitude``): a result that is not framed is taken in the
             cycle it is valid; one that is framed is taken when the framer has copied it
-            (``TelemetryFramer(buffered=True)``: 21 cycles for an attitude frame), never later.
+            (``TelemetryFramer(buffered=True)``: 22 cycles for an attitude frame), never later.
         ``sample`` (in, ``Sample``) and ``status`` (in, ``DriverStatus``): the sample the
             present result came from and the driver status latched with it; they hold while
             the result is valid (the engine takes no new sample before its result is taken).

@@ -46,8 +46,8 @@ from .clocking import SYSTEM_CLOCK_HZ, cycles
 from .mpu9250_driver import DriverTiming, MPU9250Config
 from .attitude_isa import REG_BITS
 from .attitude_program import TELEMETRY_DIV_ADDR
-from .attitude_engine import (WORST_UPDATE_CYCLES, AttitudeEngine, default_filter_config,
-                              default_flagship_config)
+from .attitude_engine import (PEEKED, WORST_UPDATE_CYCLES, AttitudeEngine,
+                              default_filter_config, default_flagship_config)
 from .config_write import ConfigWrite
 from .driver_status import DriverStatus
 from .sample import Sample
@@ -74,6 +74,19 @@ __all__ = ["AHRSCore", "AsyncResetCore", "core_verilog", "BoardTop", "telemetry_
 
 
 VERSION = (0, 2)        # major, minor: the version/build word's top bytes
+
+
+def result_fetch():
+    """The attitude framer's ``fetch``: the bit offset of an ``AttitudeFrame``'s quaternion,
+    angles and bias (consecutive 32-bit words, the engine's ``PEEKED`` order) and their count."""
+    fields = data.Layout.cast(data.Layout.cast(AttitudeFrame)["attitude"].shape)
+    offset = data.Layout.cast(AttitudeFrame)["attitude"].offset
+    words = [(name, i) for name in ("quat", "angles", "bias")
+             for i in range(fields[name].shape.length)]
+    assert len(words) == len(PEEKED)
+    assert all(fields[name].offset + 32 * i == 32 * k
+               for k, (name, i) in enumerate(words)), "the fetched words are not consecutive"
+    return offset, len(PEEKED)
 
 
 def version_word(**build):
@@ -147,7 +160,7 @@ class AHRSCore(wiring.Component):
 
     With the engine, every sample the driver reads is filtered: the engine takes a sample as
     soon as its previous update is done (``WORST_UPDATE_CYCLES`` at most) and the
-    ``TelemetryScheduler`` takes every result at once, or after the framer's 21-cycle copy of
+    ``TelemetryScheduler`` takes every result at once, or after the framer's 22-cycle copy of
     a result it frames; the UART never holds the filter up.
 
     Latency: data-ready edge to result: at most ``sample_read_cycles`` plus the engine's update
@@ -176,7 +189,7 @@ class AHRSCore(wiring.Component):
         if flagship_config is None:
             flagship_config = default_flagship_config(config)
         self.framer = TelemetryFramer(AttitudeFrame, ATTITUDE, buffered=True,
-                                      short=(SENSOR, SensorFrame))
+                                      short=(SENSOR, SensorFrame), fetch=result_fetch())
         self.telemetry_divider = telemetry_divider
         self.engine = AttitudeEngine(filter_config, calibration, flagship_config,
                                      filter=filter,
@@ -240,6 +253,10 @@ class AHRSCore(wiring.Component):
         connect(m, fe.samples, engine.samples)
         connect(m, engine.results, sched.results)
         connect(m, sched.frames, framer.i_stream)
+        # the result's quaternion, angles and bias: copied from the engine's register file
+        # while the scheduler offers it (the engine is idle then), not from its payload
+        m.d.comb += [engine.peek_en.eq(framer.fetch_en), engine.peek_index.eq(framer.fetch_index),
+                     framer.fetch_data.eq(engine.peek_data)]
         held = Signal(Sample, reset_less=True)
         held_status = Signal(DriverStatus, reset_less=True)
         with m.If(fe.samples.valid & fe.samples.ready):

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from mpu9250_ahrs.hdl.attitude_engine import WORST_UPDATE_CYCLES, AttitudeEngine
+from mpu9250_ahrs.hdl.attitude_engine import PEEKED, WORST_UPDATE_CYCLES, AttitudeEngine
 from mpu9250_ahrs.hdl.attitude_program import CONFIG_REGS, CONTROL_ADDR, REGS, control_word
 from mpu9250_ahrs.reference.fixed_point import CalibrationFixed, KalmanFixedConfig, bam_to_deg
 from mpu9250_ahrs.reference.engine_model import attitude_fixed
@@ -219,6 +219,43 @@ def test_result_holds_still_through_a_reset_and_state_writes():
         seen["busy_after_take"] = ctx.get(dut.busy)
     run_unit(dut, testbench)
     assert seen == {"refused": 4, "busy_after_take": 1}
+
+
+@pytest.mark.parametrize("select", ["kalman", "complementary", "flagship"])
+def test_peek_reads_the_offered_result(select):
+    """``peek_data`` gives the offered result's quaternion, angles and bias (``PEEKED``), the
+    cycle after ``peek_en``, equal to the payload's: the framer copies them from there. Also
+    after the host's (refused) writes to the filter state while the result waits."""
+    dut = AttitudeEngine(filter=select)
+    checked = []
+
+    async def peek_all(ctx):
+        result = ctx.get(dut.results.payload)
+        words = [*result.quat, *result.angles, *result.bias]
+        for k in range(len(PEEKED)):
+            ctx.set(dut.peek_en, 1)
+            ctx.set(dut.peek_index, k)
+            await ctx.tick()
+            ctx.set(dut.peek_en, 0)
+            assert ctx.get(dut.peek_data) == words[k], (select, PEEKED[k])
+            checked.append(k)
+
+    async def testbench(ctx):
+        for n in range(2):
+            sample = {"gyro": [100 * n + 7, -50, 20], "accel": [30, -20, 2048],
+                      "mag": [300, 40, -400], "counter": n, "flags": {"mag_valid": 1}}
+            await stream_put(ctx, dut.samples, sample)
+            while not ctx.get(dut.results.valid):
+                await ctx.tick()
+            await peek_all(ctx)
+            for addr in (REGS["THETA0"], REGS["QOUT0"], REGS["BIAS1"]):
+                await stream_put(ctx, dut.cfg, {"addr": addr, "data": 0x1234})
+            await peek_all(ctx)
+            ctx.set(dut.results.ready, 1)
+            await ctx.tick()
+            ctx.set(dut.results.ready, 0)
+    run_unit(dut, testbench)
+    assert len(checked) == 4 * len(PEEKED)
 
 
 def test_simulate_verb_with_pose_and_attitude(capsys):

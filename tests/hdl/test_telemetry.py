@@ -6,8 +6,9 @@ import pytest
 from amaranth.lib import data
 from amaranth.sim import Simulator
 
-from mpu9250_ahrs.hdl.frame_types import SYNC, SensorFrame
+from mpu9250_ahrs.hdl.frame_types import ATTITUDE, SENSOR, SYNC, AttitudeFrame, SensorFrame
 from mpu9250_ahrs.hdl.telemetry import TelemetryFramer
+from mpu9250_ahrs.hdl.top import result_fetch
 from mpu9250_ahrs.hdl.uart_tx import UARTTransmitter
 from mpu9250_ahrs.reference.engine_model import attitude_fixed
 from mpu9250_ahrs.sim.attitude_bench import EngineRun, first_mismatch
@@ -100,6 +101,52 @@ def test_framer_against_decoder(buffered):
     assert decoded == frames
     if buffered:
         assert copy_cycles and set(copy_cycles) == {dut.words}
+
+
+def test_framer_fetch_equals_payload():
+    """The attitude framer as the core builds it (``fetch``: the result's quaternion, angles
+    and bias read through a port during the copy, a cycle after asked) sends the frames the
+    payload holds, when the port gives the payload's words; the words it asks for are those."""
+    rng = random.Random(2)
+    size = data.Layout.cast(AttitudeFrame).size
+    frames = [unpack(AttitudeFrame, rng.getrandbits(size)) for _ in range(3)]
+    offset, n = result_fetch()
+    dut = TelemetryFramer(AttitudeFrame, ATTITUDE, buffered=True, short=(SENSOR, SensorFrame),
+                          fetch=(offset, n))
+    sim = Simulator(dut)
+    sim.add_clock(1e-6)
+    out, asked = [], []
+
+    async def producer(ctx):
+        for f in frames:
+            ctx.set(dut.i_stream.payload, f)
+            ctx.set(dut.i_stream.valid, 1)
+            await ctx.tick().until(dut.i_stream.ready)
+            ctx.set(dut.i_stream.valid, 0)
+            ctx.set(dut.i_stream.payload, unpack(AttitudeFrame, rng.getrandbits(size)))
+
+    async def port(ctx):
+        # a synchronous read: the word the cycle after ``fetch_en``, from the payload offered
+        async for _, _, en, index in ctx.tick().sample(dut.fetch_en, dut.fetch_index):
+            if en:      # the payload holds still while it is copied
+                asked.append(index)
+                word = ctx.get(dut.i_stream.payload.as_value()) >> (offset + 32 * index)
+                ctx.set(dut.fetch_data, word & 0xFFFF_FFFF)
+            else:
+                ctx.set(dut.fetch_data, rng.getrandbits(32))    # anything between reads
+
+    async def consumer(ctx):
+        ctx.set(dut.o_stream.ready, 1)
+        while len(out) < len(frames) * dut.frame_bytes:
+            _, _, valid, byte = await ctx.tick().sample(dut.o_stream.valid, dut.o_stream.payload)
+            if valid:
+                out.append(byte.data)
+    sim.add_testbench(producer)
+    sim.add_testbench(port, background=True)
+    sim.add_testbench(consumer)
+    sim.run()
+    assert [fields for _, fields in decode_frames(out, strict=True)] == frames
+    assert asked == list(range(n)) * len(frames)
 
 
 def test_decoder_resynchronises_and_rejects_bad_crc():
