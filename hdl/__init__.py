@@ -5,7 +5,8 @@ Sensor side: ``spi_controller``, ``i2c_controller``, ``register_port`` (and its 
 ``sensor_frontend``.
 Attitude engine: ``attitude_engine`` on ``alu``, ``multiplier``, ``multiply_accumulate``,
 ``cordic``, ``divider``, ``memories``, ``host_port``; its instruction set ``attitude_isa`` and
-microcode ``attitude_program`` / ``flagship_microcode``. Link: ``telemetry_scheduler``,
+program ``attitude_program``, the filters' microcode ``filters`` (one module each, named in
+``filter_registry``) and the ``register_map``. Link: ``telemetry_scheduler``,
 ``telemetry`` (the framer), ``frame_arbiter``, ``uart_tx``, ``uart_rx``, ``command_decoder``
 (its input ``rewindable_fifo``), ``pwm``, ``board_bus``. Top levels and boards: ``top``,
 ``platform`` (the MAX10), ``ulx3s`` (the open ECP5 flow), ``clocking``.

@@ -1,7 +1,8 @@
 """Attitude engine: calibration and attitude filters on one shared fixed-point datapath.
 
-A microcoded sequencer (program and register map in ``hdl/attitude_program.py``, the flagship's
-routine in ``hdl/flagship_microcode.py``, instruction set in ``hdl/attitude_isa.py``) drives one
+A microcoded sequencer (program in ``hdl/attitude_program.py``, each filter's routine in
+``hdl/filters/``, register map in ``hdl/register_map.py``, instruction set in
+``hdl/attitude_isa.py``) drives one
 datapath: a 32×32 multiplier with a 66-bit accumulator (rounding and saturation on write-back),
 a saturating/wrapping adder, an iterative CORDIC (``hdl/cordic.py``) and a divider
 (``hdl/divider.py``). Results equal ``reference.engine_model.EngineModel`` bit for bit. Three
@@ -29,8 +30,9 @@ from amaranth.lib.wiring import In, Out
 
 from .alu import ALU
 from .attitude_isa import REG_BITS, REG_COUNT, Cond, Flag, Instr, Op
-from .attitude_program import (FILTER_CODES, HOST_WRITABLE, LOAD_BASE, LOAD_ORDER, REGS,
-                               build_program, config_init, load_words)
+from .register_map import HOST_WRITABLE, LOAD_BASE, LOAD_ORDER, REGS, config_init, load_words
+from .filter_registry import FILTER_CODES
+from .attitude_program import build_program
 from .host_port import HostPort
 from .multiply_accumulate import MultiplyAccumulate
 from .cordic import CORDIC
@@ -96,7 +98,7 @@ class AttitudeEngine(wiring.Component):
             idle and the previous result has been taken; the sample is read from the payload while
             it is loaded (one cycle per ``LOAD_ORDER`` word: 13), then acknowledged.
         ``asa`` (in, 3 × 8 bits): the AK8963's fuse-ROM sensitivity bytes (from the driver).
-        ``cfg`` (in, stream of ``ConfigWrite``): register writes (``attitude_program`` has the
+        ``cfg`` (in, stream of ``ConfigWrite``): register writes (``register_map`` has the
             map); accepted while the engine is idle. Only ``HOST_WRITABLE`` addresses are written:
             a write to a constant or to the filter state is taken, ignored and counted in
             ``cfg_refused`` (out, 16, saturating). ``CONTROL_ADDR`` (0xFF) is the control

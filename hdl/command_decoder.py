@@ -9,8 +9,8 @@ from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
 from .attitude_isa import REG_BITS
-from .attitude_program import (CONTROL_ADDR, CONTROL_KEEP, CONTROL_RESET, FILTER_CODES,
-                               TELEMETRY_DIV_ADDR)
+from .register_map import CONTROL_ADDR, CONTROL_KEEP, CONTROL_RESET, TELEMETRY_DIV_ADDR
+from .filter_registry import FILTER_CODES
 from .board_bus import BoardBusSignature
 from .host_port import address_in, control_accepted
 from .config_write import ConfigWrite

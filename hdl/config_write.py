@@ -8,6 +8,6 @@ __all__ = ["ConfigWrite"]
 
 
 class ConfigWrite(data.Struct):
-    """A write to the attitude engine's register map (``hdl/attitude_program.py``)."""
+    """A write to the attitude engine's register map (``hdl/register_map.py``)."""
     addr: 8
     data: signed(32)

@@ -6,7 +6,8 @@ from amaranth.lib import stream, wiring
 from amaranth.lib.wiring import In, Out
 
 from .attitude_isa import REG_BITS
-from .attitude_program import CONTROL_ADDR, FILTERS
+from .register_map import CONTROL_ADDR
+from .filter_registry import FILTER_NAMES
 from .config_write import ConfigWrite
 from .numeric_contract import CONTROL_BITS, CONTROL_KEEP, CONTROL_RESET
 
@@ -23,11 +24,11 @@ def address_in(addr, addresses):
 
 def control_accepted(data):
     """1 where ``data`` (a 32-bit word written to CONTROL) is a word the engine takes: no
-    reserved bit set and, unless it keeps the filter, a code that names one of ``FILTERS``
+    reserved bit set and, unless it keeps the filter, a code that names one of ``FILTER_NAMES``
     (``numeric_contract.control_fields``, the reference's statement of the same rule)."""
     data = Value.cast(data)
     keep = data[CONTROL_KEEP.bit_length() - 1]
-    return (data[CONTROL_BITS:32] == 0) & (keep | (data[:2] < len(FILTERS)))
+    return (data[CONTROL_BITS:32] == 0) & (keep | (data[:2] < len(FILTER_NAMES)))
 
 
 class HostPort(wiring.Component):

@@ -9,7 +9,7 @@ place that both import (the gateware imports nothing else from ``reference/``).
   ``KalmanFixedConfig`` (per-step values of the per-axis filters), ``FilterRates`` (the same in
   rates, valid at any sample rate), ``FlagshipParams`` / ``FlagshipFixedConfig`` (the flagship
   filter) and ``CalibrationFixed``. Each ``registers()`` gives the integer each register holds,
-  by its name in the engine's register map (``hdl/attitude_program.py``); the formats are
+  by its name in the engine's register map (``hdl/register_map.py``); the formats are
   ``reference/FIXED_POINT.md``'s.
 
 Plain Python (no Amaranth): the host tools and the reference import it too.

@@ -45,7 +45,7 @@ from amaranth.lib.wiring import In, Out, connect, flipped
 from .clocking import SYSTEM_CLOCK_HZ, cycles
 from .mpu9250_driver import DriverTiming, MPU9250Config
 from .attitude_isa import REG_BITS
-from .attitude_program import TELEMETRY_DIV_ADDR
+from .register_map import TELEMETRY_DIV_ADDR
 from .attitude_engine import (PEEKED, WORST_UPDATE_CYCLES, AttitudeEngine,
                               default_filter_config, default_flagship_config)
 from .config_write import ConfigWrite
@@ -54,7 +54,7 @@ from .sample import Sample
 from .sensor_frontend import SensorFrontEnd, sample_read_cycles
 from .i2c_controller import I2CPinsSignature
 from .spi_controller import IO_BUDGET, SPIPinsSignature, SPITiming
-from .attitude_program import HOST_WRITABLE
+from .register_map import HOST_WRITABLE
 from .command_decoder import CommandDecoder, CommandStats
 from .config_port_arbiter import ConfigPortArbiter
 from .frame_arbiter import FrameArbiter

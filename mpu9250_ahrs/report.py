@@ -187,7 +187,8 @@ def cycles_per_update(samples=6):
     flagship's longest path, at rest while its magnetic reference is still learnt, is longer by
     the bias update (``replay --engine gateware`` prints the most over a recording)."""
     from .hdl.attitude_engine import AttitudeEngine
-    from .hdl.attitude_program import CONTROL_ADDR, FILTER_CODES, control_word
+    from .hdl.register_map import CONTROL_ADDR, control_word
+    from .hdl.filter_registry import FILTER_CODES
     from .reference.frames import body_to_mag
     from .sim.attitude_bench import run_engine
     from .sim.motion import SensorModel, static

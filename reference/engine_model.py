@@ -12,6 +12,7 @@ import numpy as np
 
 from ..hdl.numeric_contract import (CalibrationFixed, KalmanFixedConfig, calibration_of,
                                     calibration_registers, control_fields)
+from ..hdl.filter_registry import FILTER_NAMES
 from .fixed_point import Status, _KalmanFixed, _calibrate_one, _complementary_step
 from .flagship_fixed import FlagshipFixed, FlagshipFixedConfig, euler_quat_fixed
 
@@ -20,7 +21,8 @@ __all__ = ["FILTERS", "RESULT_FLAGS", "RESULT_FIELDS", "AttitudeFixed", "EngineM
            "attitude_fixed"]
 
 
-FILTERS = ("kalman", "complementary", "flagship")       # the engine's filter select codes 0, 1, 2
+# the engine's filters, by select code (the registry, ``hdl/filter_registry.py``)
+FILTERS = FILTER_NAMES
 RESULT_FLAGS = ("acc_used", "mag_used", "mag_disturbed", "mag_new_ref", "at_rest",
                 "bias_updated")
 # the fields of a result that the gateware must reproduce, in the order they are compared

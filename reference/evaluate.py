@@ -8,6 +8,7 @@ import math
 
 import numpy as np
 
+from ..hdl.filter_registry import FILTER_NAMES, FLOAT_FILTERS
 from .complementary import complementary_filter
 from .flagship import FlagshipParams, flagship_filter
 from .frames import euler_to_quat, orientation_errors
@@ -17,8 +18,10 @@ from .madgwick import madgwick_filter
 
 __all__ = ["FILTERS", "FIXED_FILTERS", "run_filter", "run_fixed", "engine_configs", "score"]
 
-FILTERS = ("kalman", "complementary", "madgwick", "flagship")
-FIXED_FILTERS = ("kalman", "complementary", "flagship")
+# the registry's (``hdl/filter_registry.py``): the float filters, and the fixed-point ones (the
+# gateware's)
+FILTERS = FLOAT_FILTERS
+FIXED_FILTERS = FILTER_NAMES
 
 
 def run_filter(name, gyr, acc, mag, dt, **params):

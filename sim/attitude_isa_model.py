@@ -8,8 +8,9 @@ under test here.
 """
 
 from ..hdl.attitude_isa import MUL_SHIFTS, Cond, Flag, Op
-from ..hdl.attitude_program import (CONFIG_REGS, FILTER_CODES, LOAD_ORDER, REGS, build_program,
-                                    config_init, load_words)
+from ..hdl.register_map import CONFIG_REGS, LOAD_ORDER, REGS, config_init, load_words
+from ..hdl.filter_registry import FILTER_CODES
+from ..hdl.attitude_program import build_program
 from ..reference.fixed_point import (INV_GAIN_Q30, Status, cordic_rotate, cordic_vector,
                                      div_q24, sat, sat16, sat32, wrap32)
 

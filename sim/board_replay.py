@@ -97,7 +97,7 @@ def replay_board(filter, gyr_counts, acc_counts, mag_counts, dt, *, gyro_fs_dps=
     through the co-simulated board, the engine set up for ``filter``: a ``BoardReplay``.
     ``period_cycles`` (the simulated sample period) and ``divider`` (frame every n-th result)
     default to the shortest that work."""
-    from ..hdl.attitude_program import TELEMETRY_DIV_ADDR
+    from ..hdl.register_map import TELEMETRY_DIV_ADDR
     from ..hdl.frame_types import AttitudeFrame, frame_bytes
     from ..hdl.top import rate_budget
     from ..reference.evaluate import engine_configs

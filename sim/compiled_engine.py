@@ -244,7 +244,7 @@ def configuration_writes(filter, kalman, flagship, cal=None):
     """Register writes that set an engine up for ``filter`` with these configurations (and
     calibration), then select it with a filter reset (so that INIT starts from the new P₀):
     what a host sends, and what makes one compiled build serve every recording."""
-    from ..hdl.attitude_program import CONFIG_REGS, CONTROL_ADDR, control_word
+    from ..hdl.register_map import CONFIG_REGS, CONTROL_ADDR, control_word
     from ..reference.fixed_point import CalibrationFixed, calibration_registers
     regs = {**kalman.registers(), **flagship.registers(),
             **calibration_registers(CalibrationFixed() if cal is None else cal)}
@@ -287,7 +287,7 @@ def speed_benchmark(samples=150, filter="flagship"):
     with the results checked equal. A benchmark, not a test: the figures depend on the
     machine."""
     from ..hdl.attitude_engine import AttitudeEngine
-    from ..hdl.attitude_program import CONTROL_ADDR, control_word
+    from ..hdl.register_map import CONTROL_ADDR, control_word
     from ..reference.frames import body_to_mag
     from .attitude_bench import RESULT_FIELDS, run_engine
     from .motion import SensorModel, concat, random_motion, static

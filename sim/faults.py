@@ -309,7 +309,7 @@ def _field_key(mag):
 def host_garbage_writes():
     """(address, value) writes no host may make: the constants of the register map and some
     filter state. ``HOST_WRITABLE`` refuses each."""
-    from ..hdl.attitude_program import CONFIG_REGS, REGS
+    from ..hdl.register_map import CONFIG_REGS, REGS
     return [(CONFIG_REGS["ZERO"], 12345), (CONFIG_REGS["INV_GAIN"], 0),
             (CONFIG_REGS["SHL8"], 1), (REGS["THETA0"], 1 << 29), (REGS["P0_00"], -1),
             (REGS["QOUT0"], 0), (0xFD, 7)]

@@ -22,7 +22,7 @@ import pytest
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 FOLDERS = {"hdl": ROOT / "hdl", "sim": ROOT / "sim", "reference": ROOT / "reference"}
-CONTRACT = {"numeric_contract", "ak8963_regs", "mpu9250_regs"}
+CONTRACT = {"numeric_contract", "ak8963_regs", "mpu9250_regs", "filter_registry"}
 # where each folder may reach: a package, or (package, module) for single modules
 ALLOWED = {
     "hdl": {"hdl"},
@@ -43,8 +43,10 @@ def _imports(path, package):
             if node.level == 0:
                 names = [f"{node.module}.{alias.name}" for alias in node.names]
             else:
-                # relative: one dot is this package, two the distribution package
-                base = [package] if node.level == 1 else []
+                # relative: one dot is this package (``hdl`` or a sub-package such as
+                # ``hdl.filters``), each further dot the one above it
+                parts = package.split(".")
+                base = parts[:len(parts) - node.level + 1]
                 module = (node.module or "").split(".") if node.module else []
                 names = [".".join(["mpu9250_ahrs", *base, *module, alias.name])
                          for alias in node.names]
@@ -66,11 +68,13 @@ def _allowed(folder, package, module):
 @pytest.mark.parametrize("folder", sorted(FOLDERS))
 def test_imports_go_one_way(folder):
     bad = []
-    for path in sorted(FOLDERS[folder].glob("*.py")):
-        for line, package, module in _imports(path, folder):
+    # sub-packages too (``hdl/filters/``)
+    for path in sorted(FOLDERS[folder].rglob("*.py")):
+        inner = path.parent.relative_to(FOLDERS[folder]).parts
+        for line, package, module in _imports(path, ".".join((folder, *inner))):
             if not _allowed(folder, package, module):
                 target = package if module is None else f"{package}.{module}"
-                bad.append(f"{folder}/{path.name}:{line} imports {target}")
+                bad.append(f"{path.relative_to(ROOT)}:{line} imports {target}")
     assert not bad, "forbidden import direction:\n" + "\n".join(bad)
 
 
@@ -94,6 +98,8 @@ def test_checker_sees_a_bad_import(tmp_path):
 
 
 PACKAGE_DIRS = {"mpu9250_ahrs": ROOT / "mpu9250_ahrs", "mpu9250_ahrs.hdl": ROOT / "hdl",
+                "mpu9250_ahrs.hdl.filters": ROOT / "hdl" / "filters",
+                "mpu9250_ahrs.cli": ROOT / "mpu9250_ahrs" / "cli",
                 "mpu9250_ahrs.sim": ROOT / "sim", "mpu9250_ahrs.reference": ROOT / "reference",
                 "mpu9250_ahrs.host": ROOT / "mpu9250_ahrs" / "host"}
 

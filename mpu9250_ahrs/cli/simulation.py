@@ -6,6 +6,7 @@ import json
 import sys
 import time
 
+from ..hdl.filter_registry import FILTER_NAMES, FLOAT_FILTERS
 from .options import (_add_full_scale_options, _add_sensor_options, _clock, _config, _count,
                       _core_options, _number, _positive, check_rates)
 
@@ -36,7 +37,7 @@ def add_simulate(sub, quiet):
     p.add_argument("--attitude", action="store_true",
                    help="also run the samples through the attitude engine and print its result "
                         "per sample (quaternion, roll/pitch/yaw, bias, flags)")
-    p.add_argument("--filter", choices=("flagship", "kalman", "complementary"),
+    p.add_argument("--filter", choices=FILTER_NAMES,
                    default="flagship", help="the engine's filter with --attitude (flagship)")
     p.add_argument("--fault", default=None, metavar="NAME",
                    help="inject a fault of the catalogue (hdl/FAULTS.md) into the models and "
@@ -63,7 +64,7 @@ def add_replay(sub, quiet):
                                    "with total/heading/inclination RMSE (BROAD's metric, degrees, "
                                    "over the movement samples).")
     p.add_argument("file", help="HDF5 recording, e.g. ../shared/data/broad/02_*.hdf5")
-    p.add_argument("--filter", choices=("kalman", "complementary", "madgwick", "flagship"),
+    p.add_argument("--filter", choices=FLOAT_FILTERS,
                    default="flagship",
                    help="the filter to score (flagship); madgwick runs in the float reference "
                         "only")

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..hdl.attitude_program import REGS
+from ..hdl.register_map import REGS
 from ..hdl.frame_types import SENSOR
 from ..reference.calibration import accel_six_pose, gyro_bias, mag_ellipsoid
 from ..reference.fixed_point import CalibrationFixed, calibration_registers

@@ -1,6 +1,6 @@
 """``config``: read and write the board's registers by name, in physical units."""
 
-from ..hdl.attitude_program import FILTER_CODES
+from ..hdl.filter_registry import FILTER_CODES
 from .link import BoardError
 from .regmap import from_word, lookup, to_word
 

@@ -4,6 +4,7 @@ import csv
 import sys
 import time
 
+from ..hdl.filter_registry import FILTER_NAMES
 from ..hdl.frame_types import ATTITUDE, SENSOR
 from ..hdl.frame_types import AttitudeFrame
 from ..hdl.self_test import AXES as SELF_TEST_AXES
@@ -117,7 +118,7 @@ def _live_line(link, count, elapsed, ftype, fields):
     text = f"{count} frames {rate:6.1f}/s"
     if ftype == ATTITUDE:
         roll, pitch, yaw = (v * 360 / 2 ** 32 for v in fields["attitude"]["angles"])
-        filt = ("kalman", "complementary", "flagship", "?")[fields["attitude"]["flags"]["filter"]]
+        filt = (*FILTER_NAMES, "?")[fields["attitude"]["flags"]["filter"]]
         text += f"  {filt} roll {roll:7.2f} pitch {pitch:7.2f} yaw {yaw:7.2f}"
     else:
         text += f"  raw accel {fields['sample']['accel']} gyro {fields['sample']['gyro']}"

@@ -1,14 +1,14 @@
 """The register map by name, with formats and units: the host converts physical values to
 register words and back (``config get`` / ``config set``).
 
-Names are those of ``hdl/attitude_program.py`` (engine, space 0x00), ``BOARD_REGS`` (space
+Names are those of ``hdl/register_map.py`` (engine, space 0x00), ``BOARD_REGS`` (space
 0x01) and ``PWM_REGS`` (space 0x02); ``hdl/FRAMES.md`` lists them.
 """
 
 import math
 from dataclasses import dataclass
 
-from ..hdl.attitude_program import CONFIG_REGS, CONTROL_ADDR, HOST_WRITABLE
+from ..hdl.register_map import CONFIG_REGS, CONTROL_ADDR, HOST_WRITABLE
 from ..hdl.command_decoder import BOARD_REGS
 from ..hdl.pwm import PWM_REGS
 

@@ -23,7 +23,7 @@ from amaranth.lib import stream, wiring
 from amaranth.lib.wiring import Out
 
 from mpu9250_ahrs.hdl.attitude_engine import AttitudeEngine
-from mpu9250_ahrs.hdl.attitude_program import HOST_WRITABLE
+from mpu9250_ahrs.hdl.register_map import HOST_WRITABLE
 from mpu9250_ahrs.hdl.bring_up_sequencer import (BringUpSequencer, SelfTestWaits,
                                                  bring_up_program)
 from mpu9250_ahrs.hdl.command_decoder import CommandDecoder

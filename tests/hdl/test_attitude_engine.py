@@ -12,7 +12,7 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from mpu9250_ahrs.hdl.attitude_engine import PEEKED, WORST_UPDATE_CYCLES, AttitudeEngine
-from mpu9250_ahrs.hdl.attitude_program import CONFIG_REGS, CONTROL_ADDR, REGS, control_word
+from mpu9250_ahrs.hdl.register_map import CONFIG_REGS, CONTROL_ADDR, REGS, control_word
 from mpu9250_ahrs.reference.fixed_point import CalibrationFixed, KalmanFixedConfig, bam_to_deg
 from mpu9250_ahrs.reference.engine_model import attitude_fixed
 from mpu9250_ahrs.reference.frames import body_to_mag

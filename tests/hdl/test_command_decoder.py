@@ -9,8 +9,8 @@ from amaranth.lib import wiring
 from amaranth.sim import Simulator
 from hypothesis import given, settings, strategies as st
 
-from mpu9250_ahrs.hdl.attitude_program import (CONFIG_REGS, CONTROL_ADDR, CONTROL_KEEP,
-                                               CONTROL_RESET, HOST_WRITABLE, TELEMETRY_DIV_ADDR)
+from mpu9250_ahrs.hdl.register_map import (CONFIG_REGS, CONTROL_ADDR, CONTROL_KEEP, CONTROL_RESET,
+                                           HOST_WRITABLE, TELEMETRY_DIV_ADDR)
 from mpu9250_ahrs.hdl.command_decoder import (BOARD_REGS, COMMANDS, REGMAP_VERSION, RESULTS,
                                               CommandDecoder)
 from mpu9250_ahrs.hdl.pwm import PWM_REGS, PWMOutputs

@@ -3,7 +3,8 @@ read-back one cycle later, nothing taken while the engine is not open."""
 
 from amaranth.sim import Simulator
 
-from mpu9250_ahrs.hdl.attitude_program import CONTROL_ADDR, FILTER_CODES, control_word
+from mpu9250_ahrs.hdl.register_map import CONTROL_ADDR, control_word
+from mpu9250_ahrs.hdl.filter_registry import FILTER_CODES
 from mpu9250_ahrs.hdl.host_port import HostPort
 from mpu9250_ahrs.sim.streams import check_stream_rules
 
@@ -66,7 +67,7 @@ def test_read_only_and_state_registers_refuse_writes():
     """With the engine's ``HOST_WRITABLE``, a write to a constant (ZERO, INV_GAIN, SHL8) or to
     filter state (0x20 up) is taken, writes nothing, and is counted; run-time registers and
     CONTROL are written as before."""
-    from mpu9250_ahrs.hdl.attitude_program import CONFIG_REGS, HOST_WRITABLE, REGS
+    from mpu9250_ahrs.hdl.register_map import CONFIG_REGS, HOST_WRITABLE, REGS
     dut = HostPort(filter_at_reset=FILTER_CODES["flagship"], writable=HOST_WRITABLE)
     refused = [CONFIG_REGS["ZERO"], CONFIG_REGS["INV_GAIN"], CONFIG_REGS["SHL8"],
                REGS["P0_00"], REGS["THETA0"], 0x20, 0xFD]
@@ -100,7 +101,7 @@ def test_control_words_against_the_contract():
     """Issue #25: every CONTROL word with bits 31:4 clear, and some with reserved bits set,
     against ``numeric_contract.control_fields`` (the reference's rule): the select, the
     reset pulse and the refusal count agree for each. Code 3 without keep is refused."""
-    from mpu9250_ahrs.hdl.attitude_program import FILTERS
+    from mpu9250_ahrs.hdl.filter_registry import FILTER_NAMES
     from mpu9250_ahrs.hdl.numeric_contract import control_fields
     words = list(range(16)) + [0x10, 0x13, 0x8000_0000, -1, -16, 0x7FFF_FFF0 | 0x2]
     dut = HostPort(filter_at_reset=FILTER_CODES["flagship"])
@@ -122,11 +123,11 @@ def test_control_words_against_the_contract():
     sim.add_testbench(testbench)
     sim.run()
     for word, before, after, reset, refused in got:
-        fields = control_fields(word, len(FILTERS))
+        fields = control_fields(word, len(FILTER_NAMES))
         if fields is None:
             assert (after, reset, refused) == (before, 0, 1), hex(word)
         else:
             code, want_reset = fields
             assert after == (before if code is None else code), hex(word)
             assert (reset, refused) == (want_reset, 0), hex(word)
-    assert control_fields(3, len(FILTERS)) is None
+    assert control_fields(3, len(FILTER_NAMES)) is None

@@ -246,7 +246,7 @@ def test_engine_never_waits_for_a_slow_uart():
 def test_telemetry_divider_is_a_run_time_register():
     """``TELEMETRY_DIV`` (0xFE) written through ``cfg``: every third result is framed from
     then on (the counters in consecutive frames step by 3)."""
-    from mpu9250_ahrs.hdl.attitude_program import TELEMETRY_DIV_ADDR
+    from mpu9250_ahrs.hdl.register_map import TELEMETRY_DIV_ADDR
     from mpu9250_ahrs.hdl.mpu9250_driver import MPU9250Config
     setup = SimSetup(clk_freq=12e6, config=MPU9250Config(magnetometer=False))
     core, _, frames, _ = run_core(setup, 4, baud=3_000_000, max_cycles=120_000,

@@ -11,10 +11,12 @@ scratch pool (``asm.scratch``).
 Cost: ``python -m mpu9250_ahrs report`` (``cycles_per_update.flagship``).
 """
 
-from .attitude_isa import DOUBLED, Q14, Q30, Cond, Flag
+from ..attitude_isa import DOUBLED, Q14, Q30, Cond, Flag
+from .shared import step_n, zero_tests
 
 
-__all__ = ["FLAGSHIP_REGISTERS", "flagship_names", "flagship_routine"]
+__all__ = ["CONFIG_REGISTERS", "REGISTERS", "FLAGSHIP_REGISTERS", "flagship_names",
+           "flagship_routine", "emit"]
 
 # Run-time registers (host-visible, from 0x70): ``FlagshipFixedConfig.registers()`` names.
 FLAGSHIP_REGISTERS = ("K_RAD", "A_DET", "A_REST", "A_ACC", "A_MAG", "A_MAG_FAST", "REST_GYRO2",
@@ -382,3 +384,17 @@ def flagship_routine(asm, r):
     _heading(asm, r)
     _output(asm, r)
     _start_up(asm, r)
+
+
+def emit(asm, r):
+    """The filter's entry: the zero tests, the per-period rotation (its strapdown step uses
+    STEP_N), then the routine."""
+    zero_tests(asm, r, "f")
+    step_n(asm, r, "K_RAD")
+    flagship_routine(asm, r)
+
+
+# the registry's view (``hdl/filters/__init__.py``): run-time registers from 0x70, and the
+# routine's own registers
+CONFIG_REGISTERS = FLAGSHIP_REGISTERS
+REGISTERS = tuple(flagship_names())

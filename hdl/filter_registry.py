@@ -1,0 +1,17 @@
+"""The attitude engine's filters, by name, in select-code order: the registry everything reads.
+
+A name's position is its code (the CONTROL register's bits 1:0, ``AttitudeFlags.filter``); its
+microcode is ``hdl/filters/<name>.py``, its integer step the reference's engine model's filter
+of that name (``reference/engine_model.py``). The command line's choices, the host's monitor,
+the reference's engine model and the engine itself read the names from here. Plain data:
+``reference/`` reads it too (``tests/test_imports.py``).
+"""
+
+__all__ = ["FILTER_NAMES", "FILTER_CODES", "FLOAT_FILTERS"]
+
+
+FILTER_NAMES = ("kalman", "complementary", "flagship")
+FILTER_CODES = {name: code for code, name in enumerate(FILTER_NAMES)}
+# the reference's float filters (``reference/evaluate.py``, ``replay``): the engine's and
+# Madgwick's gradient descent (no gateware yet), the flagship last
+FLOAT_FILTERS = (*FILTER_NAMES[:-1], "madgwick", FILTER_NAMES[-1])

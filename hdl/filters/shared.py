@@ -1,0 +1,141 @@
+"""Microcode every filter shares: the reset program, the calibration of a sample, the zero
+tests, the tilt and heading measurements, the per-period rotation, Euler-angle rates and the
+result quaternion of the per-axis filters (``angles_out``). Each writes into an ``Assembler``
+(``hdl/attitude_isa.py``) with the register map ``r`` (``hdl/register_map.py``'s ``REGS``)."""
+
+from ..attitude_isa import Q14, Q24, Q30, Cond
+
+
+__all__ = ["init", "calibrate", "zero_tests", "tilt", "heading", "step_n", "euler_rates",
+           "angles_out"]
+
+
+def init(asm, r):
+    for i in range(3):
+        asm.add(r[f"THETA{i}"], r["ZERO"], r["ZERO"])
+        asm.add(r[f"BIAS{i}"], r["ZERO"], r["ZERO"])
+        asm.add(r[f"P{i}_00"], r["P0"], r["ZERO"])
+        asm.add(r[f"P{i}_01"], r["ZERO"], r["ZERO"])
+        asm.add(r[f"P{i}_10"], r["ZERO"], r["ZERO"])
+        asm.add(r[f"P{i}_11"], r["P0"], r["ZERO"])
+    asm.end()
+
+
+
+def calibrate(asm, r):
+    with asm.scratch(12) as T:
+        for i in range(3):
+            asm.sub(r[f"G{i}"], r[f"GRAW{i}"], r[f"GYRO_OFF{i}"], sat16=True)
+        # the multiplier does not saturate to 16 bits: products go to temporaries, then an ADD
+        # saturates them (sat16 of sat32 is sat16, so the result is the same)
+        for i in range(3):
+            asm.sub(T[i], r[f"ARAW{i}"], r[f"ACC_OFF{i}"])
+        for i in range(3):
+            asm.mul(T[i], T[i], r[f"ACC_SCALE{i}"], Q14)
+        for j in range(3):                               # ASA: h·(ASA + 128)/256, AK axes
+            asm.mul(T[3 + j], r[f"MRAW{j}"], r[f"ASA{j}"], Q14)       # ASA holds (ASA + 128)·2⁶
+        for i in range(3):
+            asm.add(r[f"A{i}"], T[i], r["ZERO"], sat16=True)
+        # AK8963 -> body axes (x = y_ak, y = x_ak, z = −z_ak), minus the hard-iron offset
+        d = T[9:12]
+        asm.sub(d[0], T[4], r["HARD0"])
+        asm.sub(d[1], T[3], r["HARD1"])
+        asm.sub(d[2], r["ZERO"], T[5])
+        asm.sub(d[2], d[2], r["HARD2"])
+        for i in range(3):
+            asm.mac(T[6 + i], [(r[f"SOFT{i}{j}"], d[j]) for j in range(3)], Q14)
+        for i in range(3):
+            asm.add(r[f"M{i}"], T[6 + i], r["ZERO"], sat16=True)
+
+
+
+def zero_tests(asm, r, name):
+    """ACC_OK = ax|ay|az; MAG_OK = mx|my|mz, or 0 when the sample's magnetometer is invalid."""
+    asm.or_(r["ACC_OK"], r["A0"], r["A1"])
+    asm.or_(r["ACC_OK"], r["ACC_OK"], r["A2"])
+    asm.add(r["MAG_OK"], r["ZERO"], r["ZERO"])
+    asm.br(f"{name}_mag_checked", Cond.MAG_INVALID)
+    asm.or_(r["MAG_OK"], r["M0"], r["M1"])
+    asm.or_(r["MAG_OK"], r["MAG_OK"], r["M2"])
+    asm.label(f"{name}_mag_checked")
+
+
+
+def tilt(asm, r, roll):
+    """roll = atan2(ay, az) into ``roll``, pitch = atan2(−ax, √(ay² + az²)) into ``roll`` + 1,
+    inputs scaled by 2⁸. Clobbers ``roll`` + 2 (the vectoring CORDIC writes its magnitude
+    beside the angle; the first one's is used for the pitch)."""
+    with asm.scratch(4) as T:
+        for i in range(3):
+            asm.mul(T[i], r[f"A{i}"], r["SHL8"], Q14)           # a << 8
+        asm.vec(roll, T[2], T[1])
+        asm.mul(T[3], roll + 1, r["INV_GAIN"], Q30)
+        asm.sub(T[0], r["ZERO"], T[0])
+        asm.vec(roll + 1, T[3], T[0])
+
+
+def heading(asm, r, roll, pitch, out):
+    """Tilt-compensated heading into ``out``; clobbers ``out`` + 1."""
+    with asm.scratch(7) as T:
+        asm.rot(r["CR"], roll)
+        asm.rot(r["CP"], pitch)
+        # (sine · m) >> 18 as (sine · (m << 12)) >> 30: the same bits, one rounding shift fewer
+        ms = T[4:7]
+        for i in range(3):
+            asm.mul(ms[i], r[f"M{i}"], r["SHL12"], Q14)
+        asm.mul(T[0], r["SP"], r["SR"], Q30)
+        asm.mul(T[1], r["SP"], r["CR"], Q30)
+        asm.mac(T[2], [(r["CP"], ms[0]), (T[0], ms[1]), (T[1], ms[2])], Q30)      # hx
+        asm.mac(T[3], [(r["CR"], ms[1]), (r["SR"], ms[2], -1)], Q30)              # hy
+        asm.vec(out, T[3], T[2])
+
+
+
+def step_n(asm, r, coefficient):
+    """STEP_N = ``coefficient`` · NPER: the rotation of this update covers every period since
+    the previous sample (a sample the sensor made but nobody read is integrated, not lost).
+    Exact: NPER << 14 by a MUL with SHL14, then a MUL with shift 14; saturates (and flags)
+    only for a coefficient times 16 beyond 32 bits."""
+    asm.mul(r["STEP_N"], r["NPER"], r["SHL14"], Q14)
+    asm.mul(r["STEP_N"], r[coefficient], r["STEP_N"], Q14)
+
+
+def euler_rates(asm, r, U, name):
+    """``U`` (three registers, body rates in any one format) -> Euler-angle rates of THETA, in
+    place (``reference.fixed_point.euler_rates_fixed``)."""
+    asm.rot(r["CR"], r["THETA0"])                       # CR, SR = cos, sin of roll
+    asm.rot(r["CP"], r["THETA1"])                       # CP, SP = cos, sin of pitch
+    with asm.scratch(4) as (t, tp, sec, w):
+        asm.sub(t, r["CP"], r["COS_PITCH_MIN"])
+        asm.br(f"{name}_cp_ok", Cond.A_NEG, a=t, inv=True)
+        asm.add(r["CP"], r["COS_PITCH_MIN"], r["ZERO"])
+        asm.label(f"{name}_cp_ok")
+        asm.div(tp, r["SP"], r["CP"])                   # tan θ, Q8.24
+        asm.div(sec, r["ONE"], r["CP"])                 # 1 / cos θ, Q8.24
+        asm.mac(w, [(r["SR"], U[1]), (r["CR"], U[2])], Q30)
+        asm.mac(t, [(r["CR"], U[1]), (r["SR"], U[2], -1)], Q30)
+        asm.mul(U[2], w, sec, Q24)
+        asm.mul(w, w, tp, Q24)
+        asm.add(U[1], t, r["ZERO"])
+        asm.add(U[0], U[0], w)
+
+
+def angles_out(asm, r):
+    """The result quaternion of the per-axis filters' angles (``euler_quat_fixed``), then END."""
+    with asm.scratch(4) as T:
+        for i in range(3):
+            asm.mul(T[i], r[f"THETA{i}"], r["HALF"], Q30)
+        for i, pair in enumerate(("CR", "CP", "CY")):
+            asm.rot(r[pair], T[i])
+        cr, sr, cp, sp, cy, sy = (r[n] for n in ("CR", "SR", "CP", "SP", "CY", "SY"))
+        cc, ss, cs, sc = T[0:4]
+        asm.mul(cc, cy, cp, Q30)
+        asm.mul(ss, sy, sp, Q30)
+        asm.mul(cs, cy, sp, Q30)
+        asm.mul(sc, sy, cp, Q30)
+        asm.mac(r["QOUT0"], [(cr, cc), (sr, ss)], Q30)
+        asm.mac(r["QOUT1"], [(sr, cc), (cr, ss, -1)], Q30)
+        asm.mac(r["QOUT2"], [(cr, cs), (sr, sc)], Q30)
+        asm.mac(r["QOUT3"], [(cr, sc), (sr, cs, -1)], Q30)
+        asm.end()
+
