@@ -21,6 +21,7 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
+from ..hdl.filter_registry import FILTER_NAMES, FLOAT_FILTERS
 from ..reference.recording import Scales, load_broad, quantise, to_units
 from ..reference.compare import external_filters, missing_external_filters
 from ..reference.evaluate import run_filter, run_fixed, score
@@ -29,25 +30,33 @@ from ..reference.kalman import KalmanParams
 
 __all__ = ["FILTER_SET", "run_trial", "table", "split_table", "main"]
 
-# (row name, kind, filter, parameters): one parameter set for all trials
-FILTER_SET = [
-    ("kalman (float)", "float", "kalman", {}),
-    ("kalman (fixed)", "fixed", "kalman", {}),
-    ("kalman, Euler rates (float)", "float", "kalman",
-     {"kalman": KalmanParams(rates="euler")}),
-    ("complementary (float)", "float", "complementary", {}),
-    ("complementary (fixed)", "fixed", "complementary", {}),
-    ("complementary, Euler rates (float)", "float", "complementary", {"rates": "euler"}),
-    ("madgwick β=0.1 (float)", "float", "madgwick", {"beta": 0.1}),
-    ("madgwick β=0.2 (float)", "float", "madgwick", {"beta": 0.2}),
-    ("flagship (float)", "float", "flagship", {}),
-    ("flagship (fixed)", "fixed", "flagship", {}),
-    # the engine's Verilog in Verilator (sim/compiled_engine.py); "≠" marks a result that is
-    # not bit for bit the fixed row's
-    ("kalman (gateware)", "gateware", "kalman", {}),
-    ("complementary (gateware)", "gateware", "complementary", {}),
-    ("flagship (gateware)", "gateware", "flagship", {}),
-]
+# Rows beside each filter's defaults (name: (label, parameters)); a filter with rows here but no
+# fixed point has only these
+VARIANTS = {
+    "kalman": [("Euler rates", {"kalman": KalmanParams(rates="euler")})],
+    "complementary": [("Euler rates", {"rates": "euler"})],
+    "madgwick": [("β=0.1", {"beta": 0.1}), ("β=0.2", {"beta": 0.2})],
+}
+
+
+def _filter_set():
+    """(row name, kind, filter, parameters), one parameter set for all trials, from the
+    registry (``hdl/filter_registry.py``): each float filter (its defaults, its fixed point if
+    the gateware has it, its variants), then the gateware's, the engine's Verilog in Verilator
+    (``sim/compiled_engine.py``; "≠" marks a result that is not bit for bit the fixed row's)."""
+    rows = []
+    for name in FLOAT_FILTERS:
+        if name in FILTER_NAMES or name not in VARIANTS:
+            rows.append((f"{name} (float)", "float", name, {}))
+        if name in FILTER_NAMES:
+            rows.append((f"{name} (fixed)", "fixed", name, {}))
+        for label, params in VARIANTS.get(name, []):
+            sep = ", " if name in FILTER_NAMES else " "
+            rows.append((f"{name}{sep}{label} (float)", "float", name, params))
+    return rows + [(f"{name} (gateware)", "gateware", name, {}) for name in FILTER_NAMES]
+
+
+FILTER_SET = _filter_set()
 
 
 def run_trial(path, with_fixed=True):
