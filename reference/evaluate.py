@@ -4,14 +4,12 @@
 bit-exact fixed-point model (per-axis Kalman, complementary, flagship).
 """
 
-import math
-
 import numpy as np
 
 from ..hdl.filter_registry import FILTER_NAMES, FLOAT_FILTERS
 from .complementary import complementary_filter
 from .flagship import FlagshipParams, flagship_filter
-from .frames import euler_to_quat, orientation_errors
+from .frames import orientation_errors
 from .kalman import KalmanParams, kalman_filter
 from .madgwick import madgwick_filter
 
