@@ -1,9 +1,36 @@
 """The compiled whole-board path's speed against Amaranth's simulator, side by side:
 ``python -m mpu9250_ahrs.sim.speed`` prints both paths' cycles per second on the same runs
-(the SPI and I2C front ends, the whole core) and whether their results were the same."""
+(the SPI and I2C front ends, the whole core) and whether their results were the same, and the
+compiled core's own speed clocked free (``compiled_free_cycles_per_s``): the most the core's
+ratio could reach if the Python models and the loop around them cost nothing."""
+
+import time
 
 
-__all__ = ["speed"]
+__all__ = ["speed", "compiled_core_free_speed"]
+
+
+def compiled_core_free_speed(cycles=3_000_000):
+    """Cycles per second of the compiled core (the build ``run_core`` uses at ``SimSetup``'s
+    defaults, from the cache) clocked ``cycles`` edges in one call from reset, its pins idle:
+    no Python in the loop, so the Verilated model's own speed."""
+    from ..hdl.defaults import DEFAULT_BAUD
+    from ..hdl.top import AHRSCore
+    from .compiled_board import core_design, core_key
+    from .cosim import CosimHarness, SimSetup
+    setup = SimSetup()
+    core = AHRSCore(clk_freq=setup.clk_freq, config=setup.config,
+                    timing=setup.driver_timing(), baud=DEFAULT_BAUD)
+    # the harness exactly as ``run_core`` makes it: its cache key names that build
+    harness = CosimHarness(core, spi=core.imu, int_pin=core.imu_int)
+    harness.monitor(core.engine.results, "results")
+    harness.monitor(core.arbiter.o_stream, "frame bytes")
+    design = core_design(harness, core, key=core_key(
+        "core", clk_freq=setup.clk_freq, config=setup.config, timing=setup.driver_timing(),
+        baud=DEFAULT_BAUD))
+    start = time.perf_counter()
+    design.run(cycles, 0)
+    return round(cycles / (time.perf_counter() - start))
 
 
 def speed(samples=20):
@@ -33,6 +60,10 @@ def speed(samples=20):
                      "python_cycles_per_s": round(slow.cycles / slow.wall_s),
                      "compiled_cycles_per_s": round(fast.cycles / fast.wall_s),
                      "ratio": round(slow.wall_s / fast.wall_s * fast.cycles / slow.cycles)}
+    free = compiled_core_free_speed()
+    out["core_spi"]["compiled_free_cycles_per_s"] = free
+    out["core_spi"]["ratio_if_models_cost_nothing"] = round(
+        free / out["core_spi"]["python_cycles_per_s"])
     return out
 
 
