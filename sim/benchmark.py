@@ -30,12 +30,12 @@ from ..reference.kalman import KalmanParams
 
 __all__ = ["FILTER_SET", "run_trial", "table", "split_table", "main"]
 
-# Rows beside each filter's defaults (name: (label, parameters)); a filter with rows here but no
-# fixed point has only these
+# Rows beside each filter's defaults (name: (what follows the name in the row, parameters)); a
+# filter with rows here but no fixed point has only these
 VARIANTS = {
-    "kalman": [("Euler rates", {"kalman": KalmanParams(rates="euler")})],
-    "complementary": [("Euler rates", {"rates": "euler"})],
-    "madgwick": [("β=0.1", {"beta": 0.1}), ("β=0.2", {"beta": 0.2})],
+    "kalman": [(", Euler rates", {"kalman": KalmanParams(rates="euler")})],
+    "complementary": [(", Euler rates", {"rates": "euler"})],
+    "madgwick": [(" β=0.1", {"beta": 0.1}), (" β=0.2", {"beta": 0.2})],
 }
 
 
@@ -51,8 +51,7 @@ def _filter_set():
         if name in FILTER_NAMES:
             rows.append((f"{name} (fixed)", "fixed", name, {}))
         for label, params in VARIANTS.get(name, []):
-            sep = ", " if name in FILTER_NAMES else " "
-            rows.append((f"{name}{sep}{label} (float)", "float", name, params))
+            rows.append((f"{name}{label} (float)", "float", name, params))
     return rows + [(f"{name} (gateware)", "gateware", name, {}) for name in FILTER_NAMES]
 
 

@@ -31,9 +31,9 @@ from .waveforms import gtkw_beside, open_on_first_transaction
 from ..host.protocol import to_python
 
 
-__all__ = ["CosimHarness", "PinModels", "attach_models", "attach_mpu9250", "attach_stuck_miso", "SimSetup",
-           "CosimResult", "run_frontend", "CoreRun", "run_core", "simulator_name", "gtkw_beside",
-           "sample_matches", "expected_mag", "sample_read_cycles"]
+__all__ = ["CosimHarness", "PinModels", "attach_models", "attach_mpu9250", "attach_stuck_miso",
+           "SimSetup", "CosimResult", "run_frontend", "CoreRun", "core_harness", "run_core",
+           "simulator_name", "gtkw_beside", "sample_matches", "expected_mag", "sample_read_cycles"]
 
 
 class CosimHarness(Monitored):
@@ -609,6 +609,22 @@ class CoreRun:
         return [(r - i) / clk_freq * 1e6 for r, i in zip(self.result_cycles, self.int_cycles)]
 
 
+def core_harness(setup, *, baud=DEFAULT_BAUD, core_kwargs=None):
+    """The ``AHRSCore`` that ``run_core`` simulates (``setup``'s clock, configuration and
+    timing), in its co-simulation harness, and the cache key of its compiled build:
+    ``(core, harness, key)``."""
+    from ..hdl.top import AHRSCore
+    from .compiled_board import core_key
+    core = AHRSCore(clk_freq=setup.clk_freq, config=setup.config, timing=setup.driver_timing(),
+                    baud=baud, **(core_kwargs or {}))
+    harness = CosimHarness(core, spi=core.imu, int_pin=core.imu_int)
+    harness.monitor(core.engine.results, "results")
+    harness.monitor(core.arbiter.o_stream, "frame bytes")
+    key = core_key("core", clk_freq=setup.clk_freq, config=setup.config,
+                   timing=setup.driver_timing(), baud=baud, **(core_kwargs or {}))
+    return core, harness, key
+
+
 def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycles=None,
              baud=DEFAULT_BAUD, core_kwargs=None, writes=(), vcd=None, progress=None,
              compiled=None, until=None):
@@ -621,15 +637,13 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
     of each result and the cycle reached (``run_frontend``). ``compiled``: as
     ``run_frontend``'s (``CoreRun.compiled`` says which path ran). ``until()``: asked at each
     result and data-ready edge; True ends the run (instead of, or before, the counts)."""
-    from ..hdl.top import AHRSCore
     from .streams import stream_put
     from ..host.protocol import FrameDecoder
     from .uart import attach_uart_receiver
     if n_results is None and n_frames is None and until is None:
         raise ValueError("run_core needs n_results, n_frames or until")
     setup = setup or SimSetup()
-    core = AHRSCore(clk_freq=setup.clk_freq, config=setup.config, timing=setup.driver_timing(),
-                    baud=baud, **(core_kwargs or {}))
+    core, harness, key = core_harness(setup, baud=baud, core_kwargs=core_kwargs)
     model = model or setup.model(magnetometer=setup.config.magnetometer)
     if max_cycles is None:
         period = setup.sample_period_s * setup.clk_freq
@@ -637,15 +651,10 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
         samples = max(n_results or 0, (n_frames or 0) * max(1, frame_s / setup.sample_period_s))
         max_cycles = int(setup.bring_up_budget_cycles() + 40_000 +
                          (samples + 3) * period * 1.5)
-    harness = CosimHarness(core, spi=core.imu, int_pin=core.imu_int)
-    harness.monitor(core.engine.results, "results")
-    harness.monitor(core.arbiter.o_stream, "frame bytes")
     compiled = compiled_wanted(compiled, vcd=vcd)
-    from .compiled_board import core_design, core_key
+    from .compiled_board import core_design
     design = _auto_build(compiled, max_cycles, lambda cached_only: core_design(
-        harness, core, cached_only=cached_only, trace=bool(vcd),
-        key=core_key("core", clk_freq=setup.clk_freq, config=setup.config,
-                     timing=setup.driver_timing(), baud=baud, **(core_kwargs or {}))))
+        harness, core, cached_only=cached_only, trace=bool(vcd), key=key))
     compiled = design is not None
     if compiled and vcd:
         from .compiled_board import TRACES

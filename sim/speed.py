@@ -14,20 +14,10 @@ def compiled_core_free_speed(cycles=3_000_000):
     """Cycles per second of the compiled core (the build ``run_core`` uses at ``SimSetup``'s
     defaults, from the cache) clocked ``cycles`` edges in one call from reset, its pins idle:
     no Python in the loop, so the Verilated model's own speed."""
-    from ..hdl.defaults import DEFAULT_BAUD
-    from ..hdl.top import AHRSCore
-    from .compiled_board import core_design, core_key
-    from .cosim import CosimHarness, SimSetup
-    setup = SimSetup()
-    core = AHRSCore(clk_freq=setup.clk_freq, config=setup.config,
-                    timing=setup.driver_timing(), baud=DEFAULT_BAUD)
-    # the harness exactly as ``run_core`` makes it: its cache key names that build
-    harness = CosimHarness(core, spi=core.imu, int_pin=core.imu_int)
-    harness.monitor(core.engine.results, "results")
-    harness.monitor(core.arbiter.o_stream, "frame bytes")
-    design = core_design(harness, core, key=core_key(
-        "core", clk_freq=setup.clk_freq, config=setup.config, timing=setup.driver_timing(),
-        baud=DEFAULT_BAUD))
+    from .compiled_board import core_design
+    from .cosim import SimSetup, core_harness
+    core, harness, key = core_harness(SimSetup())
+    design = core_design(harness, core, key=key)
     start = time.perf_counter()
     design.run(cycles, 0)
     return round(cycles / (time.perf_counter() - start))

@@ -1,5 +1,5 @@
-"""The per-axis Kalman filter (``reference.fixed_point``'s ``kalman_step_fixed``, as the engine
-model steps it): two states (angle, bias) per axis, predicted with the gyro and corrected by
+"""The per-axis Kalman filter (``reference.fixed_point._KalmanFixed``, as the engine model
+steps it): two states (angle, bias) per axis, predicted with the gyro and corrected by
 the accelerometer's tilt and the magnetometer's heading. Its run-time registers (``Q_ANGLE``,
 ``Q_BIAS``, ``R``, ``P0``, ``BIAS_SCALE``) and state predate the registry: they are in the
 base map (``hdl/register_map.py``)."""
