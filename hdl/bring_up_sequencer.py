@@ -247,17 +247,23 @@ class BringUpSequencer(wiring.Component):
         self.program = program
         self.accepted_who_am_i = tuple(accepted_who_am_i)
         self.poll_cycles = poll_cycles
+        if any(s.op == Op.WAIT and s.wait < 1 for s in program):
+            raise ValueError("a WAIT step needs wait >= 1 cycle")
+        # a word's ``wait`` is what the timer loads: a WAIT's cycles less one (its last cycle
+        # is the one the timer reads 0), a TEST's gap as it is; the ROM holds it so, and no
+        # subtractor sits between the ROM and the timer
+        timer_load = [s.wait - 1 if s.op == Op.WAIT else s.wait for s in program]
         self.step_layout = data.StructLayout({
             "op": Op, "device": 1, "reg": 8, "value": 8, "mask": 8, "fail": Fail,
-            "check_wia": 1, "backoff": 1, "wait": range(max(s.wait for s in program) + 1),
+            "check_wia": 1, "backoff": 1, "wait": range(max(timer_load) + 1),
             "length": range(max(s.length for s in program) + 1), "fast": 1,
             "repeat": range(max(s.repeat for s in program) + 1)})
         layout = self.step_layout
         words = [layout.const({
             "op": s.op, "device": s.device, "reg": s.reg, "value": s.value, "mask": s.mask,
             "fail": s.fail, "check_wia": s.check == "wia", "backoff": s.backoff,
-            "wait": s.wait, "length": s.length, "fast": s.fast,
-            "repeat": s.repeat}).as_value().value for s in program]
+            "wait": load, "length": s.length, "fast": s.fast,
+            "repeat": s.repeat}).as_value().value for s, load in zip(program, timer_load)]
         # the program, one step a word (an M9K; ``report`` counts it)
         self.rom = FrameRAM(len(program), layout.size, init=words)
         super().__init__({
@@ -489,14 +495,16 @@ class BringUpSequencer(wiring.Component):
         port = self.port
         with m.Switch(step.op):
             with m.Case(Op.WAIT):
+                # ``step.wait`` is the cycles less one: (w + 1) << k cycles less one is
+                # w << k with k ones below it, a choice of wirings (no shifter, no adder)
                 with m.If(step.backoff):
-                    # ``step.wait << backoff`` as a choice of shifts (no shifter)
                     with m.Switch(backoff):
                         for shift in range(BACKOFF_MAX_SHIFT + 1):
                             with m.Case(shift):
-                                m.d.sync += timer.eq((step.wait << shift) - 1)
+                                m.d.sync += timer.eq(Cat(Const((1 << shift) - 1, shift),
+                                                         step.wait))
                 with m.Else():
-                    m.d.sync += timer.eq(step.wait - 1)
+                    m.d.sync += timer.eq(step.wait)
                 m.next = "WAIT"
             with m.Case(Op.WRITE):
                 command(write=1)

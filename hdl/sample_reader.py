@@ -84,13 +84,15 @@ def gyro_jump_limit(gyro_fs_dps):
 
 
 def gyro_jumps(previous, gyro, limit):
-    """True where a gyro triple (counts) jumped by ``limit`` or more on some axis from the
-    ``previous`` one (the gateware's check, for arrays of N × 3)."""
+    """True where a gyro triple (counts) jumped on some axis from the ``previous`` one (the
+    gateware's check, for arrays of N × 3): by ``limit`` or more up, by more than ``limit``
+    down. The gateware tests whether the difference lies in [-limit, limit), two's
+    complement's range: its bits from log2(limit) up all equal its sign."""
     import numpy as np
     if limit is None:
         return np.zeros(len(gyro), bool)
     delta = np.asarray(gyro, np.int64) - np.asarray(previous, np.int64)
-    return np.any(np.abs(delta) >= limit, axis=-1)
+    return np.any((delta >= limit) | (delta < -limit), axis=-1)
 
 
 class SampleReader(wiring.Component):
@@ -174,8 +176,43 @@ class SampleReader(wiring.Component):
         self._interrupt(m, n)
         self._judging(m, n)
         self._sample_register(m, n)
+        self._burst_checks(m, n)
         self._states(m, n)
         return m
+
+    def _burst_checks(self, m, n):
+        """The checks that look at every byte, made as the bytes come in (one comparator and
+        one subtractor for the burst, not one per byte and per axis): whether the fourteen
+        data bytes are all 0xFF (``n.data_ones``), and whether a gyro word moved by
+        ``gyro_jump`` or more from the sample passed on (``n.gyro_moved``; that sample changes
+        only at a burst's check, so it holds still while the burst is read)."""
+        rx, rx_index, sample = n.port.rx, n.rx_index, n.sample
+        n.data_ones = data_ones = Signal()
+        n.gyro_moved = gyro_moved = Signal()
+        arriving = Signal()
+        m.d.comb += arriving.eq(rx.valid & (rx_index < SAMPLE_BYTES))
+        with m.If(arriving & (rx_index >= 1) & (rx_index < MPU_BYTES)):
+            m.d.sync += data_ones.eq(data_ones & (rx.payload == 0xFF))
+        if self.gyro_jump is None:
+            return
+        # new - last passed on outside [-2**b, 2**b): the 17-bit difference's bits b..16 are
+        # not all its sign (``gyro_jumps``); each word is judged when its low byte comes,
+        # its high byte the one before
+        b = self.gyro_jump.bit_length() - 1
+        low = [1 + 8 + 2 * axis + 1 for axis in range(3)]
+        axis = Signal(range(3))
+        m.d.comb += axis.eq(Mux(rx_index == low[0], 0, Mux(rx_index == low[1], 1, 2)))
+        high = Signal(8, reset_less=True)      # the byte before this one: the word's high
+        with m.If(arriving):
+            m.d.sync += high.eq(rx.payload)
+        new = Cat(rx.payload, high).as_signed()
+        delta = Signal(signed(17))
+        m.d.comb += delta.eq(new - Array(sample.gyro)[axis])
+        top = delta[b:17]
+        with m.If(arriving & ((rx_index == low[0]) | (rx_index == low[1]) |
+                              (rx_index == low[2]))):
+            with m.If(~((top == 0) | top.all())):
+                m.d.sync += gyro_moved.eq(1)
 
 
     def _interrupt(self, m, n):
@@ -391,7 +428,7 @@ class SampleReader(wiring.Component):
             m.d.comb += reading.eq(fsm.ongoing("READ_MPU") | fsm.ongoing("MAG_CMD") |
                                    fsm.ongoing("READ_MAG"))
             with m.State("IDLE"):
-                m.d.sync += rx_index.eq(0)
+                m.d.sync += [rx_index.eq(0), n.data_ones.eq(1), n.gyro_moved.eq(0)]
                 with m.If(offered | (self.enable & int_pending)):
                     command(0, R.INT_STATUS, SAMPLE_BYTES if spi else MPU_BYTES)
                     with m.If(port.cmd.ready):
@@ -435,20 +472,9 @@ class SampleReader(wiring.Component):
                 m.d.sync += [counter.eq(counter + 1), timer.eq(self.timeout_cycles - 1),
                              self.int_timeout.eq(0)]
                 m.next = "IDLE"
-                data_ones = Cat(buf[k] == 0xFF for k in range(1, MPU_BYTES)).all()
-                plausible = buf[0][0] & (buf[0] != 0xFF) & ~data_ones
+                plausible = buf[0][0] & (buf[0] != 0xFF) & ~n.data_ones
                 if self.gyro_jump is not None:
-                    # |new - last passed on| >= 2**b: the 17-bit difference's bits b..16 are
-                    # not all its sign
-                    b = self.gyro_jump.bit_length() - 1
-                    jumps = []
-                    for axis in range(3):
-                        new = Cat(buf[1 + 8 + 2 * axis + 1], buf[1 + 8 + 2 * axis]).as_signed()
-                        delta = Signal(signed(17), name=f"gyro_delta{axis}")
-                        m.d.comb += delta.eq(new - sample.gyro[axis])
-                        top = delta[b:17]
-                        jumps.append(~((top == 0) | top.all()))
-                    m.d.comb += gyro_jumped.eq(have_base & Cat(*jumps).any())
+                    m.d.comb += gyro_jumped.eq(have_base & n.gyro_moved)
                     plausible = plausible & ~gyro_jumped
                 # no RAW_RDY: no new sample in this burst (a spurious INT pulse, a read made
                 # again) or none readable (a line stuck low reads zeros): either way the

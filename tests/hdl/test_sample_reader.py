@@ -21,11 +21,12 @@ def burst(k, *, int_status=0x01, drdy=1, field=(100, -200, 300), data=None):
     return bytes([int_status]) + mpu + ak
 
 
-def run(bursts, *, mag_ok=1, extra_periods=0):
+def run(bursts, *, mag_ok=1, extra_periods=0, gyro_jump=None):
     """One data-ready edge per entry of ``bursts`` (None: no edge that period), a period apart;
     returns the samples taken and, per period, the status and pulses seen."""
     # the INT here is a pulse (high for half a period), not latched
-    dut = SampleReader(int_latched=False, period_cycles=PERIOD, first_timeout_cycles=4 * PERIOD,
+    dut = SampleReader(int_latched=False, gyro_jump=gyro_jump, period_cycles=PERIOD,
+                       first_timeout_cycles=4 * PERIOD,
                        timeout_cycles=4 * PERIOD, mag_timeout_periods=3)
     queue = []
     model = RegisterPortModel(dut.port, lambda device, reg, length: queue.pop(0))
@@ -103,3 +104,28 @@ def test_magnetometer_time_out_and_no_data_ready():
     # no data-ready edge for four periods: a time-out and a restart asked for
     assert any(e["restart"] and e["int_timeout"] for e in log[6:])
 
+
+
+def test_gyro_jump_on_each_axis():
+    """A gyro word 2**14 or more above, or more than 2**14 below, the last sample passed on
+    fails the burst, on any axis (``gyro_jumps``, the reference's rule); the edges pass; the
+    base is the last sample passed on."""
+    import numpy as np
+    from mpu9250_ahrs.hdl.sample_reader import gyro_jumps
+
+    def gyro(x, y, z):
+        return burst(0, data=b"".join((v & 0xFFFF).to_bytes(2, "big")
+                                      for v in (1, 2, 3, 4, x, y, z)))
+    triples = [(-100, 200, 300),
+               (-100 + 16384, 200, 300), (-100, 200 - 16385, 300), (-100, 200, 300 - 16385),
+               (-100, 200, 300 + 16383), (-100, 200, 300 + 16383 + 16384),
+               (-100 - 16384, 200, 300 + 16383), (-100 - 16384, 200 - 16384, 300 + 16383)]
+    samples, log = run([gyro(*t) for t in triples], gyro_jump=16384)
+    passed = [list(s.gyro) for s in samples]
+    assert passed == [[-100, 200, 300], [-100, 200, 16683], [-16484, 200, 16683],
+                      [-16484, -16184, 16683]]
+    assert [e["bad_burst"] for e in log] == [0, 1, 1, 1, 0, 1, 0, 0]
+    # the reference's rule gives the same verdicts from the same bases
+    bases = [triples[0]] * 4 + [triples[4]] * 2 + [triples[6]] * 2
+    assert list(gyro_jumps(np.array(bases[1:]), np.array(triples[1:]), 16384)) == \
+        [bool(e["bad_burst"]) for e in log[1:]]
