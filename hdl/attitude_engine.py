@@ -5,9 +5,10 @@ A microcoded sequencer (program in ``hdl/attitude_program.py``, each filter's ro
 ``hdl/attitude_isa.py``) drives one
 datapath: a 32×32 multiplier with a 66-bit accumulator (rounding and saturation on write-back),
 a saturating/wrapping adder, an iterative CORDIC (``hdl/cordic.py``) and a divider
-(``hdl/divider.py``). Results equal ``reference.engine_model.EngineModel`` bit for bit. Three
-filters, selected at run time: the flagship quaternion filter (the reset default), the per-axis
-Kalman filter and the complementary filter.
+(``hdl/divider.py``). Results equal ``reference.engine_model.EngineModel`` bit for bit. Four
+filters, selected at run time (``hdl/filter_registry.py``): the flagship quaternion filter (the
+reset default), the per-axis Kalman filter, the complementary filter and Madgwick's gradient
+descent.
 
 Pipeline: fetch (instruction ROM, synchronous) → read (register file, two synchronous read
 ports, transparent to the write port) → operands registered → execute → write back (the
@@ -40,7 +41,8 @@ from .divider import Divider
 from .memories import MicrocodeROM, RegisterFile
 from .multiplier import Multiplier
 from .numeric_contract import (INV_GAIN_Q30, CalibrationFixed, FilterRates, FlagshipFixedConfig,
-                               KalmanFixedConfig, calibration_registers, mag_period)
+                               KalmanFixedConfig, MadgwickFixedConfig, calibration_registers,
+                               mag_period)
 from .attitude_result import Attitude
 from .config_write import ConfigWrite
 from .sample import Sample
@@ -102,7 +104,8 @@ class AttitudeEngine(wiring.Component):
             map); accepted while the engine is idle. Only ``HOST_WRITABLE`` addresses are written:
             a write to a constant or to the filter state is taken, ignored and counted in
             ``cfg_refused`` (out, 16, saturating). ``CONTROL_ADDR`` (0xFF) is the control
-            register: bits 1:0 select the filter (0 Kalman, 1 complementary, 2 flagship), bit 2
+            register: bits 1:0 select the filter (0 Kalman, 1 complementary, 2 flagship,
+            3 Madgwick: ``filter_registry``), bit 2
             resets the filter state; selecting another filter makes the next sample a first one.
         ``cfg_read`` (in, stream of 8-bit addresses) / ``cfg_read_data`` (out, stream of signed
             32): register read-back, accepted while idle, the word one cycle later (0xFF reads the
@@ -130,7 +133,9 @@ class AttitudeEngine(wiring.Component):
         self.program, self.entry = build_program()
         # the hard blocks, kept as attributes: ``report`` substitutes them for its synthesis
         self.multiplier = Multiplier()
+        # Madgwick's β: the float filter's default at this sample period (a host writes BETA_K)
         registers = {**config.registers(), **self.flagship.registers(),
+                     **MadgwickFixedConfig.matching(config).registers(),
                      **calibration_registers(self.cal), **(extra_registers or {})}
         self.regfile = RegisterFile(REG_COUNT, config_init(registers, INV_GAIN_Q30))
         self.rom = MicrocodeROM([i.encode() for i in self.program],

@@ -49,7 +49,7 @@ BOARD_REGS = {
 }
 # Bumped whenever an address, a format or a meaning in the register map changes (engine,
 # board, PWM); the host tool refuses to configure a board whose map it does not know.
-REGMAP_VERSION = 6     # 6: GATE_NORM is also the new field's steadiness tolerance
+REGMAP_VERSION = 7     # 7: Madgwick (filter code 3, BETA_K at 0x80)
 
 
 class CommandStats(data.Struct):

@@ -10,8 +10,8 @@ the reference's engine model and the engine itself read the names from here. Pla
 __all__ = ["FILTER_NAMES", "FILTER_CODES", "FLOAT_FILTERS"]
 
 
-FILTER_NAMES = ("kalman", "complementary", "flagship")
+FILTER_NAMES = ("kalman", "complementary", "flagship", "madgwick")
 FILTER_CODES = {name: code for code, name in enumerate(FILTER_NAMES)}
-# the reference's float filters (``reference/evaluate.py``, ``replay``): the engine's and
-# Madgwick's gradient descent (no gateware yet), the flagship last
-FLOAT_FILTERS = (*FILTER_NAMES[:-1], "madgwick", FILTER_NAMES[-1])
+# the reference's float filters (``reference/evaluate.py``, ``replay``): the engine's, the
+# flagship last (the tables' order)
+FLOAT_FILTERS = (*(name for name in FILTER_NAMES if name != "flagship"), "flagship")

@@ -23,7 +23,8 @@ __all__ = ["CONTROL_RESET", "CONTROL_KEEP", "CONTROL_BITS", "control_fields",
            "CORDIC_ITERATIONS", "ATAN_TABLE", "INV_GAIN_Q30", "CalibrationFixed",
            "calibration_registers", "calibration_of",
            "KalmanFixedConfig", "FilterRates", "FlagshipParams", "svf_gain", "sample_counts",
-           "AK8963_RATE_HZ", "mag_period", "FlagshipFixedConfig"]
+           "AK8963_RATE_HZ", "mag_period", "FlagshipFixedConfig", "CORDIC_GAIN_SQUARED",
+           "MadgwickFixedConfig"]
 
 
 # The engine's CONTROL register (0xFF): bits 1:0 the filter's code, bit 2 reset the filter
@@ -287,3 +288,32 @@ class FlagshipFixedConfig:
                 raise ValueError(f"flagship register {name} = {value} does not fit 31 bits "
                                  f"(dt {dt} s, {self.gyro_lsb_per_rad:.1f} LSB/rad)")
         return regs
+
+
+# -- Madgwick's gradient descent ----------------------------------------------------------------
+
+# K² of the CORDIC (K = ∏ √(1 + 2⁻²ⁱ) over its iterations): the fixed-point Madgwick step takes
+# the gradient's length from two vectoring stages (|g|·K²) and folds K² into its gain
+CORDIC_GAIN_SQUARED = math.prod(1 + 2.0 ** (-2 * i) for i in range(CORDIC_ITERATIONS))
+
+
+@dataclass(frozen=True)
+class MadgwickFixedConfig:
+    """Run-time register of the fixed-point Madgwick filter (``reference.madgwick_fixed``):
+    ``BETA_K`` = β·T·K²·2³⁰, the gradient step per sample period (β in rad/s as
+    ``reference.madgwick``'s, T = ``dt``) with the CORDIC's K² folded in. Its gyro scale is the
+    flagship's ``K_RAD`` (the same quantity: radians per count and period)."""
+    dt: float = 0.01
+    beta: float = 0.1
+
+    @classmethod
+    def matching(cls, kalman):
+        """The float filter's default β at a ``KalmanFixedConfig``'s sample period."""
+        return cls(dt=kalman.dt)
+
+    def registers(self):
+        value = int(round(self.beta * self.dt * CORDIC_GAIN_SQUARED * _Q30))
+        if not 0 < value < 2 ** 31:
+            raise ValueError(f"Madgwick's BETA_K = {value} does not fit 31 bits "
+                             f"(beta {self.beta}, dt {self.dt} s)")
+        return {"BETA_K": value}

@@ -47,17 +47,20 @@ address  name            meaning, format                                        
 0x7F     EULER_RATES     per-axis filters: 0 = body rates (the published form),    0
                          else Euler-angle rates (reference.fixed_point.
                          euler_rates_fixed; right at any attitude but ±90° pitch)
+0x80     BETA_K          Madgwick's gradient step β·T·K²·2³⁰ (K: the CORDIC's      β = 0.1,
+                         gain; ``numeric_contract.MadgwickFixedConfig``)            from dt
 0xFE     TELEMETRY_DIV   (read by ``AHRSCore``, not the engine) frame every n-th     from baud
                          result (1..65535; 0 is taken as 1)
 0xFF     CONTROL         (not a register-file word) bits 1:0 filter: 0 = per-axis
                          Kalman, 1 = complementary, 2 = flagship (the reset
-                         default); bit 2: write 1 to reset the filter state
-                         (angles 0, bias 0, P = P0·I, flagship afresh); bit 3: keep
-                         the filter (bits 1:0 ignored: a reset alone). Selecting
-                         another filter makes the next sample a first one. A word
-                         with a reserved bit (31:4) set, or without keep a code
-                         that names no filter (3), is refused and counted
-                         (``numeric_contract.control_fields``).
+                         default), 3 = Madgwick (``filter_registry``); bit 2:
+                         write 1 to reset the filter state (angles 0, bias 0,
+                         P = P0·I, flagship afresh); bit 3: keep the filter (bits
+                         1:0 ignored: a reset alone). Selecting another filter
+                         makes the next sample a first one. A word with a
+                         reserved bit (31:4) set, or without keep a code that
+                         names no filter (none, with four), is refused and
+                         counted (``numeric_contract.control_fields``).
 =======  ==============  =========================================================  ===========
 
 From 0x20 (``REGS``): the loader's inputs, the filters' state, working registers and more
@@ -96,7 +99,8 @@ CONFIG_REGS = {
     **{f"ACC_SCALE{i}": 0x10 + i for i in range(3)},
     **{f"HARD{i}": 0x13 + i for i in range(3)},
     **{f"SOFT{i}{j}": 0x16 + 3 * i + j for i in range(3) for j in range(3)},
-    **{name: 0x70 + k for k, name in enumerate(config_registers())},
+    # the filters' run-time registers from 0x70 in the registry's order, around EULER_RATES
+    **dict(zip(config_registers(), (a for a in range(0x70, 0xFE) if a != 0x7F))),
     "EULER_RATES": 0x7F,
     "TELEMETRY_DIV": 0xFE,
 }

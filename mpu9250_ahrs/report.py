@@ -256,7 +256,7 @@ def report(*, clk_freq=None, config=None, latency=True, core_options=None):
                         others=[self_test] if self_test else [], blocks=True,
                         ports=wrapped.ports())
     design["room_left_les"] = DEVICE["logic_elements"] - design["logic_elements"]
-    shown.next("cycles per update (simulated, three filters)")
+    shown.next("cycles per update (simulated, every filter)")
     cycles, first = cycles_per_update()
     shown.next("data-ready to attitude (co-simulation of the core)")
     latency_us = drdy_to_attitude_us(clk_freq, config) if latency else {"drdy_to_attitude": None}

@@ -1,8 +1,9 @@
 """The attitude engine in integers: ``EngineModel`` (one sample at a time, with the
 run-time registers, the filter select and resets, exactly as the gateware acts on them) and
 ``attitude_fixed`` (the same over arrays), from the primitives and the per-axis filters of
-``reference/fixed_point.py`` and the flagship's step in ``reference/flagship_fixed.py``. The
-gateware's attitude engine equals it bit for bit.
+``reference/fixed_point.py``, the flagship's step in ``reference/flagship_fixed.py`` and
+Madgwick's in ``reference/madgwick_fixed.py``. The gateware's attitude engine equals it bit for
+bit.
 """
 
 import dataclasses
@@ -10,11 +11,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..hdl.numeric_contract import (CalibrationFixed, KalmanFixedConfig, calibration_of,
-                                    calibration_registers, control_fields)
+from ..hdl.numeric_contract import (CalibrationFixed, KalmanFixedConfig, MadgwickFixedConfig,
+                                    calibration_of, calibration_registers, control_fields)
 from ..hdl.filter_registry import FILTER_NAMES
 from .fixed_point import Status, _KalmanFixed, _calibrate_one, _complementary_step
 from .flagship_fixed import FlagshipFixed, FlagshipFixedConfig, euler_quat_fixed
+from .madgwick_fixed import MadgwickFixed
 
 
 __all__ = ["FILTERS", "RESULT_FLAGS", "RESULT_FIELDS", "AttitudeFixed", "EngineModel",
@@ -29,6 +31,7 @@ RESULT_FLAGS = ("acc_used", "mag_used", "mag_disturbed", "mag_new_ref", "at_rest
 RESULT_FIELDS = ("quat", "angles", "bias", *RESULT_FLAGS, "saturated", "filter")
 _FLAGSHIP = FILTERS.index("flagship")
 _KALMAN = FILTERS.index("kalman")
+_MADGWICK = FILTERS.index("madgwick")
 
 
 @dataclass
@@ -57,14 +60,15 @@ class EngineModel:
     (filter coefficients, flagship parameters, calibration), the filter select, a filter
     reset, and ``sample`` (raw counts in, one result out), exactly as the gateware acts on
     them. Switching to another filter makes the next sample a first sample (the Kalman filter
-    takes ω₍ₖ₋₁₎ = ωₖ, the flagship starts afresh but keeps the bias); the per-axis filters
+    takes ω₍ₖ₋₁₎ = ωₖ, the flagship starts afresh but keeps the bias, Madgwick aligns afresh); the per-axis filters
     continue from the angles of whichever filter ran last."""
 
     def __init__(self, config=None, cal=None, flagship=None, *, filter="flagship",
-                 registers=None):
+                 registers=None, madgwick=None):
         config = KalmanFixedConfig() if config is None else config
         flagship = FlagshipFixedConfig.matching(config) if flagship is None else flagship
-        self.reg = {**config.registers(), **flagship.registers(),
+        madgwick = MadgwickFixedConfig.matching(config) if madgwick is None else madgwick
+        self.reg = {**config.registers(), **flagship.registers(), **madgwick.registers(),
                     **calibration_registers(CalibrationFixed() if cal is None else cal),
                     **(registers or {})}
         self.filter = FILTERS.index(filter)
@@ -76,6 +80,7 @@ class EngineModel:
         self.kf = _KalmanFixed(KalmanFixedConfig(), self.reg)
         self.kf.reg = self.reg                      # one register dict for every filter
         self.flagship = FlagshipFixed(self.reg, self.kf.bias)
+        self.madgwick = MadgwickFixed(self.reg)
 
     def write(self, name, value):
         self.reg[name] = int(value)
@@ -102,6 +107,7 @@ class EngineModel:
         if code != self.filter:
             self.kf.prev = None                      # next sample is a first one
             self.flagship.first = True
+            self.madgwick.first = True
         self.filter = code
 
     def sample(self, g_raw, a_raw, m_raw, mag_valid=True, asa=(128, 128, 128), skipped=0):
@@ -114,8 +120,9 @@ class EngineModel:
                                  calibration_of(self.reg), st)
         kf = self.kf
         flags = set()
-        if self.filter == _FLAGSHIP:
-            quat, kf.theta, flags = self.flagship.step(g, a, m, bool(mag_valid), st, periods)
+        if self.filter in (_FLAGSHIP, _MADGWICK):
+            quaternion_filter = self.flagship if self.filter == _FLAGSHIP else self.madgwick
+            quat, kf.theta, flags = quaternion_filter.step(g, a, m, bool(mag_valid), st, periods)
             kf.prev = list(g)
         else:
             if self.filter == _KALMAN:
@@ -136,11 +143,12 @@ class EngineModel:
 
 def attitude_fixed(gyr_raw, acc_raw, mag_ak_raw, mag_valid=None, *, asa=(128, 128, 128),
                    cal=CalibrationFixed(), config=KalmanFixedConfig(), flagship=None,
-                   select="kalman", registers=None, resets=(), writes=None, skipped=None,
-                   controls=None):
+                   madgwick=None, select="kalman", registers=None, resets=(), writes=None,
+                   skipped=None, controls=None):
     """The gateware's attitude engine in integers over arrays (``EngineModel`` per sample):
     calibration, then the filter ``select`` names (one name, or an array of names per
-    sample). ``registers`` overrides register values by name (raw integers, e.g. {"R": 0});
+    sample); ``config``, ``flagship``, ``madgwick``: the filters' configurations (the last two
+    match ``config`` when None). ``registers`` overrides register values by name (raw integers, e.g. {"R": 0});
     ``resets``: sample indices before which the filter state is reset; ``writes``:
     {sample index: {name: value}}, register writes applied before that sample (after a reset
     there); ``skipped``: per sample, the sensor samples missed before it (0 if None);
@@ -152,7 +160,7 @@ def attitude_fixed(gyr_raw, acc_raw, mag_ak_raw, mag_valid=None, *, asa=(128, 12
     valid = [True] * n if mag_valid is None else [bool(v) for v in mag_valid]
     resets = set(resets)
     model = EngineModel(config, cal, flagship, filter=sel[0] if n else "kalman",
-                        registers=registers)
+                        registers=registers, madgwick=madgwick)
     out = AttitudeFixed(np.empty((n, 4), np.int64), np.empty((n, 3), np.int64),
                         np.empty((n, 3), np.int64),
                         *(np.zeros(n, bool) for _ in range(len(RESULT_FLAGS) + 1)),

@@ -40,10 +40,11 @@ def run_filter(name, gyr, acc, mag, dt, **params):
 def engine_configs(name, dt, *, gyro_lsb_per_dps=16.4, accel_lsb_per_ms2=2048 / 9.80665,
                    **params):
     """The engine's registers for filter ``name`` with this module's default parameters (or
-    ``params``): (KalmanFixedConfig, FlagshipFixedConfig)."""
+    ``params``): (KalmanFixedConfig, FlagshipFixedConfig, MadgwickFixedConfig)."""
     from .complementary import coefficient
     from .fixed_point import KalmanFixedConfig
     from .flagship_fixed import FlagshipFixedConfig
+    from ..hdl.numeric_contract import MadgwickFixedConfig
     if name not in FIXED_FILTERS:
         raise ValueError(f"no fixed-point model of {name!r} yet; there are: "
                          f"{', '.join(FIXED_FILTERS)}")
@@ -54,7 +55,7 @@ def engine_configs(name, dt, *, gyro_lsb_per_dps=16.4, accel_lsb_per_ms2=2048 / 
     flagship = FlagshipFixedConfig(dt, gyro_lsb_per_dps * 180 / np.pi, accel_lsb_per_ms2,
                                    params.get("flagship", FlagshipParams()),
                                    mag_dt=params.get("mag_dt"))
-    return kalman, flagship
+    return kalman, flagship, MadgwickFixedConfig(dt, params.get("beta", 0.1))
 
 
 def run_fixed(name, gyr_counts, acc_counts, mag_counts, dt, *, gyro_lsb_per_dps=16.4,
@@ -64,10 +65,10 @@ def run_fixed(name, gyr_counts, acc_counts, mag_counts, dt, *, gyro_lsb_per_dps=
     from .engine_model import attitude_fixed
     from .flagship_fixed import q30_to_float
     from .frames import body_to_mag
-    kalman, flagship = engine_configs(name, dt, gyro_lsb_per_dps=gyro_lsb_per_dps,
-                                      accel_lsb_per_ms2=accel_lsb_per_ms2, **params)
+    kalman, flagship, madgwick = engine_configs(name, dt, gyro_lsb_per_dps=gyro_lsb_per_dps,
+                                                accel_lsb_per_ms2=accel_lsb_per_ms2, **params)
     out = attitude_fixed(gyr_counts, acc_counts, body_to_mag(mag_counts), mag_valid,
-                         config=kalman, flagship=flagship, select=name)
+                         config=kalman, flagship=flagship, madgwick=madgwick, select=name)
     return q30_to_float(out.quat)
 
 

@@ -35,7 +35,7 @@ __all__ = ["FILTER_SET", "run_trial", "table", "split_table", "main"]
 VARIANTS = {
     "kalman": [(", Euler rates", {"kalman": KalmanParams(rates="euler")})],
     "complementary": [(", Euler rates", {"rates": "euler"})],
-    "madgwick": [(" β=0.1", {"beta": 0.1}), (" β=0.2", {"beta": 0.2})],
+    "madgwick": [(" β=0.2", {"beta": 0.2})],
 }
 
 

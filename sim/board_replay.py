@@ -158,8 +158,9 @@ def replay_board(filter, gyr_counts, acc_counts, mag_counts, dt, *, gyro_fs_dps=
     # the flagship's magnetometer gains for the AK8963's period, as the board sets them
     # (``attitude_engine.default_flagship_config``)
     units_and_params.setdefault("mag_dt", mag_period(dt))
-    kalman, flagship = engine_configs(filter, dt, **units_and_params)
-    writes = configuration_writes(filter, kalman, flagship) + [(TELEMETRY_DIV_ADDR, divider)]
+    kalman, flagship, madgwick = engine_configs(filter, dt, **units_and_params)
+    writes = configuration_writes(filter, kalman, flagship, madgwick=madgwick) + [
+        (TELEMETRY_DIV_ADDR, divider)]
     # samples made during bring-up are never read: the run ends once the model made the
     # recording's last sample and the periods a frame takes after it (its result is out and
     # a frame of it on the wire by then), within a budget of every sample's period and
@@ -180,7 +181,7 @@ def replay_board(filter, gyr_counts, acc_counts, mag_counts, dt, *, gyro_fs_dps=
     ref = attitude_fixed([s["gyro"] for s in given], [s["accel"] for s in given],
                          [s["mag"] for s in given],
                          [s["flags"]["mag_valid"] for s in given], asa=run.asa,
-                         config=kalman, flagship=flagship, select=filter,
+                         config=kalman, flagship=flagship, madgwick=madgwick, select=filter,
                          skipped=[s["skipped"] for s in given])
     frames = [f for f in run.frames if f["sample"]["counter"] < n]
     sent = [f["sample"]["counter"] for f in frames]
@@ -199,7 +200,7 @@ def replay_board(filter, gyr_counts, acc_counts, mag_counts, dt, *, gyro_fs_dps=
     # to it; they differ only after a field the driver did not take as new (the same bytes
     # as the read before, both with ST1.DRDY: a read again, by its rule)
     plain = attitude_fixed(gyr[:n], acc[:n], mag_ak[:n], None, asa=run.asa, config=kalman,
-                           flagship=flagship, select=filter)
+                           flagship=flagship, madgwick=madgwick, select=filter)
     as_fixed = sum(np.array_equal(q, plain.quat[k]) for q, k in
                    zip(got.quat, [model.sample_reads[c] - offset for c in sent]))
     not_new = sum(1 for s in given if not s["flags"]["mag_valid"])

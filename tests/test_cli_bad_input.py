@@ -127,8 +127,6 @@ def _replay_cases(tmp_path):
         (broad_file(tmp_path / "ok.hdf5"), ["--gyro-fs", "0"], "gyro full scale"),
         (broad_file(tmp_path / "ok2.hdf5"), ["--gyro-fs", "300"], "gyro full scale"),
         (broad_file(tmp_path / "ok3.hdf5"), ["--accel-fs", "5"], "full scale"),
-        (broad_file(tmp_path / "ok4.hdf5"), ["--engine", "fixed", "--filter", "madgwick"],
-         "runs kalman"),
         (broad_file(tmp_path / "ok5.hdf5"), ["--beta", "-1"], "more than 0"),
         # issue #25: truth that is no rotation (scaled x10^6, all zero) is refused, not
         # scored 0.0 or 180 degrees

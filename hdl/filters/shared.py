@@ -7,7 +7,7 @@ from ..attitude_isa import Q14, Q24, Q30, Cond
 
 
 __all__ = ["init", "calibrate", "zero_tests", "tilt", "heading", "step_n", "euler_rates",
-           "angles_out"]
+           "euler_quat", "angles_out"]
 
 
 def init(asm, r):
@@ -120,11 +120,12 @@ def euler_rates(asm, r, U, name):
         asm.add(U[0], U[0], w)
 
 
-def angles_out(asm, r):
-    """The result quaternion of the per-axis filters' angles (``euler_quat_fixed``), then END."""
+def euler_quat(asm, r, angles):
+    """QOUT = the quaternion of the ZYX angles in the three registers ``angles`` (roll,
+    pitch, yaw; ``euler_quat_fixed``); clobbers CR .. SY."""
     with asm.scratch(4) as T:
         for i in range(3):
-            asm.mul(T[i], r[f"THETA{i}"], r["HALF"], Q30)
+            asm.mul(T[i], angles[i], r["HALF"], Q30)
         for i, pair in enumerate(("CR", "CP", "CY")):
             asm.rot(r[pair], T[i])
         cr, sr, cp, sp, cy, sy = (r[n] for n in ("CR", "SR", "CP", "SP", "CY", "SY"))
@@ -137,5 +138,9 @@ def angles_out(asm, r):
         asm.mac(r["QOUT1"], [(sr, cc), (cr, ss, -1)], Q30)
         asm.mac(r["QOUT2"], [(cr, cs), (sr, sc)], Q30)
         asm.mac(r["QOUT3"], [(cr, sc), (sr, cs, -1)], Q30)
-        asm.end()
 
+
+def angles_out(asm, r):
+    """The result quaternion of the per-axis filters' angles (``euler_quat_fixed``), then END."""
+    euler_quat(asm, r, [r[f"THETA{i}"] for i in range(3)])
+    asm.end()

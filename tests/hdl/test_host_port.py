@@ -100,7 +100,8 @@ def test_read_only_and_state_registers_refuse_writes():
 def test_control_words_against_the_contract():
     """Issue #25: every CONTROL word with bits 31:4 clear, and some with reserved bits set,
     against ``numeric_contract.control_fields`` (the reference's rule): the select, the
-    reset pulse and the refusal count agree for each. Code 3 without keep is refused."""
+    reset pulse and the refusal count agree for each. A code that names no filter without keep
+    is refused (with four filters there is none: code 3 is Madgwick)."""
     from mpu9250_ahrs.hdl.filter_registry import FILTER_NAMES
     from mpu9250_ahrs.hdl.numeric_contract import control_fields
     words = list(range(16)) + [0x10, 0x13, 0x8000_0000, -1, -16, 0x7FFF_FFF0 | 0x2]
@@ -130,4 +131,4 @@ def test_control_words_against_the_contract():
             code, want_reset = fields
             assert after == (before if code is None else code), hex(word)
             assert (reset, refused) == (want_reset, 0), hex(word)
-    assert control_fields(3, len(FILTER_NAMES)) is None
+    assert control_fields(3, 3) is None and control_fields(3, len(FILTER_NAMES)) == (3, False)

@@ -6,6 +6,7 @@ import numpy as np
 
 from mpu9250_ahrs.hdl.attitude_isa import ROM_DEPTH, Flag
 from mpu9250_ahrs.hdl.attitude_program import build_program
+from mpu9250_ahrs.hdl.filter_registry import FILTER_NAMES
 from mpu9250_ahrs.reference.fixed_point import CalibrationFixed
 from mpu9250_ahrs.reference.engine_model import RESULT_FLAGS, EngineModel
 from mpu9250_ahrs.reference.frames import body_to_mag
@@ -33,8 +34,8 @@ def run_both(g, a, m, valid, select, *, asa=(128, 128, 128), **model):
 
 
 def test_microcode_matches_reference_on_random_samples():
-    """Random raw samples and calibration, the three filters taking turns (each switch makes
-    the next sample a first one)."""
+    """Random raw samples and calibration, the registry's filters taking turns (each switch
+    makes the next sample a first one)."""
     rng = np.random.default_rng(1)
     n = 400
     g = rng.integers(-3000, 3000, (n, 3)).tolist()
@@ -46,8 +47,8 @@ def test_microcode_matches_reference_on_random_samples():
     cal = CalibrationFixed(gyro_offset=(3, -5, 7), accel_offset=(100, -50, 20),
                            accel_scale=(16000, 16500, 16384), hard_iron=(30, -40, 50),
                            soft_iron=(16000, 200, -100, 200, 16800, 50, -100, 50, 16300))
-    names = ("flagship", "kalman", "complementary")
-    select = [names[(k // 47) % 3] for k in range(n)]
+    names = ("flagship", *(name for name in FILTER_NAMES if name != "flagship"))
+    select = [names[(k // 47) % len(names)] for k in range(n)]
     run_both(g, a.tolist(), m.tolist(), valid, select, asa=(170, 180, 160), cal=cal)
 
 

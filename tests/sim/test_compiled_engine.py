@@ -87,10 +87,10 @@ RECORDINGS = sorted(glob.glob("../shared/data/broad/*.hdf5")) or sorted(glob.glo
 
 
 @pytest.mark.skipif(not RECORDINGS, reason="shared/data/broad not beside the checkout")
-# the flagship (the reset default, the longest program) in the default run; the other two
-# filters, 20 s more, in the slow step
-@pytest.mark.parametrize("filter", ["flagship", pytest.param("kalman", marks=pytest.mark.slow),
-                                    pytest.param("complementary", marks=pytest.mark.slow)])
+# the flagship (the reset default, the longest program) in the default run; the other
+# filters, about 10 s each, in the slow step
+@pytest.mark.parametrize("filter", ["flagship", *(pytest.param(name, marks=pytest.mark.slow)
+                                                  for name in FILTERS if name != "flagship")])
 def test_whole_recording_bit_exact(compiled, filter):
     """Every sample of the shortest shared recording (trial 33, a magnet attached: the
     flagship's gates at work) through the compiled gateware, equal to the fixed-point model."""
@@ -114,8 +114,8 @@ def test_whole_recording_bit_exact(compiled, filter):
 def test_every_control_word_agrees_with_the_model(compiled):
     """Issue #25: every value a host can write to the control bits of the host-writable
     registers, through the compiled engine and ``EngineModel``: CONTROL (every word of bits
-    3:0, reserved bits set, code 3 alone and with reset, which the gateware used to take as
-    Kalman while the model ran the complementary filter) and EULER_RATES (zero, one, any
+    3:0, reserved bits set, code 3 alone and with reset, which the gateware once took as
+    Kalman while the model ran the complementary filter; it names Madgwick now) and EULER_RATES (zero, one, any
     other value), bit for bit and with the same filter in every result."""
     sensor = SensorModel(gyro_noise=np.radians(0.05), accel_noise=0.02, mag_noise=0.3, seed=5)
     traj = concat(static((20, -30, 60), 0.1), random_motion(0.5, seed=9))
@@ -137,4 +137,4 @@ def test_every_control_word_agrees_with_the_model(compiled):
                          writes={2 + 2 * k: {"EULER_RATES": v} for k, v in euler.items()})
     assert first_mismatch(run, ref) is None, first_mismatch(run, ref)
     assert list(run.filter) == list(ref.filter)
-    assert set(run.filter) == {0, 1, 2}
+    assert set(run.filter) == set(range(len(FILTER_CODES)))

@@ -1,0 +1,206 @@
+"""Microcode of Madgwick's gradient-descent filter: ``reference.madgwick_fixed.MadgwickFixed``,
+operation for operation, on the attitude engine (instruction set: ``hdl/attitude_isa.py``).
+
+Its quaternion is its state and its output (QOUT). Its working registers are the flagship's
+(``_REGISTERS``): only one filter runs, and a switch to either restarts it (the flagship from
+its start-up, Madgwick from its alignment), so neither finds the other's values in them.
+
+Cost: ``python -m mpu9250_ahrs report`` (``cycles_per_update.madgwick``).
+"""
+
+from ..attitude_isa import Q14, Q24, Q30, Cond, Flag
+from .flagship import _PAIRS, _matrix, _normalise
+from .shared import euler_quat, heading, step_n, tilt, zero_tests
+
+
+__all__ = ["CONFIG_REGISTERS", "REGISTERS", "emit"]
+
+# Run-time registers (host-visible, from 0x70 after the flagship's): ``MadgwickFixedConfig``
+CONFIG_REGISTERS = ("BETA_K",)
+REGISTERS = ()
+
+# the routine's names -> the flagship's registers it works in (vectors and quaternions by
+# prefix; pairs are a CORDIC's (d, d + 1))
+_REGISTERS = {
+    "HK": "F_C", "BN": "F_S", "TH": "F_V2", "RINV": "F_GAIN", "BY": "F_HORIZ",
+    "P": "F_PHI", "P1": "F_TH", "P2": "F_CPHI", "P3": "F_CH", "BYP": "F_PSI", "YAW": "F_YAW",
+}
+_VECTORS = {"HV": "V", "S": "AI", "MH": "LP", "H": "GLP", "FA": "DG", "FM": "DA", "PB": "ALP",
+            "QB": "BAND"}
+_QUATERNIONS = {"QD": "QAG", "QN": "QT", "Q8": "QA", "GR": "QG"}
+
+
+def _aliases(r):
+    aliases = {name: r[base] for name, base in _REGISTERS.items()}
+    for names, n in ((_VECTORS, 3), (_QUATERNIONS, 4)):
+        for name, base in names.items():
+            aliases.update({f"{name}{i}": r[f"{base}{i}"] for i in range(n)})
+    assert not aliases.keys() & r.keys(), "a working name hides a register of the map"
+    r = {**r, **aliases}
+    for pair in ("P", "P1", "P2", "P3", "BYP", "YAW"):
+        base = _REGISTERS[pair]
+        assert r[base] + 1 == r[_PAIRS[_PAIRS.index(base) + 1]], f"{pair} is not a pair"
+    return r
+
+
+def _unit(asm, r, out, v):
+    """``out`` = ``v`` / |``v``| (three registers each, Q2.30 from counts): v·2⁸, its length
+    from two vectoring CORDICs, ⌊2⁴⁴ / |v·2⁸|⌋ by one division, three MULs."""
+    o = [r[f"{out}{i}"] for i in range(3)]
+    p = r["P"]
+    with asm.scratch(2) as (t, inv):
+        for i in range(3):
+            asm.mul(o[i], r[f"{v}{i}"], r["SHL8"], Q14)
+        asm.vec(p, o[0], o[1])
+        asm.mul(t, p + 1, r["INV_GAIN"], Q30)
+        asm.vec(p, t, o[2])
+        asm.mul(t, p + 1, r["INV_GAIN"], Q30)
+        asm.div(inv, r["SHR10"], t)
+        for i in range(3):
+            asm.mul(o[i], o[i], inv, Q14)
+
+
+def _gravity_terms(r):
+    """G = ∇f / 16 of the gravity error FA, with Q8 = q / 8: one term list per component."""
+    w, x, y, z = (r[f"Q8{i}"] for i in range(4))
+    fa = [r[f"FA{i}"] for i in range(3)]
+    return [[(y, fa[0], -1), (x, fa[1])],
+            [(z, fa[0]), (w, fa[1]), (x, fa[2], -1), (x, fa[2], -1)],
+            [(w, fa[0], -1), (z, fa[1]), (y, fa[2], -1), (y, fa[2], -1)],
+            [(x, fa[0]), (y, fa[1])]]
+
+
+def _field_terms(r):
+    """The field's terms of G, from PB = b_y·FM and QB = b_z·FM."""
+    w, x, y, z = (r[f"Q8{i}"] for i in range(4))
+    pb, qb = ([r[f"{v}{i}"] for i in range(3)] for v in ("PB", "QB"))
+    return [[(z, pb[0]), (y, qb[0], -1), (x, qb[1]), (x, pb[2], -1)],
+            [(y, pb[0]), (z, qb[0]), (x, pb[1], -1), (x, pb[1], -1), (w, qb[1]),
+             (w, pb[2], -1), (x, qb[2], -1), (x, qb[2], -1)],
+            [(x, pb[0]), (w, qb[0], -1), (z, qb[1]), (z, pb[2]), (y, qb[2], -1),
+             (y, qb[2], -1)],
+            [(w, pb[0]), (x, qb[0]), (z, pb[1], -1), (z, pb[1], -1), (y, qb[1]), (y, pb[2])]]
+
+
+def _field(asm, r):
+    """The field's error: m̂, h = R·m̂, b = (0, |h_xy|, h_z), FM = Rᵀ·b − m̂, PB, QB."""
+    rm = [r[f"RM{i}"] for i in range(9)]
+    _unit(asm, r, "MH", "M")
+    for i in range(3):
+        asm.mac(r[f"H{i}"], [(rm[3 * i + j], r[f"MH{j}"]) for j in range(3)], Q30)
+    asm.vec(r["BYP"], r["H0"], r["H1"])
+    asm.mul(r["BY"], r["BYP"] + 1, r["INV_GAIN"], Q30)
+    for j in range(3):
+        asm.mac(r[f"FM{j}"], [(rm[3 + j], r["BY"]), (rm[6 + j], r["H2"]),
+                              (r[f"MH{j}"], r["ONE"], -1)], Q30)
+    for j in range(3):
+        asm.mul(r[f"PB{j}"], r["BY"], r[f"FM{j}"], Q30)
+    for j in range(3):
+        asm.mul(r[f"QB{j}"], r["H2"], r[f"FM{j}"], Q30)
+
+
+def _gradient(asm, r):
+    """GR = G (QG's words), with the field's terms when MAG_OK; sets ACC_USED (and MAG_USED)."""
+    asm.setf(Flag.ACC_USED)
+    _matrix(asm, r, "RM", "QOUT")
+    _unit(asm, r, "S", "A")
+    for j in range(3):
+        asm.sub(r[f"FA{j}"], r[f"RM{6 + j}"], r[f"S{j}"])
+    for i in range(4):
+        asm.mul(r[f"Q8{i}"], r[f"QOUT{i}"], r["EIGHTH"], Q30)
+    gravity = _gravity_terms(r)
+    asm.br("m_gravity_only", Cond.A_ZERO, a=r["MAG_OK"])
+    _field(asm, r)
+    for i, (g, f) in enumerate(zip(gravity, _field_terms(r))):
+        asm.mac(r[f"GR{i}"], g + f, Q30)
+    asm.setf(Flag.MAG_USED)
+    asm.br("m_gradient")
+    asm.label("m_gravity_only")
+    for i, g in enumerate(gravity):
+        asm.mac(r[f"GR{i}"], g, Q30)
+    asm.label("m_gradient")
+
+
+def _step(asm, r):
+    """QN −= β·T·n·G/|G|: |G|·K² from three vectoring CORDICs, one division; no step when
+    the quotient would not fit (|G|·K² ≤ BN / 2⁷)."""
+    p1, p2, p3 = r["P1"], r["P2"], r["P3"]
+    asm.vec(p1, r["GR0"], r["GR1"])
+    asm.vec(p2, r["GR2"], r["GR3"])
+    asm.vec(p3, p1 + 1, p2 + 1)
+    asm.mul(r["TH"], r["BN"], r["COS_PITCH_MIN"], Q30)         # BN / 2⁷ (2²³ with shift 30)
+    asm.sub(r["TH"], r["TH"], p3 + 1)
+    asm.br("m_no_step", Cond.A_NEG, a=r["TH"], inv=True)
+    asm.div(r["RINV"], r["BN"], p3 + 1)
+    for i in range(4):
+        asm.mul(r[f"GR{i}"], r[f"GR{i}"], r["RINV"], Q24)
+    for i in range(4):
+        asm.sub(r[f"QN{i}"], r[f"QN{i}"], r[f"GR{i}"])
+    asm.label("m_no_step")
+
+
+def _angles(asm, r):
+    """THETA: roll and pitch from R's bottom row, yaw from its first column; then END."""
+    _matrix(asm, r, "RM", "QOUT")
+    m = [r[f"RM{i}"] for i in range(9)]
+    with asm.scratch(2) as (t0, t1):
+        asm.vec(r["THETA0"], m[8], m[7])
+        asm.mul(t0, r["THETA1"], r["INV_GAIN"], Q30)
+        asm.sub(t1, r["ZERO"], m[6])
+        asm.vec(r["THETA1"], t0, t1)
+    asm.vec(r["YAW"], m[0], m[3])
+    asm.add(r["THETA2"], r["ZERO"], r["YAW"], wrap=True)
+    asm.end()
+
+
+def _align(asm, r):
+    """The first sample after a reset or a switch: QOUT from the accelerometer's tilt and the
+    tilt-compensated heading (0 without their sensor; the flags say which were used), then the
+    gyro's step alone; reached by the branch to ``m_start``."""
+    meas = [r[f"MEAS{i}"] for i in range(3)]
+    asm.label("m_start")
+    asm.add(meas[0], r["ZERO"], r["ZERO"])
+    asm.add(meas[1], r["ZERO"], r["ZERO"])
+    asm.br("m_no_tilt", Cond.A_ZERO, a=r["ACC_OK"])
+    tilt(asm, r, meas[0])
+    asm.setf(Flag.ACC_USED)
+    asm.label("m_no_tilt")
+    asm.add(meas[2], r["ZERO"], r["ZERO"])
+    asm.br("m_aligned", Cond.A_ZERO, a=r["MAG_OK"])
+    heading(asm, r, meas[0], meas[1], meas[2])
+    asm.setf(Flag.MAG_USED)
+    asm.label("m_aligned")
+    euler_quat(asm, r, meas)
+    asm.br("m_started")
+
+
+def emit(asm, r):
+    """The routine, from the calibrated sample to QOUT, THETA (BIAS untouched)."""
+    r = _aliases(r)
+    zero_tests(asm, r, "m")
+    step_n(asm, r, "K_RAD")
+    asm.mul(r["BN"], r["NPER"], r["SHL14"], Q14)                # BETA_K · n, as step_n
+    asm.mul(r["BN"], r["BETA_K"], r["BN"], Q14)
+    asm.br("m_start", Cond.FIRST)
+    asm.label("m_started")
+    # ½·q ⊗ (0, ω·T·n)
+    w, x, y, z = (r[f"QOUT{i}"] for i in range(4))
+    hv = [r[f"HV{i}"] for i in range(3)]
+    asm.mul(r["HK"], r["STEP_N"], r["HALF"], Q30)
+    for i in range(3):
+        asm.mul(hv[i], r[f"G{i}"], r["ONE"], Q14)              # << 16
+    for i in range(3):
+        asm.mul(hv[i], hv[i], r["HK"], Q30)
+    asm.mac(r["QD0"], [(x, hv[0], -1), (y, hv[1], -1), (z, hv[2], -1)], Q30)
+    asm.mac(r["QD1"], [(w, hv[0]), (y, hv[2]), (z, hv[1], -1)], Q30)
+    asm.mac(r["QD2"], [(w, hv[1]), (x, hv[2], -1), (z, hv[0])], Q30)
+    asm.mac(r["QD3"], [(w, hv[2]), (x, hv[1]), (y, hv[0], -1)], Q30)
+    for i in range(4):
+        asm.add(r[f"QN{i}"], r[f"QOUT{i}"], r[f"QD{i}"])
+    asm.br("m_no_step", Cond.A_ZERO, a=r["ACC_OK"])
+    asm.br("m_no_step", Cond.FIRST)                 # aligned on this sample: no gradient yet
+    _gradient(asm, r)
+    _step(asm, r)
+    _normalise(asm, r, "QOUT", "QN")
+    _angles(asm, r)
+    _align(asm, r)
