@@ -41,7 +41,7 @@ from .divider import Divider
 from .memories import MicrocodeROM, RegisterFile
 from .multiplier import Multiplier
 from .numeric_contract import (INV_GAIN_Q30, CalibrationFixed, FilterRates, FlagshipFixedConfig,
-                               KalmanFixedConfig, MadgwickFixedConfig, calibration_registers,
+                               KalmanFixedConfig, calibration_registers, filter_registers,
                                mag_period)
 from .attitude_result import Attitude
 from .config_write import ConfigWrite
@@ -134,8 +134,7 @@ class AttitudeEngine(wiring.Component):
         # the hard blocks, kept as attributes: ``report`` substitutes them for its synthesis
         self.multiplier = Multiplier()
         # Madgwick's β: the float filter's default at this sample period (a host writes BETA_K)
-        registers = {**config.registers(), **self.flagship.registers(),
-                     **MadgwickFixedConfig.matching(config).registers(),
+        registers = {**filter_registers(config, self.flagship),
                      **calibration_registers(self.cal), **(extra_registers or {})}
         self.regfile = RegisterFile(REG_COUNT, config_init(registers, INV_GAIN_Q30))
         self.rom = MicrocodeROM([i.encode() for i in self.program],

@@ -24,7 +24,7 @@ __all__ = ["CONTROL_RESET", "CONTROL_KEEP", "CONTROL_BITS", "control_fields",
            "calibration_registers", "calibration_of",
            "KalmanFixedConfig", "FilterRates", "FlagshipParams", "svf_gain", "sample_counts",
            "AK8963_RATE_HZ", "mag_period", "FlagshipFixedConfig", "CORDIC_GAIN_SQUARED",
-           "MadgwickFixedConfig"]
+           "MadgwickFixedConfig", "filter_registers"]
 
 
 # The engine's CONTROL register (0xFF): bits 1:0 the filter's code, bit 2 reset the filter
@@ -317,3 +317,12 @@ class MadgwickFixedConfig:
             raise ValueError(f"Madgwick's BETA_K = {value} does not fit 31 bits "
                              f"(beta {self.beta}, dt {self.dt} s)")
         return {"BETA_K": value}
+
+
+def filter_registers(kalman, flagship=None, madgwick=None):
+    """Every filter's run-time registers by name (the engine's reset values, the reference's
+    and what a host writes): the per-axis filters' (``kalman``, a ``KalmanFixedConfig``), the
+    flagship's and Madgwick's, each matching ``kalman`` when None."""
+    flagship = FlagshipFixedConfig.matching(kalman) if flagship is None else flagship
+    madgwick = MadgwickFixedConfig.matching(kalman) if madgwick is None else madgwick
+    return {**kalman.registers(), **flagship.registers(), **madgwick.registers()}

@@ -11,11 +11,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..hdl.numeric_contract import (CalibrationFixed, KalmanFixedConfig, MadgwickFixedConfig,
-                                    calibration_of, calibration_registers, control_fields)
+from ..hdl.numeric_contract import (CalibrationFixed, KalmanFixedConfig, calibration_of,
+                                    calibration_registers, control_fields, filter_registers)
 from ..hdl.filter_registry import FILTER_NAMES
 from .fixed_point import Status, _KalmanFixed, _calibrate_one, _complementary_step
-from .flagship_fixed import FlagshipFixed, FlagshipFixedConfig, euler_quat_fixed
+from .flagship_fixed import FlagshipFixed, euler_quat_fixed
 from .madgwick_fixed import MadgwickFixed
 
 
@@ -66,9 +66,7 @@ class EngineModel:
     def __init__(self, config=None, cal=None, flagship=None, *, filter="flagship",
                  registers=None, madgwick=None):
         config = KalmanFixedConfig() if config is None else config
-        flagship = FlagshipFixedConfig.matching(config) if flagship is None else flagship
-        madgwick = MadgwickFixedConfig.matching(config) if madgwick is None else madgwick
-        self.reg = {**config.registers(), **flagship.registers(), **madgwick.registers(),
+        self.reg = {**filter_registers(config, flagship, madgwick),
                     **calibration_registers(CalibrationFixed() if cal is None else cal),
                     **(registers or {})}
         self.filter = FILTERS.index(filter)

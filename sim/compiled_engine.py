@@ -245,11 +245,10 @@ def configuration_writes(filter, kalman, flagship, cal=None, *, madgwick=None):
     calibration; Madgwick's matching ``kalman`` when None), then select it with a filter
     reset (so that INIT starts from the new P₀): what a host sends, and what makes one
     compiled build serve every recording."""
-    from ..hdl.numeric_contract import MadgwickFixedConfig
+    from ..hdl.numeric_contract import filter_registers
     from ..hdl.register_map import CONFIG_REGS, CONTROL_ADDR, control_word
     from ..reference.fixed_point import CalibrationFixed, calibration_registers
-    madgwick = MadgwickFixedConfig.matching(kalman) if madgwick is None else madgwick
-    regs = {**kalman.registers(), **flagship.registers(), **madgwick.registers(),
+    regs = {**filter_registers(kalman, flagship, madgwick),
             **calibration_registers(CalibrationFixed() if cal is None else cal)}
     return [(CONFIG_REGS[name], value) for name, value in regs.items()] + [
         (CONTROL_ADDR, control_word(filter, reset=True))]

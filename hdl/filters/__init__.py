@@ -7,7 +7,9 @@ zero tests' ACC_OK and MAG_OK — to QOUT, THETA and BIAS, ending in END or a br
 ``angles_out`` tail), ``CONFIG_REGISTERS`` (its run-time registers, placed from 0x70 in the
 registry's order: ``hdl/register_map.py``) and ``REGISTERS`` (its own state and working
 registers, allocated after the shared ones). Adding a filter: its module here, its name in the
-registry, its step in ``reference/engine_model.py``.
+registry, its integer step (a module of ``reference/``, called from
+``reference/engine_model.py``) and, if it has run-time registers, their configuration in
+``numeric_contract`` (``filter_registers`` gives every filter's defaults).
 """
 
 import importlib

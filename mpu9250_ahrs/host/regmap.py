@@ -33,7 +33,7 @@ _ENGINE_FORMATS = {
     "T": ("Q0.24", "s"), "Q_ANGLE": ("Q8.24", "deg²"), "Q_BIAS": ("Q8.24", "(°/s)²"),
     "R": ("Q8.24", "deg²"), "P0": ("Q8.24", ""), "BIAS_SCALE": ("Q8.24", ""),
     "ONE_MINUS_A": ("Q0.24", ""), "INV_GAIN": ("Q0.30", ""), "GATE_NORM": ("Q0.30", ""),
-    "GATE_DIP": ("BAM32", "°"), "A_REF": ("Q0.30", ""),
+    "GATE_DIP": ("BAM32", "°"), "A_REF": ("Q0.30", ""), "BETA_K": ("Q0.30", "β·T·K²"),
     **{f"ACC_SCALE{i}": ("Q2.14", "") for i in range(3)},
     **{f"SOFT{i}{j}": ("Q2.14", "") for i in range(3) for j in range(3)},
     **{f"{n}{i}": ("int", "counts") for n in ("GYRO_OFF", "ACC_OFF", "HARD") for i in range(3)},
