@@ -51,8 +51,12 @@ def test_report_keys_and_sanity(figures):
     # the register file twice (one copy per read port) and the microcode ROM
     assert figures["datapath"]["memory_bits"] == 2 * REG_COUNT * 32 + rom_bits
     cycles = figures["cycles_per_update"]
-    assert set(cycles) == {"kalman", "complementary", "flagship"}
+    from mpu9250_ahrs.hdl.attitude_engine import WORST_UPDATE_CYCLES
+    from mpu9250_ahrs.hdl.filter_registry import FILTER_NAMES
+    assert set(cycles) == set(FILTER_NAMES)
     assert cycles["complementary"] < cycles["kalman"] <= cycles["flagship"] + 8
+    assert max(cycles.values()) <= WORST_UPDATE_CYCLES
+    assert max(figures["cycles_first_update_after_reset"].values()) <= WORST_UPDATE_CYCLES
     assert figures["clock_hz"] == 48e6
     assert figures["update_us"]["flagship"] == round(cycles["flagship"] / 48, 2)
     # the whole core co-simulated: the SPI burst plus the flagship's update, at 48 MHz
