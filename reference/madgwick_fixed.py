@@ -45,11 +45,13 @@ def _unit(v, st):
 
 @dataclass
 class MadgwickFixed:
-    """State of the fixed-point Madgwick filter (the quaternion, the engine's QOUT) and one
-    step; ``first``: the next sample aligns it."""
+    """State of the fixed-point Madgwick filter (the quaternion, the engine's QOUT, and its
+    rotation matrix, which the next step's gradient uses) and one step; ``first``: the next
+    sample aligns it."""
     reg: dict
     first: bool = True
     q: tuple = (ONE, 0, 0, 0)
+    rm: tuple = ()
 
     def align(self, a, m, acc_ok, mag_ok, st):
         """The start: roll and pitch from the accelerometer, the tilt-compensated heading from
@@ -81,7 +83,7 @@ class MadgwickFixed:
         step = (0, 0, 0, 0)
         if acc_ok and not first:
             flags.add("acc_used")
-            grad = self._gradient(q, a, m, mag_ok, st)
+            grad = self._gradient(q, self.rm, a, m, mag_ok, st)
             if mag_ok:
                 flags.add("mag_used")
             # |G|·K² from three vectoring CORDICs; the step β·T·n·G/|G|
@@ -95,14 +97,15 @@ class MadgwickFixed:
                 step = tuple(mul(c, r, 24, st) for c in grad)
         qn = [sat32(sat32(q[i] + qd[i], st) - step[i], st) for i in range(4)]
         self.q = _normalise(qn, st)
-        return self.q, quat_angles_fixed(_matrix(self.q, st), 0, st), flags
+        self.rm = _matrix(self.q, st)
+        return self.q, quat_angles_fixed(self.rm, 0, st), flags
 
     @staticmethod
-    def _gradient(q, a, m, mag_ok, st):
-        """G = ∇f / 16: the gravity term, and the field's with ``mag_ok``, each product of a
-        quarter-scaled quaternion (q / 8) with an error term, summed in one accumulation."""
+    def _gradient(q, rm, a, m, mag_ok, st):
+        """G = ∇f / 16: the gravity term, and the field's with ``mag_ok``, each product of an
+        eighth of the quaternion with an error term, summed in one accumulation. ``rm``: R(q),
+        as the last step's output computed it (q has not changed since)."""
         w, x, y, z = q
-        rm = _matrix(q, st)
         s = _unit(a, st)
         fa = [sat32(rm[6 + j] - s[j], st) for j in range(3)]              # Rᵀ·(0, 0, 1) − ŝ
         w8, x8, y8, z8 = (mul(c, 1 << 27, 30, st) for c in q)

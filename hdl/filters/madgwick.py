@@ -100,9 +100,10 @@ def _field(asm, r):
 
 
 def _gradient(asm, r):
-    """GR = G (QG's words), with the field's terms when MAG_OK; sets ACC_USED (and MAG_USED)."""
+    """GR = G (QG's words), with the field's terms when MAG_OK; sets ACC_USED (and MAG_USED).
+    R(q) is in RM from the last sample's output (``_angles``; q has not changed since, and the
+    first sample after a start, which has no R(q) yet, takes no gradient step)."""
     asm.setf(Flag.ACC_USED)
-    _matrix(asm, r, "RM", "QOUT")
     _unit(asm, r, "S", "A")
     for j in range(3):
         asm.sub(r[f"FA{j}"], r[f"RM{6 + j}"], r[f"S{j}"])
