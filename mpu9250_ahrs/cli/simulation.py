@@ -66,8 +66,7 @@ def add_replay(sub, quiet):
     p.add_argument("file", help="HDF5 recording, e.g. ../shared/data/broad/02_*.hdf5")
     p.add_argument("--filter", choices=FLOAT_FILTERS,
                    default="flagship",
-                   help="the filter to score (flagship); madgwick runs in the float reference "
-                        "only")
+                   help="the filter to score (flagship)")
     p.add_argument("--engine", choices=("float", "fixed", "gateware", "board"),
                    default="float",
                    help="float: the float reference filter; fixed: the bit-exact integer model "
@@ -79,12 +78,13 @@ def add_replay(sub, quiet):
                         "when Verilator is there), scored on the frames the host decodes (every "
                         "telemetry_divider-th sample) and each frame compared with the fixed "
                         "model (about 4 minutes a shared recording). fixed, gateware and "
-                        "board: kalman, complementary, flagship")
+                        f"board: {', '.join(FILTER_NAMES)}")
     p.add_argument("--samples", type=_count, default=None, metavar="N",
                    help="only the recording's first N samples")
     p.add_argument("--fixed", action="store_true", help="the same as --engine fixed")
     p.add_argument("--out", help="write the estimated quaternions (t, w, x, y, z) as CSV")
-    p.add_argument("--beta", type=_positive, default=None, help="Madgwick gain (default 0.1)")
+    p.add_argument("--beta", type=_positive, default=None,
+                   help="Madgwick's gain β (default 0.1; every engine: BETA_K in the gateware)")
     _add_full_scale_options(p, whose="the recording's ")
     p.set_defaults(func=cmd_replay)
 
