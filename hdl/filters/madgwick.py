@@ -3,7 +3,9 @@ operation for operation, on the attitude engine (instruction set: ``hdl/attitude
 
 Its quaternion is its state and its output (QOUT). Its working registers are the flagship's
 (``_REGISTERS``): only one filter runs, and a switch to either restarts it (the flagship from
-its start-up, Madgwick from its alignment), so neither finds the other's values in them.
+its start-up, Madgwick from its alignment), so neither finds the other's values in them. One
+of them carries a value from a sample to the next: RM, R(q) of the output, which the next
+gradient uses.
 
 Cost: ``python -m mpu9250_ahrs report`` (``cycles_per_update.madgwick``).
 """
