@@ -133,6 +133,7 @@ class AttitudeEngine(wiring.Component):
         self.program, self.entry = build_program()
         # the hard blocks, kept as attributes: ``report`` substitutes them for its synthesis
         self.multiplier = Multiplier()
+        self.cordic = CORDIC()                  # two of its own 18 x 18 blocks (its shift)
         # Madgwick's β: the float filter's default at this sample period (a host writes BETA_K)
         registers = {**filter_registers(config, self.flagship),
                      **calibration_registers(self.cal), **(extra_registers or {})}
@@ -154,7 +155,7 @@ class AttitudeEngine(wiring.Component):
 
     def elaborate(self, platform):
         m = Module()
-        m.submodules.cordic = cordic = CORDIC()
+        m.submodules.cordic = cordic = self.cordic
         m.submodules.divider = divider = Divider()
         m.submodules.alu = alu = ALU()
         m.submodules.mac = mac = MultiplyAccumulate(self.multiplier)

@@ -5,6 +5,7 @@ from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
 from .numeric_contract import ATAN_TABLE, INV_GAIN_Q30
+from .multiplier import BLACKBOX_NAME
 
 
 __all__ = ["CORDIC"]
@@ -31,8 +32,11 @@ class CORDIC(wiring.Component):
     Q1.(``width`` − 2)).
     Latency: ``done`` ``CORDIC_ITERATIONS`` + 1 cycles after ``start``; throughput one operation per
     that many cycles. Internal width 34 bits: a 32-bit vector's length times K (1.647) is below 2³³,
-    so any 32-bit input converges without overflow.
+    so any 32-bit input converges without overflow. Two 18 × 18 multipliers shift y by i
+    (``blackbox``: ``report`` makes them empty blocks, as the engine's multiplier's).
     """
+    blackbox = False        # ``report``: the shift's multipliers as empty 18 x 18 blocks
+
     def __init__(self, *, width=32, atan_table=ATAN_TABLE, inv_gain=INV_GAIN_Q30):
         self.width, self.atan_table, self.inv_gain = width, tuple(atan_table), inv_gain
         n = width
@@ -68,12 +72,28 @@ class CORDIC(wiring.Component):
         # the signs alone (y ≥ 0 rather than y > 0: no zero test)
         m.d.comb += up.eq(Mux(rotate, z[-1], ~y[-1]))
         xs, ys = Signal(signed(inner)), Signal(signed(inner))
-        m.d.comb += [xs.eq(x >> i), ys.eq(y >> i)]
+        # y >> i by two 18 x 18 multipliers, not a shifter of logic (x's stays one: the blocks
+        # are few): y = hi·2ᴸ + lo, lo the low L bits (unsigned), and with c = 2ᴸ⁻¹⁻ⁱ,
+        # y >> i = (hi·c)·2 | (lo·c) >> (L − 1): the two parts in disjoint bits, no adder
+        low = max(iterations, inner - 18)
+        assert low <= 17 and low < inner, "the shift's multipliers take 18-bit operands"
+        # c is a register shifted right each iteration (no decoder of i before the blocks)
+        c = Signal(18, reset_less=True)
+        hi, lo = y[low:].as_signed(), Cat(y[:low], C(0, 1)).as_signed()
+        p_hi, p_lo = Signal(signed(36)), Signal(signed(36))
+        if self.blackbox:
+            m.submodules.shift_hi = Instance(BLACKBOX_NAME, i_a=hi, i_b=c.as_signed(), o_p=p_hi)
+            m.submodules.shift_lo = Instance(BLACKBOX_NAME, i_a=lo, i_b=c.as_signed(), o_p=p_lo)
+        else:
+            m.d.comb += [p_hi.eq(hi * c.as_signed()), p_lo.eq(lo * c.as_signed())]
+        m.d.comb += [xs.eq(x >> i),
+                     ys.eq((p_hi << 1)[:inner].as_signed() |
+                           p_lo[low - 1:low - 1 + inner].as_unsigned())]
 
         with m.FSM():
             with m.State("IDLE"):
                 with m.If(self.start):
-                    m.d.sync += [i.eq(0), rotate.eq(self.mode)]
+                    m.d.sync += [i.eq(0), rotate.eq(self.mode), c.eq(1 << (low - 1))]
                     with m.If(self.mode):
                         a = self.angle_in
                         # beyond ±90°: turn by 180° (wrapping add of 2³¹), start from (−1/K, 0)
@@ -100,7 +120,7 @@ class CORDIC(wiring.Component):
                     y.eq(y + Mux(up, ~xs, xs) + up),
                     z.eq(z + Mux(up, atan[i], ~atan[i]) + ~up),
                 ]
-                m.d.sync += i.eq(i + 1)
+                m.d.sync += [i.eq(i + 1), c.eq(c >> 1)]
                 with m.If(i == iterations - 1):
                     m.next = "DONE"
             with m.State("DONE"):

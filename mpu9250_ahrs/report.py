@@ -43,9 +43,11 @@ YOSYS_HINT = "install it with: apt-get install yosys (Debian's 0.23 has synth_in
 
 def hard_blocks_as_blackboxes(engine, rams=(), others=()):
     """Mark the engine's multiplier, register file and ROM, the ``FrameRAM``s ``rams`` and the
-    blocks ``others`` (whose own multipliers then are ``BLACKBOX_NAME`` blocks) to elaborate
-    as empty modules (with the logic Quartus adds around them), for Yosys 0.23."""
-    for block in (engine.multiplier, engine.regfile, engine.rom, *rams, *others):
+    blocks ``others`` (whose own multipliers then are ``BLACKBOX_NAME`` blocks; the engine's
+    CORDIC is one) to elaborate as empty modules (with the logic Quartus adds around them), for
+    Yosys 0.23."""
+    for block in (engine.multiplier, engine.regfile, engine.rom, engine.cordic, *rams,
+                  *others):
         block.blackbox = True
 
 
