@@ -12,7 +12,7 @@ Cost: ``python -m mpu9250_ahrs report`` (``cycles_per_update.flagship``).
 """
 
 from ..attitude_isa import DOUBLED, Q14, Q30, Cond, Flag
-from .shared import step_n, zero_tests
+from .shared import matrix_angles, step_n, zero_tests
 
 
 __all__ = ["CONFIG_REGISTERS", "REGISTERS", "FLAGSHIP_REGISTERS", "flagship_names",
@@ -319,8 +319,7 @@ def _heading(asm, r):
 def _output(asm, r):
     """The flagship's output: q = (cos δ/2, 0, 0, sin δ/2) ⊗ q_a ⊗ q_g, and its angles
     (``flagship_routine``'s part)."""
-    ZERO = r["ZERO"]
-    with asm.scratch(2) as (t0, t1):
+    with asm.scratch(1) as (t0,):
         asm.mul(t0, r["DELTA"], r["HALF"], Q30)
         asm.rot(r["F_CD"], t0)
         cd, sd = r["F_CD"], r["F_SD"]
@@ -329,14 +328,7 @@ def _output(asm, r):
         asm.mac(r["QOUT1"], [(cd, x), (sd, y, -1)], Q30)
         asm.mac(r["QOUT2"], [(cd, y), (sd, x)], Q30)
         asm.mac(r["QOUT3"], [(cd, z), (sd, w)], Q30)
-        m = [r[f"RAG{i}"] for i in range(9)]
-        # roll and pitch from R's bottom row (the VECs write their magnitudes beside the angle)
-        asm.vec(r["THETA0"], m[8], m[7])
-        asm.mul(t0, r["THETA1"], r["INV_GAIN"], Q30)
-        asm.sub(t1, ZERO, m[6])
-        asm.vec(r["THETA1"], t0, t1)
-        asm.vec(r["F_YAW"], m[0], m[3])
-        asm.add(r["THETA2"], r["DELTA"], r["F_YAW"], wrap=True)
+    matrix_angles(asm, r, [r[f"RAG{i}"] for i in range(9)], r["F_YAW"], r["DELTA"])
     asm.end()
 
 

@@ -12,7 +12,7 @@ Cost: ``python -m mpu9250_ahrs report`` (``cycles_per_update.madgwick``).
 
 from ..attitude_isa import Q14, Q24, Q30, Cond, Flag
 from .flagship import _PAIRS, _matrix, _normalise
-from .shared import euler_quat, heading, step_n, tilt, zero_tests
+from .shared import euler_quat, heading, matrix_angles, step_n, tilt, zero_tests
 
 
 __all__ = ["CONFIG_REGISTERS", "REGISTERS", "emit"]
@@ -145,14 +145,7 @@ def _step(asm, r):
 def _angles(asm, r):
     """THETA: roll and pitch from R's bottom row, yaw from its first column; then END."""
     _matrix(asm, r, "RM", "QOUT")
-    m = [r[f"RM{i}"] for i in range(9)]
-    with asm.scratch(2) as (t0, t1):
-        asm.vec(r["THETA0"], m[8], m[7])
-        asm.mul(t0, r["THETA1"], r["INV_GAIN"], Q30)
-        asm.sub(t1, r["ZERO"], m[6])
-        asm.vec(r["THETA1"], t0, t1)
-    asm.vec(r["YAW"], m[0], m[3])
-    asm.add(r["THETA2"], r["ZERO"], r["YAW"], wrap=True)
+    matrix_angles(asm, r, [r[f"RM{i}"] for i in range(9)], r["YAW"], r["ZERO"])
     asm.end()
 
 
@@ -182,8 +175,7 @@ def emit(asm, r):
     r = _aliases(r)
     zero_tests(asm, r, "m")
     step_n(asm, r, "K_RAD")
-    asm.mul(r["BN"], r["NPER"], r["SHL14"], Q14)                # BETA_K · n, as step_n
-    asm.mul(r["BN"], r["BETA_K"], r["BN"], Q14)
+    step_n(asm, r, "BETA_K", "BN")
     asm.br("m_start", Cond.FIRST)
     asm.label("m_started")
     # ½·q ⊗ (0, ω·T·n)

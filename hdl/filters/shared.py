@@ -7,7 +7,7 @@ from ..attitude_isa import Q14, Q24, Q30, Cond
 
 
 __all__ = ["init", "calibrate", "zero_tests", "tilt", "heading", "step_n", "euler_rates",
-           "euler_quat", "angles_out"]
+           "matrix_angles", "euler_quat", "angles_out"]
 
 
 def init(asm, r):
@@ -91,13 +91,13 @@ def heading(asm, r, roll, pitch, out):
 
 
 
-def step_n(asm, r, coefficient):
-    """STEP_N = ``coefficient`` · NPER: the rotation of this update covers every period since
-    the previous sample (a sample the sensor made but nobody read is integrated, not lost).
-    Exact: NPER << 14 by a MUL with SHL14, then a MUL with shift 14; saturates (and flags)
-    only for a coefficient times 16 beyond 32 bits."""
-    asm.mul(r["STEP_N"], r["NPER"], r["SHL14"], Q14)
-    asm.mul(r["STEP_N"], r[coefficient], r["STEP_N"], Q14)
+def step_n(asm, r, coefficient, dst="STEP_N"):
+    """``dst`` (STEP_N) = ``coefficient`` · NPER: the rotation of this update covers every
+    period since the previous sample (a sample the sensor made but nobody read is integrated,
+    not lost). Exact: NPER << 14 by a MUL with SHL14, then a MUL with shift 14; saturates (and
+    flags) only for a coefficient times 16 beyond 32 bits."""
+    asm.mul(r[dst], r["NPER"], r["SHL14"], Q14)
+    asm.mul(r[dst], r[coefficient], r[dst], Q14)
 
 
 def euler_rates(asm, r, U, name):
@@ -118,6 +118,19 @@ def euler_rates(asm, r, U, name):
         asm.mul(w, w, tp, Q24)
         asm.add(U[1], t, r["ZERO"])
         asm.add(U[0], U[0], w)
+
+
+def matrix_angles(asm, r, m, yaw, delta):
+    """THETA = the ZYX angles of Rz(δ)·R (``quat_angles_fixed``), R the nine registers ``m``
+    (Q2.30): roll and pitch from R's bottom row, yaw = δ (register ``delta``) + atan2(R10,
+    R00), vectored into the CORDIC pair ``yaw`` (the VECs write magnitudes beside angles)."""
+    with asm.scratch(2) as (t0, t1):
+        asm.vec(r["THETA0"], m[8], m[7])
+        asm.mul(t0, r["THETA1"], r["INV_GAIN"], Q30)
+        asm.sub(t1, r["ZERO"], m[6])
+        asm.vec(r["THETA1"], t0, t1)
+    asm.vec(yaw, m[0], m[3])
+    asm.add(r["THETA2"], delta, yaw, wrap=True)
 
 
 def euler_quat(asm, r, angles):
