@@ -40,6 +40,12 @@ class CORDIC(wiring.Component):
     def __init__(self, *, width=32, atan_table=ATAN_TABLE, inv_gain=INV_GAIN_Q30):
         self.width, self.atan_table, self.inv_gain = width, tuple(atan_table), inv_gain
         n = width
+        # y >> i's multipliers take its low bits (one per iteration at least, at most 17) and
+        # its high bits (at most 18) as 18-bit operands
+        self.low_bits = max(len(self.atan_table), n + 2 - 18)
+        if not self.low_bits <= 17 or self.low_bits >= n + 2:
+            raise ValueError(f"CORDIC: {len(self.atan_table)} iterations at width {width} do not "
+                             f"fit the shift's 18 x 18 multipliers")
         super().__init__({
             "start": In(1),
             "mode": In(1),                  # 0: vectoring, 1: rotation
@@ -75,8 +81,7 @@ class CORDIC(wiring.Component):
         # y >> i by two 18 x 18 multipliers, not a shifter of logic (x's stays one: the blocks
         # are few): y = hi·2ᴸ + lo, lo the low L bits (unsigned), and with c = 2ᴸ⁻¹⁻ⁱ,
         # y >> i = (hi·c)·2 | (lo·c) >> (L − 1): the two parts in disjoint bits, no adder
-        low = max(iterations, inner - 18)
-        assert low <= 17 and low < inner, "the shift's multipliers take 18-bit operands"
+        low = self.low_bits
         # c is a register shifted right each iteration (no decoder of i before the blocks)
         c = Signal(18, reset_less=True)
         hi, lo = y[low:].as_signed(), Cat(y[:low], C(0, 1)).as_signed()

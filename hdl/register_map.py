@@ -4,9 +4,6 @@ loader's inputs, the filters' state and the constants (``REGS``), and the reset 
 Register map (32-bit words; the host writes the run-time registers through the engine's
 ``cfg`` port at these addresses, any time the engine is idle)
 
-Register map (32-bit words; the host writes the run-time registers through the engine's
-``cfg`` port at these addresses, any time the engine is idle)
-
 =======  ==============  =========================================================  ===========
 address  name            meaning, format                                            reset value
 =======  ==============  =========================================================  ===========

@@ -199,9 +199,9 @@ class SampleReader(wiring.Component):
         # not all its sign (``gyro_jumps``); each word is judged when its low byte comes,
         # its high byte the one before
         b = self.gyro_jump.bit_length() - 1
-        low = [1 + 8 + 2 * axis + 1 for axis in range(3)]
+        is_low = [rx_index == 1 + 8 + 2 * axis + 1 for axis in range(3)]
         axis = Signal(range(3))
-        m.d.comb += axis.eq(Mux(rx_index == low[0], 0, Mux(rx_index == low[1], 1, 2)))
+        m.d.comb += axis.eq(Mux(is_low[0], 0, Mux(is_low[1], 1, 2)))
         high = Signal(8, reset_less=True)      # the byte before this one: the word's high
         with m.If(arriving):
             m.d.sync += high.eq(rx.payload)
@@ -209,8 +209,7 @@ class SampleReader(wiring.Component):
         delta = Signal(signed(17))
         m.d.comb += delta.eq(new - Array(sample.gyro)[axis])
         top = delta[b:17]
-        with m.If(arriving & ((rx_index == low[0]) | (rx_index == low[1]) |
-                              (rx_index == low[2]))):
+        with m.If(arriving & Cat(*is_low).any()):
             with m.If(~((top == 0) | top.all())):
                 m.d.sync += gyro_moved.eq(1)
 

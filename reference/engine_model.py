@@ -60,8 +60,8 @@ class EngineModel:
     (filter coefficients, flagship parameters, calibration), the filter select, a filter
     reset, and ``sample`` (raw counts in, one result out), exactly as the gateware acts on
     them. Switching to another filter makes the next sample a first sample (the Kalman filter
-    takes ω₍ₖ₋₁₎ = ωₖ, the flagship starts afresh but keeps the bias, Madgwick aligns afresh); the per-axis filters
-    continue from the angles of whichever filter ran last."""
+    takes ω₍ₖ₋₁₎ = ωₖ, the flagship starts afresh but keeps the bias, Madgwick aligns afresh);
+    the per-axis filters continue from the angles of whichever filter ran last."""
 
     def __init__(self, config=None, cal=None, flagship=None, *, filter="flagship",
                  registers=None, madgwick=None):
@@ -146,10 +146,11 @@ def attitude_fixed(gyr_raw, acc_raw, mag_ak_raw, mag_valid=None, *, asa=(128, 12
     """The gateware's attitude engine in integers over arrays (``EngineModel`` per sample):
     calibration, then the filter ``select`` names (one name, or an array of names per
     sample); ``config``, ``flagship``, ``madgwick``: the filters' configurations (the last two
-    match ``config`` when None). ``registers`` overrides register values by name (raw integers, e.g. {"R": 0});
-    ``resets``: sample indices before which the filter state is reset; ``writes``:
-    {sample index: {name: value}}, register writes applied before that sample (after a reset
-    there); ``skipped``: per sample, the sensor samples missed before it (0 if None);
+    match ``config`` when None). ``registers`` overrides register values by name (raw
+    integers, e.g. {"R": 0}); ``resets``: sample indices before which the filter state is
+    reset; ``writes``: {sample index: {name: value}}, register writes applied before that
+    sample (after a reset there); ``skipped``: per sample, the sensor samples missed before
+    it (0 if None);
     ``controls``: {sample index: [words]}, CONTROL words a host writes before that sample (after
     the writes), taken or refused as the gateware does (``EngineModel.control``); with them,
     ``select`` names only the filter at the start."""

@@ -1,7 +1,7 @@
 """Run any filter of this project on a recording and score it with BROAD's metric.
 
 ``run_filter`` takes physical units (float filters); ``run_fixed`` takes raw counts and runs the
-bit-exact fixed-point model (per-axis Kalman, complementary, flagship).
+bit-exact fixed-point model of the engine's filters (``FIXED_FILTERS``, the registry's).
 """
 
 import numpy as np
@@ -55,7 +55,8 @@ def engine_configs(name, dt, *, gyro_lsb_per_dps=16.4, accel_lsb_per_ms2=2048 / 
     flagship = FlagshipFixedConfig(dt, gyro_lsb_per_dps * 180 / np.pi, accel_lsb_per_ms2,
                                    params.get("flagship", FlagshipParams()),
                                    mag_dt=params.get("mag_dt"))
-    return kalman, flagship, MadgwickFixedConfig(dt, params.get("beta", 0.1))
+    madgwick = MadgwickFixedConfig(dt, params.get("beta", MadgwickFixedConfig.beta))
+    return kalman, flagship, madgwick
 
 
 def run_fixed(name, gyr_counts, acc_counts, mag_counts, dt, *, gyro_lsb_per_dps=16.4,

@@ -10,14 +10,14 @@ Formats (FIXED_POINT.md, "Madgwick filter")
     gradient step: BETA_K = β·T·K²·2³⁰ (``numeric_contract.MadgwickFixedConfig``)
 Inputs: calibrated body-axis counts, as the other filters.
 
-The float filter normalises the accelerometer, the field and the gradient exactly; so does
-this one, each length from two or three vectoring CORDICs and one division:
-``v / |v|`` = mul(v·2⁸, ⌊2⁴⁴ / |v·2⁸|⌋, 14). One departure: a gradient too small for its
-step's quotient (|∇f| below about 10⁻⁴ at 100 Hz: an error within the sensors' noise) takes no
-step, where the float filter takes a whole β·T step in the noise's direction. The quaternion is renormalised by one Newton
-step (the flagship's), as it stays within 10⁻⁶ of unit length. The first sample after a reset
-or a switch to this filter starts from the accelerometer's tilt and the tilt-compensated
-heading (the float filter's alignment) and integrates the gyro; the gradient steps begin with
+The float filter normalises the accelerometer, the field and the gradient exactly; so does this
+one, each length from two or three vectoring CORDICs and one division: ``v / |v|`` = mul(v·2⁸,
+⌊2⁴⁴ / |v·2⁸|⌋, 14). One departure: a gradient too small for its step's quotient (|∇f| below
+about 10⁻⁴ at 100 Hz: an error within the sensors' noise) takes no step, where the float filter
+takes a whole β·T step in the noise's direction. The quaternion is renormalised by one Newton
+step (the flagship's), as it stays within 10⁻⁶ of unit length. The first sample after a reset or
+a switch to this filter starts from the accelerometer's tilt and the tilt-compensated heading
+(the float filter's alignment) and integrates the gyro; the gradient steps begin with
 the next sample (the float filter also takes one on the first sample, from a gradient that
 the alignment has made all but zero).
 """
@@ -105,7 +105,6 @@ class MadgwickFixed:
         """G = ∇f / 16: the gravity term, and the field's with ``mag_ok``, each product of an
         eighth of the quaternion with an error term, summed in one accumulation. ``rm``: R(q),
         as the last step's output computed it (q has not changed since)."""
-        w, x, y, z = q
         s = _unit(a, st)
         fa = [sat32(rm[6 + j] - s[j], st) for j in range(3)]              # Rᵀ·(0, 0, 1) − ŝ
         w8, x8, y8, z8 = (mul(c, 1 << 27, 30, st) for c in q)

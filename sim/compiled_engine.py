@@ -262,11 +262,11 @@ def run_gateware(filter, gyr_counts, acc_counts, mag_counts, dt, *, mag_valid=No
     from ..hdl.attitude_engine import AttitudeEngine
     from ..reference.evaluate import engine_configs
     from ..reference.frames import body_to_mag
-    configs = engine_configs(filter, dt, **scales_and_params)
+    kalman, flagship, madgwick = configs = engine_configs(filter, dt, **scales_and_params)
     engine = CompiledEngine(AttitudeEngine) if engine is None else engine
     run = engine.run(gyr_counts, acc_counts, body_to_mag(mag_counts), mag_valid,
-                     writes={0: configuration_writes(filter, configs[0], configs[1],
-                                                     madgwick=configs[2])})
+                     writes={0: configuration_writes(filter, kalman, flagship,
+                                                     madgwick=madgwick)})
     return run, engine, configs
 
 
