@@ -45,7 +45,7 @@ from .numeric_contract import (INV_GAIN_Q30, CalibrationFixed, FilterRates, Flag
                                mag_period)
 from .attitude_result import Attitude
 from .config_write import ConfigWrite
-from .sample import Sample
+from .sample import Sample, SAMPLE_WORDS, sample_words
 
 
 __all__ = ["AttitudeEngine", "PEEKED", "default_filter_config", "default_flagship_config"]
@@ -63,6 +63,25 @@ PEEKED = (*(f"QOUT{i}" for i in range(4)), *(f"THETA{i}" for i in range(3)),
 # (620; `report` prints these). The rate checks of ``build`` and ``report`` rely on it;
 # tests check it on whole recordings, resets and the Euler-rate option.
 WORST_UPDATE_CYCLES = 720
+
+
+def _field_halves():
+    """Where the loader finds the sample's sensor fields (the first ``LOAD_ORDER`` words: raw
+    gyro, accelerometer, magnetometer): each field's 16-bit half of the sample's words, as
+    2·word + half."""
+    sample = data.Layout.cast(Sample)
+    places = []
+    for field in ("gyro", "accel", "mag"):
+        for i in range(3):
+            offset = sample[field].offset + 16 * i
+            assert offset % 16 == 0, "a sensor field off a 16-bit boundary"
+            places.append(offset // 16)
+    return places
+
+
+SENSOR_FIELD_HALVES = _field_halves()
+assert LOAD_ORDER[:len(SENSOR_FIELD_HALVES)] == [f"{reg}{i}" for reg in ("GRAW", "ARAW", "MRAW")
+                                               for i in range(3)]
 
 
 def default_filter_config(sensor, rates=None):
@@ -97,8 +116,9 @@ class AttitudeEngine(wiring.Component):
             ``TELEMETRY_DIV``.
     Members
         ``samples`` (in, stream of ``Sample``): one update per sample. Taken when the engine is
-            idle and the previous result has been taken; the sample is read from the payload while
-            it is loaded (one cycle per ``LOAD_ORDER`` word: 13), then acknowledged.
+            idle and the previous result has been taken; the sample is held (``sample``) as
+            its load starts, loaded from there (one cycle per ``LOAD_ORDER`` word: 13), then
+            acknowledged.
         ``asa`` (in, 3 × 8 bits): the AK8963's fuse-ROM sensitivity bytes (from the driver).
         ``cfg`` (in, stream of ``ConfigWrite``): register writes (``register_map`` has the
             map); accepted while the engine is idle. Only ``HOST_WRITABLE`` addresses are written:
@@ -113,6 +133,12 @@ class AttitudeEngine(wiring.Component):
         ``results`` (out, stream of ``Attitude``): one per sample — quaternion, angles, bias,
             counter, flags — valid (and unchanging) until taken.
         ``busy`` (out): an update or a filter reset is running.
+        ``sample`` (out, ``Sample``): the sample of the present (or last) update, held from
+            the start of its load to the next load.
+        ``sample_index`` (in, 0..``SAMPLE_WORDS`` − 1) / ``sample_word`` (out, 32): the held
+            sample's 32-bit words (``sample.sample_words``: its bits, the last word padded
+            with zeros), combinational, outside LOAD (the loader reads through the same
+            multiplexer): the framer copies the sample from here.
         ``peek_en``, ``peek_index`` (in, 0..9) / ``peek_data`` (out, signed 32): the offered
             result's words read from the register file (``PEEKED``: the quaternion, angles and
             bias, in ``Attitude``'s order; the word the cycle after ``peek_en``), equal to
@@ -149,6 +175,9 @@ class AttitudeEngine(wiring.Component):
             "results": Out(stream.Signature(Attitude)),
             "busy": Out(1),
             "cfg_refused": Out(16),
+            "sample": Out(Sample),
+            "sample_index": In(range(SAMPLE_WORDS)),
+            "sample_word": Out(32),
             "peek_en": In(1), "peek_index": In(range(len(PEEKED))),
             "peek_data": Out(signed(32)),
         })
@@ -465,14 +494,27 @@ class AttitudeEngine(wiring.Component):
                          phase.eq(0)]
 
         load_index = Signal(range(len(LOAD_ORDER)), reset_less=True)
-        sample = self.samples.payload
-        # every load word fits 16 bits: multiplex 16, sign-extend on the write
-        load_data = Array(Value.cast(v)[:16].as_signed()
-                          for v in load_words([sample.gyro[i] for i in range(3)],
-                                              [sample.accel[i] for i in range(3)],
-                                              [sample.mag[i] for i in range(3)],
-                                              [self.asa[i] for i in range(3)],
-                                              sample.skipped))
+        # The sample is held from its load until the next one: the loader reads it, and then
+        # the framer (``sample_word``), through one multiplexer of its 32-bit words. Each of
+        # them had its own (a LUT4 fabric pays about a LUT per multiplexed bit).
+        held = self.sample
+        # the loader's other words (ASA, the periods: each fits 16 bits) as two more words
+        # after the sample's, so that every load word is a 16-bit half of a word (sign-extended
+        # on the write)
+        tail = [Value.cast(v)[:16] for v in
+                load_words([0] * 3, [0] * 3, [0] * 3, [self.asa[i] for i in range(3)],
+                           held.skipped)[len(SENSOR_FIELD_HALVES):]]
+        tail += [C(0, 16)] * (len(tail) % 2)
+        words = sample_words(held) + [Cat(tail[i], tail[i + 1]) for i in range(0, len(tail), 2)]
+        word_index = Signal(range(len(words)))
+        word = Signal(32)
+        m.d.comb += [word.eq(Array(words)[word_index]), self.sample_word.eq(word),
+                     word_index.eq(self.sample_index)]
+        # each load word's place: 2·word + half (the sensor fields', then the tail's)
+        places = Array(C(place, 5) for place in
+                       SENSOR_FIELD_HALVES + [2 * SAMPLE_WORDS + i for i in range(len(tail))])
+        place = places[load_index]
+        load_data = word.word_select(place[0], 16)
 
         with m.If(self.results.valid & self.results.ready):
             m.d.sync += result_valid.eq(0)
@@ -496,7 +538,7 @@ class AttitudeEngine(wiring.Component):
                     m.d.sync += [init_pending.eq(0), running_init.eq(1)]
                     m.next = "RUN"
                 with m.Elif(self.samples.valid & ~result_valid):
-                    m.d.sync += [load_index.eq(0), flags_set.eq(0),
+                    m.d.sync += [load_index.eq(0), flags_set.eq(0), held.eq(self.samples.payload),
                                  flag_sat.eq(0), mag_valid.eq(self.samples.payload.flags.mag_valid),
                                  out.counter.eq(self.samples.payload.counter),
                                  out.flags.overrun.eq(self.samples.payload.flags.overrun),
@@ -506,7 +548,8 @@ class AttitudeEngine(wiring.Component):
                     m.d.comb += host.open.eq(1)
             with m.State("LOAD"):
                 m.d.comb += [self.busy.eq(1), w_en.eq(1), w_addr.eq(LOAD_BASE | load_index),
-                             w_other.eq(load_data[load_index])]
+                             w_other.eq(load_data.as_signed()),
+                             word_index.eq(place[1:])]
                 m.d.sync += load_index.eq(load_index + 1)
                 with m.If(load_index == len(LOAD_ORDER) - 1):
                     m.d.comb += self.samples.ready.eq(1)

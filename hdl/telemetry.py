@@ -39,6 +39,13 @@ class TelemetryFramer(wiring.Component):
             multiplexer costs about a LUT per input bit, and the copy's is most of the
             framer). The producer's port must give the word the payload would hold, the
             cycle after ``fetch_en``, while ``i_stream`` is valid.
+        ``borrow`` (buffered only): None, or ``(offset, bits)``: the payload's ``bits`` bits from
+            bit ``offset`` (a multiple of 32) are not read from ``i_stream``'s payload either, but
+            through a combinational read port: their word ``k`` is ``borrow_data`` while
+            ``borrow_index`` is ``k``, in the cycle it is copied (the sample an attitude result
+            came from, read through the engine's multiplexer of it, which its loader uses
+            too). The bits of the last word beyond ``bits`` must read 0; ``i_stream``'s
+            payload gives the rest of that word.
     Members
         ``i_stream`` (in, stream of ``layout``); ``o_stream`` (out, stream of ``FrameByte``:
             to a ``FrameArbiter``, or a UART taking ``data``).
@@ -49,12 +56,13 @@ class TelemetryFramer(wiring.Component):
             copied at once). Unbuffered: no frame is being sent.
         ``fetch_en``, ``fetch_index`` (out), ``fetch_data`` (in, 32): with ``fetch``, the read
             port (above).
+        ``borrow_index`` (out), ``borrow_data`` (in, 32): with ``borrow``, its port (above).
     Throughput: ``length + 7`` bytes per frame.
     Latency: the first sync byte is offered in the cycle the payload is (unbuffered), or once
     the copy ends, ⌈``length``/4⌉ cycles after it (buffered).
     """
     def __init__(self, layout=SensorFrame, frame_type=0x01, *, buffered=False, short=None,
-                 fetch=None):
+                 fetch=None, borrow=None):
         self.layout = layout
         self.frame_type = frame_type
         self.buffered = buffered
@@ -89,6 +97,17 @@ class TelemetryFramer(wiring.Component):
                                  f"multiple of 8, at least 32, inside the payload")
             members.update({"fetch_en": Out(1), "fetch_index": Out(range(n)),
                             "fetch_data": In(32)})
+        self.borrow = borrow
+        if borrow is not None:
+            offset, bits = borrow
+            size = data.Layout.cast(layout).size
+            fetched = range(0) if fetch is None else range(fetch[0], fetch[0] + 32 * fetch[1])
+            if not buffered or offset % 32 or bits < 1 or offset + bits > size or \
+                    (fetched and offset < fetched.stop and fetched.start < offset + bits):
+                raise ValueError(f"borrow {borrow}: a buffered framer's bits from a multiple "
+                                 f"of 32, inside the payload, apart from the fetched words")
+            members.update({"borrow_index": Out(range((bits + 31) // 32)),
+                            "borrow_data": In(32)})
         super().__init__(members)
 
     def elaborate(self, platform):
@@ -117,6 +136,9 @@ class TelemetryFramer(wiring.Component):
             fetched = C(0, 32)
             if self.fetch is not None:
                 payload_words, fetched = self._fetched(m, payload_words, copy_index, sending)
+            if self.borrow is not None:
+                payload_words, borrowed = self._borrowed(m, payload_words, copy_index)
+                fetched = fetched | borrowed
             # copy: the payload's words into the RAM, one per cycle, through one multiplexer
             with m.If(self.i_stream.valid & ~sending):
                 m.d.comb += [ram.w_en.eq(1), ram.w_addr.eq(copy_index),
@@ -211,3 +233,19 @@ class TelemetryFramer(wiring.Component):
             mask = sum(b << j for j, b in enumerate(keep))
             words.append(word & mask if mask != (1 << 32) - 1 else word)
         return words, fetched
+
+    def _borrowed(self, m, payload_words, copy_index):
+        """The copy with ``borrow``: the payload's words with the borrowed bits left out, and
+        the borrowed word of the frame word copied now (0 outside them), to be ORed in."""
+        offset, bits = self.borrow
+        first, n = offset // 32, (bits + 31) // 32
+        m.d.comb += self.borrow_index.eq(copy_index - first)
+        inside = (copy_index >= first) & (copy_index < first + n) if first else copy_index < n
+        words = []
+        for i, word in enumerate(payload_words):
+            low, high = max(offset, 32 * i), min(offset + bits, 32 * i + 32)
+            if low < high:
+                mask = ((1 << 32) - 1) ^ (((1 << (high - low)) - 1) << (low - 32 * i))
+                word = word & mask
+            words.append(word)
+        return words, Mux(inside, self.borrow_data, 0)

@@ -69,7 +69,7 @@ from .defaults import DEFAULT_BAUD
 from .uart_tx import UARTTransmitter
 
 
-__all__ = ["AHRSCore", "AsyncResetCore", "core_verilog", "BoardTop", "telemetry_divider_for",
+__all__ = ["AHRSCore", "result_fetch", "sample_borrow", "AsyncResetCore", "core_verilog", "BoardTop", "telemetry_divider_for",
            "rate_budget", "VERSION", "version_word", "io_constraints", "io_register_settings"]
 
 
@@ -87,6 +87,14 @@ def result_fetch():
     assert all(fields[name].offset + 32 * i == 32 * k
                for k, (name, i) in enumerate(words)), "the fetched words are not consecutive"
     return offset, len(PEEKED)
+
+
+def sample_borrow():
+    """The attitude framer's ``borrow``: an ``AttitudeFrame``'s sample, the words the engine's
+    ``sample_word`` gives (the sample it holds, its last word padded with zeros)."""
+    sample = data.Layout.cast(AttitudeFrame)["sample"]
+    assert sample.offset == 0
+    return 0, data.Layout.cast(Sample).size
 
 
 def version_word(**build):
@@ -189,7 +197,8 @@ class AHRSCore(wiring.Component):
         if flagship_config is None:
             flagship_config = default_flagship_config(config)
         self.framer = TelemetryFramer(AttitudeFrame, ATTITUDE, buffered=True,
-                                      short=(SENSOR, SensorFrame), fetch=result_fetch())
+                                      short=(SENSOR, SensorFrame), fetch=result_fetch(),
+                                      borrow=sample_borrow())
         self.telemetry_divider = telemetry_divider
         self.engine = AttitudeEngine(filter_config, calibration, flagship_config,
                                      filter=filter,
@@ -246,8 +255,8 @@ class AHRSCore(wiring.Component):
 
         # Sample -> engine -> scheduler (every result taken; every n-th framed) -> UART.
         # The engine takes a sample only when its previous result is out, and the scheduler
-        # takes results at once, so one held copy of the sample (and of the status read
-        # with it) belongs to the result the scheduler sees.
+        # takes results at once or after the framer's copy, so the sample the engine holds
+        # (and the status read with it, held here) belongs to the result the scheduler sees.
         m.submodules.engine = engine = self.engine
         m.submodules.scheduler = sched = self.scheduler
         connect(m, fe.samples, engine.samples)
@@ -257,10 +266,13 @@ class AHRSCore(wiring.Component):
         # while the scheduler offers it (the engine is idle then), not from its payload
         m.d.comb += [engine.peek_en.eq(framer.fetch_en), engine.peek_index.eq(framer.fetch_index),
                      framer.fetch_data.eq(engine.peek_data)]
-        held = Signal(Sample, reset_less=True)
+        # the sample too, through the engine's multiplexer of the sample it holds, which its
+        # loader uses (not through the framer's own)
+        m.d.comb += [engine.sample_index.eq(framer.borrow_index),
+                     framer.borrow_data.eq(engine.sample_word)]
         held_status = Signal(DriverStatus, reset_less=True)
         with m.If(fe.samples.valid & fe.samples.ready):
-            m.d.sync += [held.eq(fe.samples.payload), held_status.eq(fe.status)]
+            m.d.sync += held_status.eq(fe.status)
 
         if self.commands:
             self._command_channel(m, engine, framer, arbiter, fe)
@@ -276,7 +288,7 @@ class AHRSCore(wiring.Component):
             m.d.sync += divider.eq(engine.cfg.payload.data[:16])
         m.d.comb += [
             engine.asa.eq(fe.asa),
-            sched.sample.eq(held), sched.status.eq(held_status),
+            sched.sample.eq(engine.sample), sched.status.eq(held_status),
             sched.divider.eq(divider), self.counters.eq(sched.counters),
             sched.cfg_refused.eq(engine.cfg_refused), self.cfg_refused.eq(engine.cfg_refused),
             sched.framer_idle.eq(framer.idle),

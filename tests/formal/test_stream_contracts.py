@@ -40,7 +40,7 @@ from mpu9250_ahrs.hdl.sensor_frontend import SensorFrontEnd
 from mpu9250_ahrs.hdl.spi_controller import SPIController, SPITiming
 from mpu9250_ahrs.hdl.frame_types import AttitudeFrame, Reply, SensorFrame
 from mpu9250_ahrs.hdl.telemetry import TelemetryFramer
-from mpu9250_ahrs.hdl.top import result_fetch
+from mpu9250_ahrs.hdl.top import result_fetch, sample_borrow
 from mpu9250_ahrs.hdl.telemetry_scheduler import TelemetryScheduler
 from mpu9250_ahrs.hdl.uart_rx import UARTReceiver
 
@@ -67,10 +67,12 @@ COMPONENTS = {
     "telemetry_framer": TelemetryFramer,
     "attitude_framer": lambda: TelemetryFramer(AttitudeFrame, 0x02, buffered=True,
                                                short=(0x01, SensorFrame)),
-    # as the core builds it: the result's words fetched from the engine during the copy
+    # as the core builds it: the result's words fetched from the engine during the copy, the
+    # sample borrowed from it
     "attitude_framer_fetch": lambda: TelemetryFramer(AttitudeFrame, 0x02, buffered=True,
                                                      short=(0x01, SensorFrame),
-                                                     fetch=result_fetch()),
+                                                     fetch=result_fetch(),
+                                                     borrow=sample_borrow()),
     "sensor_frontend_spi": lambda: SensorFrontEnd(clk_freq=1e6),
     "sensor_frontend_i2c": lambda: SensorFrontEnd(clk_freq=1e6,
                                                   config=MPU9250Config(wiring="i2c")),

@@ -3,12 +3,13 @@
 import random
 
 import pytest
+from amaranth.hdl import Array, C, Cat, Module
 from amaranth.lib import data
 from amaranth.sim import Simulator
 
 from mpu9250_ahrs.hdl.frame_types import ATTITUDE, SENSOR, SYNC, AttitudeFrame, SensorFrame
 from mpu9250_ahrs.hdl.telemetry import TelemetryFramer
-from mpu9250_ahrs.hdl.top import result_fetch
+from mpu9250_ahrs.hdl.top import result_fetch, sample_borrow
 from mpu9250_ahrs.hdl.uart_tx import UARTTransmitter
 from mpu9250_ahrs.reference.engine_model import attitude_fixed
 from mpu9250_ahrs.sim.attitude_bench import EngineRun, first_mismatch
@@ -105,15 +106,23 @@ def test_framer_against_decoder(buffered):
 
 def test_framer_fetch_equals_payload():
     """The attitude framer as the core builds it (``fetch``: the result's quaternion, angles
-    and bias read through a port during the copy, a cycle after asked) sends the frames the
-    payload holds, when the port gives the payload's words; the words it asks for are those."""
+    and bias read through a port during the copy, a cycle after asked; ``borrow``: the sample
+    through a combinational port) sends the frames the payload holds, when the ports give the
+    payload's words; the words it asks for are those."""
     rng = random.Random(2)
     size = data.Layout.cast(AttitudeFrame).size
     frames = [unpack(AttitudeFrame, rng.getrandbits(size)) for _ in range(3)]
     offset, n = result_fetch()
+    first, bits = sample_borrow()
     dut = TelemetryFramer(AttitudeFrame, ATTITUDE, buffered=True, short=(SENSOR, SensorFrame),
-                          fetch=(offset, n))
-    sim = Simulator(dut)
+                          fetch=(offset, n), borrow=(first, bits))
+    # the borrow port, combinational: the payload's word (its borrowed bits only)
+    top = Module()
+    top.submodules.dut = dut
+    borrowed = Cat(dut.i_stream.payload.as_value()[first:first + bits], C(0, 32))
+    top.d.comb += dut.borrow_data.eq(Array(borrowed[32 * k:32 * k + 32]
+                                           for k in range(bits // 32 + 1))[dut.borrow_index])
+    sim = Simulator(top)
     sim.add_clock(1e-6)
     out, asked = [], []
 
