@@ -276,7 +276,7 @@ class AttitudeEngine(wiring.Component):
             alu.wrap.eq(x.wrap), alu.sat16.eq(x.sat16),
             mac.a.eq(opa), mac.b.eq(opb), mac.ins.eq(x),
             cordic.x_in.eq(opa), cordic.y_in.eq(opb), cordic.angle_in.eq(opa),
-            cordic.mode.eq(x.op == Op.ROT),
+            cordic.mode.eq(x.op == Op.ROT), cordic.short.eq(x.sh[0]),
             divider.num.eq(opa), divider.den.eq(opb),
         ]
 

@@ -18,8 +18,9 @@ MUL   acc = (acc if ``acc`` else 2^(s−1)) ± a·b, s = MUL_SHIFTS[sh]  3; 1 (o
       (exact, 66 bits: the rounding constant goes in first);
       if ``wb``: d = acc >> s  (= rshift_round of the sum)
 DIV   d = div_q24(a, b): ⌊a·2²⁴/b⌋, 0 if b ≤ 0                     34
-VEC   CORDIC vectoring of (x = a, y = b): d = atan2 (BAM32),       19
-      d+1 = magnitude · K
+VEC   CORDIC vectoring of (x = a, y = b): d = atan2 (BAM32),       19; 11 if ``sh`` = 1
+      d+1 = magnitude · K; ``sh`` = 1: short (8 iterations: a
+      length within 3·10⁻⁵, its angle coarse)
 ROT   CORDIC rotation of the angle in a: d = cos, d+1 = sin (Q1.30)  19
 BR    if condition (``cond``, inverted by ``inv``): go to target   1, or 4 when taken
 SETF  set result flag ``sh`` (``Flag``)                          1
@@ -101,7 +102,7 @@ class Instr(data.Struct):
     d: unsigned(REG_BITS)
     a: unsigned(REG_BITS)
     b: unsigned(REG_BITS)
-    sh: unsigned(3)         # MUL: MUL_SHIFTS index; SETF: the flag
+    sh: unsigned(3)         # MUL: MUL_SHIFTS index; SETF: the flag; VEC: 1 = short
     wrap: unsigned(1)       # ADD/SUB: wrap to 32 bits (angles) instead of saturating
     sat16: unsigned(1)      # ADD/SUB: saturate to 16 bits (calibrated sensor values)
     acc: unsigned(1)        # MUL: add to the running accumulator
@@ -245,8 +246,9 @@ class Assembler:
     def div(self, d, a, b):
         self._emit(Instruction(Op.DIV, d, a, b))
 
-    def vec(self, d, x, y):
-        self._emit(Instruction(Op.VEC, d, x, y))
+    def vec(self, d, x, y, *, short=False):
+        """``short``: a length only (``CORDIC_SHORT_ITERATIONS``: d's angle is coarse)."""
+        self._emit(Instruction(Op.VEC, d, x, y, sh=int(short)))
 
     def rot(self, d, angle):
         self._emit(Instruction(Op.ROT, d, angle))

@@ -4,7 +4,7 @@ from amaranth import *
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
-from .numeric_contract import ATAN_TABLE, INV_GAIN_Q30
+from .numeric_contract import ATAN_TABLE, CORDIC_SHORT_ITERATIONS, INV_GAIN_Q30
 from .multiplier import BLACKBOX_NAME
 
 
@@ -18,9 +18,11 @@ class CORDIC(wiring.Component):
     rounded), arithmetic shifts of the values before each iteration.
 
     Interface
-        ``start`` (in): pulse with ``mode`` (0 vectoring, 1 rotation), ``x_in``, ``y_in`` (signed
-            32, vectoring) or ``angle_in`` (BAM32, rotation) valid. Ignored until the cycle after
-            ``done``.
+        ``start`` (in): pulse with ``mode`` (0 vectoring, 1 rotation), ``short``, ``x_in``,
+            ``y_in`` (signed 32, vectoring) or ``angle_in`` (BAM32, rotation) valid. Ignored
+            until the cycle after ``done``.
+        ``short`` (in): stop after ``short_iterations`` (``CORDIC_SHORT_ITERATIONS``, 8): a
+            vectoring whose angle is not wanted (a length: ``cordic_vector(iterations=)``).
         ``done`` (out): one-cycle pulse when the results are valid; they hold until the next start.
         Vectoring results: ``angle`` (BAM32, atan2(y, x); (0, 0) gives 0), ``magnitude``
             (√(x² + y²)·K saturated to 32 bits; ``saturated`` set if it was clamped).
@@ -29,16 +31,22 @@ class CORDIC(wiring.Component):
     Parameters (the datapath's by default; the formal check, ``tests/formal/test_cordic.py``, proves
     the same logic at a reduced width): ``width`` (32: inputs, results and the angle's BAM bits),
     ``atan_table`` (one entry per iteration, BAM of ``width`` bits), ``inv_gain`` (1/K in
-    Q1.(``width`` − 2)).
-    Latency: ``done`` ``CORDIC_ITERATIONS`` + 1 cycles after ``start``; throughput one operation per
-    that many cycles. Internal width 34 bits: a 32-bit vector's length times K (1.647) is below 2³³,
-    so any 32-bit input converges without overflow. Two 18 × 18 multipliers shift y by i
+    Q1.(``width`` − 2)), ``short_iterations`` (at most the table's).
+    Latency: ``done`` ``CORDIC_ITERATIONS`` + 1 cycles after ``start`` (``short``:
+    ``short_iterations`` + 1); throughput one operation per that many cycles. Internal width 34
+    bits: a 32-bit vector's length times K (1.647) is below 2³³, so any 32-bit input converges
+    without overflow. Two 18 × 18 multipliers shift y by i
     (``blackbox``: ``report`` makes them empty blocks, as the engine's multiplier's).
     """
     blackbox = False        # ``report``: the shift's multipliers as empty 18 x 18 blocks
 
-    def __init__(self, *, width=32, atan_table=ATAN_TABLE, inv_gain=INV_GAIN_Q30):
+    def __init__(self, *, width=32, atan_table=ATAN_TABLE, inv_gain=INV_GAIN_Q30,
+                 short_iterations=CORDIC_SHORT_ITERATIONS):
         self.width, self.atan_table, self.inv_gain = width, tuple(atan_table), inv_gain
+        if not 1 <= short_iterations <= len(self.atan_table):
+            raise ValueError(f"CORDIC: {short_iterations} short iterations of "
+                             f"{len(self.atan_table)}")
+        self.short_iterations = short_iterations
         n = width
         # y >> i's multipliers take its low bits (one per iteration at least, at most 17) and
         # its high bits (at most 18) as 18-bit operands
@@ -49,6 +57,7 @@ class CORDIC(wiring.Component):
         super().__init__({
             "start": In(1),
             "mode": In(1),                  # 0: vectoring, 1: rotation
+            "short": In(1),                 # stop after ``short_iterations``
             "x_in": In(signed(n)), "y_in": In(signed(n)), "angle_in": In(signed(n)),
             "done": Out(1),
             "angle": Out(signed(n)),        # vectoring: atan2(y, x)
@@ -71,8 +80,11 @@ class CORDIC(wiring.Component):
         z = Signal(signed(n), reset_less=True)
         i = Signal(range(iterations), reset_less=True)
         rotate = Signal(reset_less=True)
+        last = Signal(range(iterations), reset_less=True)     # the final iteration's i
 
         atan = Array(Const(v, signed(n)) for v in self.atan_table)
+        whole_sum, short_sum = (sum(self.atan_table[:k])
+                                for k in (iterations, self.short_iterations))
         # σ = +1: x −= σ·(y >> i) … written out for both directions
         up = Signal()
         # the signs alone (y ≥ 0 rather than y > 0: no zero test)
@@ -98,7 +110,9 @@ class CORDIC(wiring.Component):
         with m.FSM():
             with m.State("IDLE"):
                 with m.If(self.start):
-                    m.d.sync += [i.eq(0), rotate.eq(self.mode), c.eq(1 << (low - 1))]
+                    m.d.sync += [i.eq(0), rotate.eq(self.mode), c.eq(1 << (low - 1)),
+                                 last.eq(Mux(self.short, self.short_iterations - 1,
+                                             iterations - 1))]
                     with m.If(self.mode):
                         a = self.angle_in
                         # beyond ±90°: turn by 180° (wrapping add of 2³¹), start from (−1/K, 0)
@@ -114,7 +128,7 @@ class CORDIC(wiring.Component):
                         zero = (xi == 0) & (yi == 0)
                         m.d.sync += [x.eq(xi ^ left.replicate(n).as_signed()),
                                      y.eq(yi ^ left.replicate(n).as_signed()),
-                                     z.eq(Mux(zero, -sum(self.atan_table),
+                                     z.eq(Mux(zero, Mux(self.short, -short_sum, -whole_sum),
                                               Cat(C(0, n - 1), left)))]
                     m.next = "RUN"
             with m.State("RUN"):
@@ -126,7 +140,7 @@ class CORDIC(wiring.Component):
                     z.eq(z + Mux(up, atan[i], ~atan[i]) + ~up),
                 ]
                 m.d.sync += [i.eq(i + 1), c.eq(c >> 1)]
-                with m.If(i == iterations - 1):
+                with m.If(i == last):
                     m.next = "DONE"
             with m.State("DONE"):
                 m.d.comb += self.done.eq(1)

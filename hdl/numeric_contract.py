@@ -20,8 +20,8 @@ from dataclasses import dataclass
 
 
 __all__ = ["CONTROL_RESET", "CONTROL_KEEP", "CONTROL_BITS", "control_fields",
-           "CORDIC_ITERATIONS", "ATAN_TABLE", "INV_GAIN_Q30", "CalibrationFixed",
-           "calibration_registers", "calibration_of",
+           "CORDIC_ITERATIONS", "CORDIC_SHORT_ITERATIONS", "ATAN_TABLE", "INV_GAIN_Q30",
+           "CalibrationFixed", "calibration_registers", "calibration_of",
            "KalmanFixedConfig", "FilterRates", "FlagshipParams", "svf_gain", "sample_counts",
            "AK8963_RATE_HZ", "mag_period", "FlagshipFixedConfig", "CORDIC_GAIN_SQUARED",
            "MadgwickFixedConfig", "filter_registers"]
@@ -56,6 +56,8 @@ _Q14, _Q24, _Q30 = 1 << 14, 1 << 24, 1 << 30
 # 16 iterations leave at most atan(2⁻¹⁵) = 0.0018° of angle: far below the sensors' noise, and
 # a shift amount of 4 bits and a 16-entry table in the gateware
 CORDIC_ITERATIONS = 16
+# a short VEC (a length, its angle unused) stops after 8: within 3·10⁻⁵ of the length
+CORDIC_SHORT_ITERATIONS = 8
 ATAN_TABLE = (0x20000000, 0x12e4051e, 0x09fb385b, 0x051111d4, 0x028b0d43, 0x0145d7e1,
               0x00a2f61e, 0x00517c55, 0x0028be53, 0x00145f2f, 0x000a2f98, 0x000517cc,
               0x00028be6, 0x000145f3, 0x0000a2fa, 0x0000517d)

@@ -38,7 +38,8 @@ from ..hdl.numeric_contract import (CalibrationFixed, FilterRates, KalmanFixedCo
                                     calibration_registers)
 
 
-__all__ = ["CORDIC_ITERATIONS", "ATAN_TABLE", "CORDIC_GAIN", "rshift_round", "sat",
+__all__ = ["CORDIC_ITERATIONS", "CORDIC_SHORT_ITERATIONS", "ATAN_TABLE", "CORDIC_GAIN",
+           "rshift_round", "sat",
            "wrap32", "div_floor", "cordic_vector", "cordic_rotate", "bam_to_deg", "deg_to_bam",
            "div_q24", "Status", "KalmanFixedConfig", "CalibrationFixed", "calibrate_fixed",
            "kalman_fixed", "complementary_fixed", "FilterRates",
@@ -48,6 +49,10 @@ __all__ = ["CORDIC_ITERATIONS", "ATAN_TABLE", "CORDIC_GAIN", "rshift_round", "sa
 # 16 iterations leave at most atan(2⁻¹⁵) = 0.0018° of angle: far below the sensors' noise, and
 # a shift amount of 4 bits and a 16-entry table in the gateware
 CORDIC_ITERATIONS = 16
+# A vectoring CORDIC whose angle is not wanted (a length) may stop after 8 iterations: the
+# vector is then within atan(2⁻⁷) of the x axis, so its x is the length times K to 3·10⁻⁵
+# (K₈ is K's to 10⁻⁵); the engine's short VEC, 8 cycles quicker.
+CORDIC_SHORT_ITERATIONS = 8
 # atan(2⁻ⁱ) in BAM32, rounded to nearest: the ROM of the CORDIC.
 ATAN_TABLE = tuple(int(round(math.atan(2.0 ** -i) / (2 * math.pi) * 2 ** 32))
                    for i in range(CORDIC_ITERATIONS))
@@ -157,18 +162,19 @@ def deg_to_bam(d):
     return wrap32(int(round(d / 360.0 * 2 ** 32)))
 
 
-def cordic_vector(x, y, status=None):
+def cordic_vector(x, y, status=None, iterations=CORDIC_ITERATIONS):
     """Vectoring CORDIC: (atan2(y, x) in BAM32, magnitude · K saturated to 32 bits). Inputs are
     32-bit integers (the gateware iterates on 34 bits, so nothing overflows inside); the vector
     is first turned into the right half-plane (±180° as needed) by inverting its bits, −v − 1
-    rather than −v: one LSB off, and no adder in the gateware."""
+    rather than −v: one LSB off, and no adder in the gateware. ``iterations``:
+    ``CORDIC_SHORT_ITERATIONS`` for the engine's short VEC (a length: its angle is coarse)."""
     if x == 0 and y == 0:
         return 0, 0                              # zero vector: angle 0 by definition
     # Left half-plane: turn the vector by 180°; adding 2³¹ (180°) and wrapping gives the angle.
     angle = 0
     if x < 0:
         x, y, angle = ~x, ~y, 1 << 31
-    for i in range(CORDIC_ITERATIONS):
+    for i in range(iterations):
         if y >= 0:                               # a sign test, no zero test
             x, y = x + (y >> i), y - (x >> i)
             angle += ATAN_TABLE[i]

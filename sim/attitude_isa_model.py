@@ -11,8 +11,9 @@ from ..hdl.attitude_isa import MUL_SHIFTS, Cond, Flag, Op
 from ..hdl.register_map import CONFIG_REGS, LOAD_ORDER, REGS, config_init, load_words
 from ..hdl.filter_registry import FILTER_CODES
 from ..hdl.attitude_program import build_program
-from ..reference.fixed_point import (INV_GAIN_Q30, Status, cordic_rotate, cordic_vector,
-                                     div_q24, sat, sat16, sat32, wrap32)
+from ..reference.fixed_point import (CORDIC_ITERATIONS, CORDIC_SHORT_ITERATIONS, INV_GAIN_Q30,
+                                     Status, cordic_rotate, cordic_vector, div_q24, sat, sat16,
+                                     sat32, wrap32)
 
 
 __all__ = ["AttitudeISAModel"]
@@ -75,7 +76,8 @@ class AttitudeISAModel:
             elif op == Op.DIV:
                 put(ins.d, div_q24(a, b, st))
             elif op == Op.VEC:
-                angle, mag = cordic_vector(a, b, st)
+                angle, mag = cordic_vector(a, b, st, CORDIC_SHORT_ITERATIONS if ins.sh
+                                           else CORDIC_ITERATIONS)
                 put(ins.d, angle)
                 put(ins.d + 1, mag)
             elif op == Op.ROT:

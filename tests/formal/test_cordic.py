@@ -7,8 +7,8 @@ that cannot overflow, as Python's integers do). It shares nothing with the gatew
 ``test_model_is_the_reference`` checks the model against the Python reference itself at the
 datapath's width on random and corner inputs, so the proof is about the reference.
 
-Reduced width: 8-bit inputs and angles, 6 iterations (the gateware is the same logic for any
-width and table: ``CORDIC(width=, atan_table=, inv_gain=)``).
+Reduced width: 8-bit inputs and angles, 6 iterations, 3 when short (the gateware is the same
+logic for any width and table: ``CORDIC(width=, atan_table=, inv_gain=, short_iterations=)``).
 """
 
 import math
@@ -26,7 +26,7 @@ from mpu9250_ahrs.reference import fixed_point as fx
 from .harness import counter, harness_module
 
 
-WIDTH, ITERATIONS = 8, 6
+WIDTH, ITERATIONS, SHORT = 8, 6, 3
 
 
 def table(width, iterations):
@@ -82,19 +82,26 @@ def rotate_model(m, angle, *, width, atan, gain):
     return x_, y_
 
 
-def cordic_harness(width=WIDTH, iterations=ITERATIONS, dut=None):
+def cordic_harness(width=WIDTH, iterations=ITERATIONS, short_iterations=SHORT, dut=None):
     atan, gain = table(width, iterations), inv_gain(width, iterations)
     m = harness_module()
-    m.submodules.dut = dut = dut or CORDIC(width=width, atan_table=atan, inv_gain=gain)
+    m.submodules.dut = dut = dut or CORDIC(width=width, atan_table=atan, inv_gain=gain,
+                                           short_iterations=short_iterations)
     x, y, a = AnyConst(signed(width)), AnyConst(signed(width)), AnyConst(signed(width))
-    mode = AnyConst(1)
+    mode, short = AnyConst(1), AnyConst(1)
     cycle = counter(m, range(iterations + 4), name="cycle")  # the start is at cycle 0
     m.d.comb += [dut.x_in.eq(x), dut.y_in.eq(y), dut.angle_in.eq(a), dut.mode.eq(mode),
-                 dut.start.eq(cycle == 0)]
-    angle, magnitude, saturated = vector_model(m, x, y, width=width, atan=atan)
-    cos, sin = rotate_model(m, a, width=width, atan=atan, gain=gain)
+                 dut.short.eq(short), dut.start.eq(cycle == 0)]
+    # short: the same iterations, stopped after ``short_iterations`` (the models' first ones)
+    models = [(vector_model(m, x, y, width=width, atan=t),
+               rotate_model(m, a, width=width, atan=t, gain=gain))
+              for t in (atan, atan[:short_iterations])]
+    (angle, magnitude, saturated), (cos, sin) = [
+        tuple(Mux(short, s, w) for w, s in zip(whole, cut))
+        for whole, cut in zip(models[0], models[1])]
 
-    m.d.comb += Assert(dut.done == (cycle == iterations + 1), "latency")
+    m.d.comb += Assert(dut.done == (cycle == Mux(short, short_iterations, iterations) + 1),
+                       "latency")
     with m.If(dut.done & ~mode):
         m.d.comb += [Assert(dut.angle == angle, "angle"),
                      Assert(dut.magnitude == magnitude, "magnitude"),
@@ -102,7 +109,8 @@ def cordic_harness(width=WIDTH, iterations=ITERATIONS, dut=None):
                      Cover((x == 0) & (y == 0), "zero_vector"),
                      Cover((x < 0) & (y > 0), "left_half_plane_up"),
                      Cover((x < 0) & (y < 0), "left_half_plane_down"),
-                     Cover(saturated, "magnitude_saturates")]
+                     Cover(saturated, "magnitude_saturates"),
+                     Cover(short & (x == 0) & (y == 0), "short_zero_vector")]
     with m.If(dut.done & mode):
         m.d.comb += [Assert(dut.cos == cos[:width].as_signed(), "cos"),
                      Assert(dut.sin == sin[:width].as_signed(), "sin"),

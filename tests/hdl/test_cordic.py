@@ -5,7 +5,8 @@ around ±90° and ±180°. (Every input at 8 bits: ``tests/formal/test_cordic.py
 import numpy as np
 
 from mpu9250_ahrs.hdl.cordic import CORDIC
-from mpu9250_ahrs.reference.fixed_point import Status, cordic_rotate, cordic_vector
+from mpu9250_ahrs.reference.fixed_point import (CORDIC_ITERATIONS, CORDIC_SHORT_ITERATIONS, Status,
+                                                cordic_rotate, cordic_vector)
 
 from .start_done import operate, run_unit
 
@@ -20,15 +21,43 @@ def test_cordic_against_reference():
     dut = CORDIC()
 
     async def testbench(ctx):
-        for x, y in vectors:
-            await operate(ctx, dut, x_in=x, y_in=y, mode=0)
-            st = Status()
-            want = cordic_vector(x, y, st)
-            got = (ctx.get(dut.angle), ctx.get(dut.magnitude))
-            assert got == want, f"vector({x}, {y}): {got} != {want}"
-            assert ctx.get(dut.saturated) == st.saturated
+        for short, n in ((0, CORDIC_ITERATIONS), (1, CORDIC_SHORT_ITERATIONS)):
+            for x, y in vectors:
+                await operate(ctx, dut, x_in=x, y_in=y, mode=0, short=short)
+                st = Status()
+                want = cordic_vector(x, y, st, n)
+                got = (ctx.get(dut.angle), ctx.get(dut.magnitude))
+                assert got == want, f"vector({x}, {y}), {n} iterations: {got} != {want}"
+                assert ctx.get(dut.saturated) == st.saturated
+        ctx.set(dut.short, 0)
         for a in angles:
             await operate(ctx, dut, angle_in=a, mode=1)
             got = (ctx.get(dut.cos), ctx.get(dut.sin))
             assert got == cordic_rotate(a), f"rotate({a}): {got} != {cordic_rotate(a)}"
     run_unit(dut, testbench)
+
+
+def test_cordic_short_latency():
+    """A short operation is done ``CORDIC_SHORT_ITERATIONS`` + 1 cycles after its start, a
+    whole one ``CORDIC_ITERATIONS`` + 1 (the engine's VEC: 11 and 19 cycles)."""
+    dut = CORDIC()
+    took = []
+
+    async def testbench(ctx):
+        for short in (1, 0, 1):
+            ctx.set(dut.x_in, 1000)
+            ctx.set(dut.y_in, -3000)
+            ctx.set(dut.mode, 0)
+            ctx.set(dut.short, short)
+            ctx.set(dut.start, 1)
+            await ctx.tick()
+            ctx.set(dut.start, 0)
+            cycles = 1
+            while not ctx.get(dut.done):
+                await ctx.tick()
+                cycles += 1
+            took.append(cycles)
+            await ctx.tick()
+    run_unit(dut, testbench)
+    assert took == [CORDIC_SHORT_ITERATIONS + 1, CORDIC_ITERATIONS + 1,
+                    CORDIC_SHORT_ITERATIONS + 1]

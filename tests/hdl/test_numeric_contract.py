@@ -9,6 +9,7 @@ from mpu9250_ahrs.reference import fixed_point
 
 def test_cordic_tables_agree():
     assert contract.CORDIC_ITERATIONS == fixed_point.CORDIC_ITERATIONS
+    assert contract.CORDIC_SHORT_ITERATIONS == fixed_point.CORDIC_SHORT_ITERATIONS
     assert contract.ATAN_TABLE == fixed_point.ATAN_TABLE
     assert contract.INV_GAIN_Q30 == fixed_point.INV_GAIN_Q30
 
