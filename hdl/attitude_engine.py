@@ -495,8 +495,8 @@ class AttitudeEngine(wiring.Component):
 
         load_index = Signal(range(len(LOAD_ORDER)), reset_less=True)
         # The sample is held from its load until the next one: the loader reads it, and then
-        # the framer (``sample_word``), through one multiplexer of its 32-bit words. Each of
-        # them had its own (a LUT4 fabric pays about a LUT per multiplexed bit).
+        # the framer (``sample_word``), through one multiplexer of its 32-bit words rather
+        # than one each (a LUT4 fabric pays about a LUT per multiplexed bit).
         held = self.sample
         # the loader's other words (ASA, the periods: each fits 16 bits) as two more words
         # after the sample's, so that every load word is a 16-bit half of a word (sign-extended

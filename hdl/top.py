@@ -69,8 +69,9 @@ from .defaults import DEFAULT_BAUD
 from .uart_tx import UARTTransmitter
 
 
-__all__ = ["AHRSCore", "result_fetch", "sample_borrow", "AsyncResetCore", "core_verilog", "BoardTop", "telemetry_divider_for",
-           "rate_budget", "VERSION", "version_word", "io_constraints", "io_register_settings"]
+__all__ = ["AHRSCore", "result_fetch", "sample_borrow", "AsyncResetCore", "core_verilog",
+           "BoardTop", "telemetry_divider_for", "rate_budget", "VERSION", "version_word",
+           "io_constraints", "io_register_settings"]
 
 
 VERSION = (0, 2)        # major, minor: the version/build word's top bytes
