@@ -24,7 +24,7 @@ __all__ = ["CONTROL_RESET", "CONTROL_KEEP", "CONTROL_BITS", "control_fields",
            "CalibrationFixed", "calibration_registers", "calibration_of",
            "KalmanFixedConfig", "FilterRates", "FlagshipParams", "svf_gain", "sample_counts",
            "AK8963_RATE_HZ", "mag_period", "FlagshipFixedConfig", "CORDIC_GAIN_SQUARED",
-           "MadgwickFixedConfig", "filter_registers"]
+           "MadgwickFixedConfig", "MADGWICK_UNIT_BOUNDS", "filter_registers"]
 
 
 # The engine's CONTROL register (0xFF): bits 1:0 the filter's code, bit 2 reset the filter
@@ -297,6 +297,11 @@ class FlagshipFixedConfig:
 # K² of the CORDIC (K = ∏ √(1 + 2⁻²ⁱ) over its iterations): the fixed-point Madgwick step takes
 # the gradient's length from two vectoring stages (|g|·K²) and folds K² into its gain
 CORDIC_GAIN_SQUARED = math.prod(1 + 2.0 ** (-2 * i) for i in range(CORDIC_ITERATIONS))
+
+
+# Madgwick's quick normalisation (``reference.madgwick_fixed._unit``) is taken while |v·y|², in
+# Q.14, lies within these bounds: 1 ∓ 1/16 (the engine's constant registers UNIT_LO, UNIT_HI)
+MADGWICK_UNIT_BOUNDS = (15 << 10, 17 << 10)
 
 
 @dataclass(frozen=True)

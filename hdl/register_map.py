@@ -73,7 +73,7 @@ from .attitude_isa import REG_COUNT
 from .filter_registry import FILTER_CODES
 from .filters import config_registers, state_registers
 # the CONTROL word's bits are part of the numeric contract (the reference decodes them too)
-from .numeric_contract import CONTROL_KEEP, CONTROL_RESET
+from .numeric_contract import CONTROL_KEEP, CONTROL_RESET, MADGWICK_UNIT_BOUNDS
 
 
 __all__ = ["CONFIG_REGS", "CONTROL_ADDR", "CONTROL_RESET", "CONTROL_KEEP", "TELEMETRY_DIV_ADDR",
@@ -147,14 +147,14 @@ def _allocate():
 
 # Constants (register-file reset values that no program writes): a MUL by SHL12/SHL15/ONE with
 # shift 14 shifts left by 12/15/16; by HALF/EIGHTH/SHR10 with shift 30 halves, divides by 8 and
-# by 2¹⁰ (rounded); UNIT_LO/HI: 1 ∓ 1/16 in Q.14, Madgwick's bounds of a quick normalisation
-# (``reference.madgwick_fixed``); the rest are operands of the flagship
+# by 2¹⁰ (rounded); UNIT_LO/HI: Madgwick's bounds of a quick normalisation
+# (``numeric_contract.MADGWICK_UNIT_BOUNDS``); the rest are operands of the flagship
 # (``reference.flagship_fixed``).
 CONSTANTS = {"SHL12": 1 << 26, "SHL15": 1 << 29, "ONE": 1 << 30, "HALF": 1 << 29,
              "EIGHTH": 1 << 27, "ONE_48": (1 << 30) // 48, "THREE_HALVES": 3 << 29,
              "SHR10": 1 << 20, "INT1": 1, "SHL14": 1 << 28, "COS_PITCH_MIN": 1 << 23,
              "SQRT2": round(math.sqrt(2) * (1 << 30)),
-             "UNIT_LO": 15 << 10, "UNIT_HI": 17 << 10}
+             **dict(zip(("UNIT_LO", "UNIT_HI"), MADGWICK_UNIT_BOUNDS))}
 
 
 REGS = _allocate()

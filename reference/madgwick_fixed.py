@@ -28,6 +28,7 @@ gradient that the alignment has made all but zero).
 
 from dataclasses import dataclass
 
+from ..hdl.numeric_contract import MADGWICK_UNIT_BOUNDS
 from .fixed_point import (CORDIC_SHORT_ITERATIONS, INV_GAIN_Q30, _heading, _tilt, cordic_vector,
                           div_q24, mac, mul, sat32, step_n)
 from .flagship_fixed import (FLAGSHIP_CONSTANTS, HALF, ONE, _matrix, _normalise,
@@ -42,7 +43,7 @@ __all__ = ["MadgwickFixed"]
 # The quick normalisation (``_unit``): taken when |v·y|² is within 1 ± 1/16 of one (Q.14 bounds),
 # its inverse length kept as the next seed only from a vector over 128 counts (y < 2²⁹), so
 # that no later vector is long enough against it to overflow |s|² (362 times the length).
-UNIT_LO, UNIT_HI = 15 << 10, 17 << 10
+UNIT_LO, UNIT_HI = MADGWICK_UNIT_BOUNDS
 SEED_LIMIT = 1 << 29
 
 
