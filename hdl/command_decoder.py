@@ -5,7 +5,7 @@ from contextlib import contextmanager
 from types import SimpleNamespace
 
 from amaranth import *
-from amaranth.lib import data, stream, wiring
+from amaranth.lib import stream, wiring
 from amaranth.lib.wiring import In, Out
 
 from .attitude_isa import REG_BITS
@@ -16,11 +16,12 @@ from .host_port import address_in, control_accepted
 from .config_write import ConfigWrite
 from .driver_status import SelfTestStatus
 from .frame_types import CRC, SYNC, Reply
+from .event_counters import EventCounters
 from .rewindable_fifo import RewindableFIFO
 
 
 __all__ = ["COMMANDS", "RESULTS", "SPACES", "BOARD_REGS", "REGMAP_VERSION", "MAX_COMMAND_PAYLOAD",
-           "CommandStats", "CommandDecoder"]
+           "COMMAND_STATS", "COUNTED", "counter_word", "CommandDecoder"]
 
 
 # name: (type byte, payload bytes)
@@ -52,13 +53,25 @@ BOARD_REGS = {
 REGMAP_VERSION = 7     # 7: Madgwick (filter code 3, BETA_K at 0x80)
 
 
-class CommandStats(data.Struct):
-    """The decoder's counters (16 bits each, saturating), readable as board registers."""
-    discarded: 16      # bytes outside any frame (hunting for the sync pattern)
-    crc_errors: 16     # frames whose CRC did not match
-    malformed: 16      # too long, cut off (no byte for ``timeout`` cycles), bad type or length
-    ok: 16             # commands done
-    refused: 16        # well-formed commands refused (read-only, out of range, no address)
+# The decoder's counters (16 bits each, saturating, in an ``EventCounters``), in the order of
+# their board registers (CMD_DISCARDED ... CMD_REFUSED):
+COMMAND_STATS = (
+    "discarded",    # bytes outside any frame (hunting for the sync pattern)
+    "crc_errors",   # frames whose CRC did not match
+    "malformed",    # too long, cut off (no byte for ``timeout`` cycles), bad type or length
+    "ok",           # commands done
+    "refused",      # well-formed commands refused (read-only, out of range, no address)
+)
+# The board registers counted in the decoder's ``EventCounters``, the receiver's two included
+COUNTED = ("RX_FRAMING_ERRORS", "RX_OVERRUNS", *(f"CMD_{name.upper()}" for name in COMMAND_STATS))
+
+
+def counter_word(name):
+    """A counted board register's word in the counters' RAM: its address less CMD_DISCARDED's,
+    modulo 8 (the receiver's two, before it, are words 6 and 7; the discarded bytes, which
+    come fastest, word 0: the first served). The command names its word with its address's
+    low bits, no table."""
+    return (BOARD_REGS[name] - BOARD_REGS["CMD_DISCARDED"]) % 8
 
 
 class CommandDecoder(wiring.Component):
@@ -91,7 +104,10 @@ class CommandDecoder(wiring.Component):
         ``raw_mode`` (out): RAW_MODE bit 0.
         ``kick`` (out): a pulse per accepted command (result ``ok``; the PWM watchdog).
         ``fifo``: the ``RewindableFIFO`` (its ``ram``, one M9K, for ``report``).
-        ``stats`` (out, ``CommandStats``); ``rx_framing_errors``, ``rx_overruns``,
+        ``rx_framing_error``, ``rx_overrun`` (in): the receiver's pulses, counted.
+        ``counters``: the ``EventCounters`` of the ``COUNTED`` board registers
+            (RX_FRAMING_ERRORS ... CMD_REFUSED; word ``counter_word(name)``: ``COMMAND_STATS``
+            are words 0-4), its ``ram`` for ``report`` and for tests (``ram.data[k]``).
         ``frames_sent``, ``rate_errors``, ``who_am_i``, ``self_test`` (in): read back as
             board registers.
     Latency: a board command's reply is offered two cycles after its last (CRC) byte is
@@ -106,6 +122,7 @@ class CommandDecoder(wiring.Component):
         self.version = version
         self.timeout = timeout
         self.fifo = RewindableFIFO(FIFO_DEPTH)
+        self.counters = EventCounters(8)
         super().__init__({
             "i_stream": In(stream.Signature(8)),
             "cfg": Out(stream.Signature(ConfigWrite)),
@@ -115,9 +132,8 @@ class CommandDecoder(wiring.Component):
             "replies": Out(stream.Signature(Reply)),
             "raw_mode": Out(1),
             "kick": Out(1),
-            "stats": Out(CommandStats),
-            "rx_framing_errors": In(16),
-            "rx_overruns": In(16),
+            "rx_framing_error": In(1),
+            "rx_overrun": In(1),
             "frames_sent": In(32),
             "rate_errors": In(16),
             "who_am_i": In(8),
@@ -128,9 +144,9 @@ class CommandDecoder(wiring.Component):
         m = Module()
         m.submodules.crc = crc = CRC(data_width=8).create()
         m.submodules.fifo = fifo = self.fifo
+        m.submodules.counters = counters = self.counters
         wiring.connect(m, wiring.flipped(self.i_stream), fifo.w_stream)
         src = fifo.r_stream
-        stats = self.stats
         byte = src.payload
         take = src.valid & src.ready
 
@@ -173,9 +189,8 @@ class CommandDecoder(wiring.Component):
         write = Signal.like(self.cfg.payload, reset_less=True)
         m.d.comb += [self.replies.payload.eq(reply), self.cfg.payload.eq(write)]
 
-        def count_up(counter):
-            with m.If(~counter.all()):                  # saturating at 0xFFFF
-                m.d.sync += counter.eq(counter + 1)
+        def count_up(name):
+            m.d.comb += counters.events[counter_word(f"CMD_{name.upper()}")].eq(1)
 
         def answer(result, value_=None, addr_=None):
             m.d.sync += [reply.command.eq(ctype), reply.cmd_seq.eq(seq), reply.result.eq(result),
@@ -185,13 +200,13 @@ class CommandDecoder(wiring.Component):
                 # only an accepted command restarts the PWM watchdog: a host stuck sending
                 # refused or unknown commands is as good as a silent one
                 m.d.comb += self.kick.eq(1)
-                count_up(stats.ok)
+                count_up("ok")
             else:
-                count_up(stats.refused)
+                count_up("refused")
             m.next = "REPLY"
 
         m.d.comb += [crc.data.eq(byte)]
-        board_regs = self._board_regs(stats)
+        board_regs = self._board_regs(counters.r_data)
         # an engine write the engine would refuse is answered "refused" here (the host learns
         # why): an address it may not write, or a CONTROL word with no meaning
         writable = address_in(low, self.writable) & (
@@ -206,14 +221,13 @@ class CommandDecoder(wiring.Component):
                 src=src, fifo=fifo, crc=crc, take=take, byte=byte, looked=looked,
                 is_sync0=is_sync0, is_sync1=is_sync1, too_long=too_long, empty=empty,
                 crc_ok=crc_ok, high_ok=high_ok, timed_out=timed_out, ctype=ctype, seq=seq,
-                length=length, count=count, payload=payload, count_up=count_up,
-                stats=stats))
+                length=length, count=count, payload=payload, count_up=count_up))
 
             with m.State("EXECUTE"):
                 self._execute(m, SimpleNamespace(
                     ctype=ctype, length=length, payload=payload, space=space, low=low,
                     value=value, write=write, writable=writable, board_regs=board_regs,
-                    answer=answer, count_up=count_up, stats=stats))
+                    answer=answer, count_up=count_up))
 
             with m.State("ENGINE_WRITE"):
                 m.d.comb += self.cfg.valid.eq(1)
@@ -232,6 +246,7 @@ class CommandDecoder(wiring.Component):
                 with m.If(self.replies.ready):
                     m.next = "HUNT"
 
+        self._counters(m, counters, read=fsm.ongoing("CRC_LOW") & take, low=low)
         # a frame cut off: no byte for ``timeout`` cycles while one is being parsed
         m.d.comb += in_frame.eq(sum(fsm.ongoing(state) for state in parsing[1:]) != 0)
         with m.If(take | ~in_frame):
@@ -239,19 +254,28 @@ class CommandDecoder(wiring.Component):
         with m.Elif(~timed_out):
             m.d.sync += gap.eq(gap + 1)
         with m.If(timed_out):
-            count_up(stats.malformed)
+            count_up("malformed")
             m.d.sync += gap.eq(0)
         return m
 
-    def _board_regs(self, stats):
+    def _counters(self, m, counters, *, read, low):
+        """The receiver's events into the counters, and the read of the counter a board read
+        names (``low``): a board read answers in EXECUTE, so its counter is read as the
+        frame's last byte is taken (``read``; the address is in by then)."""
+        m.d.comb += [
+            counters.events[counter_word("RX_FRAMING_ERRORS")].eq(self.rx_framing_error),
+            counters.events[counter_word("RX_OVERRUNS")].eq(self.rx_overrun),
+            counters.r_en.eq(read), counters.r_addr.eq(low - BOARD_REGS["CMD_DISCARDED"])]
+
+    def _board_regs(self, count):
         """What each board register reads back, by address (``BOARD_REGS``: the one map of
-        names and addresses, which the host's register map reads too)."""
+        names and addresses, which the host's register map reads too); ``count``: the
+        decoder's counter the command addresses (``EventCounters.r_data``)."""
         sources = {
             "RAW_MODE": self.raw_mode, "VERSION": C(self.version, 32),
             "REGMAP_VERSION": C(REGMAP_VERSION, 32),
-            "RX_FRAMING_ERRORS": self.rx_framing_errors, "RX_OVERRUNS": self.rx_overruns,
-            "CMD_DISCARDED": stats.discarded, "CMD_CRC_ERRORS": stats.crc_errors,
-            "CMD_MALFORMED": stats.malformed, "CMD_OK": stats.ok, "CMD_REFUSED": stats.refused,
+            # the counters' word, read as the frame's last byte was taken (``elaborate``)
+            **{name: count for name in COUNTED},
             "FRAMES_SENT": self.frames_sent, "RATE_ERRORS": self.rate_errors,
             "WHO_AM_I": self.who_am_i, "SELF_TEST": self.self_test.as_value(),
         }
@@ -262,10 +286,10 @@ class CommandDecoder(wiring.Component):
         """The parsing states of the decoder's FSM, HUNT to CRC_LOW (EXECUTE follows a frame
         that passed its CRC). ``c``: the parser's registers, the FIFO's head and helpers."""
         (src, fifo, crc, take, byte, looked, is_sync0, is_sync1, too_long, empty, crc_ok,
-         high_ok, timed_out, ctype, seq, length, count, payload, count_up, stats) = (
+         high_ok, timed_out, ctype, seq, length, count, payload, count_up) = (
             c.src, c.fifo, c.crc, c.take, c.byte, c.looked, c.is_sync0, c.is_sync1,
             c.too_long, c.empty, c.crc_ok, c.high_ok, c.timed_out, c.ctype, c.seq, c.length,
-            c.count, c.payload, c.count_up, c.stats)
+            c.count, c.payload, c.count_up)
         with m.State("HUNT"):
             m.d.comb += src.ready.eq(looked)
             with m.If(take):
@@ -275,7 +299,7 @@ class CommandDecoder(wiring.Component):
                     m.next = "SYNC1"
                 with m.Else():
                     m.d.comb += fifo.release.eq(1)
-                    count_up(stats.discarded)
+                    count_up("discarded")
 
         @contextmanager
         def receiving(state, *, checked=True):
@@ -302,7 +326,7 @@ class CommandDecoder(wiring.Component):
                 with m.If(is_sync1):
                     m.next = "TYPE"
                 with m.Else():
-                    count_up(stats.discarded)
+                    count_up("discarded")
                     m.next = "HUNT"
         with receiving("TYPE"):
             m.d.comb += crc.start.eq(1)
@@ -314,7 +338,7 @@ class CommandDecoder(wiring.Component):
         with receiving("LENGTH"):
             m.d.sync += [length.eq(byte), count.eq(0), payload.eq(0)]
             with m.If(too_long):
-                count_up(stats.malformed)
+                count_up("malformed")
                 m.d.comb += fifo.rewind.eq(1)           # search the rest for a header
                 m.next = "HUNT"
             with m.Elif(empty):
@@ -333,7 +357,7 @@ class CommandDecoder(wiring.Component):
                 m.d.comb += fifo.release.eq(1)
                 m.next = "EXECUTE"
             with m.Else():
-                count_up(stats.crc_errors)
+                count_up("crc_errors")
                 m.d.comb += fifo.rewind.eq(1)           # search the rest for a header
                 m.next = "HUNT"
 
@@ -343,9 +367,9 @@ class CommandDecoder(wiring.Component):
         register, a PWM register, the raw-sample mode, "who"; an engine write or read
         goes on to ENGINE_WRITE / ENGINE_READ. ``c``: the parser's registers and helpers."""
         (ctype, length, payload, space, low, value,
-         write, writable, board_regs, answer, count_up, stats) = (
+         write, writable, board_regs, answer, count_up) = (
             c.ctype, c.length, c.payload, c.space, c.low, c.value,
-            c.write, c.writable, c.board_regs, c.answer, c.count_up, c.stats)
+            c.write, c.writable, c.board_regs, c.answer, c.count_up)
         expected = Signal(8)
         known = Signal()
         with m.Switch(ctype):
@@ -353,7 +377,7 @@ class CommandDecoder(wiring.Component):
                 with m.Case(code):
                     m.d.comb += [expected.eq(n), known.eq(1)]
         with m.If(~known | (length != expected)):
-            count_up(stats.malformed)
+            count_up("malformed")
             answer(RESULTS["bad_command"])
         with m.Elif(ctype == COMMANDS["write"][0]):
             with m.If(space == SPACES["engine"]):

@@ -17,7 +17,7 @@ is built around it, so that it is counted.
 
 from amaranth import *
 from amaranth.lib import wiring
-from amaranth.lib.memory import Memory
+from amaranth.lib.memory import Memory, MemoryData
 from amaranth.lib.wiring import In, Out
 
 
@@ -134,6 +134,8 @@ class FrameRAM(wiring.Component):
         self.width = width
         self.init = list(init)          # initial words: a ROM when nothing writes it
         self.abits = max(1, (depth - 1).bit_length())
+        # the words, made here so that a testbench can read them (``ctx.get(ram.data[i])``)
+        self.data = MemoryData(shape=width, depth=depth, init=self.init)
         super().__init__({"w_en": In(1), "w_addr": In(self.abits), "w_data": In(width),
                           "r_en": In(1), "r_addr": In(self.abits), "r_data": Out(width)})
 
@@ -168,7 +170,7 @@ class FrameRAM(wiring.Component):
                 i_w_addr=self.w_addr, i_w_data=self.w_data, i_r_en=self.r_en,
                 i_r_addr=self.r_addr, o_r_data=self.r_data)
             return m
-        m.submodules.mem = mem = Memory(shape=self.width, depth=self.depth, init=self.init)
+        m.submodules.mem = mem = Memory(self.data)
         wp = mem.write_port()
         rp = mem.read_port()
         m.d.comb += [wp.en.eq(self.w_en), wp.addr.eq(self.w_addr), wp.data.eq(self.w_data),

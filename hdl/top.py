@@ -55,7 +55,7 @@ from .sensor_frontend import SensorFrontEnd, sample_read_cycles
 from .i2c_controller import I2CPinsSignature
 from .spi_controller import IO_BUDGET, SPIPinsSignature, SPITiming
 from .register_map import HOST_WRITABLE
-from .command_decoder import CommandDecoder, CommandStats
+from .command_decoder import CommandDecoder
 from .config_port_arbiter import ConfigPortArbiter
 from .frame_arbiter import FrameArbiter
 from .frame_types import ATTITUDE, REPLY, SENSOR
@@ -158,10 +158,11 @@ class AHRSCore(wiring.Component):
         ``cfg_refused`` (16): host writes the engine refused (read-only or state registers).
         ``uart_rx``: commands in (``UARTReceiver`` -> ``CommandDecoder``, replies out
             through the ``FrameArbiter`` before telemetry); ``pwm`` (4): ``PWMOutputs``;
-            ``command_stats`` (``CommandStats``), ``raw_mode``: the command channel's.
+            ``raw_mode``: the command channel's (its counters are in the decoder's
+            ``EventCounters``, read as board registers).
         ``command_timeout_s``: a command frame with no byte for this long is dropped (5 ms).
         ``commands`` (True): with the command channel (``uart_rx``, the decoder, replies);
-            False leaves it out (no ``uart_rx``, ``command_stats``, ``raw_mode`` ports; the
+            False leaves it out (no ``uart_rx`` and ``raw_mode`` ports; the
             ``cfg`` ports alone write the engine) and with it the PWM outputs.
         ``pwm`` (default: as ``commands``): with the PWM outputs (the ``pwm`` port); without,
             the command channel answers ``bad_address`` for the PWM registers. Both options
@@ -237,7 +238,6 @@ class AHRSCore(wiring.Component):
         }
         if self.commands:
             ports["uart_rx"] = In(1, init=1)
-            ports["command_stats"] = Out(CommandStats)
             ports["raw_mode"] = Out(1)
         if self.has_pwm:
             ports["pwm"] = Out(PWM_CHANNELS)
@@ -314,12 +314,12 @@ class AHRSCore(wiring.Component):
             m.submodules.pwm = pwm = self.pwm_block
             connect(m, decoder.pwm, pwm.bus)
             m.d.comb += [pwm.kick.eq(decoder.kick), self.pwm.eq(pwm.pwm)]
-        m.d.comb += [decoder.rx_framing_errors.eq(rx.framing_errors),
-                     decoder.rx_overruns.eq(rx.overruns),
+        m.d.comb += [decoder.rx_framing_error.eq(rx.framing_error),
+                     decoder.rx_overrun.eq(rx.overrun),
                      decoder.frames_sent.eq(arbiter.frames),
                      decoder.rate_errors.eq(fe.rate_errors),
                      decoder.who_am_i.eq(fe.who_am_i), decoder.self_test.eq(fe.self_test),
-                     self.command_stats.eq(decoder.stats), self.raw_mode.eq(decoder.raw_mode),
+                     self.raw_mode.eq(decoder.raw_mode),
                      framer.short.eq(decoder.raw_mode)]
         # The engine's register port: the ``cfg`` ports (a test bench, or tied off) first,
         # then the command decoder's; a waiting transfer keeps its client.

@@ -25,7 +25,9 @@ class UARTReceiver(wiring.Component):
         ``rx`` (in): the line (asynchronous; idles high).
         ``o_stream`` (out, byte stream): a received byte, valid until taken. A byte that
             completes while the previous one was not taken is dropped and counted.
-        ``framing_errors``, ``overruns`` (out, 16): counts since reset, saturating.
+        ``framing_error``, ``overrun`` (out): a pulse per framing error, per byte dropped (the
+            command decoder counts them in its ``EventCounters``: RX_FRAMING_ERRORS,
+            RX_OVERRUNS).
     Latency: a byte is valid about the middle of its stop bit (the synchroniser's two cycles
         later); the receiver then looks for the next start bit, so back-to-back bytes and a
         transmitter up to about 4 % off the baud are received.
@@ -37,8 +39,8 @@ class UARTReceiver(wiring.Component):
         super().__init__({
             "rx": In(1, init=1),
             "o_stream": Out(stream.Signature(8)),
-            "framing_errors": Out(16),
-            "overruns": Out(16),
+            "framing_error": Out(1),
+            "overrun": Out(1),
         })
 
     def elaborate(self, platform):
@@ -60,10 +62,6 @@ class UARTReceiver(wiring.Component):
         shreg = Signal(8, reset_less=True)
         data = Signal(8, reset_less=True)           # written with ``valid``: no reset either
         m.d.comb += self.o_stream.payload.eq(data)
-
-        def saturating_inc(counter):
-            with m.If(counter != 0xFFFF):
-                m.d.sync += counter.eq(counter + 1)
 
         with m.If(self.o_stream.ready):
             m.d.sync += self.o_stream.valid.eq(0)
@@ -94,13 +92,13 @@ class UARTReceiver(wiring.Component):
                 with m.If(timer == 0):
                     with m.If(bit):
                         with m.If(self.o_stream.valid & ~self.o_stream.ready):
-                            saturating_inc(self.overruns)
+                            m.d.comb += self.overrun.eq(1)
                         with m.Else():
                             m.d.sync += [data.eq(shreg),
                                          self.o_stream.valid.eq(1)]
                         m.next = "IDLE"
                     with m.Else():
-                        saturating_inc(self.framing_errors)
+                        m.d.comb += self.framing_error.eq(1)
                         m.next = "BREAK"
             with m.State("BREAK"):
                 with m.If(bit):

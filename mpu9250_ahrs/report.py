@@ -256,7 +256,8 @@ def report(*, clk_freq=None, config=None, latency=True, core_options=None):
     wrapped = AsyncResetCore(core)
     design = synthesize(wrapped, "mpu9250_ahrs_core", core.engine,
                         rams=[core.framer.ram, core.frontend.driver.sequencer.rom,
-                              *([core.decoder.fifo.ram] if core.commands else []),
+                              *([core.decoder.fifo.ram, core.decoder.counters.ram]
+                                if core.commands else []),
                               *([self_test.sums, self_test.table] if self_test else [])],
                         others=[self_test] if self_test else [], blocks=True,
                         ports=wrapped.ports())

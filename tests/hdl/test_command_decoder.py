@@ -7,12 +7,12 @@ import random
 from amaranth import Elaboratable, Module
 from amaranth.lib import wiring
 from amaranth.sim import Simulator
-from hypothesis import given, settings, strategies as st
+from hypothesis import example, given, settings, strategies as st
 
 from mpu9250_ahrs.hdl.register_map import (CONFIG_REGS, CONTROL_ADDR, CONTROL_KEEP, CONTROL_RESET,
                                            HOST_WRITABLE, TELEMETRY_DIV_ADDR)
-from mpu9250_ahrs.hdl.command_decoder import (BOARD_REGS, COMMANDS, REGMAP_VERSION, RESULTS,
-                                              CommandDecoder)
+from mpu9250_ahrs.hdl.command_decoder import (BOARD_REGS, COMMAND_STATS, COMMANDS, FIFO_DEPTH,
+                                              REGMAP_VERSION, RESULTS, CommandDecoder)
 from mpu9250_ahrs.hdl.pwm import PWM_REGS, PWMOutputs
 from mpu9250_ahrs.host.protocol import encode_command, encode_frame, to_python
 from mpu9250_ahrs.sim.streams import check_stream_rules
@@ -86,7 +86,8 @@ def run(data, *, gaps=None, busy_cycles=3):
         # the decoder takes a byte every two cycles: a FIFO's worth of bytes and their
         # commands may still wait when the host stops, then a cut-off frame's time-out
         await ctx.tick().repeat(TIMEOUT + 200)
-        out["stats"] = to_python(ctx.get(dec.stats))
+        out["stats"] = {name: ctx.get(dec.counters.ram.data[k])
+                        for k, name in enumerate(COMMAND_STATS)}
         out["raw"] = ctx.get(dec.raw_mode)
     sim.add_testbench(host)
     sim.run()
@@ -148,6 +149,9 @@ def _commands(rng, n):
 @settings(max_examples=30, deadline=None)
 @given(seed=st.integers(0, 2 ** 32 - 1),
        damage=st.sampled_from(["flip", "drop", "cut", "noise", "garbage"]))
+# a frame cut before its CRC's last byte (0xA5), then the next frame's 0xA5: it completes the
+# cut frame unless the host's silence covers the decoder's backlog too (it did not)
+@example(seed=4837, damage="cut")
 def test_damaged_commands_change_nothing(seed, damage):
     """Five writes, one damaged: the writes done are exactly the intact commands', whole and
     in order (the one after a dropped byte too: its header, taken into the damaged frame, is
@@ -167,7 +171,10 @@ def test_damaged_commands_change_nothing(seed, damage):
                 del frame[rng.randrange(len(frame))]
             elif damage == "cut":
                 frame = frame[:rng.randrange(3, len(frame))]
-                gaps[len(data) + len(frame)] = TIMEOUT + 10      # the host went quiet
+                # the host goes quiet: the time-out runs from the last byte the decoder
+                # took, and it takes one every two cycles, so the bytes still in its FIFO
+                # (at most FIFO_DEPTH) add to the host's silence
+                gaps[len(data) + len(frame)] = TIMEOUT + 10 + 2 * FIFO_DEPTH
             elif damage == "noise":
                 frame = bytearray(rng.randbytes(len(frame)))
             else:

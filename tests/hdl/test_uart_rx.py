@@ -28,21 +28,26 @@ def run(segments, *, divisor, ready=True):
     sim.add_clock(1e-6)
     check_stream_rules(sim, dut.o_stream, "received bytes")
     got = []
+    errors = [0, 0]                     # the framing-error and overrun pulses, counted
 
     async def line(ctx):
         ctx.set(dut.o_stream.ready, ready)
+
+        async def cycle():
+            _, _, valid, byte, framing, overrun = await ctx.tick().sample(
+                dut.o_stream.valid, dut.o_stream.payload, dut.framing_error, dut.overrun)
+            if valid and ready:
+                got.append(byte)
+            errors[0] += framing
+            errors[1] += overrun
+
         for level, cycles in segments:
             ctx.set(dut.rx, level)
             for _ in range(cycles):
-                _, _, valid, byte = await ctx.tick().sample(dut.o_stream.valid,
-                                                            dut.o_stream.payload)
-                if valid and ready:
-                    got.append(byte)
+                await cycle()
         for _ in range(4 * divisor):
-            _, _, valid, byte = await ctx.tick().sample(dut.o_stream.valid, dut.o_stream.payload)
-            if valid and ready:
-                got.append(byte)
-        got.append(("errors", ctx.get(dut.framing_errors), ctx.get(dut.overruns)))
+            await cycle()
+        got.append(("errors", *errors))
     sim.add_testbench(line)
     sim.run()
     return got[:-1], got[-1][1:]

@@ -1,0 +1,88 @@
+"""Event counters in a block RAM: saturating counts of events read now and then by a host."""
+
+from amaranth import *
+from amaranth.lib import wiring
+from amaranth.lib.wiring import In, Out
+
+from .memories import FrameRAM
+
+
+__all__ = ["EventCounters"]
+
+
+class EventCounters(wiring.Component):
+    """``n`` counters of ``width`` bits, saturating, kept in a ``FrameRAM`` (one M9K) rather
+    than in flip-flops: in a LUT4 fabric each counter in logic costs an incrementer and its
+    bits in the read-back multiplexer; here all of them share one incrementer and the RAM's
+    read port.
+
+    An event sets its counter's pending bit; each cycle the lowest pending counter is read
+    (unless a read is made, or it is being written back) and, the cycle after, written back
+    plus one (a counter at all ones stays): one count a cycle, pipelined. A pending bit holds
+    one event: an event of a counter still pending adds nothing. So the events of the lowest
+    counter are all counted if they come at most every other cycle and not in the cycle
+    before a read; the others', if each comes once its last has been taken (the command
+    decoder's: discarded bytes at most every other cycle, the rest once per frame at most,
+    the reads as a frame ends).
+
+    After a reset the RAM is cleared, a counter a cycle (``n`` cycles; events meanwhile wait
+    pending, reads read 0 or the count before the reset), so that the counts are from the
+    reset, as registers' would be.
+
+    Parameters
+        ``n``: the counters; ``width``: their bits (16).
+    Members
+        ``events`` (in, ``n``): a pulse per event, any of them in any cycle.
+        ``r_en``, ``r_addr`` (in) / ``r_data`` (out, ``width``): the count of counter
+            ``r_addr``, the cycle after ``r_en`` (a read takes the RAM's read port for that
+            cycle: the counting waits). It includes every event taken two cycles before.
+        ``ram``: the ``FrameRAM`` (``report`` counts it; tests read ``ram.data``).
+    Latency: an event is in its count two cycles after it, plus a cycle for each lower
+    counter pending and each read. Throughput: one count a cycle.
+    """
+
+    def __init__(self, n, width=16):
+        self.n = n
+        self.width = width
+        # a whole power of two of words: an address beyond ``n`` reads a word (0), not nothing
+        self.ram = FrameRAM(1 << max(1, (n - 1).bit_length()), width)
+        super().__init__({
+            "events": In(n),
+            "r_en": In(1), "r_addr": In(range(n)), "r_data": Out(width),
+        })
+
+    def elaborate(self, platform):
+        m = Module()
+        m.submodules.ram = ram = self.ram
+        n = self.n
+        pending = Signal(n)
+        # stage 2's counter: being written back now, so not read again in this cycle (the
+        # RAM would return the old word); it is read the cycle after if pending again
+        counting = Signal()
+        counted = Signal(range(n), reset_less=True)
+        writing = Signal(n)
+        m.d.comb += writing.eq(Mux(counting, 1 << counted, 0))
+
+        # stage 1: the lowest pending counter (or the host's read) addresses the RAM's read
+        ready = pending & ~writing
+        pick = Signal(range(n))
+        for k in reversed(range(n)):
+            with m.If(ready[k]):
+                m.d.comb += pick.eq(k)
+        # the clearing after a reset: the next counter to clear (``n``: done)
+        clearing = Signal(range(n + 1))
+        cleared = clearing == n
+        count = cleared & ~self.r_en & (ready != 0)
+        m.d.sync += [pending.eq((pending & ~Mux(count, 1 << pick, 0)) | self.events),
+                     counting.eq(count), counted.eq(pick)]
+        m.d.comb += [ram.r_en.eq(1), ram.r_addr.eq(Mux(self.r_en, self.r_addr, pick)),
+                     self.r_data.eq(ram.r_data)]
+
+        # stage 2: the word read, written back plus one (at all ones it stays)
+        old = ram.r_data
+        m.d.comb += [ram.w_en.eq(counting | ~cleared),
+                     ram.w_addr.eq(Mux(cleared, counted, clearing)),
+                     ram.w_data.eq(Mux(cleared, old + ~old.all(), 0))]
+        with m.If(~cleared):
+            m.d.sync += clearing.eq(clearing + 1)
+        return m
