@@ -22,10 +22,18 @@ __all__ = ["TelemetryScheduler"]
 class TelemetryScheduler(wiring.Component):
     """Takes every engine result and offers every ``divider``-th to a buffered framer.
 
+    The counters (``TelemetryCounters``: three of 32 bits) share one adder: a result's
+    increments (1 to ``filtered``, the sample's ``skipped`` to ``lost``, 1 to ``not_sent`` if
+    it is due and will not be framed) are made in three cycles, the three counters rotating
+    through the adder (a register each, loaded from its neighbour: no multiplexer in front
+    of the adder, whose two more bits a cycle per counter cost two LUTs each in a LUT4
+    fabric), then copied, whole, to ``counters``.
+
     Members
-        ``results`` (in, stream of ``Attitude``): a result that is not framed is taken in the
-            cycle it is valid; one that is framed is taken when the framer has copied it
-            (``TelemetryFramer(buffered=True)``: 22 cycles for an attitude frame), never later.
+        ``results`` (in, stream of ``Attitude``): a result is counted in the three cycles
+            after it is valid; one that is not framed is then taken; one that is framed is
+            taken when the framer has copied it (``TelemetryFramer(buffered=True)``: 22
+            cycles for an attitude frame), never later.
         ``sample`` (in, ``Sample``) and ``status`` (in, ``DriverStatus``): the sample the
             present result came from and the driver status latched with it; they hold while
             the result is valid (the engine takes no new sample before its result is taken).
@@ -34,13 +42,16 @@ class TelemetryScheduler(wiring.Component):
             when the frame is offered (it may change while the frame waits: the frame keeps
             the value it was offered with).
         ``framer_idle`` (in): the framer would copy a frame at once. A due result that finds
-            it busy (still sending the last frame) is not framed, and counted.
+            it busy (still sending the last frame) as it comes is not framed, and counted.
+            (Only this scheduler gives the framer frames: idle as a result comes, it is still
+            idle when the frame is offered.)
         ``frames`` (out, stream of ``AttitudeFrame``): the result, its sample and status and
             the counters including it; valid only while the result is, payload still.
-        ``counters`` (out, ``TelemetryCounters``): the live counters.
+        ``counters`` (out, ``TelemetryCounters``): the counters, with every result taken and
+            the one being offered.
 
-    Latency: none (combinational) from a due result to ``frames.valid``. Throughput: one
-    result per cycle when none is framed.
+    Latency: three cycles from a result to ``frames.valid`` (or to its being taken, if it is
+    not framed). Throughput: one result per four cycles when none is framed.
     """
 
     def __init__(self):
@@ -59,19 +70,44 @@ class TelemetryScheduler(wiring.Component):
         m = Module()
         c = self.counters
         phase = Signal(16)                   # results since the last due one
-        offering = Signal()                  # the present result is with the framer
         due = phase == 0
-        start = self.results.valid & ~offering & due & self.framer_idle
+        # the present result: counted (its increments made, ``counters`` updated), and
+        # whether it is framed (decided as it came: due and the framer idle)
+        counting = Signal(range(3))          # the counter at the adder (with ``busy``)
+        busy = Signal()
+        counted = Signal()
+        framing = Signal()
+        offering = Signal()                  # the frame is offered and not yet taken
+        m.d.comb += self.frames.valid.eq(self.results.valid & counted & framing)
         done = self.frames.valid & self.frames.ready
-        take_now = self.results.valid & ~offering & ~start
-        # ``offering`` implies ``results.valid`` (a result with the framer is not taken before
-        # ``done``); saying so here lets the stream contract be proven by induction
-        m.d.comb += [self.frames.valid.eq(self.results.valid & (offering | start)),
-                     self.results.ready.eq(take_now | done)]
-        with m.If(start & ~self.frames.ready):
+        take_now = self.results.valid & counted & ~framing
+        m.d.comb += self.results.ready.eq(take_now | done)
+        with m.If(self.frames.valid & ~self.frames.ready):
             m.d.sync += offering.eq(1)
         with m.If(done):
             m.d.sync += offering.eq(0)
+
+        # the counters rotating through one adder: the head is added to and goes to the back
+        order = ("filtered", "lost", "not_sent")
+        rotating = [Signal(32, name=f"rotating_{name}") for name in order]
+        head = rotating[0]
+        step = Mux(counting == 0, 1,
+                   Mux(counting == 1, self.sample.skipped, ~framing & due))
+        added = Signal(32)
+        m.d.comb += added.eq(head + step)
+        with m.If(self.results.valid & ~counted & ~busy):
+            m.d.sync += [busy.eq(1), counting.eq(0),
+                         framing.eq(due & self.framer_idle)]
+        with m.If(busy):
+            m.d.sync += [rotating[0].eq(rotating[1]), rotating[1].eq(rotating[2]),
+                         rotating[2].eq(added), counting.eq(counting + 1)]
+            with m.If(counting == 2):
+                # in order again: the three new values to the outputs
+                m.d.sync += [busy.eq(0), counted.eq(1), c.filtered.eq(rotating[1]),
+                             c.lost.eq(rotating[2]), c.not_sent.eq(added)]
+        with m.If(self.results.valid & self.results.ready):
+            m.d.sync += [counted.eq(0),
+                         phase.eq(Mux(phase + 1 >= self.divider, 0, phase + 1))]
 
         # the count as offered, frozen while the frame waits to be copied (``offering``)
         refused = Signal(16, reset_less=True)   # loaded each cycle while not offering
@@ -82,13 +118,7 @@ class TelemetryScheduler(wiring.Component):
         result = self.results.payload
         m.d.comb += [*(p.attitude[name].eq(result[name]) for name, _ in FramedAttitude),
                      p.sample.eq(self.sample),
-                     p.status.eq(self.status), p.cfg_refused.eq(Mux(offering, refused, self.cfg_refused)),
-                     p.counters.filtered.eq(c.filtered + 1),
-                     p.counters.lost.eq(c.lost + self.sample.skipped),
-                     p.counters.not_sent.eq(c.not_sent)]
-        with m.If(self.results.valid & self.results.ready):
-            m.d.sync += [c.filtered.eq(p.counters.filtered), c.lost.eq(p.counters.lost),
-                         phase.eq(Mux(phase + 1 >= self.divider, 0, phase + 1))]
-            with m.If(due & take_now):
-                m.d.sync += c.not_sent.eq(c.not_sent + 1)
+                     p.status.eq(self.status),
+                     p.cfg_refused.eq(Mux(offering, refused, self.cfg_refused)),
+                     p.counters.eq(c)]
         return m
