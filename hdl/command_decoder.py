@@ -150,28 +150,8 @@ class CommandDecoder(wiring.Component):
         byte = src.payload
         take = src.valid & src.ready
 
-        # The byte at the FIFO's head is looked at a cycle before it is taken: what the parser
-        # decides from it (a sync byte, a length too long, the CRC matching) is registered
-        # first, so that the FIFO's pointers (take, mark, release, rewind) follow registers,
-        # not the FIFO's own output through the comparisons (that loop was the longest path
-        # of the core, report --timing). The head changes only when a byte is taken (a rewind
-        # comes with a take), so the facts hold until then. A byte every two cycles: the UART
-        # brings one every ten bit times.
-        looked = Signal()
-        is_sync0 = Signal(reset_less=True)
-        is_sync1 = Signal(reset_less=True)
-        too_long = Signal(reset_less=True)
-        empty = Signal(reset_less=True)
-        crc_ok = Signal(reset_less=True)
-        # the CRC's high byte matched: judged when it is taken (the CRC holds from then on),
-        # so that the low byte's look compares 8 bits, not 16
-        high_ok = Signal(reset_less=True)
-        with m.If(take):
-            m.d.sync += looked.eq(0)
-        with m.Elif(src.valid):
-            m.d.sync += [looked.eq(1), is_sync0.eq(byte == SYNC[0]), is_sync1.eq(byte == SYNC[1]),
-                         too_long.eq(byte > MAX_COMMAND_PAYLOAD), empty.eq(byte == 0),
-                         crc_ok.eq(high_ok & (byte == crc.crc[:8]))]
+        looked, is_sync0, is_sync1, too_long, empty, crc_ok, high_ok = self._look(
+            m, src, take, crc)
 
         # data registers, written before they are read in every frame, need no reset (on a
         # MAX10 a synchronous reset costs logic per bit)
@@ -184,18 +164,23 @@ class CommandDecoder(wiring.Component):
         addr = payload[:16]
         value = payload[16:48]
         space, low = addr[8:], addr[:8]
-        # the reply and the engine write are written before they are offered: no reset
+        # the reply is written before it is offered: no reset. An engine write is made from
+        # its address and value fields (a write's reply echoes them), set before ENGINE_WRITE:
+        # one register and one multiplexer in front of it, not two
         reply = Signal.like(self.replies.payload, reset_less=True)
-        write = Signal.like(self.cfg.payload, reset_less=True)
-        m.d.comb += [self.replies.payload.eq(reply), self.cfg.payload.eq(write)]
+        m.d.comb += [self.replies.payload.eq(reply), self.cfg.payload.addr.eq(reply.addr[:8]),
+                     self.cfg.payload.data.eq(reply.value)]
+        write = SimpleNamespace(addr=reply.addr, data=reply.value)
 
         def count_up(name):
             m.d.comb += counters.events[counter_word(f"CMD_{name.upper()}")].eq(1)
 
-        def answer(result, value_=None, addr_=None):
-            m.d.sync += [reply.command.eq(ctype), reply.cmd_seq.eq(seq), reply.result.eq(result),
-                         reply.addr.eq(addr if addr_ is None else addr_),
-                         reply.value.eq(value if value_ is None else value_)]
+        def answer(result, value_=None, addr_=None, *, keep=False):
+            """The reply (``keep``: its address and value as they are: an engine write's)."""
+            m.d.sync += [reply.command.eq(ctype), reply.cmd_seq.eq(seq), reply.result.eq(result)]
+            if not keep:
+                m.d.sync += [reply.addr.eq(addr if addr_ is None else addr_),
+                             reply.value.eq(value if value_ is None else value_)]
             if result == RESULTS["ok"]:
                 # only an accepted command restarts the PWM watchdog: a host stuck sending
                 # refused or unknown commands is as good as a silent one
@@ -232,7 +217,7 @@ class CommandDecoder(wiring.Component):
             with m.State("ENGINE_WRITE"):
                 m.d.comb += self.cfg.valid.eq(1)
                 with m.If(self.cfg.ready):
-                    answer(RESULTS["ok"], addr_=write.addr, value_=write.data)
+                    answer(RESULTS["ok"], keep=True)
             with m.State("ENGINE_READ"):
                 m.d.comb += [self.cfg_read.valid.eq(1), self.cfg_read.payload.eq(low)]
                 with m.If(self.cfg_read.ready):
@@ -257,6 +242,34 @@ class CommandDecoder(wiring.Component):
             count_up("malformed")
             m.d.sync += gap.eq(0)
         return m
+
+    def _look(self, m, src, take, crc):
+        """The facts about the FIFO's head byte the parser decides on (``looked`` says they
+        are in), and ``high_ok``, the CRC's high byte's match (the parser sets it)."""
+        byte = src.payload
+        # The byte at the FIFO's head is looked at a cycle before it is taken: what the parser
+        # decides from it (a sync byte, a length too long, the CRC matching) is registered
+        # first, so that the FIFO's pointers (take, mark, release, rewind) follow registers,
+        # not the FIFO's own output through the comparisons (that loop was the longest path
+        # of the core, report --timing). The head changes only when a byte is taken (a rewind
+        # comes with a take), so the facts hold until then. A byte every two cycles: the UART
+        # brings one every ten bit times.
+        looked = Signal()
+        is_sync0 = Signal(reset_less=True)
+        is_sync1 = Signal(reset_less=True)
+        too_long = Signal(reset_less=True)
+        empty = Signal(reset_less=True)
+        crc_ok = Signal(reset_less=True)
+        # the CRC's high byte matched: judged when it is taken (the CRC holds from then on),
+        # so that the low byte's look compares 8 bits, not 16
+        high_ok = Signal(reset_less=True)
+        with m.If(take):
+            m.d.sync += looked.eq(0)
+        with m.Elif(src.valid):
+            m.d.sync += [looked.eq(1), is_sync0.eq(byte == SYNC[0]), is_sync1.eq(byte == SYNC[1]),
+                         too_long.eq(byte > MAX_COMMAND_PAYLOAD), empty.eq(byte == 0),
+                         crc_ok.eq(high_ok & (byte == crc.crc[:8]))]
+        return looked, is_sync0, is_sync1, too_long, empty, crc_ok, high_ok
 
     def _counters(self, m, counters, *, read, low):
         """The receiver's events into the counters, and the read of the counter a board read

@@ -146,11 +146,15 @@ class CORDIC(wiring.Component):
                 m.d.comb += self.done.eq(1)
                 m.next = "IDLE"
 
-        top = (1 << (n - 1)) - 1
+        # In vectoring x is never negative: it starts at |x_in| (or -x_in - 1) and each
+        # iteration adds |y| >> i. So it is over 2^(n-1) - 1 when a bit from n - 1 up is set,
+        # and the limit is x with its low bits forced to ones: no comparator, no multiplexer
+        # (in rotation ``magnitude`` and ``saturated`` mean nothing)
+        over = x[n - 1:].any()
         m.d.comb += [
             self.angle.eq(z),
-            self.magnitude.eq(Mux(x > top, top, x)),
-            self.saturated.eq(x > top),
+            self.magnitude.eq(Cat(x[:n - 1] | over.replicate(n - 1), C(0, 1))),
+            self.saturated.eq(over),
             self.cos.eq(x),
             self.sin.eq(y),
         ]
