@@ -364,7 +364,7 @@ class SampleReader(wiring.Component):
         have_base = Signal()                    # a sample was passed on since ``start``
         timer = Signal(range(max(self.first_timeout_cycles, self.timeout_cycles) + 1))
         m.d.sync += timer.eq(timer - (timer != 0))
-        counter = Signal(32)                    # samples read since power-on
+        counter = self._counts(m, n)            # samples read since power-on
         overrun = Signal()
         resumed = Signal()
         bad_bursts = Signal(range(BAD_BURST_LIMIT + 1))
@@ -468,8 +468,8 @@ class SampleReader(wiring.Component):
                         m.d.comb += self.mag_nack.eq(1)
                         m.d.sync += mag_read_failed.eq(1)
             with m.State("CHECK"):
-                m.d.sync += [counter.eq(counter + 1), timer.eq(self.timeout_cycles - 1),
-                             self.int_timeout.eq(0)]
+                m.d.sync += [n.counting.eq(1), n.early_count.eq(0),
+                             timer.eq(self.timeout_cycles - 1), self.int_timeout.eq(0)]
                 m.next = "IDLE"
                 plausible = buf[0][0] & (buf[0] != 0xFF) & ~n.data_ones
                 if self.gyro_jump is not None:
@@ -500,14 +500,32 @@ class SampleReader(wiring.Component):
                     with m.If(early):
                         # a new sample too soon: the part runs faster than it was told
                         m.d.comb += self.reconfigure.eq(1)
-                        with m.If(~self.rate_errors.all()):
-                            m.d.sync += self.rate_errors.eq(self.rate_errors + 1)
+                        m.d.sync += n.early_count.eq(1)       # ``rate_errors``, after
                     if not spi:
                         m.d.sync += self.read_error.eq(0)
                     self._emit(m, sample, buf, counter, overrun, dropped, skipped, resumed,
                                prev_field, prev_drdy, mag_age, mag_read_failed)
                     with m.If(~self.samples.valid):
                         m.d.sync += have_base.eq(1)      # this one is the payload now
+
+    def _counts(self, m, n):
+        """The samples read (returned: 32 bits, wrapping) and ``rate_errors`` (16,
+        saturating) share one adder: a check (``n.counting`` set, ``n.early_count``: its
+        sample came early) is counted in the two cycles after it, the two counts rotating
+        through the adder (each register loaded from the other: no multiplexer in front of
+        it), ``rate_errors`` then copied out. Checks are a burst apart."""
+        head = Signal(32)                       # the count of samples read, when still
+        tail = Signal(32)                       # the early ones, when still
+        n.counting = Signal()                   # the first of the two steps, then the second
+        second = Signal()
+        n.early_count = Signal()
+        added = Signal(32)
+        m.d.comb += added.eq(head + Mux(second, n.early_count & ~head[:16].all(), 1))
+        with m.If(n.counting | second):
+            m.d.sync += [head.eq(tail), tail.eq(added), n.counting.eq(0), second.eq(n.counting)]
+        with m.If(second):
+            m.d.sync += self.rate_errors.eq(added[:16])
+        return head
 
     def _emit(self, m, sample, buf, counter, overrun, dropped, skipped, resumed, prev_field,
               prev_drdy, mag_age, mag_read_failed):

@@ -24,10 +24,10 @@ class TelemetryScheduler(wiring.Component):
 
     The counters (``TelemetryCounters``: three of 32 bits) share one adder: a result's
     increments (1 to ``filtered``, the sample's ``skipped`` to ``lost``, 1 to ``not_sent`` if
-    it is due and will not be framed) are made in three cycles, the three counters rotating
-    through the adder (a register each, loaded from its neighbour: no multiplexer in front
-    of the adder, whose two more bits a cycle per counter cost two LUTs each in a LUT4
-    fabric), then copied, whole, to ``counters``.
+    it is due and will not be framed) are made in the three cycles after it comes, the
+    three counters rotating through the adder (each register loaded from its neighbour: no
+    multiplexer in front of the adder, which costs about two LUTs a bit in a LUT4 fabric,
+    and no copy of the counters, which would cost an LE a bit).
 
     Members
         ``results`` (in, stream of ``Attitude``): a result is counted in the three cycles
@@ -48,7 +48,8 @@ class TelemetryScheduler(wiring.Component):
         ``frames`` (out, stream of ``AttitudeFrame``): the result, its sample and status and
             the counters including it; valid only while the result is, payload still.
         ``counters`` (out, ``TelemetryCounters``): the counters, with every result taken and
-            the one being offered.
+            the one being offered; in the three cycles after a result comes they rotate
+            (each field shows another's value), and are in place again after them.
 
     Latency: three cycles from a result to ``frames.valid`` (or to its being taken, if it is
     not framed). Throughput: one result per four cycles when none is framed.
@@ -88,8 +89,7 @@ class TelemetryScheduler(wiring.Component):
             m.d.sync += offering.eq(0)
 
         # the counters rotating through one adder: the head is added to and goes to the back
-        order = ("filtered", "lost", "not_sent")
-        rotating = [Signal(32, name=f"rotating_{name}") for name in order]
+        rotating = [c.filtered, c.lost, c.not_sent]
         head = rotating[0]
         step = Mux(counting == 0, 1,
                    Mux(counting == 1, self.sample.skipped, ~framing & due))
@@ -102,9 +102,7 @@ class TelemetryScheduler(wiring.Component):
             m.d.sync += [rotating[0].eq(rotating[1]), rotating[1].eq(rotating[2]),
                          rotating[2].eq(added), counting.eq(counting + 1)]
             with m.If(counting == 2):
-                # in order again: the three new values to the outputs
-                m.d.sync += [busy.eq(0), counted.eq(1), c.filtered.eq(rotating[1]),
-                             c.lost.eq(rotating[2]), c.not_sent.eq(added)]
+                m.d.sync += [busy.eq(0), counted.eq(1)]         # in order again
         with m.If(self.results.valid & self.results.ready):
             m.d.sync += [counted.eq(0),
                          phase.eq(Mux(phase + 1 >= self.divider, 0, phase + 1))]
