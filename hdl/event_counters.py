@@ -25,9 +25,9 @@ class EventCounters(wiring.Component):
     decoder's: discarded bytes at most every other cycle, the rest once per frame at most,
     the reads as a frame ends).
 
-    After a reset the RAM is cleared, a counter a cycle (``n`` cycles; events meanwhile wait
-    pending, reads read 0 or the count before the reset), so that the counts are from the
-    reset, as registers' would be.
+    A reset clears a bit per counter (set by its first count) rather than the RAM: a counter
+    whose bit is clear reads 0, so the counts are from the reset, as registers' would be, and
+    events are counted from the first cycle after it.
 
     Parameters
         ``n``: the counters; ``width``: their bits (16).
@@ -36,7 +36,9 @@ class EventCounters(wiring.Component):
         ``r_en``, ``r_addr`` (in) / ``r_data`` (out, ``width``): the count of counter
             ``r_addr``, the cycle after ``r_en`` (a read takes the RAM's read port for that
             cycle: the counting waits). It includes every event taken two cycles before.
-        ``ram``: the ``FrameRAM`` (``report`` counts it; tests read ``ram.data``).
+        ``ram``: the ``FrameRAM`` (``report`` counts it). Tests read the counts in
+            ``ram.data`` where no reset came after the first cycle (after one, a counter not
+            counted since keeps its old word there, and reads 0 through the port).
     Latency: an event is in its count two cycles after it, plus a cycle for each lower
     counter pending and each read. Throughput: one count a cycle.
     """
@@ -69,20 +71,20 @@ class EventCounters(wiring.Component):
         for k in reversed(range(n)):
             with m.If(ready[k]):
                 m.d.comb += pick.eq(k)
-        # the clearing after a reset: the next counter to clear (``n``: done)
-        clearing = Signal(range(n + 1))
-        cleared = clearing == n
-        count = cleared & ~self.r_en & (ready != 0)
+        count = ~self.r_en & (ready != 0)
+        addr = Mux(self.r_en, self.r_addr, pick)
+        # a counter counted since the reset: its word in the RAM is its count (else it is 0)
+        valid = Signal(n)
+        word_valid = Signal()                   # the word read was a count
         m.d.sync += [pending.eq((pending & ~Mux(count, 1 << pick, 0)) | self.events),
-                     counting.eq(count), counted.eq(pick)]
-        m.d.comb += [ram.r_en.eq(1), ram.r_addr.eq(Mux(self.r_en, self.r_addr, pick)),
-                     self.r_data.eq(ram.r_data)]
+                     counting.eq(count), counted.eq(pick),
+                     word_valid.eq(valid.bit_select(addr, 1))]
+        m.d.comb += [ram.r_en.eq(1), ram.r_addr.eq(addr)]
 
         # stage 2: the word read, written back plus one (at all ones it stays)
-        old = ram.r_data
-        m.d.comb += [ram.w_en.eq(counting | ~cleared),
-                     ram.w_addr.eq(Mux(cleared, counted, clearing)),
-                     ram.w_data.eq(Mux(cleared, old + ~old.all(), 0))]
-        with m.If(~cleared):
-            m.d.sync += clearing.eq(clearing + 1)
+        old = ram.r_data & word_valid.replicate(self.width)
+        m.d.comb += [self.r_data.eq(old), ram.w_en.eq(counting), ram.w_addr.eq(counted),
+                     ram.w_data.eq(old + ~old.all())]
+        with m.If(counting):
+            m.d.sync += valid.bit_select(counted, 1).eq(1)
         return m

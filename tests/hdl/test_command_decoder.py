@@ -136,6 +136,17 @@ def test_every_command():
     assert stats["crc_errors"] == 0 and stats["discarded"] == 0
 
 
+def test_discarded_bytes_two_cycles_in_a_row_count_twice():
+    """``A5 00``: the second sync byte's check turns 00 back and counts the A5 that began
+    nothing, and the hunt takes 00 and counts it the next cycle (the counters in their RAM
+    take both, and a board read of CMD_DISCARDED after them says so)."""
+    good = encode_command("who", 1)
+    board_read = encode_command("read", 2, addr=BOARD_REGS["CMD_DISCARDED"], space="board")
+    writes, replies, stats, _ = run(b"\xA5\x00" + good + b"\x11\xA5\x00\x22" + board_read)
+    assert stats["discarded"] == 6 and stats["ok"] == 2
+    assert [r["value"] for r in replies if r["cmd_seq"] == 2] == [6]
+
+
 def _commands(rng, n):
     writable = sorted(a for a in HOST_WRITABLE if a < 0x80)
     out = []
