@@ -19,11 +19,14 @@ class EventCounters(wiring.Component):
     An event sets its counter's pending bit; each cycle the lowest pending counter is read
     (unless a read is made, or it is being written back) and, the cycle after, written back
     plus one (a counter at all ones stays): one count a cycle, pipelined. A pending bit holds
-    one event: an event of a counter still pending adds nothing. So the events of the lowest
-    counter are all counted if they come at most every other cycle and not in the cycle
-    before a read; the others', if each comes once its last has been taken (the command
-    decoder's: discarded bytes at most every other cycle, the rest once per frame at most,
-    the reads as a frame ends).
+    one event: an event comes to nothing only if its counter is pending and not taken in that
+    cycle. So the lowest counter's events are all counted as long as no three come in
+    consecutive cycles and none in a cycle with a read (its pending bit is taken the cycle
+    after an event, and is set again by an event in that cycle; it waits a cycle while its
+    word is written back); a higher counter's, if each comes once its last has been taken.
+    The command decoder's: discarded bytes (the lowest) at most two in a row (the byte its
+    second-sync check turns back, then the one the hunt takes) and never while it reads a
+    counter (as a frame ends); the others at most once per byte or frame.
 
     A reset clears a bit per counter (set by its first count) rather than the RAM: a counter
     whose bit is clear reads 0, so the counts are from the reset, as registers' would be, and
