@@ -21,7 +21,7 @@ from .rewindable_fifo import RewindableFIFO
 
 
 __all__ = ["COMMANDS", "RESULTS", "SPACES", "BOARD_REGS", "REGMAP_VERSION", "MAX_COMMAND_PAYLOAD",
-           "COMMAND_STATS", "COUNTED", "counter_word", "CommandDecoder"]
+           "COMMAND_STATS", "COUNTED", "COUNTER_WORDS", "counter_word", "CommandDecoder"]
 
 
 # name: (type byte, payload bytes)
@@ -62,16 +62,19 @@ COMMAND_STATS = (
     "ok",           # commands done
     "refused",      # well-formed commands refused (read-only, out of range, no address)
 )
-# The board registers counted in the decoder's ``EventCounters``, the receiver's two included
+# The board registers counted in the decoder's ``EventCounters``, the receiver's two included,
+# and its words: a power of two, so that a board address less CMD_DISCARDED's, cut to its low
+# bits, is the word (``counter_word``)
 COUNTED = ("RX_FRAMING_ERRORS", "RX_OVERRUNS", *(f"CMD_{name.upper()}" for name in COMMAND_STATS))
+COUNTER_WORDS = 8
 
 
 def counter_word(name):
     """A counted board register's word in the counters' RAM: its address less CMD_DISCARDED's,
-    modulo 8 (the receiver's two, before it, are words 6 and 7; the discarded bytes, which
+    modulo ``COUNTER_WORDS`` (the receiver's two, before it, are words 6 and 7; the discarded bytes, which
     come fastest, word 0: the first served). The command names its word with its address's
     low bits, no table."""
-    return (BOARD_REGS[name] - BOARD_REGS["CMD_DISCARDED"]) % 8
+    return (BOARD_REGS[name] - BOARD_REGS["CMD_DISCARDED"]) % COUNTER_WORDS
 
 
 class CommandDecoder(wiring.Component):
@@ -122,7 +125,7 @@ class CommandDecoder(wiring.Component):
         self.version = version
         self.timeout = timeout
         self.fifo = RewindableFIFO(FIFO_DEPTH)
-        self.counters = EventCounters(8)
+        self.counters = EventCounters(COUNTER_WORDS)
         super().__init__({
             "i_stream": In(stream.Signature(8)),
             "cfg": Out(stream.Signature(ConfigWrite)),

@@ -47,6 +47,9 @@ class EventCounters(wiring.Component):
     """
 
     def __init__(self, n, width=16):
+        if n < 1 or width < 1:
+            raise ValueError(f"EventCounters needs a counter and a bit at least, not n={n}, "
+                             f"width={width}")
         self.n = n
         self.width = width
         # a whole power of two of words: an address beyond ``n`` reads a word (0), not nothing

@@ -11,8 +11,9 @@ from hypothesis import example, given, settings, strategies as st
 
 from mpu9250_ahrs.hdl.register_map import (CONFIG_REGS, CONTROL_ADDR, CONTROL_KEEP, CONTROL_RESET,
                                            HOST_WRITABLE, TELEMETRY_DIV_ADDR)
-from mpu9250_ahrs.hdl.command_decoder import (BOARD_REGS, COMMAND_STATS, COMMANDS, FIFO_DEPTH,
-                                              REGMAP_VERSION, RESULTS, CommandDecoder)
+from mpu9250_ahrs.hdl.command_decoder import (BOARD_REGS, COMMAND_STATS, COMMANDS, COUNTED,
+                                              COUNTER_WORDS, FIFO_DEPTH, REGMAP_VERSION,
+                                              RESULTS, CommandDecoder, counter_word)
 from mpu9250_ahrs.hdl.pwm import PWM_REGS, PWMOutputs
 from mpu9250_ahrs.host.protocol import encode_command, encode_frame, to_python
 from mpu9250_ahrs.sim.streams import check_stream_rules
@@ -286,3 +287,9 @@ def test_control_words_the_engine_refuses_are_refused():
     assert [r["result"] for r in replies] == [ok if t else refused for t in taken]
     assert refused in [r["result"] for r in replies]                  # the reserved bits
     assert writes == [(CONTROL_ADDR, w) for w, t in zip(words, taken) if t]
+
+
+def test_each_counted_register_has_a_word_of_its_own():
+    words = [counter_word(name) for name in COUNTED]
+    assert len(set(words)) == len(words) and all(0 <= w < COUNTER_WORDS for w in words)
+    assert [counter_word(f"CMD_{name.upper()}") for name in COMMAND_STATS] == [0, 1, 2, 3, 4]
