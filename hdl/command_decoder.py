@@ -352,7 +352,9 @@ class CommandDecoder(wiring.Component):
             m.d.sync += seq.eq(byte)
             m.next = "LENGTH"
         with receiving("LENGTH"):
-            m.d.sync += [length.eq(byte), count.eq(0), payload.eq(0)]
+            # the payload's bytes are not cleared (a LUT a bit on a MAX10): a command reads only
+            # the bytes its length brings, checked in EXECUTE; a bad one's reply is all zeros
+            m.d.sync += [length.eq(byte), count.eq(0)]
             with m.If(too_long):
                 count_up("malformed")
                 m.d.comb += fifo.rewind.eq(1)           # search the rest for a header
@@ -394,7 +396,7 @@ class CommandDecoder(wiring.Component):
                     m.d.comb += [expected.eq(n), known.eq(1)]
         with m.If(~known | (length != expected)):
             count_up("malformed")
-            answer(RESULTS["bad_command"])
+            answer(RESULTS["bad_command"], value_=0, addr_=0)
         with m.Elif(ctype == COMMANDS["write"][0]):
             with m.If(space == SPACES["engine"]):
                 with m.If(writable):

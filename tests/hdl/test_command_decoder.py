@@ -132,6 +132,8 @@ def test_every_command():
     assert by_seq[9]["value"] == VERSION and by_seq[9]["addr"] == REGMAP_VERSION
     assert by_seq[10]["value"] == 7                          # seven done (ok) before it
     assert by_seq[13]["value"] == 2_500
+    # a bad command's reply echoes nothing (its payload bytes are not those of a command)
+    assert all(by_seq[k]["addr"] == 0 and by_seq[k]["value"] == 0 for k in (15, 16))
     assert raw == 1
     assert stats["ok"] == 10 and stats["refused"] == 7 and stats["malformed"] == 2
     assert stats["crc_errors"] == 0 and stats["discarded"] == 0
