@@ -45,7 +45,8 @@ from .numeric_contract import (INV_GAIN_Q30, CalibrationFixed, FilterRates, Flag
                                mag_period)
 from .attitude_result import Attitude
 from .config_write import ConfigWrite
-from .sample import Sample, SAMPLE_WORDS, sample_words
+from .sample import Sample
+from .sample_store import SAMPLE_STORE_DEPTH, SLOT_WORDS, SLOTS, STORE_WORDS
 
 
 __all__ = ["AttitudeEngine", "PEEKED", "default_filter_config", "default_flagship_config"]
@@ -118,7 +119,8 @@ class AttitudeEngine(wiring.Component):
         ``samples`` (in, stream of ``Sample``): one update per sample. Taken when the engine is
             idle and the previous result has been taken; the sample is held (``sample``) as
             its load starts, loaded from there (one cycle per ``LOAD_ORDER`` word: 13), then
-            acknowledged.
+            acknowledged. With ``sample_store``, the sensor fields are loaded from the sample
+            store instead (below), and only ``skipped`` is held.
         ``asa`` (in, 3 × 8 bits): the AK8963's fuse-ROM sensitivity bytes (from the driver).
         ``cfg`` (in, stream of ``ConfigWrite``): register writes (``register_map`` has the
             map); accepted while the engine is idle. Only ``HOST_WRITABLE`` addresses are written:
@@ -135,10 +137,14 @@ class AttitudeEngine(wiring.Component):
         ``busy`` (out): an update or a filter reset is running.
         ``sample`` (out, ``Sample``): the sample of the present (or last) update, held from
             the start of its load to the next load.
-        ``sample_index`` (in, 0..``SAMPLE_WORDS`` − 1) / ``sample_word`` (out, 32): the held
-            sample's 32-bit words (``sample.sample_words``: its bits, the last word padded
-            with zeros), combinational, outside LOAD (the loader reads through the same
-            multiplexer): the framer copies the sample from here.
+        ``sample_store`` (parameter, False): the sample is read from the sample store
+            (``hdl/sample_store.py``, the core's; the engine's own tests feed it in the
+            payload): ``sample_slot`` (in), beside ``samples``: the sample's slot;
+            ``store_addr`` (out) / ``store_data`` (in, 32): the store's read port (a word the
+            cycle after its address). The loader reads the sensor fields from the sample's
+            slot; outside LOAD the port reads word ``sample_index`` (in, 0..``STORE_WORDS`` −
+            1) of the slot of the sample held, on ``sample_word`` (out, 32) a cycle later: the
+            framer copies the sample from there. ``sample`` then holds ``skipped`` only.
         ``peek_en``, ``peek_index`` (in, 0..9) / ``peek_data`` (out, signed 32): the offered
             result's words read from the register file (``PEEKED``: the quaternion, angles and
             bias, in ``Attitude``'s order; the word the cycle after ``peek_en``), equal to
@@ -151,8 +157,9 @@ class AttitudeEngine(wiring.Component):
     """
 
     def __init__(self, config=KalmanFixedConfig(), cal=None, flagship=None, *,
-                 filter="flagship", extra_registers=None):
+                 filter="flagship", extra_registers=None, sample_store=False):
         self.config = config
+        self.sample_store = sample_store
         self.cal = CalibrationFixed() if cal is None else cal
         self.flagship = FlagshipFixedConfig.matching(config) if flagship is None else flagship
         self.filter_at_reset = FILTER_CODES[filter]
@@ -176,8 +183,9 @@ class AttitudeEngine(wiring.Component):
             "busy": Out(1),
             "cfg_refused": Out(16),
             "sample": Out(Sample),
-            "sample_index": In(range(SAMPLE_WORDS)),
-            "sample_word": Out(32),
+            **({"sample_slot": In(range(SLOTS)), "store_addr": Out(range(SAMPLE_STORE_DEPTH)),
+                "store_data": In(32), "sample_index": In(range(STORE_WORDS)),
+                "sample_word": Out(32)} if sample_store else {}),
             "peek_en": In(1), "peek_index": In(range(len(PEEKED))),
             "peek_data": Out(signed(32)),
         })
@@ -481,6 +489,41 @@ class AttitudeEngine(wiring.Component):
             with m.If(hit_b):
                 m.d.sync += [o_hold_b.eq(w_data), o_held_b.eq(1)]
 
+    def _load_data(self, m, load_index, taking, in_load):
+        """The loader's word ``load_index`` (16 bits; the write sign-extends it): a sensor
+        field of the sample (``SENSOR_FIELD_HALVES``), then the tail (the ASA bytes, the
+        periods: ``load_words``). ``taking``: IDLE takes a sample now; ``in_load``: LOAD."""
+        held = self.sample
+        sensors = len(SENSOR_FIELD_HALVES)
+        tail = [Value.cast(v)[:16] for v in
+                load_words([0] * 3, [0] * 3, [0] * 3, [self.asa[i] for i in range(3)],
+                           held.skipped)[sensors:]]
+        if not self.sample_store:
+            # the held sample's halves, through one multiplexer with the tail's
+            bits = held.as_value()
+            return Array([bits[16 * h:16 * h + 16] for h in SENSOR_FIELD_HALVES] + tail)[
+                load_index]
+        # From the store: a load word's store word is read the cycle before (in the cycle
+        # that takes the sample, the first), from the sample's slot; outside LOAD the port
+        # reads the framer's word of the held sample's slot. A block RAM's read port is the
+        # multiplexer: only the half of the word and the tail are chosen here.
+        held_slot = Signal(range(SLOTS))
+        with m.If(taking):
+            m.d.sync += held_slot.eq(self.sample_slot)
+        words = [h // 2 for h in SENSOR_FIELD_HALVES]
+        assert max(words) < STORE_WORDS <= SLOT_WORDS
+        word_bits = (SLOT_WORDS - 1).bit_length()
+        ahead = Array(C(w, word_bits) for w in words + [0])[
+            Mux(taking, 0, Mux(load_index < sensors, load_index + 1, sensors))]
+        m.d.comb += [
+            self.store_addr.eq(Mux(taking | in_load, Cat(ahead, self.sample_slot),
+                                   Cat(self.sample_index, held_slot))),
+            self.sample_word.eq(self.store_data),
+        ]
+        half = Array(C(h % 2, 1) for h in SENSOR_FIELD_HALVES + [0] * len(tail))[load_index]
+        from_tail = Array([C(0, 16)] * sensors + tail)[load_index]
+        return Mux(load_index < sensors, self.store_data.word_select(half, 16), from_tail)
+
     def _control(self, m, u, p):
         """The engine's states: IDLE (a result offered, the host's port open), LOAD (the
         sample into the register file), RUN (the program, ``_execute``)."""
@@ -494,27 +537,10 @@ class AttitudeEngine(wiring.Component):
                          phase.eq(0)]
 
         load_index = Signal(range(len(LOAD_ORDER)), reset_less=True)
-        # The sample is held from its load until the next one: the loader reads it, and then
-        # the framer (``sample_word``), through one multiplexer of its 32-bit words rather
-        # than one each (a LUT4 fabric pays about a LUT per multiplexed bit).
         held = self.sample
-        # the loader's other words (ASA, the periods: each fits 16 bits) as two more words
-        # after the sample's, so that every load word is a 16-bit half of a word (sign-extended
-        # on the write)
-        tail = [Value.cast(v)[:16] for v in
-                load_words([0] * 3, [0] * 3, [0] * 3, [self.asa[i] for i in range(3)],
-                           held.skipped)[len(SENSOR_FIELD_HALVES):]]
-        tail += [C(0, 16)] * (len(tail) % 2)
-        words = sample_words(held) + [Cat(tail[i], tail[i + 1]) for i in range(0, len(tail), 2)]
-        word_index = Signal(range(len(words)))
-        word = Signal(32)
-        m.d.comb += [word.eq(Array(words)[word_index]), self.sample_word.eq(word),
-                     word_index.eq(self.sample_index)]
-        # each load word's place: 2·word + half (the sensor fields', then the tail's)
-        places = Array(C(place, 5) for place in
-                       SENSOR_FIELD_HALVES + [2 * SAMPLE_WORDS + i for i in range(len(tail))])
-        place = places[load_index]
-        load_data = word.word_select(place[0], 16)
+        taking = Signal()                   # IDLE takes a sample now
+        in_load = Signal()
+        load_data = self._load_data(m, load_index, taking, in_load)
 
         with m.If(self.results.valid & self.results.ready):
             m.d.sync += result_valid.eq(0)
@@ -538,7 +564,13 @@ class AttitudeEngine(wiring.Component):
                     m.d.sync += [init_pending.eq(0), running_init.eq(1)]
                     m.next = "RUN"
                 with m.Elif(self.samples.valid & ~result_valid):
-                    m.d.sync += [load_index.eq(0), flags_set.eq(0), held.eq(self.samples.payload),
+                    sample = self.samples.payload
+                    m.d.comb += taking.eq(1)
+                    if self.sample_store:           # the sample stays in the store
+                        m.d.sync += held.skipped.eq(sample.skipped)
+                    else:
+                        m.d.sync += held.eq(sample)
+                    m.d.sync += [load_index.eq(0), flags_set.eq(0),
                                  flag_sat.eq(0), mag_valid.eq(self.samples.payload.flags.mag_valid),
                                  out.counter.eq(self.samples.payload.counter),
                                  out.flags.overrun.eq(self.samples.payload.flags.overrun),
@@ -548,8 +580,7 @@ class AttitudeEngine(wiring.Component):
                     m.d.comb += host.open.eq(1)
             with m.State("LOAD"):
                 m.d.comb += [self.busy.eq(1), w_en.eq(1), w_addr.eq(LOAD_BASE | load_index),
-                             w_other.eq(load_data.as_signed()),
-                             word_index.eq(place[1:])]
+                             w_other.eq(load_data.as_signed()), in_load.eq(1)]
                 m.d.sync += load_index.eq(load_index + 1)
                 with m.If(load_index == len(LOAD_ORDER) - 1):
                     m.d.comb += self.samples.ready.eq(1)

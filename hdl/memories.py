@@ -124,24 +124,31 @@ class FrameRAM(wiring.Component):
     returns the old word). One M9K on a MAX10: the telemetry framer's copy of a frame, the
     command decoder's input FIFO, the self-test's sums and its table (``init``: a ROM).
 
+    ``lanes``: the write's enables, one per ``width // lanes`` bits (``w_en`` bit k writes
+    ``w_data``'s lane k: the M9K's byte enables; the sample store writes a byte at a time).
+
     Latency: a read's word is on ``r_data`` the cycle after its address (with ``r_en``).
     Throughput: a write and a read per cycle.
     """
     blackbox = False                # ``report`` sets it: module docstring
 
-    def __init__(self, depth, width=8, init=()):
+    def __init__(self, depth, width=8, init=(), *, lanes=1):
+        if lanes < 1 or width % lanes:
+            raise ValueError(f"FrameRAM: {lanes} write lanes do not divide {width} bits")
         self.depth = depth
         self.width = width
+        self.lanes = lanes
         self.init = list(init)          # initial words: a ROM when nothing writes it
         self.abits = max(1, (depth - 1).bit_length())
         # the words, made here so that a testbench can read them (``ctx.get(ram.data[i])``)
         self.data = MemoryData(shape=width, depth=depth, init=self.init)
-        super().__init__({"w_en": In(1), "w_addr": In(self.abits), "w_data": In(width),
+        super().__init__({"w_en": In(lanes), "w_addr": In(self.abits), "w_data": In(width),
                           "r_en": In(1), "r_addr": In(self.abits), "r_data": Out(width)})
 
     @property
     def name(self):
-        return f"mpu9250_ahrs_ram{self.depth}x{self.width}"
+        lanes = "" if self.lanes == 1 else f"e{self.lanes}"
+        return f"mpu9250_ahrs_ram{self.depth}x{self.width}{lanes}"
 
     @property
     def bits(self):
@@ -158,7 +165,8 @@ class FrameRAM(wiring.Component):
     def stub(self):
         """Verilog declaring the blackbox module (``report``)."""
         a, w = self.abits, self.width
-        return (f"(* blackbox *) module {self.name}(input clk, input w_en, "
+        e = "" if self.lanes == 1 else f"[{self.lanes - 1}:0] "
+        return (f"(* blackbox *) module {self.name}(input clk, input {e}w_en, "
                 f"input [{a - 1}:0] w_addr, input [{w - 1}:0] w_data, input r_en, "
                 f"input [{a - 1}:0] r_addr, output [{w - 1}:0] r_data);\nendmodule\n")
 
@@ -171,7 +179,7 @@ class FrameRAM(wiring.Component):
                 i_r_addr=self.r_addr, o_r_data=self.r_data)
             return m
         m.submodules.mem = mem = Memory(self.data)
-        wp = mem.write_port()
+        wp = mem.write_port(granularity=None if self.lanes == 1 else self.width // self.lanes)
         rp = mem.read_port()
         m.d.comb += [wp.en.eq(self.w_en), wp.addr.eq(self.w_addr), wp.data.eq(self.w_data),
                      rp.en.eq(self.r_en), rp.addr.eq(self.r_addr), self.r_data.eq(rp.data)]

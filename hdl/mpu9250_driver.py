@@ -75,6 +75,7 @@ from .bring_up_sequencer import (BringUpSequencer, Fail, Op, SelfTestWaits, Step
 from .self_test import SelfTest
 from .clocking import cycles
 from .register_port import RegisterPortSignature
+from .sample_store import SLOTS, SampleStoreWriteSignature
 from .register_port_arbiter import RegisterPortArbiter
 from .driver_status import DriverStatus, SelfTestStatus
 from .sample import Sample
@@ -238,10 +239,13 @@ def driver_members():
     """The driver's ports towards the sensor's INT pin and downstream, which the sensor front
     end passes on unchanged: ``int_pin``, ``samples``, ``status``, ``asa``, ``rate_errors``
     (16, saturating: samples that came early, ``DriverStatus.rate_error``), ``who_am_i``
-    (8: the last WHO_AM_I value read), ``self_test`` (``SelfTestStatus``)."""
+    (8: the last WHO_AM_I value read), ``self_test`` (``SelfTestStatus``), and the sample
+    store's write port and the offered sample's slot (``store``, ``sample_slot``:
+    ``SampleReader``, ``hdl/sample_store.py``)."""
     return {"int_pin": In(1), "samples": Out(stream.Signature(Sample)),
             "status": Out(DriverStatus), "asa": Out(data.ArrayLayout(8, 3)),
-            "rate_errors": Out(16), "who_am_i": Out(8), "self_test": Out(SelfTestStatus)}
+            "rate_errors": Out(16), "who_am_i": Out(8), "self_test": Out(SelfTestStatus),
+            "store": Out(SampleStoreWriteSignature()), "sample_slot": Out(range(SLOTS))}
 
 
 class MPU9250Driver(wiring.Component):
@@ -295,6 +299,8 @@ class MPU9250Driver(wiring.Component):
         connect(m, seq.port, arbiter.second)
         connect(m, arbiter.port, flipped(self.port))
         connect(m, reader.samples, flipped(self.samples))
+        connect(m, reader.store, flipped(self.store))
+        m.d.comb += self.sample_slot.eq(reader.sample_slot)
         status = self.status
         if cfg.self_test:
             m.submodules.self_test = st = self.self_test_block

@@ -49,11 +49,11 @@ The checks on every burst (``hdl/FAULTS.md``): INT_STATUS must have RAW_RDY and 
 passed on (no sample; the next one counts it in ``skipped``).
 """
 
-from amaranth.hdl import C, Cat, signed
+from amaranth.hdl import signed
 from amaranth.lib import data
 
 
-__all__ = ["Vector3", "SampleFlags", "Sample", "SAMPLE_WORDS", "sample_words"]
+__all__ = ["Vector3", "SampleFlags", "Sample"]
 
 
 Vector3 = data.ArrayLayout(signed(16), 3)
@@ -77,14 +77,3 @@ class Sample(data.Struct):
     counter: 32
     flags: SampleFlags
     skipped: 4
-
-
-SAMPLE_WORDS = (data.Layout.cast(Sample).size + 31) // 32
-
-
-def sample_words(sample):
-    """A ``Sample`` (a view) as ``SAMPLE_WORDS`` 32-bit words, least significant bits first,
-    the last one padded with zeros: the words of its frames (a frame's payload starts with
-    the sample)."""
-    bits = Cat(sample.as_value(), C(0, 32 * SAMPLE_WORDS - data.Layout.cast(Sample).size))
-    return [bits[32 * i:32 * i + 32] for i in range(SAMPLE_WORDS)]

@@ -32,6 +32,8 @@ from . import ak8963_regs as A
 from . import mpu9250_regs as R
 from .register_port import RegisterPortSignature
 from .sample import Sample
+from .sample_store import (SENSOR_BITS, SLOT_WORDS, SLOTS, STORE_BITS, STORE_WORDS,
+                           SampleStoreWriteSignature, store_places)
 
 
 __all__ = ["SAMPLE_BYTES", "MPU_BYTES", "BAD_BURST_LIMIT", "EARLY_FRACTION", "burst_is_plausible",
@@ -128,6 +130,13 @@ class SampleReader(wiring.Component):
             status, as ``DriverStatus`` has them (``read_error``: the MPU9250's read failed,
             I2C; ``rate_error``: the last sample came early, cleared by one on time).
         ``rate_errors`` (out, 16): early samples since power-on, saturating.
+        ``store`` (out, ``SampleStoreWriteSignature``): the burst's sensor bytes, written into
+            the sample store's slot as they arrive (``hdl/sample_store.py``), and, in the
+            cycles after a sample's ``valid`` rose (two, four if its magnetometer is not up),
+            the payload's other words and, so, zeros over its field (as ``mag`` in the
+            payload): the slot holds the payload from the fifth cycle of ``valid``.
+            ``sample_slot`` (out): the store's slot of the sample offered, beside ``samples``
+            (it changes only as a sample is offered, and holds while it is valid).
 
     Latency: a sample is valid two cycles after its last byte. Throughput: one sample per
     data-ready edge, as fast as the bus reads them.
@@ -154,6 +163,8 @@ class SampleReader(wiring.Component):
             "restart": Out(1), "reconfigure": Out(1), "mag_lost": Out(1), "mag_nack": Out(1),
             "int_timeout": Out(1), "bad_burst": Out(1), "mag_stale": Out(1),
             "read_error": Out(1), "rate_error": Out(1), "rate_errors": Out(16),
+            "store": Out(SampleStoreWriteSignature()),
+            "sample_slot": Out(range(SLOTS), init=SLOTS - 1),
         })
 
     def elaborate(self, platform):
@@ -177,8 +188,49 @@ class SampleReader(wiring.Component):
         self._judging(m, n)
         self._sample_register(m, n)
         self._burst_checks(m, n)
+        self._store(m, n)
         self._states(m, n)
         return m
+
+    def _store(self, m, n):
+        """The sample store's writes: each sensor byte of the burst into the slot being
+        written (``n.written``) as it arrives; then, once a sample is offered (``n.after`` set
+        to 1 by the check that offers it), a word a cycle into its slot: the payload's words
+        after the sensor fields (``counter``, ``flags``, ``skipped``), and, if its
+        magnetometer is not up (``n.zero_field``), zeros over its field. Bytes and these
+        writes never meet: a burst's first byte comes a command and a bus transfer after the
+        check (sixteen cycles at the least)."""
+        rx, store = n.port.rx, self.store
+        n.written = written = Signal(range(SLOTS))
+        places = store_places(SAMPLE_BYTES, MPU_BYTES)
+        word, lane, placed = Signal(range(SLOT_WORDS)), Signal(2), Signal()
+        with m.Switch(n.rx_index):
+            for index, (w, k) in places.items():
+                with m.Case(index):
+                    m.d.comb += [word.eq(w), lane.eq(k), placed.eq(1)]
+        # the writes after an offer: (word, lanes, data); the field's last, each with its lanes
+        bits = Cat(self.samples.payload.as_value(), C(0, 32 * STORE_WORDS - STORE_BITS))
+        writes = [(k, 0xF, bits[32 * k:32 * k + 32])
+                  for k in range(SENSOR_BITS // 32, STORE_WORDS)]
+        tail = len(writes)
+        field = {}
+        for index in range(MPU_BYTES + 1, MPU_BYTES + 7):
+            w, k = places[index]
+            field[w] = field.get(w, 0) | 1 << k
+        writes += [(w, lanes, C(0, 32)) for w, lanes in sorted(field.items())]
+        n.after = after = Signal(range(len(writes) + 1))     # the next of them, from 1
+        n.zero_field = zero_field = Signal()
+        with m.If(after != 0):
+            with m.Switch(after):
+                for step, (w, lanes, value) in enumerate(writes, 1):
+                    with m.Case(step):
+                        m.d.comb += [store.w_en.eq(lanes), store.w_data.eq(value),
+                                     store.w_addr.eq(Cat(C(w, len(word)), self.sample_slot))]
+            done = (after == len(writes)) | ((after == tail) & ~zero_field)
+            m.d.sync += after.eq(Mux(done, 0, after + 1))
+        with m.Elif(rx.valid & (n.rx_index < SAMPLE_BYTES) & placed):
+            m.d.comb += [store.w_en.eq(1 << lane), store.w_addr.eq(Cat(word, written)),
+                         store.w_data.eq(rx.payload.replicate(4))]
 
     def _burst_checks(self, m, n):
         """The checks that look at every byte, made as the bytes come in (one comparator and
@@ -506,7 +558,12 @@ class SampleReader(wiring.Component):
                     self._emit(m, sample, buf, counter, overrun, dropped, skipped, resumed,
                                prev_field, prev_drdy, mag_age, mag_read_failed)
                     with m.If(~self.samples.valid):
-                        m.d.sync += have_base.eq(1)      # this one is the payload now
+                        # this one is the payload now: its slot offered, the next written
+                        m.d.sync += [have_base.eq(1), self.sample_slot.eq(n.written),
+                                     n.written.eq(Mux(n.written == SLOTS - 1, 0,
+                                                      n.written + 1)),
+                                     n.after.eq(1),
+                                     n.zero_field.eq(~self.mag_ok | mag_read_failed)]
 
     def _counts(self, m, n):
         """The samples read (returned: 32 bits, wrapping) and ``rate_errors`` (16,

@@ -41,11 +41,12 @@ class TelemetryFramer(wiring.Component):
             cycle after ``fetch_en``, while ``i_stream`` is valid.
         ``borrow`` (buffered only): None, or ``(offset, bits)``: the payload's ``bits`` bits from
             bit ``offset`` (a multiple of 32) are not read from ``i_stream``'s payload either, but
-            through a combinational read port: their word ``k`` is ``borrow_data`` while
-            ``borrow_index`` is ``k``, in the cycle it is copied (the sample an attitude result
-            came from, read through the engine's multiplexer of it, which its loader uses
-            too). The bits of the last word beyond ``bits`` must read 0; ``i_stream``'s
-            payload gives the rest of that word.
+            through a synchronous read port: their word ``k`` is ``borrow_data`` in the cycle
+            after ``borrow_index`` was ``k``; the port is read every cycle, a word ahead of the
+            copy (word 0 while no frame is copied). The sample an attitude result came from:
+            its sensor fields, read from the sample store through the engine's port, which
+            its loader uses too (``hdl/sample_store.py``). The bits of the last word beyond
+            ``bits`` must read 0; ``i_stream``'s payload gives the rest of that word.
     Members
         ``i_stream`` (in, stream of ``layout``); ``o_stream`` (out, stream of ``FrameByte``:
             to a ``FrameArbiter``, or a UART taking ``data``).
@@ -56,7 +57,9 @@ class TelemetryFramer(wiring.Component):
             copied at once). Unbuffered: no frame is being sent.
         ``fetch_en``, ``fetch_index`` (out), ``fetch_data`` (in, 32): with ``fetch``, the read
             port (above).
-        ``borrow_index`` (out), ``borrow_data`` (in, 32): with ``borrow``, its port (above).
+        ``borrow_index`` (out), ``borrow_data`` (in, 32): with ``borrow``, its port (above):
+            the producer must keep the words still while it offers the payload and in the
+            cycle before.
     Throughput: ``length + 7`` bytes per frame.
     Latency: the first sync byte is offered in the cycle the payload is (unbuffered), or once
     the copy ends, ⌈``length``/4⌉ cycles after it (buffered).
@@ -137,7 +140,7 @@ class TelemetryFramer(wiring.Component):
             if self.fetch is not None:
                 payload_words, fetched = self._fetched(m, payload_words, copy_index, sending)
             if self.borrow is not None:
-                payload_words, borrowed = self._borrowed(m, payload_words, copy_index)
+                payload_words, borrowed = self._borrowed(m, payload_words, copy_index, sending)
                 fetched = fetched | borrowed
             # copy: the payload's words into the RAM, one per cycle, through one multiplexer
             with m.If(self.i_stream.valid & ~sending):
@@ -234,12 +237,15 @@ class TelemetryFramer(wiring.Component):
             words.append(word & mask if mask != (1 << 32) - 1 else word)
         return words, fetched
 
-    def _borrowed(self, m, payload_words, copy_index):
+    def _borrowed(self, m, payload_words, copy_index, sending):
         """The copy with ``borrow``: the payload's words with the borrowed bits left out, and
-        the borrowed word of the frame word copied now (0 outside them), to be ORed in."""
+        the borrowed word of the frame word copied now (0 outside them), to be ORed in. The
+        port is asked for the word of the next cycle's copy: ``copy_index`` is 0 between
+        copies, so the first word is in before a copy starts."""
         offset, bits = self.borrow
         first, n = offset // 32, (bits + 31) // 32
-        m.d.comb += self.borrow_index.eq(copy_index - first)
+        copying = self.i_stream.valid & ~sending
+        m.d.comb += self.borrow_index.eq(copy_index + copying - first)
         inside = (copy_index >= first) & (copy_index < first + n) if first else copy_index < n
         words = []
         for i, word in enumerate(payload_words):

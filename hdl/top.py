@@ -50,7 +50,7 @@ from .attitude_engine import (PEEKED, WORST_UPDATE_CYCLES, AttitudeEngine,
                               default_filter_config, default_flagship_config)
 from .config_write import ConfigWrite
 from .driver_status import DriverStatus
-from .sample import Sample
+from .sample_store import STORE_BITS, sample_store_ram
 from .sensor_frontend import SensorFrontEnd, sample_read_cycles
 from .i2c_controller import I2CPinsSignature
 from .spi_controller import IO_BUDGET, SPIPinsSignature, SPITiming
@@ -91,11 +91,12 @@ def result_fetch():
 
 
 def sample_borrow():
-    """The attitude framer's ``borrow``: an ``AttitudeFrame``'s sample, the words the engine's
-    ``sample_word`` gives (the sample it holds, its last word padded with zeros)."""
+    """The attitude framer's ``borrow``: an ``AttitudeFrame``'s sample, the words the
+    engine's ``sample_word`` gives from the sample store (``hdl/sample_store.py``: the
+    sample's bits, the last word padded with zeros)."""
     sample = data.Layout.cast(AttitudeFrame)["sample"]
     assert sample.offset == 0
-    return 0, data.Layout.cast(Sample).size
+    return 0, STORE_BITS
 
 
 def version_word(**build):
@@ -204,7 +205,10 @@ class AHRSCore(wiring.Component):
         self.telemetry_divider = telemetry_divider
         self.engine = AttitudeEngine(filter_config, calibration, flagship_config,
                                      filter=filter,
-                                     extra_registers={"TELEMETRY_DIV": telemetry_divider})
+                                     extra_registers={"TELEMETRY_DIV": telemetry_divider},
+                                     sample_store=True)
+        # the samples, from the reader to the engine's loader and the framer
+        self.sample_store = sample_store_ram()
         self.scheduler = TelemetryScheduler()
         # the build's options in the version word only when they leave something out,
         # so that the default build's word is as before
@@ -267,9 +271,15 @@ class AHRSCore(wiring.Component):
         # while the scheduler offers it (the engine is idle then), not from its payload
         m.d.comb += [engine.peek_en.eq(framer.fetch_en), engine.peek_index.eq(framer.fetch_index),
                      framer.fetch_data.eq(engine.peek_data)]
-        # the sample too, through the engine's multiplexer of the sample it holds, which its
-        # loader uses (not through the framer's own)
-        m.d.comb += [engine.sample_index.eq(framer.borrow_index),
+        # The sample: written into the sample store by the reader (its sensor bytes as they
+        # come off the bus), read by the engine's loader and, through the engine's port of
+        # the store, by the framer (no multiplexer of the sample's words anywhere)
+        m.submodules.sample_store = store = self.sample_store
+        m.d.comb += [store.w_en.eq(fe.store.w_en), store.w_addr.eq(fe.store.w_addr),
+                     store.w_data.eq(fe.store.w_data), store.r_en.eq(1),
+                     store.r_addr.eq(engine.store_addr), engine.store_data.eq(store.r_data),
+                     engine.sample_slot.eq(fe.sample_slot),
+                     engine.sample_index.eq(framer.borrow_index),
                      framer.borrow_data.eq(engine.sample_word)]
         held_status = Signal(DriverStatus, reset_less=True)
         with m.If(fe.samples.valid & fe.samples.ready):

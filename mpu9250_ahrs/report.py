@@ -255,7 +255,8 @@ def report(*, clk_freq=None, config=None, latency=True, core_options=None):
     # as a board builds it: the reset asynchronous (``AsyncResetCore`` says why)
     wrapped = AsyncResetCore(core)
     design = synthesize(wrapped, "mpu9250_ahrs_core", core.engine,
-                        rams=[core.framer.ram, core.frontend.driver.sequencer.rom,
+                        rams=[core.framer.ram, core.sample_store,
+                              core.frontend.driver.sequencer.rom,
                               *([core.decoder.fifo.ram, core.decoder.counters.ram]
                                 if core.commands else []),
                               *([self_test.sums, self_test.table] if self_test else [])],

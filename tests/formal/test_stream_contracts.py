@@ -77,6 +77,8 @@ COMPONENTS = {
     "sensor_frontend_i2c": lambda: SensorFrontEnd(clk_freq=1e6,
                                                   config=MPU9250Config(wiring="i2c")),
     "attitude_engine": AttitudeEngine,
+    # as the core builds it: the sample's sensor fields read from the sample store
+    "attitude_engine_store": lambda: AttitudeEngine(sample_store=True),
     "reply_framer": lambda: TelemetryFramer(Reply, 0x81),
     "telemetry_scheduler": TelemetryScheduler,
     "frame_arbiter": lambda: FrameArbiter(2),

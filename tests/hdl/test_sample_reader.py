@@ -1,9 +1,11 @@
 """SampleReader against a register-port model: decoding, the burst checks, magnetometer
 freshness (DRDY after a read without it, or new bytes), restarts and the stale time-out."""
 
+import pytest
 from amaranth.sim import Simulator
 
-from mpu9250_ahrs.hdl.sample_reader import BAD_BURST_LIMIT, SampleReader
+from mpu9250_ahrs.hdl.sample_reader import BAD_BURST_LIMIT, MPU_BYTES, SampleReader
+from mpu9250_ahrs.hdl.sample_store import SAMPLE_STORE_DEPTH, SLOT_WORDS, STORE_WORDS
 from mpu9250_ahrs.sim.streams import check_stream_rules
 
 from .register_port_model import RegisterPortModel
@@ -21,11 +23,12 @@ def burst(k, *, int_status=0x01, drdy=1, field=(100, -200, 300), data=None):
     return bytes([int_status]) + mpu + ak
 
 
-def run(bursts, *, mag_ok=1, extra_periods=0, gyro_jump=None):
+def run(bursts, *, mag_ok=1, extra_periods=0, gyro_jump=None, wiring="spi"):
     """One data-ready edge per entry of ``bursts`` (None: no edge that period), a period apart;
     returns the samples taken and, per period, the status and pulses seen."""
     # the INT here is a pulse (high for half a period), not latched
-    dut = SampleReader(int_latched=False, gyro_jump=gyro_jump, period_cycles=PERIOD,
+    dut = SampleReader(wiring=wiring, int_latched=False, gyro_jump=gyro_jump,
+                       period_cycles=PERIOD,
                        first_timeout_cycles=4 * PERIOD,
                        timeout_cycles=4 * PERIOD, mag_timeout_periods=3)
     queue = []
@@ -42,7 +45,10 @@ def run(bursts, *, mag_ok=1, extra_periods=0, gyro_jump=None):
         for b in list(bursts) + [None] * extra_periods:
             pulses = {"restart": 0, "mag_lost": 0}
             if b is not None:
-                queue.append(b)
+                # I2C: the MPU9250's bytes, then the AK8963's, in a read each (none while
+                # the magnetometer is down)
+                queue.extend([b] if wiring == "spi" else
+                             [b[:MPU_BYTES]] + [b[MPU_BYTES:]] * mag_ok)
                 ctx.set(dut.int_pin, 1)
             for c in range(PERIOD):
                 if c == PERIOD // 2:
@@ -58,9 +64,45 @@ def run(bursts, *, mag_ok=1, extra_periods=0, gyro_jump=None):
     sim.add_clock(1e-6)
     check_stream_rules(sim, dut.samples, "samples")
     check_stream_rules(sim, dut.port.cmd, "commands")
+    stored = _check_store(sim, dut)
     sim.add_testbench(testbench)
     sim.run()
+    assert stored == [s.counter for s in samples]
     return samples, log
+
+
+def _check_store(sim, dut):
+    """A model of the sample store fed by the reader's writes (byte lanes): once each offered
+    sample's writes after the offer are in (four cycles from its ``valid``), its slot holds
+    the payload (``hdl/sample_store.py``); a burst's bytes never go to the slot of the last
+    sample offered (the engine may hold it). Returns the counters of the samples checked."""
+    ram = [0] * SAMPLE_STORE_DEPTH
+    checked = []
+
+    async def process(ctx):
+        held, since, due = None, 99, []     # due: (cycles to go, slot, sensor bits, counter)
+        async for _, _, en, addr, value, valid, slot, payload in ctx.tick().sample(
+                dut.store.w_en, dut.store.w_addr, dut.store.w_data, dut.samples.valid,
+                dut.sample_slot, dut.samples.payload):
+            since += 1
+            for lane in range(4):
+                if en >> lane & 1:
+                    mask = 0xFF << 8 * lane
+                    ram[addr] = ram[addr] & ~mask | value & mask
+            if en and since > 3:            # a burst's byte, not the writes after an offer
+                assert addr // SLOT_WORDS != held
+            for go, s, bits, counter in due:
+                if go == 0:
+                    words = [bits >> 32 * k & 0xFFFF_FFFF for k in range(STORE_WORDS)]
+                    assert ram[SLOT_WORDS * s:SLOT_WORDS * s + STORE_WORDS] == words
+                    checked.append(counter)
+            due = [(go - 1, s, b, c) for go, s, b, c in due if go > 0]
+            if valid and (not checked and not due or
+                          payload.counter != (due[-1][3] if due else checked[-1])):
+                due.append((3, slot, payload.as_value().value, payload.counter))
+                held, since = slot, 0
+    sim.add_process(process)
+    return checked
 
 
 def test_decoding_and_magnetometer_freshness():
@@ -129,3 +171,17 @@ def test_gyro_jump_on_each_axis():
     bases = [triples[0]] * 4 + [triples[4]] * 2 + [triples[6]] * 2
     assert list(gyro_jumps(np.array(bases[1:]), np.array(triples[1:]), 16384)) == \
         [bool(e["bad_burst"]) for e in log[1:]]
+
+
+@pytest.mark.parametrize("wiring", ["spi", "i2c"])
+def test_store_field_is_zero_while_the_magnetometer_is_down(wiring):
+    """With the magnetometer not up, the payload's field is 0 and so is the store's (the reader
+    writes zeros over the bytes the burst brought, or, I2C, left from an older burst, as it does
+    not read the AK8963 then; ``_check_store`` compares every sample). Up again, the field is
+    stored."""
+    bursts = [burst(k, field=(1000 + k, -2000, 3000)) for k in range(3)]
+    samples, _ = run(bursts, mag_ok=0, wiring=wiring)
+    assert len(samples) == 3 and all(list(s.mag) == [0, 0, 0] for s in samples)
+    assert not any(s.flags.mag_new for s in samples)
+    samples, _ = run(bursts, wiring=wiring)
+    assert [list(s.mag) for s in samples] == [[1000 + k, -2000, 3000] for k in range(3)]

@@ -106,9 +106,10 @@ def test_framer_against_decoder(buffered):
 
 def test_framer_fetch_equals_payload():
     """The attitude framer as the core builds it (``fetch``: the result's quaternion, angles
-    and bias read through a port during the copy, a cycle after asked; ``borrow``: the sample
-    through a combinational port) sends the frames the payload holds, when the ports give the
-    payload's words; the words it asks for are those."""
+    and bias read through a port during the copy, a cycle after asked; ``borrow``: the sample's
+    sensor fields through a synchronous port read every cycle, a word ahead) sends the frames
+    the payload holds, when the ports give the payload's words; the words it asks for are
+    those."""
     rng = random.Random(2)
     size = data.Layout.cast(AttitudeFrame).size
     frames = [unpack(AttitudeFrame, rng.getrandbits(size)) for _ in range(3)]
@@ -116,11 +117,12 @@ def test_framer_fetch_equals_payload():
     first, bits = sample_borrow()
     dut = TelemetryFramer(AttitudeFrame, ATTITUDE, buffered=True, short=(SENSOR, SensorFrame),
                           fetch=(offset, n), borrow=(first, bits))
-    # the borrow port, combinational: the payload's word (its borrowed bits only)
+    # the borrow port, synchronous: the payload's word (its borrowed bits only) the cycle
+    # after it is asked for, as the engine reads the sample store
     top = Module()
     top.submodules.dut = dut
     borrowed = Cat(dut.i_stream.payload.as_value()[first:first + bits], C(0, 32))
-    top.d.comb += dut.borrow_data.eq(Array(borrowed[32 * k:32 * k + 32]
+    top.d.sync += dut.borrow_data.eq(Array(borrowed[32 * k:32 * k + 32]
                                            for k in range(bits // 32 + 1))[dut.borrow_index])
     sim = Simulator(top)
     sim.add_clock(1e-6)
@@ -128,7 +130,10 @@ def test_framer_fetch_equals_payload():
 
     async def producer(ctx):
         for f in frames:
+            # the borrowed words are still from the cycle before the payload is offered (the
+            # engine's sample is held from its load, long before its result is framed)
             ctx.set(dut.i_stream.payload, f)
+            await ctx.tick()
             ctx.set(dut.i_stream.valid, 1)
             await ctx.tick().until(dut.i_stream.ready)
             ctx.set(dut.i_stream.valid, 0)
