@@ -166,7 +166,7 @@ class AttitudeEngine(wiring.Component):
         self.program, self.entry = build_program()
         # the hard blocks, kept as attributes: ``report`` substitutes them for its synthesis
         self.multiplier = Multiplier()
-        self.cordic = CORDIC()                  # two of its own 18 x 18 blocks (its shift)
+        self.cordic = CORDIC()                  # three of its own 18 x 18 blocks (its shifts)
         # Madgwick's β: the float filter's default at this sample period (a host writes BETA_K)
         registers = {**filter_registers(config, self.flagship),
                      **calibration_registers(self.cal), **(extra_registers or {})}

@@ -35,7 +35,7 @@ class CORDIC(wiring.Component):
     Latency: ``done`` ``CORDIC_ITERATIONS`` + 1 cycles after ``start`` (``short``:
     ``short_iterations`` + 1); throughput one operation per that many cycles. Internal width 34
     bits: a 32-bit vector's length times K (1.647) is below 2³³, so any 32-bit input converges
-    without overflow. Two 18 × 18 multipliers shift y by i
+    without overflow. Two 18 × 18 multipliers shift y by i, a third x's high bits
     (``blackbox``: ``report`` makes them empty blocks, as the engine's multiplier's).
     """
     blackbox = False        # ``report``: the shift's multipliers as empty 18 x 18 blocks
@@ -90,8 +90,8 @@ class CORDIC(wiring.Component):
         # the signs alone (y ≥ 0 rather than y > 0: no zero test)
         m.d.comb += up.eq(Mux(rotate, z[-1], ~y[-1]))
         xs, ys = Signal(signed(inner)), Signal(signed(inner))
-        # y >> i by two 18 x 18 multipliers, not a shifter of logic (x's stays one: the blocks
-        # are few): y = hi·2ᴸ + lo, lo the low L bits (unsigned), and with c = 2ᴸ⁻¹⁻ⁱ,
+        # y >> i by two 18 x 18 multipliers, not a shifter of logic (x's by one, below):
+        # y = hi·2ᴸ + lo, lo the low L bits (unsigned), and with c = 2ᴸ⁻¹⁻ⁱ,
         # y >> i = (hi·c)·2 | (lo·c) >> (L − 1): the two parts in disjoint bits, no adder
         low = self.low_bits
         # c is a register shifted right each iteration (no decoder of i before the blocks)
@@ -103,7 +103,18 @@ class CORDIC(wiring.Component):
             m.submodules.shift_lo = Instance(BLACKBOX_NAME, i_a=lo, i_b=c.as_signed(), o_p=p_lo)
         else:
             m.d.comb += [p_hi.eq(hi * c.as_signed()), p_lo.eq(lo * c.as_signed())]
-        m.d.comb += [xs.eq(x >> i),
+        # x >> i: its high bits through a third block (times 2^(low − i): they land above
+        # bit low − i − 1), its low ``low`` bits through a shifter of their own (a LUT4
+        # fabric pays about a LUT per bit per shift stage: a shifter of all 34 bits cost
+        # twice as much)
+        x_hi, x_lo = x[low:].as_signed(), x[:low]
+        c2 = (c << 1)[:18].as_signed()                            # 2^(low − i)
+        p_x = Signal(signed(36))
+        if self.blackbox:
+            m.submodules.shift_x = Instance(BLACKBOX_NAME, i_a=x_hi, i_b=c2, o_p=p_x)
+        else:
+            m.d.comb += p_x.eq(x_hi * c2)
+        m.d.comb += [xs.eq(p_x[:inner].as_signed() | (x_lo >> i)),
                      ys.eq((p_hi << 1)[:inner].as_signed() |
                            p_lo[low - 1:low - 1 + inner].as_unsigned())]
 
