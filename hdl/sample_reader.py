@@ -109,7 +109,8 @@ class SampleReader(wiring.Component):
             that far on an axis from the last sample passed on fails its checks.
         ``magnetometer``: the configuration has one (else no freshness check).
         ``period_cycles``: the sample period. ``first_timeout_cycles``: the data-ready time-out
-            after streaming starts; ``timeout_cycles`` after each sample.
+            after streaming starts; ``timeout_cycles`` after each sample (each counted in
+            ticks of about 1/64 of a period: it lasts its cycles to two ticks more).
         ``mag_timeout_periods``: sample periods without a new field before it is stale.
     Members
         ``port`` (a register port's client side): the reader's commands.
@@ -338,6 +339,7 @@ class SampleReader(wiring.Component):
             int_active, int_edge, int_pending, since_sample, since_edge, since_next, phase,
             periods, tick, skipped, early, seen_edge, pending_edge, read_edge, deferred,
             deferred_base, dropped, early_phase, reading, restart_clock, copy_clock)
+        n.step, n.tick_len = step, tick_len
 
 
     def _judging(self, m, n):
@@ -414,8 +416,14 @@ class SampleReader(wiring.Component):
         m.d.comb += self.samples.payload.eq(sample)
         gyro_jumped = Signal()                  # the gyro moved too far (``gyro_jump``)
         have_base = Signal()                    # a sample was passed on since ``start``
-        timer = Signal(range(max(self.first_timeout_cycles, self.timeout_cycles) + 1))
-        m.d.sync += timer.eq(timer - (timer != 0))
+        # The data-ready time-outs count the clocks' ticks (``n.step``, about 1/64 of a
+        # period), not cycles: a 12-bit count rather than a 22-bit one (at 48 MHz and 1 kHz).
+        # ⌈cycles / tick⌉ + 1 ticks last at least ``cycles`` (the first may come at once).
+        first_ticks, after_ticks = (-(-cycles // n.tick_len) + 1 for cycles in
+                                    (self.first_timeout_cycles, self.timeout_cycles))
+        n.after_ticks = after_ticks
+        timer = Signal(range(max(first_ticks, after_ticks) + 1))
+        m.d.sync += timer.eq(timer - (n.step & (timer != 0)))
         counter = self._counts(m, n)            # samples read since power-on
         overrun = Signal()
         resumed = Signal()
@@ -424,7 +432,7 @@ class SampleReader(wiring.Component):
             m.d.sync += resumed.eq(1)
         with m.If(self.start):
             # a latched INT already active gives no edge: it counts as one
-            m.d.sync += [timer.eq(self.first_timeout_cycles - 1), int_pending.eq(int_active),
+            m.d.sync += [timer.eq(first_ticks), int_pending.eq(int_active),
                          seen_edge.eq(0), pending_edge.eq(0), deferred.eq(0), skipped.eq(0),
                          early.eq(0), bad_bursts.eq(0), have_base.eq(0)]
 
@@ -521,7 +529,7 @@ class SampleReader(wiring.Component):
                         m.d.sync += mag_read_failed.eq(1)
             with m.State("CHECK"):
                 m.d.sync += [n.counting.eq(1), n.early_count.eq(0),
-                             timer.eq(self.timeout_cycles - 1), self.int_timeout.eq(0)]
+                             timer.eq(n.after_ticks), self.int_timeout.eq(0)]
                 m.next = "IDLE"
                 plausible = buf[0][0] & (buf[0] != 0xFF) & ~n.data_ones
                 if self.gyro_jump is not None:
