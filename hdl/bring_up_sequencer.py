@@ -211,6 +211,12 @@ class BringUpSequencer(wiring.Component):
         ``program``: the steps; those marked ``mag`` are the magnetometer's part, which runs
             again from its first step when the magnetometer is lost. ``accepted_who_am_i``: the
             WHO_AM_I values that pass. ``poll_cycles``: how long a POLL step may take.
+            ``tick_cycles`` (1): the waits and the poll time-out are counted in ticks
+            (``tick``, a pulse every ``tick_cycles`` cycles: the sample reader's prescaler in
+            the driver), so that the timer is a count of ticks, not of cycles (15 bits
+            rather than 25 at 48 MHz and 1 kHz). With ticks, a wait of w cycles counts
+            ⌈w / tick_cycles⌉ + 1 of them: it lasts at least w cycles, at most two ticks more.
+            With 1, every cycle is a tick and a wait lasts its cycles exactly.
     Members
         ``port`` (a register port's client side): the sequencer's commands.
         ``restart`` (in, pulse): run the program again from the start (the reader lost the
@@ -232,6 +238,7 @@ class BringUpSequencer(wiring.Component):
         ``asa`` (out, 3 × 8): the AK8963's sensitivity adjustment, stored by STORE steps.
         ``test`` (out, ``TestByte``): the bytes TEST steps read, for a ``SelfTest``;
             ``test_busy`` (in): its ``busy`` (a TEST step ends once it is low).
+        ``tick`` (in, 1 unless driven): the timer's tick (``tick_cycles``).
 
     A step's command goes out in the cycle it is fetched; WRITE, CHECK, STORE and MARK take one
     command (or none), POLL repeats its read until the bit is set, a NACK or ``poll_cycles``;
@@ -243,16 +250,25 @@ class BringUpSequencer(wiring.Component):
     restart waits for the step under way.
     """
 
-    def __init__(self, program, *, accepted_who_am_i, poll_cycles):
+    def __init__(self, program, *, accepted_who_am_i, poll_cycles, tick_cycles=1):
         self.program = program
         self.accepted_who_am_i = tuple(accepted_who_am_i)
-        self.poll_cycles = poll_cycles
+        if tick_cycles < 1:
+            raise ValueError(f"BringUpSequencer: a tick of {tick_cycles} cycles")
+        self.tick_cycles = tick_cycles
         if any(s.op == Op.WAIT and s.wait < 1 for s in program):
             raise ValueError("a WAIT step needs wait >= 1 cycle")
         # a word's ``wait`` is what the timer loads: a WAIT's cycles less one (its last cycle
         # is the one the timer reads 0), a TEST's gap as it is; the ROM holds it so, and no
-        # subtractor sits between the ROM and the timer
-        timer_load = [s.wait - 1 if s.op == Op.WAIT else s.wait for s in program]
+        # subtractor sits between the ROM and the timer. Counted in ticks of more than a
+        # cycle, each count is ⌈cycles / tick⌉ + 1 ticks (the first tick may come at once)
+        def load(cycles, less):
+            if tick_cycles == 1:
+                return cycles - less
+            return -(-cycles // tick_cycles) + 1
+        timer_load = self.timer_loads = [load(s.wait, s.op == Op.WAIT) for s in program]
+        self.poll_cycles = poll_cycles
+        self.poll_load = load(poll_cycles, 1)
         self.step_layout = data.StructLayout({
             "op": Op, "device": 1, "reg": 8, "value": 8, "mask": 8, "fail": Fail,
             "check_wia": 1, "backoff": 1, "wait": range(max(timer_load) + 1),
@@ -275,6 +291,7 @@ class BringUpSequencer(wiring.Component):
             "mag_wia_error": Out(1),
             "asa": Out(data.ArrayLayout(8, 3)),
             "test": Out(TestByte), "test_busy": In(1),
+            "tick": In(1, init=1),
         })
 
     def elaborate(self, platform):
@@ -327,8 +344,9 @@ class BringUpSequencer(wiring.Component):
                      test.subtract.eq(step.mask[0]),
                      test.first.eq(step.mask[1] & (reads == step.repeat - 1))]
 
-        longest = max(s.wait << (BACKOFF_MAX_SHIFT if s.backoff else 0) for s in program)
-        timer = Signal(range(max(self.poll_cycles, longest) + 1))
+        longest = max((w + 1 << (BACKOFF_MAX_SHIFT if s.backoff else 0))
+                      for s, w in zip(program, self.timer_loads))
+        timer = Signal(range(max(self.poll_load, longest) + 1))
 
         # a requested restart waits for the step under way (at most a poll time-out), so that
         # no command is left half done on the port
@@ -409,7 +427,7 @@ class BringUpSequencer(wiring.Component):
             with m.Else():
                 self._fetch(m, step, command, timer, next_step, reconfiguring, backoff, reads)
         with m.State("WAIT"):
-            m.d.sync += timer.eq(timer - 1)
+            m.d.sync += timer.eq(timer - self.tick)
             with m.If(timer == 0):
                 next_step()
         with m.State("ACCESS"):
@@ -453,7 +471,7 @@ class BringUpSequencer(wiring.Component):
                     m.d.sync += [reads.eq(reads - 1), timer.eq(step.wait)]
                     m.next = "TEST_WAIT"
         with m.State("TEST_WAIT"):
-            m.d.sync += timer.eq(timer - 1)
+            m.d.sync += timer.eq(timer - self.tick)
             with m.If(timer == 0):
                 m.next = "TEST"
         with m.State("TEST_END"):
@@ -461,13 +479,13 @@ class BringUpSequencer(wiring.Component):
                 next_step()
         with m.State("POLL"):
             with m.If(timer != 0):
-                m.d.sync += timer.eq(timer - 1)
+                m.d.sync += timer.eq(timer - self.tick)
             command()
             with m.If(port.cmd.ready):
                 m.next = "POLL_WAIT"
         with m.State("POLL_WAIT"):
             with m.If(timer != 0):
-                m.d.sync += timer.eq(timer - 1)
+                m.d.sync += timer.eq(timer - self.tick)
             with m.If(port.rsp.valid):
                 with m.If(port.rsp.payload.error | (last & step.mask).any()):
                     fail(absent=1)
@@ -515,7 +533,7 @@ class BringUpSequencer(wiring.Component):
                 with m.If(port.cmd.ready):
                     m.next = "ACCESS"
             with m.Case(Op.POLL):
-                m.d.sync += timer.eq(self.poll_cycles - 1)
+                m.d.sync += timer.eq(self.poll_load)
                 m.next = "POLL"
             with m.Case(Op.TEST):
                 m.d.sync += reads.eq(step.repeat - 1)

@@ -79,7 +79,7 @@ from .sample_store import SLOTS, SampleStoreWriteSignature
 from .register_port_arbiter import RegisterPortArbiter
 from .driver_status import DriverStatus, SelfTestStatus
 from .sample import Sample
-from .sample_reader import (BAD_BURST_LIMIT, MPU_BYTES, SAMPLE_BYTES, SampleReader,
+from .sample_reader import (BAD_BURST_LIMIT, MPU_BYTES, SAMPLE_BYTES, SampleReader, tick_cycles,
                             burst_is_plausible, gyro_jump_limit)
 
 
@@ -279,9 +279,10 @@ class MPU9250Driver(wiring.Component):
         self.self_test_block = (SelfTest(samples_log2=config.self_test_samples.bit_length() - 1)
                                 if config.self_test else None)
         # made here, not in ``elaborate``, so that ``report`` finds its program ROM
+        # its timer counts the sample reader's ticks (its prescaler, free-running)
         self.sequencer = BringUpSequencer(
             self.program, accepted_who_am_i=config.accepted_who_am_i,
-            poll_cycles=self.timeout_cycles)
+            poll_cycles=self.timeout_cycles, tick_cycles=tick_cycles(self.period_cycles))
         super().__init__({"port": Out(RegisterPortSignature().flip()), **driver_members()})
 
     def elaborate(self, platform):
@@ -300,6 +301,7 @@ class MPU9250Driver(wiring.Component):
         connect(m, arbiter.port, flipped(self.port))
         connect(m, reader.samples, flipped(self.samples))
         connect(m, reader.store, flipped(self.store))
+        m.d.comb += seq.tick.eq(reader.tick)
         m.d.comb += self.sample_slot.eq(reader.sample_slot)
         status = self.status
         if cfg.self_test:

@@ -37,7 +37,7 @@ from .sample_store import (SENSOR_BITS, SLOT_WORDS, SLOTS, STORE_BITS, STORE_WOR
 
 
 __all__ = ["SAMPLE_BYTES", "MPU_BYTES", "BAD_BURST_LIMIT", "EARLY_FRACTION", "burst_is_plausible",
-           "GYRO_JUMP_DPS", "gyro_jump_limit", "gyro_jumps", "SampleReader"]
+           "GYRO_JUMP_DPS", "gyro_jump_limit", "gyro_jumps", "tick_cycles", "SampleReader"]
 
 
 SAMPLE_BYTES = 1 + R.SENSOR_BYTES + A.SAMPLE_BYTES   # INT_STATUS, accel/temp/gyro, ST1..ST2
@@ -97,6 +97,12 @@ def gyro_jumps(previous, gyro, limit):
     return np.any((delta >= limit) | (delta < -limit), axis=-1)
 
 
+def tick_cycles(period_cycles):
+    """The cycles of the reader's tick (``SampleReader.tick``): about 1/64 of the sample
+    period, which its interval clocks and time-outs count (and the driver's bring-up timer)."""
+    return max(1, period_cycles // 64)
+
+
 class SampleReader(wiring.Component):
     """Reads a nine-axis sample per data-ready edge while ``enable``.
 
@@ -131,6 +137,8 @@ class SampleReader(wiring.Component):
             status, as ``DriverStatus`` has them (``read_error``: the MPU9250's read failed,
             I2C; ``rate_error``: the last sample came early, cleared by one on time).
         ``rate_errors`` (out, 16): early samples since power-on, saturating.
+        ``tick`` (out): a pulse every ``tick_cycles(period_cycles)`` cycles, free-running (the
+            prescaler of its clocks and time-outs; the driver's sequencer counts it too).
         ``store`` (out, ``SampleStoreWriteSignature``): the burst's sensor bytes, written into
             the sample store's slot as they arrive (``hdl/sample_store.py``), and, in the
             cycles after a sample's ``valid`` rose (two, four if its magnetometer is not up),
@@ -164,6 +172,7 @@ class SampleReader(wiring.Component):
             "restart": Out(1), "reconfigure": Out(1), "mag_lost": Out(1), "mag_nack": Out(1),
             "int_timeout": Out(1), "bad_burst": Out(1), "mag_stale": Out(1),
             "read_error": Out(1), "rate_error": Out(1), "rate_errors": Out(16),
+            "tick": Out(1),
             "store": Out(SampleStoreWriteSignature()),
             "sample_slot": Out(range(SLOTS), init=SLOTS - 1),
         })
@@ -292,7 +301,7 @@ class SampleReader(wiring.Component):
         # The clocks count in ticks of about 1/64 of a period (one prescaler for all): the
         # rounding to whole periods and the 7/8 threshold need no finer time, and a clock is
         # then 10 bits, not 20. ``steps`` ticks make a period, within half a tick.
-        tick_len = max(1, self.period_cycles // 64)
+        tick_len = tick_cycles(self.period_cycles)
         steps = max(2, round(self.period_cycles / tick_len))
         prescale = Signal(range(tick_len))
         step = Signal()                         # a tick of the clocks
@@ -340,6 +349,7 @@ class SampleReader(wiring.Component):
             periods, tick, skipped, early, seen_edge, pending_edge, read_edge, deferred,
             deferred_base, dropped, early_phase, reading, restart_clock, copy_clock)
         n.step, n.tick_len = step, tick_len
+        m.d.comb += self.tick.eq(step)
 
 
     def _judging(self, m, n):

@@ -126,3 +126,32 @@ def test_wrong_who_am_i_restarts_and_wrong_wia_skips_the_magnetometer():
                        ctx.get(dut.restarts))
     run(dut, Chip(wia=0x00), body2)
     assert seen["wia"] == (0, 1, 0, 0)
+
+
+def test_waits_counted_in_ticks_last_their_cycles():
+    """With ``tick_cycles`` > 1 the timer counts ticks (a pulse every so many cycles, at any
+    phase): a WAIT lasts at least its cycles and at most two ticks more than counted in
+    cycles (``tick_cycles`` 1, exact)."""
+    from mpu9250_ahrs.hdl.bring_up_sequencer import Op, Step
+    wait = 37
+
+    def streaming_after(tick_cycles, phase=0):
+        program = [Step(Op.WAIT, wait=wait), Step(Op.CHECK, reg=R.WHO_AM_I, check="who_am_i"),
+                   Step(Op.STREAM)]
+        dut = BringUpSequencer(program, accepted_who_am_i=(0x71,), poll_cycles=50,
+                               tick_cycles=tick_cycles)
+        seen = []
+
+        async def body(ctx, model):
+            for cycle in range(200):
+                ctx.set(dut.tick, (cycle + phase) % tick_cycles == 0)
+                if ctx.get(dut.streaming):
+                    seen.append(cycle)
+                    return
+                await model.cycle(ctx)
+        run(dut, Chip(), body)
+        return seen[0]
+
+    exact = streaming_after(1)
+    for phase in range(4):
+        assert exact <= streaming_after(4, phase) <= exact + 2 * 4
