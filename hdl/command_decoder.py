@@ -98,6 +98,11 @@ class CommandDecoder(wiring.Component):
         ``writable``: engine addresses a host may write (``HOST_WRITABLE``).
         ``version``: the version/build word "who" returns and VERSION reads.
         ``timeout``: cycles without a byte after which a frame in progress is dropped.
+        ``tick_cycles`` (1): the time-out is counted in ticks (``tick``, in: a pulse every
+            ``tick_cycles`` cycles; the core's is the sample reader's prescaler), so that its
+            count is 9 bits rather than 18 (5 ms at 48 MHz): ⌈``timeout`` / ``tick_cycles``⌉ +
+            1 ticks, at least ``timeout`` cycles and at most two ticks more. With 1, every
+            cycle is a tick and the time-out is exact.
     Members
         ``i_stream`` (in, byte stream): from the UART receiver; taken while the FIFO has room
             (bytes that arrive while a command executes wait there).
@@ -120,10 +125,13 @@ class CommandDecoder(wiring.Component):
     command then takes a few cycles, or until
     the engine is idle (``WORST_UPDATE_CYCLES`` at most), and its reply's time on the link.
     """
-    def __init__(self, *, writable, version, timeout):
+    def __init__(self, *, writable, version, timeout, tick_cycles=1):
         self.writable = frozenset(writable)
         self.version = version
+        if tick_cycles < 1:
+            raise ValueError(f"CommandDecoder: a tick of {tick_cycles} cycles")
         self.timeout = timeout
+        self.timeout_ticks = timeout if tick_cycles == 1 else -(-timeout // tick_cycles) + 1
         self.fifo = RewindableFIFO(FIFO_DEPTH)
         self.counters = EventCounters(COUNTER_WORDS)
         super().__init__({
@@ -141,6 +149,7 @@ class CommandDecoder(wiring.Component):
             "rate_errors": In(16),
             "who_am_i": In(8),
             "self_test": In(SelfTestStatus),
+            "tick": In(1, init=1),
         })
 
     def elaborate(self, platform):
@@ -163,7 +172,7 @@ class CommandDecoder(wiring.Component):
         length = Signal(8, reset_less=True)
         count = Signal(range(MAX_COMMAND_PAYLOAD + 1))
         payload = Signal(8 * MAX_COMMAND_PAYLOAD, reset_less=True)
-        gap = Signal(range(self.timeout + 1))
+        gap = Signal(range(self.timeout_ticks + 1))          # ticks without a byte
         addr = payload[:16]
         value = payload[16:48]
         space, low = addr[8:], addr[:8]
@@ -203,7 +212,7 @@ class CommandDecoder(wiring.Component):
 
         parsing = ("HUNT", "SYNC1", "TYPE", "SEQ", "LENGTH", "PAYLOAD", "CRC_HIGH", "CRC_LOW")
         in_frame = Signal()
-        timed_out = (gap == self.timeout) & ~take & in_frame
+        timed_out = (gap == self.timeout_ticks) & ~take & in_frame
         with m.FSM() as fsm:
             self._parse(m, SimpleNamespace(
                 src=src, fifo=fifo, crc=crc, take=take, byte=byte, looked=looked,
@@ -240,7 +249,7 @@ class CommandDecoder(wiring.Component):
         with m.If(take | ~in_frame):
             m.d.sync += gap.eq(0)
         with m.Elif(~timed_out):
-            m.d.sync += gap.eq(gap + 1)
+            m.d.sync += gap.eq(gap + self.tick)
         with m.If(timed_out):
             count_up("malformed")
             m.d.sync += gap.eq(0)

@@ -241,11 +241,13 @@ def driver_members():
     (16, saturating: samples that came early, ``DriverStatus.rate_error``), ``who_am_i``
     (8: the last WHO_AM_I value read), ``self_test`` (``SelfTestStatus``), and the sample
     store's write port and the offered sample's slot (``store``, ``sample_slot``:
-    ``SampleReader``, ``hdl/sample_store.py``)."""
+    ``SampleReader``, ``hdl/sample_store.py``), and the reader's free-running ``tick``
+    (``tick_cycles``)."""
     return {"int_pin": In(1), "samples": Out(stream.Signature(Sample)),
             "status": Out(DriverStatus), "asa": Out(data.ArrayLayout(8, 3)),
             "rate_errors": Out(16), "who_am_i": Out(8), "self_test": Out(SelfTestStatus),
-            "store": Out(SampleStoreWriteSignature()), "sample_slot": Out(range(SLOTS))}
+            "store": Out(SampleStoreWriteSignature()), "sample_slot": Out(range(SLOTS)),
+            "tick": Out(1)}
 
 
 class MPU9250Driver(wiring.Component):
@@ -301,7 +303,7 @@ class MPU9250Driver(wiring.Component):
         connect(m, arbiter.port, flipped(self.port))
         connect(m, reader.samples, flipped(self.samples))
         connect(m, reader.store, flipped(self.store))
-        m.d.comb += seq.tick.eq(reader.tick)
+        m.d.comb += [seq.tick.eq(reader.tick), self.tick.eq(reader.tick)]
         m.d.comb += self.sample_slot.eq(reader.sample_slot)
         status = self.status
         if cfg.self_test:

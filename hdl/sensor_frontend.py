@@ -47,7 +47,9 @@ class SensorFrontEnd(wiring.Component):
         ``samples`` (out, ``Sample`` stream) and ``status`` (out, ``DriverStatus``): from the
             driver; with I2C wiring ``status.bus_*`` come from the I2C controller.
         ``store``, ``sample_slot`` (out): the sample store's writes and the offered sample's
-            slot (``hdl/sample_store.py``), from the driver.
+            slot (``hdl/sample_store.py``), from the driver; ``tick`` (out): the sample
+            reader's free-running tick (``sample_reader.tick_cycles``), which the core's
+            command decoder counts its time-out in.
 
     This is the unit the simulations drive and the one ``build --verilog-only`` exports; the board
     top level adds I/O buffers around it.
@@ -89,7 +91,7 @@ class SensorFrontEnd(wiring.Component):
         m.d.comb += [driver.int_pin.eq(self.int_pin), self.status.eq(driver.status),
                      self.asa.eq(driver.asa), self.rate_errors.eq(driver.rate_errors),
                      self.who_am_i.eq(driver.who_am_i), self.self_test.eq(driver.self_test),
-                     self.sample_slot.eq(driver.sample_slot)]
+                     self.sample_slot.eq(driver.sample_slot), self.tick.eq(driver.tick)]
         if self.config.wiring == "i2c":
             # the controller's own view of a failure, which the driver sees only as an error
             m.d.comb += [self.status.bus_timeout.eq(bus.status.timeout),

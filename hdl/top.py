@@ -51,6 +51,7 @@ from .attitude_engine import (PEEKED, WORST_UPDATE_CYCLES, AttitudeEngine,
 from .config_write import ConfigWrite
 from .driver_status import DriverStatus
 from .sample_store import STORE_BITS, sample_store_ram
+from .sample_reader import tick_cycles
 from .sensor_frontend import SensorFrontEnd, sample_read_cycles
 from .i2c_controller import I2CPinsSignature
 from .spi_controller import IO_BUDGET, SPIPinsSignature, SPITiming
@@ -218,8 +219,11 @@ class AHRSCore(wiring.Component):
                                     filter=filter, **left_out)
         if self.commands:
             self.receiver = UARTReceiver(divisor=UARTTransmitter.divisor_for(clk_freq, baud))
-            self.decoder = CommandDecoder(writable=HOST_WRITABLE, version=self.version,
-                                          timeout=cycles(command_timeout_s, clk_freq))
+            # the time-out in the sample reader's ticks (``decoder.tick``, from the front end)
+            self.decoder = CommandDecoder(
+                writable=HOST_WRITABLE, version=self.version,
+                timeout=cycles(command_timeout_s, clk_freq),
+                tick_cycles=tick_cycles(self.frontend.driver.period_cycles))
             self.reply_framer = TelemetryFramer(Reply, REPLY)
             self.arbiter = FrameArbiter(2)             # replies first, then telemetry
         else:
@@ -324,7 +328,7 @@ class AHRSCore(wiring.Component):
             m.submodules.pwm = pwm = self.pwm_block
             connect(m, decoder.pwm, pwm.bus)
             m.d.comb += [pwm.kick.eq(decoder.kick), self.pwm.eq(pwm.pwm)]
-        m.d.comb += [decoder.rx_framing_error.eq(rx.framing_error),
+        m.d.comb += [decoder.tick.eq(fe.tick), decoder.rx_framing_error.eq(rx.framing_error),
                      decoder.rx_overrun.eq(rx.overrun),
                      decoder.frames_sent.eq(arbiter.frames),
                      decoder.rate_errors.eq(fe.rate_errors),

@@ -295,3 +295,38 @@ def test_each_counted_register_has_a_word_of_its_own():
     words = [counter_word(name) for name in COUNTED]
     assert len(set(words)) == len(words) and all(0 <= w < COUNTER_WORDS for w in words)
     assert [counter_word(f"CMD_{name.upper()}") for name in COMMAND_STATS] == [0, 1, 2, 3, 4]
+
+
+def test_time_out_counted_in_ticks():
+    """With ``tick_cycles`` > 1 the cut-off time-out counts ticks (a pulse every so many cycles,
+    at any phase): a frame cut off is dropped at least ``timeout`` cycles after its last byte,
+    and at most two ticks later than when counted in cycles (``tick_cycles`` 1, exact)."""
+    malformed = counter_word("CMD_MALFORMED")
+
+    def dropped_after(tick_cycles, phase=0):
+        dut = CommandDecoder(writable=HOST_WRITABLE, version=VERSION, timeout=50,
+                             tick_cycles=tick_cycles)
+        seen = []
+
+        async def bench(ctx):
+            data = list(encode_command("write", 1, addr=CONFIG_REGS["R"], value=1)[:5])
+            for cycle in range(400):
+                ctx.set(dut.tick, (cycle + phase) % tick_cycles == 0)
+                ctx.set(dut.i_stream.valid, bool(data))
+                if data:
+                    ctx.set(dut.i_stream.payload, data[0])
+                if ctx.get(dut.counters.events[malformed]):
+                    seen.append(cycle)
+                    return
+                await ctx.tick()
+                if data and ctx.get(dut.i_stream.ready):
+                    data.pop(0)
+        sim = Simulator(dut)
+        sim.add_clock(1e-6)
+        sim.add_testbench(bench)
+        sim.run()
+        return seen[0]
+
+    exact = dropped_after(1)
+    for phase in range(4):
+        assert exact <= dropped_after(4, phase) <= exact + 2 * 4
