@@ -10,9 +10,10 @@ gateware has no option for it) and counts them from their sizes:
   have no adders), so those adders are in ``logic_elements``; any other non-constant ``$mul``
   in the netlist is counted as ⌈a/18⌉·⌈b/18⌉ blocks.
 - ``memory_bits``: the register file (twice: one copy per read port, as Quartus builds a RAM
-  with two read addresses), the microcode ROM and (whole design) the telemetry framer's frame
-  buffer. Small constant tables Yosys turns into ROMs
-  (the CORDIC's arctangents) stay in logic here: ``rom_bits_in_logic``.
+  with two read addresses), the microcode ROM and (whole design) the other ``FrameRAM``s: the
+  telemetry framer's frame buffer, the sample store, the sequencer's program, the command
+  decoder's FIFO and counters, the self-test's sums and table. Small constant tables Yosys
+  turns into ROMs (the CORDIC's arctangents) stay in logic here: ``rom_bits_in_logic``.
 - ``logic_elements``: ``fiftyfivenm_lcell_comb`` cells, or registers where those are more (a
   MAX10 LE holds one LUT and one register). Yosys 0.23 maps adders without the LE's carry chain,
   so this is pessimistic; ``logic_elements_carry_chain`` is the same design through
