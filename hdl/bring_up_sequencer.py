@@ -213,8 +213,8 @@ class BringUpSequencer(wiring.Component):
             WHO_AM_I values that pass. ``poll_cycles``: how long a POLL step may take.
             ``tick_cycles`` (1): the waits and the poll time-out are counted in ticks
             (``tick``, a pulse every ``tick_cycles`` cycles: the sample reader's prescaler in
-            the driver), so that the timer is a count of ticks, not of cycles (15 bits
-            rather than 25 at 48 MHz and 1 kHz). With ticks, a wait of w cycles counts
+            the driver: 750 cycles at 48 MHz and 1 kHz, at most 1,024), so that the timer is
+            a count of ticks, not of cycles (15 bits rather than 25 at 48 MHz and 1 kHz). With ticks, a wait of w cycles counts
             ⌈w / tick_cycles⌉ + 1 of them: it lasts at least w cycles, at most two ticks more.
             With 1, every cycle is a tick and a wait lasts its cycles exactly.
     Members

@@ -37,7 +37,8 @@ from .sample_store import (SENSOR_BITS, SLOT_WORDS, SLOTS, STORE_BITS, STORE_WOR
 
 
 __all__ = ["SAMPLE_BYTES", "MPU_BYTES", "BAD_BURST_LIMIT", "EARLY_FRACTION", "burst_is_plausible",
-           "GYRO_JUMP_DPS", "gyro_jump_limit", "gyro_jumps", "tick_cycles", "SampleReader"]
+           "GYRO_JUMP_DPS", "gyro_jump_limit", "gyro_jumps", "MAX_TICK_CYCLES", "tick_cycles",
+           "SampleReader"]
 
 
 SAMPLE_BYTES = 1 + R.SENSOR_BYTES + A.SAMPLE_BYTES   # INT_STATUS, accel/temp/gyro, ST1..ST2
@@ -97,10 +98,17 @@ def gyro_jumps(previous, gyro, limit):
     return np.any((delta >= limit) | (delta < -limit), axis=-1)
 
 
+# The longest tick: at low sample rates 1/64 of a period would be milliseconds, and the
+# bring-up sequencer's waits (a millisecond between the self-test's reads) and the command
+# decoder's time-out count the same tick; 1,024 cycles is 21 µs at 48 MHz.
+MAX_TICK_CYCLES = 1024
+
+
 def tick_cycles(period_cycles):
     """The cycles of the reader's tick (``SampleReader.tick``): about 1/64 of the sample
-    period, which its interval clocks and time-outs count (and the driver's bring-up timer)."""
-    return max(1, period_cycles // 64)
+    period, at most ``MAX_TICK_CYCLES``, which its interval clocks and time-outs count (and
+    the driver's bring-up timer and the core's command time-out)."""
+    return max(1, min(period_cycles // 64, MAX_TICK_CYCLES))
 
 
 class SampleReader(wiring.Component):
@@ -116,7 +124,7 @@ class SampleReader(wiring.Component):
         ``magnetometer``: the configuration has one (else no freshness check).
         ``period_cycles``: the sample period. ``first_timeout_cycles``: the data-ready time-out
             after streaming starts; ``timeout_cycles`` after each sample (each counted in
-            ticks of about 1/64 of a period: it lasts its cycles to two ticks more).
+            ticks, ``tick_cycles``: it lasts its cycles to two ticks more).
         ``mag_timeout_periods``: sample periods without a new field before it is stale.
     Members
         ``port`` (a register port's client side): the reader's commands.
@@ -298,9 +306,10 @@ class SampleReader(wiring.Component):
         # latest), ``since_next`` from an edge that came while a burst was being read: that
         # one is judged at the burst's check, early if the burst held a sample (a read ends
         # well within a period, ``rate_budget``), else against the base before it.
-        # The clocks count in ticks of about 1/64 of a period (one prescaler for all): the
-        # rounding to whole periods and the 7/8 threshold need no finer time, and a clock is
-        # then 10 bits, not 20. ``steps`` ticks make a period, within half a tick.
+        # The clocks count in ticks of about 1/64 of a period (one prescaler for all; at
+        # most ``MAX_TICK_CYCLES``, so more at low rates): the rounding to whole periods and
+        # the 7/8 threshold need no finer time, and a clock is then 10 bits, not 20 (1 kHz,
+        # 48 MHz). ``steps`` ticks make a period, within half a tick.
         tick_len = tick_cycles(self.period_cycles)
         steps = max(2, round(self.period_cycles / tick_len))
         prescale = Signal(range(tick_len))

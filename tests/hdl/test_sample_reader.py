@@ -185,3 +185,13 @@ def test_store_field_is_zero_while_the_magnetometer_is_down(wiring):
     assert not any(s.flags.mag_new for s in samples)
     samples, _ = run(bursts, wiring=wiring)
     assert [list(s.mag) for s in samples] == [[1000 + k, -2000, 3000] for k in range(3)]
+
+
+def test_tick_is_about_a_64th_of_a_period_at_most_max():
+    """The reader's tick, which the bring-up waits and the command time-out count too: 1/64 of
+    the period, at most ``MAX_TICK_CYCLES`` (so the self-test's 1 ms between reads stays
+    about 1 ms at low sample rates), at least a cycle."""
+    from mpu9250_ahrs.hdl.sample_reader import MAX_TICK_CYCLES, tick_cycles
+    assert tick_cycles(48_000) == 750                      # 1 kHz at 48 MHz
+    assert tick_cycles(48_000_000 // 4) == MAX_TICK_CYCLES == 1024
+    assert tick_cycles(10) == 1
