@@ -53,10 +53,15 @@ class ALU(wiring.Component):
         # ALU's result is forwarded to the next instruction's operands in the same cycle:
         # the longest path of the engine, report --timing). sat16 of the sum is sat16 of its
         # sat32: a sum beyond 32 bits is beyond 16 with the same sign
-        v32, f32 = saturate(m, wide, 32)
+        # Wrapping is the 32-bit clamp that never clamps (the OR never needs it: a | b of two
+        # 32-bit values fits), so it shares the clamp's multiplexer: one fewer 32-bit choice
+        top = wide[31:]
+        fits32 = (top == 0) | top.all()
+        v32 = Mux(fits32 | self.wrap, wide[:32],
+                  Mux(wide[-1], C(-(1 << 31), signed(32)), C((1 << 31) - 1, signed(32))))
         v16, f16 = saturate(m, wide, 16)
         m.d.comb += [
-            self.result.eq(Mux(self.wrap, full[:32], Mux(self.sat16, v16, v32))),
-            self.saturated.eq(~self.wrap & Mux(self.sat16, f16, f32)),
+            self.result.eq(Mux(self.sat16 & ~self.wrap, v16, v32)),
+            self.saturated.eq(~self.wrap & Mux(self.sat16, f16, ~fits32)),
         ]
         return m
