@@ -95,6 +95,6 @@ def test_timing_ecp5_measures_the_core():
     assert abs(t["slack_ns_worst"] - (1e3 / 48 - 1e3 / t["fmax_mhz_min"])) < 0.01
     path = t["critical_path"]
     assert path["from_block"] and path["to_block"] and 0 < path["routing_ns"] < path["ns"]
-    # the engine's four blocks, the CORDIC's two (its shift) and the self-test's one
-    assert t["cells"]["MULT18X18D"] == 7
+    # the engine's four blocks, the CORDIC's three (its shifts) and the self-test's one
+    assert t["cells"]["MULT18X18D"] == 8
     assert block_of("engine.regfile.mem.1.0") == "engine.regfile" and block_of("x") == "top"
