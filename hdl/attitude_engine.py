@@ -46,7 +46,7 @@ from .numeric_contract import (INV_GAIN_Q30, CalibrationFixed, FilterRates, Flag
 from .attitude_result import Attitude
 from .config_write import ConfigWrite
 from .sample import Sample
-from .sample_store import SAMPLE_STORE_DEPTH, SLOT_WORDS, SLOTS, STORE_WORDS
+from .sample_store import OFFER_WRITES, SAMPLE_STORE_DEPTH, SLOT_WORDS, SLOTS, STORE_WORDS
 
 
 __all__ = ["AttitudeEngine", "PEEKED", "default_filter_config", "default_flagship_config"]
@@ -512,6 +512,11 @@ class AttitudeEngine(wiring.Component):
             m.d.sync += held_slot.eq(self.sample_slot)
         words = [h // 2 for h in SENSOR_FIELD_HALVES]
         assert max(words) < STORE_WORDS <= SLOT_WORDS
+        # load word k's store word is read k cycles after the sample is taken, which is at the
+        # earliest in the first cycle of ``valid``: the magnetometer's words only once the
+        # reader's zeros over them are in (``OFFER_WRITES``, ``hdl/sample_store.py``)
+        mag = data.Layout.cast(Sample)["mag"].offset // 16
+        assert all(k >= OFFER_WRITES for k, h in enumerate(SENSOR_FIELD_HALVES) if h >= mag)
         word_bits = (SLOT_WORDS - 1).bit_length()
         ahead = Array(C(w, word_bits) for w in words + [0])[
             Mux(taking, 0, Mux(load_index < sensors, load_index + 1, sensors))]

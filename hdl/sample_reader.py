@@ -32,8 +32,8 @@ from . import ak8963_regs as A
 from . import mpu9250_regs as R
 from .register_port import RegisterPortSignature
 from .sample import Sample
-from .sample_store import (SENSOR_BITS, SLOT_WORDS, SLOTS, STORE_BITS, STORE_WORDS,
-                           SampleStoreWriteSignature, store_places)
+from .sample_store import (FIELD_WORDS, OFFER_WRITES, SENSOR_BITS, SLOT_WORDS, SLOTS,
+                           STORE_BITS, STORE_WORDS, SampleStoreWriteSignature, store_places)
 
 
 __all__ = ["SAMPLE_BYTES", "MPU_BYTES", "BAD_BURST_LIMIT", "EARLY_FRACTION", "burst_is_plausible",
@@ -236,6 +236,7 @@ class SampleReader(wiring.Component):
             w, k = places[index]
             field[w] = field.get(w, 0) | 1 << k
         writes += [(w, lanes, C(0, 32)) for w, lanes in sorted(field.items())]
+        assert len(writes) == OFFER_WRITES and set(field) == set(FIELD_WORDS)
         n.after = after = Signal(range(len(writes) + 1))     # the next of them, from 1
         n.zero_field = zero_field = Signal()
         with m.If(after != 0):

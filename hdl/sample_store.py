@@ -35,6 +35,7 @@ from .sample import Sample
 
 
 __all__ = ["SLOTS", "SLOT_WORDS", "STORE_WORDS", "SAMPLE_STORE_DEPTH", "STORE_BITS", "SENSOR_BITS",
+           "OFFER_WRITES", "FIELD_WORDS",
            "SampleStoreWriteSignature", "store_places", "sample_store_ram"]
 
 
@@ -79,6 +80,15 @@ def store_places(sample_bytes, mpu_bytes):
 
 assert len(store_places(1 + R.SENSOR_BYTES + A.SAMPLE_BYTES, 1 + R.SENSOR_BYTES)) == \
     SENSOR_BITS // 8, "a sensor byte without its place in the burst"
+
+
+# The reader's writes after a sample is offered, a word a cycle from the first cycle of
+# ``valid``: the payload's words after the sensor fields, then (magnetometer down) the words
+# of the field. A reader of the slot sees the field as the payload has it from the cycle
+# after the last of them (the engine's loader reads the field's words later than that).
+_FIELD = _SAMPLE["mag"].offset // 32, (SENSOR_BITS - 1) // 32
+OFFER_WRITES = (STORE_WORDS - SENSOR_BITS // 32) + (_FIELD[1] - _FIELD[0] + 1)
+FIELD_WORDS = range(_FIELD[0], _FIELD[1] + 1)
 
 
 def sample_store_ram():
