@@ -13,6 +13,7 @@ from amaranth import *
 from amaranth.lib import data, enum, wiring
 from amaranth.lib.wiring import In, Out
 
+from .clocking import ticks
 from . import ak8963_regs as A
 from . import mpu9250_regs as R
 from .memories import FrameRAM
@@ -214,9 +215,10 @@ class BringUpSequencer(wiring.Component):
             ``tick_cycles`` (1): the waits and the poll time-out are counted in ticks
             (``tick``, a pulse every ``tick_cycles`` cycles: the sample reader's prescaler in
             the driver: 750 cycles at 48 MHz and 1 kHz, at most 1,024), so that the timer is
-            a count of ticks, not of cycles (15 bits rather than 25 at 48 MHz and 1 kHz). With ticks, a wait of w cycles counts
-            ⌈w / tick_cycles⌉ + 1 of them: it lasts at least w cycles, at most two ticks more.
-            With 1, every cycle is a tick and a wait lasts its cycles exactly.
+            a count of ticks, not of cycles (15 bits rather than 25 at 48 MHz and 1 kHz).
+            With ticks, a wait of w cycles counts ⌈w / tick_cycles⌉ + 1 of them
+            (``clocking.ticks``): it lasts at least w cycles, at most two ticks more. With 1,
+            every cycle is a tick and a wait lasts its cycles exactly.
     Members
         ``port`` (a register port's client side): the sequencer's commands.
         ``restart`` (in, pulse): run the program again from the start (the reader lost the
@@ -253,22 +255,17 @@ class BringUpSequencer(wiring.Component):
     def __init__(self, program, *, accepted_who_am_i, poll_cycles, tick_cycles=1):
         self.program = program
         self.accepted_who_am_i = tuple(accepted_who_am_i)
-        if tick_cycles < 1:
-            raise ValueError(f"BringUpSequencer: a tick of {tick_cycles} cycles")
         self.tick_cycles = tick_cycles
         if any(s.op == Op.WAIT and s.wait < 1 for s in program):
             raise ValueError("a WAIT step needs wait >= 1 cycle")
-        # a word's ``wait`` is what the timer loads: a WAIT's cycles less one (its last cycle
-        # is the one the timer reads 0), a TEST's gap as it is; the ROM holds it so, and no
-        # subtractor sits between the ROM and the timer. Counted in ticks of more than a
-        # cycle, each count is ⌈cycles / tick⌉ + 1 ticks (the first tick may come at once)
-        def load(cycles, less):
-            if tick_cycles == 1:
-                return cycles - less
-            return -(-cycles // tick_cycles) + 1
-        timer_load = self.timer_loads = [load(s.wait, s.op == Op.WAIT) for s in program]
+        # a word's ``wait`` is what the timer loads: counted in cycles, a WAIT's cycles less
+        # one (its last cycle is the one the timer reads 0), a TEST's gap as it is; in ticks
+        # of more than a cycle, ``ticks``. The ROM holds it so, and no subtractor sits between
+        # the ROM and the timer
+        timer_load = self.timer_loads = [
+            ticks(s.wait, tick_cycles, exact=s.wait - (s.op == Op.WAIT)) for s in program]
         self.poll_cycles = poll_cycles
-        self.poll_load = load(poll_cycles, 1)
+        self.poll_load = ticks(poll_cycles, tick_cycles, exact=poll_cycles - 1)
         self.step_layout = data.StructLayout({
             "op": Op, "device": 1, "reg": 8, "value": 8, "mask": 8, "fail": Fail,
             "check_wia": 1, "backoff": 1, "wait": range(max(timer_load) + 1),

@@ -17,7 +17,7 @@ from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
 
-__all__ = ["OSCILLATOR_HZ", "SYSTEM_CLOCK_HZ", "cycles", "pll_ratio", "SystemPLL",
+__all__ = ["OSCILLATOR_HZ", "SYSTEM_CLOCK_HZ", "cycles", "ticks", "pll_ratio", "SystemPLL",
            "ecp5_pll_dividers", "ECP5PLL"]
 
 
@@ -29,6 +29,18 @@ def cycles(seconds, clk_freq, *, minimum=1):
     """Whole clock cycles that last at least ``seconds`` at ``clk_freq`` (never fewer than
     ``minimum``). The 1e-9 forgives float noise in exact products such as 100 µs × 12 MHz."""
     return max(minimum, math.ceil(seconds * clk_freq - 1e-9))
+
+
+def ticks(cycles_, tick_cycles, *, exact):
+    """The count a timer of ticks (a pulse every ``tick_cycles`` cycles, at any phase) must
+    reach to last at least ``cycles_`` cycles: ⌈``cycles_`` / ``tick_cycles``⌉ + 1 (the first
+    tick may come at once). With ``tick_cycles`` 1 every cycle is a tick and the count is
+    ``exact``, the caller's own count of cycles. A ValueError for a tick under a cycle."""
+    if tick_cycles < 1:
+        raise ValueError(f"a tick of {tick_cycles} cycles: at least 1")
+    if tick_cycles == 1:
+        return exact
+    return -(-cycles_ // tick_cycles) + 1
 
 
 def pll_ratio(in_hz, out_hz):

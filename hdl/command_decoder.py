@@ -8,6 +8,7 @@ from amaranth import *
 from amaranth.lib import stream, wiring
 from amaranth.lib.wiring import In, Out
 
+from .clocking import ticks
 from .attitude_isa import REG_BITS
 from .register_map import CONTROL_ADDR, CONTROL_KEEP, CONTROL_RESET, TELEMETRY_DIV_ADDR
 from .filter_registry import FILTER_CODES
@@ -71,9 +72,9 @@ COUNTER_WORDS = 8
 
 def counter_word(name):
     """A counted board register's word in the counters' RAM: its address less CMD_DISCARDED's,
-    modulo ``COUNTER_WORDS`` (the receiver's two, before it, are words 6 and 7; the discarded bytes, which
-    come fastest, word 0: the first served). The command names its word with its address's
-    low bits, no table."""
+    modulo ``COUNTER_WORDS`` (the receiver's two, before it, are words 6 and 7; the discarded
+    bytes, which come fastest, word 0: the first served). The command names its word with its
+    address's low bits, no table."""
     return (BOARD_REGS[name] - BOARD_REGS["CMD_DISCARDED"]) % COUNTER_WORDS
 
 
@@ -100,9 +101,9 @@ class CommandDecoder(wiring.Component):
         ``timeout``: cycles without a byte after which a frame in progress is dropped.
         ``tick_cycles`` (1): the time-out is counted in ticks (``tick``, in: a pulse every
             ``tick_cycles`` cycles; the core's is the sample reader's prescaler), so that its
-            count is 9 bits rather than 18 (5 ms at 48 MHz): ⌈``timeout`` / ``tick_cycles``⌉ +
-            1 ticks, at least ``timeout`` cycles and at most two ticks more. With 1, every
-            cycle is a tick and the time-out is exact.
+            count is 9 bits rather than 18 (5 ms at 48 MHz): ``clocking.ticks``, at least
+            ``timeout`` cycles and at most two ticks more. With 1, every cycle is a tick and
+            the time-out is exact.
     Members
         ``i_stream`` (in, byte stream): from the UART receiver; taken while the FIFO has room
             (bytes that arrive while a command executes wait there).
@@ -128,10 +129,8 @@ class CommandDecoder(wiring.Component):
     def __init__(self, *, writable, version, timeout, tick_cycles=1):
         self.writable = frozenset(writable)
         self.version = version
-        if tick_cycles < 1:
-            raise ValueError(f"CommandDecoder: a tick of {tick_cycles} cycles")
         self.timeout = timeout
-        self.timeout_ticks = timeout if tick_cycles == 1 else -(-timeout // tick_cycles) + 1
+        self.timeout_ticks = ticks(timeout, tick_cycles, exact=timeout)
         self.fifo = RewindableFIFO(FIFO_DEPTH)
         self.counters = EventCounters(COUNTER_WORDS)
         super().__init__({

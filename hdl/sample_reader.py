@@ -28,11 +28,12 @@ from amaranth.lib import stream, wiring
 from amaranth.lib.cdc import FFSynchronizer
 from amaranth.lib.wiring import In, Out
 
+from .clocking import ticks
 from . import ak8963_regs as A
 from . import mpu9250_regs as R
 from .register_port import RegisterPortSignature
 from .sample import Sample
-from .sample_store import (FIELD_WORDS, OFFER_WRITES, SENSOR_BITS, SLOT_WORDS, SLOTS,
+from .sample_store import (FIELD_LANES, OFFER_WRITES, SENSOR_BITS, SLOT_WORDS, SLOTS,
                            STORE_BITS, STORE_WORDS, SampleStoreWriteSignature, store_places)
 
 
@@ -226,17 +227,13 @@ class SampleReader(wiring.Component):
             for index, (w, k) in places.items():
                 with m.Case(index):
                     m.d.comb += [word.eq(w), lane.eq(k), placed.eq(1)]
-        # the writes after an offer: (word, lanes, data); the field's last, each with its lanes
+        # the writes after an offer: (word, lanes, data); the field's zeros last
         bits = Cat(self.samples.payload.as_value(), C(0, 32 * STORE_WORDS - STORE_BITS))
         writes = [(k, 0xF, bits[32 * k:32 * k + 32])
                   for k in range(SENSOR_BITS // 32, STORE_WORDS)]
         tail = len(writes)
-        field = {}
-        for index in range(MPU_BYTES + 1, MPU_BYTES + 7):
-            w, k = places[index]
-            field[w] = field.get(w, 0) | 1 << k
-        writes += [(w, lanes, C(0, 32)) for w, lanes in sorted(field.items())]
-        assert len(writes) == OFFER_WRITES and set(field) == set(FIELD_WORDS)
+        writes += [(w, lanes, C(0, 32)) for w, lanes in FIELD_LANES]
+        assert len(writes) == OFFER_WRITES
         n.after = after = Signal(range(len(writes) + 1))     # the next of them, from 1
         n.zero_field = zero_field = Signal()
         with m.If(after != 0):
@@ -438,8 +435,8 @@ class SampleReader(wiring.Component):
         have_base = Signal()                    # a sample was passed on since ``start``
         # The data-ready time-outs count the clocks' ticks (``n.step``, about 1/64 of a
         # period), not cycles: a 12-bit count rather than a 22-bit one (at 48 MHz and 1 kHz).
-        # ⌈cycles / tick⌉ + 1 ticks last at least ``cycles`` (the first may come at once).
-        first_ticks, after_ticks = (-(-cycles // n.tick_len) + 1 for cycles in
+        # ``ticks``: at least the time-out (with ticks of a cycle, one cycle more)
+        first_ticks, after_ticks = (ticks(cycles, n.tick_len, exact=cycles + 1) for cycles in
                                     (self.first_timeout_cycles, self.timeout_cycles))
         n.after_ticks = after_ticks
         timer = Signal(range(max(first_ticks, after_ticks) + 1))

@@ -35,7 +35,7 @@ from .sample import Sample
 
 
 __all__ = ["SLOTS", "SLOT_WORDS", "STORE_WORDS", "SAMPLE_STORE_DEPTH", "STORE_BITS", "SENSOR_BITS",
-           "OFFER_WRITES", "FIELD_WORDS",
+           "OFFER_WRITES", "FIELD_LANES",
            "SampleStoreWriteSignature", "store_places", "sample_store_ram"]
 
 
@@ -82,13 +82,22 @@ assert len(store_places(1 + R.SENSOR_BYTES + A.SAMPLE_BYTES, 1 + R.SENSOR_BYTES)
     SENSOR_BITS // 8, "a sensor byte without its place in the burst"
 
 
+def _field_lanes():
+    """The magnetometer field's words in a slot, each with its byte lanes (a mask)."""
+    lanes = {}
+    for byte in range(_SAMPLE["mag"].offset // 8, SENSOR_BITS // 8):
+        word, lane = divmod(byte, 4)
+        lanes[word] = lanes.get(word, 0) | 1 << lane
+    return tuple(sorted(lanes.items()))
+
+
 # The reader's writes after a sample is offered, a word a cycle from the first cycle of
-# ``valid``: the payload's words after the sensor fields, then (magnetometer down) the words
-# of the field. A reader of the slot sees the field as the payload has it from the cycle
-# after the last of them (the engine's loader reads the field's words later than that).
-_FIELD = _SAMPLE["mag"].offset // 32, (SENSOR_BITS - 1) // 32
-OFFER_WRITES = (STORE_WORDS - SENSOR_BITS // 32) + (_FIELD[1] - _FIELD[0] + 1)
-FIELD_WORDS = range(_FIELD[0], _FIELD[1] + 1)
+# ``valid``: the payload's words after the sensor fields, then (magnetometer down) zeros over
+# the field's words (``FIELD_LANES``: word, lanes). A reader of the slot sees the field as the
+# payload has it from the cycle after the last of them (the engine's loader reads the
+# field's words later than that).
+FIELD_LANES = _field_lanes()
+OFFER_WRITES = (STORE_WORDS - SENSOR_BITS // 32) + len(FIELD_LANES)
 
 
 def sample_store_ram():

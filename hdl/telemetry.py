@@ -43,10 +43,10 @@ class TelemetryFramer(wiring.Component):
             bit ``offset`` (a multiple of 32) are not read from ``i_stream``'s payload either, but
             through a synchronous read port: their word ``k`` is ``borrow_data`` in the cycle
             after ``borrow_index`` was ``k``; the port is read every cycle, a word ahead of the
-            copy (word 0 while no frame is copied). The sample an attitude result came from:
-            its sensor fields, read from the sample store through the engine's port, which
-            its loader uses too (``hdl/sample_store.py``). The bits of the last word beyond
-            ``bits`` must read 0; ``i_stream``'s payload gives the rest of that word.
+            copy (word 0 while no frame is copied). The sample an attitude result came from,
+            read from the sample store through the engine's port, which its loader uses too
+            (``hdl/sample_store.py``). The bits of the last word beyond ``bits`` must read 0;
+            ``i_stream``'s payload gives the rest of that word.
     Members
         ``i_stream`` (in, stream of ``layout``); ``o_stream`` (out, stream of ``FrameByte``:
             to a ``FrameArbiter``, or a UART taking ``data``).

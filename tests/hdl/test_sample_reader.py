@@ -5,7 +5,8 @@ import pytest
 from amaranth.sim import Simulator
 
 from mpu9250_ahrs.hdl.sample_reader import BAD_BURST_LIMIT, MPU_BYTES, SampleReader
-from mpu9250_ahrs.hdl.sample_store import SAMPLE_STORE_DEPTH, SLOT_WORDS, STORE_WORDS
+from mpu9250_ahrs.hdl.sample_store import (OFFER_WRITES, SAMPLE_STORE_DEPTH, SLOT_WORDS,
+                                           STORE_WORDS)
 from mpu9250_ahrs.sim.streams import check_stream_rules
 
 from .register_port_model import RegisterPortModel
@@ -80,7 +81,7 @@ def _check_store(sim, dut):
     checked = []
 
     async def process(ctx):
-        held, since, due = None, 99, []     # due: (cycles to go, slot, sensor bits, counter)
+        held, since, due = None, 99, []     # due: (cycles to go, slot, payload bits, counter)
         async for _, _, en, addr, value, valid, slot, payload in ctx.tick().sample(
                 dut.store.w_en, dut.store.w_addr, dut.store.w_data, dut.samples.valid,
                 dut.sample_slot, dut.samples.payload):
@@ -89,7 +90,7 @@ def _check_store(sim, dut):
                 if en >> lane & 1:
                     mask = 0xFF << 8 * lane
                     ram[addr] = ram[addr] & ~mask | value & mask
-            if en and since > 3:            # a burst's byte, not the writes after an offer
+            if en and since >= OFFER_WRITES:    # a burst's byte, not a write after an offer
                 assert addr // SLOT_WORDS != held
             for go, s, bits, counter in due:
                 if go == 0:
@@ -99,7 +100,7 @@ def _check_store(sim, dut):
             due = [(go - 1, s, b, c) for go, s, b, c in due if go > 0]
             if valid and (not checked and not due or
                           payload.counter != (due[-1][3] if due else checked[-1])):
-                due.append((3, slot, payload.as_value().value, payload.counter))
+                due.append((OFFER_WRITES - 1, slot, payload.as_value().value, payload.counter))
                 held, since = slot, 0
     sim.add_process(process)
     return checked
