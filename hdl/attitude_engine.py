@@ -18,8 +18,9 @@ routed critical path of ``report --timing`` ran through both); the MAC adds and 
 separate cycles (``hdl/multiply_accumulate.py``).
 A result is visible to the next instruction without stalls (forwarded into the operand
 registers); multi-cycle operations (MUL 3, or 1 to 2 when the next is a MUL that reads none
-of the results still to come; DIV 34, VEC/ROT 19 cycles) hold the pipeline; a taken branch
-costs three bubbles.
+of the results still to come; DIV 34, VEC 19, ROT 18 cycles) hold the pipeline; a taken branch
+on a register (A_ZERO, A_NEG) costs three bubbles, one on a condition fixed for the run
+(ALWAYS, MAG_INVALID, FIRST, FILTER) none: it is decided as it leaves the ROM.
 """
 
 import math
@@ -30,7 +31,7 @@ from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
 from .alu import ALU
-from .attitude_isa import REG_BITS, REG_COUNT, Cond, Flag, Instr, Op
+from .attitude_isa import FETCH_JUMPS, REG_BITS, REG_COUNT, Cond, Flag, Instr, Op
 from .register_map import HOST_WRITABLE, LOAD_BASE, LOAD_ORDER, REGS, config_init, load_words
 from .filter_registry import FILTER_CODES
 from .attitude_program import build_program
@@ -59,9 +60,10 @@ PEEKED = (*(f"QOUT{i}" for i in range(4)), *(f"THETA{i}" for i in range(3)),
 
 
 # An upper bound of the cycles of one update (sample taken to result out), whatever the filter
-# and input: the longest measured is the per-axis Kalman filter with Euler-angle rates (695
-# cycles for the first update after a reset, 687 after), then the flagship's first update
-# (620; `report` prints these). The rate checks of ``build`` and ``report`` rely on it;
+# and input: the longest is the per-axis Kalman filter with Euler-angle rates and every
+# measurement taken, its first update after a reset the longest of all
+# (``test_longest_updates_within_the_bound`` measures it), then the flagship's first update
+# (``report`` prints each filter's). The rate checks of ``build`` and ``report`` rely on it;
 # tests check it on whole recordings, resets and the Euler-rate option.
 WORST_UPDATE_CYCLES = 720
 
@@ -267,9 +269,33 @@ class AttitudeEngine(wiring.Component):
          cordic, divider, mag_valid) = (
             p.xa, p.xb, p.fetch_pc, p.advance, p.out, p.x_sub, p.x_or, p.x, p.rinstr, u.rf,
             p.first, u.rom, u.host, u.alu, u.mac, u.cordic, u.divider, p.mag_valid)
+        # A branch on a condition that holds still for the whole run (ALWAYS, MAG_INVALID,
+        # FIRST, FILTER: set before it starts) is decided as it leaves the ROM: when taken, the
+        # ROM reads its target next rather than the word after it, so it costs its one cycle
+        # (it goes on as a no-op) instead of three bubbles more. Only the register tests
+        # (A_ZERO, A_NEG) are decided in execute. The word's ``jump`` field indexes a vector
+        # of those conditions (``FETCH_JUMPS``), registered (they hold still in RUN), so the
+        # ROM's output goes through one bit's choice to its own address. ``flush`` is not in
+        # this path: a flushed fetch is dropped (``rvalid``) wherever it read
+        held = {(Cond.ALWAYS, 0): C(1, 1), (Cond.MAG_INVALID, 0): ~mag_valid,
+                (Cond.FIRST, 0): first,
+                **{(Cond.FILTER, code): host.select == code
+                   for code in range(1 << len(host.select))}}
+        bits = [C(0, 1)] * (1 << len(rinstr.jump))
+        for key, index in FETCH_JUMPS.items():
+            bits[index] = held[key]
+        fixed = Signal(len(bits), reset_less=True)
+        m.d.sync += fixed.eq(Cat(*bits))
+        jump = Signal()
+        m.d.comb += jump.eq(p.rvalid & fixed.bit_select(rinstr.jump, 1))
+        p.fetch_addr = Mux(jump, rinstr.target, fetch_pc)
+        # the next fetch address after this one: the incrementers side by side before the
+        # choice, not one after it (the ROM's output through the decision and a carry chain
+        # was the routed critical path, report --timing)
+        p.fetch_next = Mux(jump, rinstr.target + 1, fetch_pc + 1)
         # read port A: the instruction being fetched, or the host's read-back while idle
         m.d.comb += [
-            rom.addr.eq(fetch_pc), rom.en.eq(advance),
+            rom.addr.eq(p.fetch_addr), rom.en.eq(advance),
             rf.ra_addr.eq(Mux(host.r_en, host.r_addr, rinstr.a)),
             rf.rb_addr.eq(Mux(self.peek_en,
                               Array(C(REGS[name], REG_BITS) for name in PEEKED)[self.peek_index],
@@ -288,20 +314,16 @@ class AttitudeEngine(wiring.Component):
             divider.num.eq(opa), divider.den.eq(opb),
         ]
 
+        # the register tests, in execute (the other conditions were taken at the fetch): a
+        # branch is taken when ``cond`` differs from its ``inv``
         cond = Signal()
         with m.Switch(x.cond):
-            with m.Case(Cond.ALWAYS):
-                m.d.comb += cond.eq(1)
             with m.Case(Cond.A_ZERO):
                 m.d.comb += cond.eq(opa == 0)
             with m.Case(Cond.A_NEG):
                 m.d.comb += cond.eq(opa[-1])
-            with m.Case(Cond.MAG_INVALID):
-                m.d.comb += cond.eq(~mag_valid)
-            with m.Case(Cond.FIRST):
-                m.d.comb += cond.eq(first)
-            with m.Case(Cond.FILTER):
-                m.d.comb += cond.eq(host.select == x.sh[:len(host.select)])
+            with m.Default():
+                m.d.comb += cond.eq(x.inv)
         p.cond = cond
 
     def _write_port(self, m, u, p):
@@ -479,7 +501,7 @@ class AttitudeEngine(wiring.Component):
                 o.eq(rom.data), ovalid.eq(rvalid & ~flush),
                 o_held_a.eq(w_en & (w_addr == rinstr.a)), o_hold_a.eq(w_data),
                 o_held_b.eq(w_en & (w_addr == rinstr.b)), o_hold_b.eq(w_data),
-                fetch_pc.eq(Mux(flush, branch_to, fetch_pc + 1)), rvalid.eq(~flush),
+                fetch_pc.eq(Mux(flush, branch_to, p.fetch_next)), rvalid.eq(~flush),
             ]
         with m.Else():
             # a write while ``o`` waits (a CORDIC's first result, a stalled MUL's) is kept

@@ -21,8 +21,9 @@ DIV   d = div_q24(a, b): ⌊a·2²⁴/b⌋, 0 if b ≤ 0                     34
 VEC   CORDIC vectoring of (x = a, y = b): d = atan2 (BAM32),       19; 11 if ``sh`` = 1
       d+1 = magnitude · K; ``sh`` = 1: short (8 iterations: a
       length within 3·10⁻⁵, its angle coarse)
-ROT   CORDIC rotation of the angle in a: d = cos, d+1 = sin (Q1.30)  19
+ROT   CORDIC rotation of the angle in a: d = cos, d+1 = sin (Q1.30)  18
 BR    if condition (``cond``, inverted by ``inv``): go to target   1, or 4 when taken
+                                                                   on A_ZERO / A_NEG
 SETF  set result flag ``sh`` (``Flag``)                          1
 END   the sample is done: results out                              1
 ====  ===========================================================  ======================
@@ -45,7 +46,7 @@ from amaranth.hdl import unsigned
 from amaranth.lib import data
 
 
-__all__ = ["Op", "Cond", "Flag", "MUL_SHIFTS", "Q14", "Q24", "DOUBLED", "Q30", "REG_COUNT",
+__all__ = ["Op", "Cond", "Flag", "FETCH_JUMPS", "REGISTER_CONDS", "MUL_SHIFTS", "Q14", "Q24", "DOUBLED", "Q30", "REG_COUNT",
            "REG_BITS", "ROM_DEPTH", "ROM_BITS", "Instr", "Instruction", "Assembler"]
 
 REG_COUNT = 256
@@ -111,6 +112,19 @@ class Instr(data.Struct):
     cond: unsigned(3)
     inv: unsigned(1)
     target: unsigned(ROM_BITS)
+    jump: unsigned(3)       # BR on a fixed condition: ``FETCH_JUMPS`` (0: none)
+
+
+# A branch on a condition that holds still for the whole run is decided as it leaves the
+# ROM (``hdl/attitude_engine.py``): its word carries the condition as an index into the
+# engine's vector of them, so that the decision is one bit chosen by three ROM bits (the
+# path from the ROM to its own address). 0: not such a branch (the register tests are
+# decided in execute).
+FETCH_JUMPS = {
+    (Cond.ALWAYS, 0): 1, (Cond.MAG_INVALID, 0): 2, (Cond.FIRST, 0): 3,
+    **{(Cond.FILTER, code): 4 + code for code in range(4)},
+}
+REGISTER_CONDS = (Cond.A_ZERO, Cond.A_NEG)
 
 
 @dataclass(frozen=True)
@@ -132,12 +146,20 @@ class Instruction:
     def encode(self):
         """The ROM word (an integer laid out as ``Instr``)."""
         layout = data.Layout.cast(Instr)
+        jump = 0
+        if self.op == Op.BR and self.cond not in REGISTER_CONDS:
+            if self.inv:
+                raise ValueError(f"{self}: only a register test (A_ZERO, A_NEG) is inverted")
+            key = (self.cond, self.sh if self.cond == Cond.FILTER else 0)
+            if key not in FETCH_JUMPS:
+                raise ValueError(f"{self}: no such condition")
+            jump = FETCH_JUMPS[key]
         word = 0
         for name, value in (("op", int(self.op)), ("d", self.d), ("a", self.a), ("b", self.b),
                             ("sh", self.sh), ("wrap", self.wrap), ("sat16", self.sat16),
                             ("acc", self.acc), ("neg", self.neg), ("wb", self.wb),
                             ("cond", int(self.cond)), ("inv", self.inv),
-                            ("target", self.target)):
+                            ("target", self.target), ("jump", jump)):
             f = layout[name]
             value = int(value)
             if not 0 <= value < (1 << f.width):

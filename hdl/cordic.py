@@ -33,7 +33,8 @@ class CORDIC(wiring.Component):
     ``atan_table`` (one entry per iteration, BAM of ``width`` bits), ``inv_gain`` (1/K in
     Q1.(``width`` − 2)), ``short_iterations`` (at most the table's).
     Latency: ``done`` ``CORDIC_ITERATIONS`` + 1 cycles after ``start`` (``short``:
-    ``short_iterations`` + 1); throughput one operation per that many cycles. Internal width 34
+    ``short_iterations`` + 1) in vectoring, a cycle less in rotation (its first iteration,
+    from y = 0, is made with the start); throughput one operation per that many cycles. Internal width 34
     bits: a 32-bit vector's length times K (1.647) is below 2³³, so any 32-bit input converges
     without overflow. Two 18 × 18 multipliers shift y by i, a third x's high bits
     (``blackbox``: ``report`` makes them empty blocks, as the engine's multiplier's).
@@ -121,16 +122,32 @@ class CORDIC(wiring.Component):
         with m.FSM():
             with m.State("IDLE"):
                 with m.If(self.start):
-                    m.d.sync += [i.eq(0), rotate.eq(self.mode), c.eq(1 << (low - 1)),
+                    m.d.sync += [rotate.eq(self.mode),
                                  last.eq(Mux(self.short, self.short_iterations - 1,
                                              iterations - 1))]
+                    m.next = "RUN"
                     with m.If(self.mode):
                         a = self.angle_in
-                        # beyond ±90°: turn by 180° (wrapping add of 2³¹), start from (−1/K, 0)
+                        # beyond ±90°: turn by 180° (wrapping add of 2³¹), start from (±1/K, 0)
                         beyond = (a > (1 << (n - 2))) | (a < -(1 << (n - 2)))
-                        m.d.sync += [x.eq(Mux(beyond, -self.inv_gain, self.inv_gain)), y.eq(0),
-                                     z.eq(Cat(a[:n - 1], a[n - 1] ^ beyond))]
+                        z0 = Cat(a[:n - 1], a[n - 1] ^ beyond).as_signed()
+                        x0 = Mux(beyond, -self.inv_gain, self.inv_gain)
+                        # The first iteration is made here: from y = 0 it is x1 = x0,
+                        # y1 = ±x0 and z1 = z0 ∓ atan 0 (the signs z0's), constants and a
+                        # constant added to z (2²⁹ at 32 bits: its top three bits), so a
+                        # rotation takes one cycle less than a vectoring
+                        neg = z0[-1]
+                        m.d.sync += [
+                            i.eq(1), c.eq(1 << (low - 2)),
+                            x.eq(x0),
+                            y.eq(Mux(beyond ^ neg, -self.inv_gain, self.inv_gain)),
+                            z.eq(z0 + Mux(neg, self.atan_table[0], -self.atan_table[0])),
+                        ]
+                        # a rotation of one iteration is done with this one
+                        with m.If(Mux(self.short, self.short_iterations, iterations) == 1):
+                            m.next = "DONE"
                     with m.Else():
+                        m.d.sync += [i.eq(0), c.eq(1 << (low - 1))]
                         xi, yi = self.x_in, self.y_in
                         # left half-plane: invert (−v − 1: no adder), start at 180°
                         left = xi[n - 1]
@@ -141,7 +158,6 @@ class CORDIC(wiring.Component):
                                      y.eq(yi ^ left.replicate(n).as_signed()),
                                      z.eq(Mux(zero, Mux(self.short, -short_sum, -whole_sum),
                                               Cat(C(0, n - 1), left)))]
-                    m.next = "RUN"
             with m.State("RUN"):
                 # x ∓ (y >> i), y ± (x >> i), z ∓ atan: one adder each, the operand inverted
                 # (plus one) to subtract

@@ -116,8 +116,9 @@ def _allocate():
     # first, at 0x20, so that the loader's address is its counter with 0b010 above it
     names += [f"GRAW{i}" for i in range(3)] + [f"ARAW{i}" for i in range(3)]
     names += [f"MRAW{i}" for i in range(3)] + [f"ASA{i}" for i in range(3)]
-    # sample periods since the previous sample (1 + Sample.skipped), and STEP_N: the filter's
-    # per-period rotation coefficient (RATE or K_RAD) times that
+    # sample periods since the previous sample (1 + Sample.skipped; the calibration shifts it
+    # left by 14 in place), and STEP_N: the filter's per-period rotation coefficient (RATE or
+    # K_RAD) times that
     names += ["NPER"]
     names += [f"THETA{i}" for i in range(3)] + [f"BIAS{i}" for i in range(3)]
     names += ["STEP_N"]

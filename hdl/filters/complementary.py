@@ -16,10 +16,13 @@ def emit(asm, r):
     """The routine, from the calibrated sample to QOUT, THETA and BIAS."""
     step_n(asm, r, "RATE")
     asm.br("c_euler", Cond.A_ZERO, a=r["EULER_RATES"], inv=True)
-    with asm.scratch(1) as T:
+    # the three axes side by side, so that products follow products (a MUL followed by a MUL
+    # that does not read its result takes one cycle, by anything else three)
+    with asm.scratch(3) as T:
         for i in range(3):
-            asm.mul(T[0], r[f"G{i}"], r["STEP_N"], Q14)                 # ω·RATE·n >> 14
-            asm.add(r[f"PRED{i}"], r[f"THETA{i}"], T[0], wrap=True)
+            asm.mul(T[i], r[f"G{i}"], r["STEP_N"], Q14)                 # ω·RATE·n >> 14
+        for i in range(3):
+            asm.add(r[f"PRED{i}"], r[f"THETA{i}"], T[i], wrap=True)
             asm.add(r[f"PREV{i}"], r[f"G{i}"], r["ZERO"])
         asm.label("c_predicted")
         zero_tests(asm, r, "c")
@@ -35,9 +38,11 @@ def emit(asm, r):
         asm.setf(Flag.MAG_USED)
         asm.label("c_blend")
         for i in range(3):
-            asm.sub(T[0], r[f"MEAS{i}"], r[f"PRED{i}"], wrap=True)
-            asm.mul(T[0], r["ONE_MINUS_A"], T[0], Q24)
-            asm.add(r[f"THETA{i}"], r[f"PRED{i}"], T[0], wrap=True)
+            asm.sub(T[i], r[f"MEAS{i}"], r[f"PRED{i}"], wrap=True)
+        for i in range(3):
+            asm.mul(T[i], r["ONE_MINUS_A"], T[i], Q24)
+        for i in range(3):
+            asm.add(r[f"THETA{i}"], r[f"PRED{i}"], T[i], wrap=True)
         asm.br("angles_out")
     # out of line: the prediction with Euler-angle rates, in Q16 counts
     asm.label("c_euler")

@@ -22,39 +22,40 @@ def _kalman_update(asm, r, i, z):
         asm.div(T[5], p00, T[4])                             # k0, Q0.24
         asm.div(T[6], p10, T[4])                             # k1, Q8.24
         asm.sub(T[7], z, th, wrap=True)                      # innovation y
+        # the products in one run (a MUL followed by a MUL that does not read its result
+        # takes one cycle, by anything else three), then the sums
         asm.mul(T[8], T[5], T[7], Q24)
         asm.mul(T[9], T[6], T[7], Q24)                        # k1·y, BAM/s
-        asm.add(th, th, T[8], wrap=True)
-        asm.mul(T[9], T[9], r["BIAS_SCALE"], Q24)
-        asm.add(b, b, T[9])
-        asm.mul(T[8], T[5], p00, Q24)
-        asm.mul(T[9], T[5], p01, Q24)
+        asm.mul(T[0], T[5], p00, Q24)
+        asm.mul(T[1], T[5], p01, Q24)
         asm.mul(T[10], T[6], p00, Q24)
         asm.mul(T[11], T[6], p01, Q24)
-        asm.sub(p00, p00, T[8])
-        asm.sub(p01, p01, T[9])
+        asm.mul(T[9], T[9], r["BIAS_SCALE"], Q24)
+        asm.add(th, th, T[8], wrap=True)
+        asm.add(b, b, T[9])
+        asm.sub(p00, p00, T[0])
+        asm.sub(p01, p01, T[1])
         asm.sub(p10, p10, T[10])
         asm.sub(p11, p11, T[11])
 
 
 def emit(asm, r):
     """The routine, from the calibrated sample to QOUT, THETA and BIAS."""
-    # the first sample after a reset takes ω₍ₖ₋₁₎ = ωₖ: out of line, so that every other
-    # sample falls through (a taken branch costs two bubbles)
+    # the first sample after a reset takes ω₍ₖ₋₁₎ = ωₖ: out of line (FIRST is decided as the
+    # branch is fetched: one cycle, taken or not)
     asm.br("k_first", Cond.FIRST)
     asm.label("k_predict")
     step_n(asm, r, "RATE")
     # the three axes interleaved, so that products follow products: a MUL followed by a MUL
     # that does not read its result takes one cycle instead of two
     P = [[r[f"P{i}_{e}"] for e in ("00", "01", "10", "11")] for i in range(3)]
-    # U first: the Euler-rate transform takes four more scratch registers before TP and D live
+    # the Euler-rate transform out of line (after the routine), so that body rates, the
+    # default, fall through: a branch on a register costs three bubbles when taken. U first:
+    # the transform takes four more scratch registers before TP and D live
+    asm.br("k_euler", Cond.A_ZERO, a=r["EULER_RATES"], inv=True)
     with asm.scratch(3) as U:
-        for i in range(3):
-            asm.add(U[i], r[f"PREV{i}"], r[f"G{i}"])
-        for i in range(3):
-            asm.mul(U[i], U[i], r["SHL15"], Q14)              # << 15 (exact: |ω| < 2¹⁶)
-        asm.br("k_body_rates", Cond.A_ZERO, a=r["EULER_RATES"])
-        euler_rates(asm, r, U, "k")
+        body_u = list(U)
+        _summed_rates(asm, r, U)
         asm.label("k_body_rates")
         with asm.scratch(6) as T:
             TP, D = T[0:3], T[3:6]
@@ -100,4 +101,19 @@ def emit(asm, r):
     for i in range(3):
         asm.add(r[f"PREV{i}"], r[f"G{i}"], r["ZERO"])
     asm.br("k_predict")
+    asm.label("k_euler")
+    with asm.scratch(3) as U:
+        # the same registers as at k_body_rates, where this joins (nothing else is held)
+        assert list(U) == body_u
+        _summed_rates(asm, r, U)
+        euler_rates(asm, r, U, "k")
+    asm.br("k_body_rates")
+
+
+def _summed_rates(asm, r, U):
+    """U = (ω₍ₖ₋₁₎ + ωₖ) << 15, Q16 counts: twice the average rate."""
+    for i in range(3):
+        asm.add(U[i], r[f"PREV{i}"], r[f"G{i}"])
+    for i in range(3):
+        asm.mul(U[i], U[i], r["SHL15"], Q14)              # << 15 (exact: |ω| < 2¹⁶)
 

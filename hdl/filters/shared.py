@@ -34,6 +34,8 @@ def calibrate(asm, r):
             asm.mul(T[i], T[i], r[f"ACC_SCALE{i}"], Q14)
         for j in range(3):                               # ASA: h·(ASA + 128)/256, AK axes
             asm.mul(T[3 + j], r[f"MRAW{j}"], r[f"ASA{j}"], Q14)       # ASA holds (ASA + 128)·2⁶
+        # NPER << 14 in place (exact: NPER ≤ 16), for ``step_n``
+        asm.mul(r["NPER"], r["NPER"], r["SHL14"], Q14)
         for i in range(3):
             asm.add(r[f"A{i}"], T[i], r["ZERO"], sat16=True)
         # AK8963 -> body axes (x = y_ak, y = x_ak, z = −z_ak), minus the hard-iron offset
@@ -66,11 +68,13 @@ def tilt(asm, r, roll):
     inputs scaled by 2⁸. Clobbers ``roll`` + 2 (the vectoring CORDIC writes its magnitude
     beside the angle; the first one's is used for the pitch)."""
     with asm.scratch(4) as T:
-        for i in range(3):
-            asm.mul(T[i], r[f"A{i}"], r["SHL8"], Q14)           # a << 8
+        # a << 8 (exact); −ax << 8 by a MUL that subtracts its product (exact too, and no
+        # ADD after it: a MUL followed by one takes three cycles, by a MUL one)
+        asm.mul(T[0], r["A0"], r["SHL8"], Q14, neg=True)
+        for i in (1, 2):
+            asm.mul(T[i], r[f"A{i}"], r["SHL8"], Q14)
         asm.vec(roll, T[2], T[1])
         asm.mul(T[3], roll + 1, r["INV_GAIN"], Q30)
-        asm.sub(T[0], r["ZERO"], T[0])
         asm.vec(roll + 1, T[3], T[0])
 
 
@@ -94,10 +98,11 @@ def heading(asm, r, roll, pitch, out):
 def step_n(asm, r, coefficient, dst="STEP_N"):
     """``dst`` (STEP_N) = ``coefficient`` · NPER: the rotation of this update covers every
     period since the previous sample (a sample the sensor made but nobody read is integrated,
-    not lost). Exact: NPER << 14 by a MUL with SHL14, then a MUL with shift 14; saturates (and
-    flags) only for a coefficient times 16 beyond 32 bits."""
-    asm.mul(r[dst], r["NPER"], r["SHL14"], Q14)
-    asm.mul(r[dst], r[coefficient], r[dst], Q14)
+    not lost). Exact: ``calibrate`` has shifted NPER left by 14 (a MUL with SHL14, in the run
+    of its products: one cycle, where a MUL of its own before this one cost three), so this is
+    one MUL with shift 14; saturates (and flags) only for a coefficient times 16 beyond 32
+    bits."""
+    asm.mul(r[dst], r[coefficient], r["NPER"], Q14)
 
 
 def euler_rates(asm, r, U, name):

@@ -332,6 +332,19 @@ def test_euler_rate_prediction_bit_exact(select):
     assert max(run.cycles) <= WORST_UPDATE_CYCLES
 
 
+def test_longest_updates_within_the_bound():
+    """The longest updates: the Kalman filter with Euler-angle rates and every measurement taken
+    (tilt and heading: the accelerometer and a valid field on every sample), its first update
+    after a reset the longest of all; each within ``WORST_UPDATE_CYCLES``, bit for bit."""
+    from mpu9250_ahrs.sim.motion import random_motion
+    traj = concat(turntable((0, 1, 0), rate_dps=400.0, duration=0.05),
+                  random_motion(0.05, seed=4))
+    gc, ac, mc = SENSOR.counts(traj)
+    run, _ = check(gc, ac, body_to_mag(mc), config=KalmanFixedConfig(euler_rates=True))
+    cycles = list(run.cycles)
+    assert max(cycles) == cycles[0] <= WORST_UPDATE_CYCLES
+
+
 def test_euler_rates_follow_a_coning_motion_better():
     """Tilted 45° in roll, turning about the vertical: body rates put the turn partly on the
     pitch axis; Euler-angle rates keep roll and pitch where they are (float, no measurement)."""

@@ -58,3 +58,22 @@ def test_vectoring_writes_its_pair_and_shifts_are_named():
     with pytest.raises(ValueError, match="undefined label"):
         asm.br("nowhere")
         asm.resolve()
+
+
+def test_fixed_conditions_are_fetch_jumps():
+    """A branch on a condition fixed for the run carries its index into the engine's vector of
+    them (``FETCH_JUMPS``: the engine decides it as it leaves the ROM); a register test carries
+    none, and only a register test can be inverted."""
+    from amaranth.lib import data
+    from mpu9250_ahrs.hdl.attitude_isa import FETCH_JUMPS, Instr, Instruction, Op
+
+    def jump(ins):
+        return data.Const(data.Layout.cast(Instr), ins.encode()).jump
+
+    assert jump(Instruction(Op.BR, cond=Cond.FILTER, sh=2)) == FETCH_JUMPS[(Cond.FILTER, 2)]
+    assert jump(Instruction(Op.BR, cond=Cond.ALWAYS)) == FETCH_JUMPS[(Cond.ALWAYS, 0)]
+    assert jump(Instruction(Op.BR, cond=Cond.A_ZERO, a=5, inv=True)) == 0
+    assert jump(Instruction(Op.ADD, 1, 2, 3)) == 0
+    assert len(set(FETCH_JUMPS.values())) == len(FETCH_JUMPS) and 0 not in FETCH_JUMPS.values()
+    with pytest.raises(ValueError, match="only a register test"):
+        Instruction(Op.BR, cond=Cond.FIRST, inv=True).encode()
