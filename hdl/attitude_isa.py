@@ -18,7 +18,7 @@ MUL   acc = (acc if ``acc`` else 2^(s−1)) ± a·b, s = MUL_SHIFTS[sh]  3; 1 (o
       (exact, 66 bits: the rounding constant goes in first);
       if ``wb``: d = acc >> s  (= rshift_round of the sum)
 DIV   d = div_q24(a, b): ⌊a·2²⁴/b⌋, 0 if b ≤ 0                     34
-VEC   CORDIC vectoring of (x = a, y = b): d = atan2 (BAM32),       19; 11 if ``sh`` = 1
+VEC   CORDIC vectoring of (x = a, y = b): d = atan2 (BAM32),       18; 10 if ``sh`` = 1
       d+1 = magnitude · K; ``sh`` = 1: short (8 iterations: a
       length within 3·10⁻⁵, its angle coarse)
 ROT   CORDIC rotation of the angle in a: d = cos, d+1 = sin (Q1.30)  18
