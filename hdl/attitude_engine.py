@@ -19,8 +19,9 @@ separate cycles (``hdl/multiply_accumulate.py``).
 A result is visible to the next instruction without stalls (forwarded into the operand
 registers); multi-cycle operations (MUL 3, or 1 to 2 when the next is a MUL that reads none
 of the results still to come; DIV 34, VEC 18, ROT 18 cycles) hold the pipeline; a taken branch
-on a register (A_ZERO, A_NEG) costs three bubbles, one on a condition fixed for the run
-(ALWAYS, MAG_INVALID, FIRST, FILTER) none: it is decided as it leaves the ROM.
+on a register (A_ZERO, A_NEG) costs two bubbles (decided in execute, the ROM reads its target
+at once), one on a condition fixed for the run (ALWAYS, MAG_INVALID, FIRST, FILTER) none: it
+is decided as it leaves the ROM.
 """
 
 import math
@@ -245,7 +246,6 @@ class AttitudeEngine(wiring.Component):
         phase = Signal(2)
         advance = Signal()
         flush = Signal()
-        branch_to = Signal.like(fetch_pc)
 
         first = Signal(init=1)
         init_pending = Signal(init=1)                     # run the INIT program after reset
@@ -258,7 +258,7 @@ class AttitudeEngine(wiring.Component):
         return SimpleNamespace(fetch_pc=fetch_pc, rvalid=rvalid, rinstr=rinstr, o=o, ovalid=ovalid,
                                x=x, xvalid=xvalid, xa=xa, xb=xb, x_alu=x_alu, x_sub=x_sub,
                                x_or=x_or, phase=phase, advance=advance, flush=flush,
-                               branch_to=branch_to, first=first, init_pending=init_pending,
+                               first=first, init_pending=init_pending,
                                running_init=running_init, mag_valid=mag_valid, flags_set=flags_set,
                                flag_sat=flag_sat, out=out, result_valid=result_valid)
 
@@ -295,7 +295,8 @@ class AttitudeEngine(wiring.Component):
         p.fetch_next = Mux(jump, rinstr.target + 1, fetch_pc + 1)
         # read port A: the instruction being fetched, or the host's read-back while idle
         m.d.comb += [
-            rom.addr.eq(p.fetch_addr), rom.en.eq(advance),
+            # a register test taken in execute (``flush``) reads its target at once
+            rom.addr.eq(Mux(p.flush, x.target, p.fetch_addr)), rom.en.eq(advance),
             rf.ra_addr.eq(Mux(host.r_en, host.r_addr, rinstr.a)),
             rf.rb_addr.eq(Mux(self.peek_en,
                               Array(C(REGS[name], REG_BITS) for name in PEEKED)[self.peek_index],
@@ -430,11 +431,11 @@ class AttitudeEngine(wiring.Component):
         """The execute stage for ``x`` (an FSM state body)."""
         (advance, xvalid, mac, o, w_data, hit_a, hit_b, w_en, w_addr, w_other, w_sat_other, x,
          ovalid, x_alu, x_sub, x_or, rom, rvalid, o_held_a, o_hold_a, o_held_b, o_hold_b, fetch_pc,
-         flush, branch_to, x_wd, alu_w, o_reads_x, phase, cond, rinstr, divider, cordic, x_wd1,
+         flush, x_wd, alu_w, o_reads_x, phase, cond, rinstr, divider, cordic, x_wd1,
          flags_set, o_reads_acc) = (
             p.advance, p.xvalid, u.mac, p.o, p.w_data, p.hit_a, p.hit_b, p.w_en, p.w_addr,
             p.w_other, p.w_sat_other, p.x, p.ovalid, p.x_alu, p.x_sub, p.x_or, u.rom, p.rvalid,
-            p.o_held_a, p.o_hold_a, p.o_held_b, p.o_hold_b, p.fetch_pc, p.flush, p.branch_to,
+            p.o_held_a, p.o_hold_a, p.o_held_b, p.o_hold_b, p.fetch_pc, p.flush,
             p.x_wd, p.alu_w, p.o_reads_x, p.phase, p.cond, p.rinstr, u.divider, u.cordic, p.x_wd1,
             p.flags_set, p.o_reads_acc)
         m.d.comb += advance.eq(1)                       # overridden below by stalls
@@ -493,7 +494,7 @@ class AttitudeEngine(wiring.Component):
                                      w_sat_other.eq(~is_rot & cordic.saturated)]
                 with m.Case(Op.BR):
                     with m.If(cond ^ x.inv):
-                        m.d.comb += [flush.eq(1), branch_to.eq(x.target)]
+                        m.d.comb += flush.eq(1)
                 with m.Case(Op.SETF):
                     m.d.sync += flags_set.bit_select(x.sh, 1).eq(1)
         with m.If(advance):
@@ -504,7 +505,7 @@ class AttitudeEngine(wiring.Component):
                 o.eq(rom.data), ovalid.eq(rvalid & ~flush),
                 o_held_a.eq(w_en & (w_addr == rinstr.a)), o_hold_a.eq(w_data),
                 o_held_b.eq(w_en & (w_addr == rinstr.b)), o_hold_b.eq(w_data),
-                fetch_pc.eq(Mux(flush, branch_to, p.fetch_next)), rvalid.eq(~flush),
+                fetch_pc.eq(Mux(flush, x.target + 1, p.fetch_next)), rvalid.eq(1),
             ]
         with m.Else():
             # a write while ``o`` waits (a CORDIC's first result, a stalled MUL's) is kept

@@ -22,7 +22,7 @@ VEC   CORDIC vectoring of (x = a, y = b): d = atan2 (BAM32),       18; 10 if ``s
       d+1 = magnitude · K; ``sh`` = 1: short (8 iterations: a
       length within 3·10⁻⁵, its angle coarse)
 ROT   CORDIC rotation of the angle in a: d = cos, d+1 = sin (Q1.30)  18
-BR    if condition (``cond``, inverted by ``inv``): go to target   1, or 4 when taken
+BR    if condition (``cond``, inverted by ``inv``): go to target   1, or 3 when taken
                                                                    on A_ZERO / A_NEG
 SETF  set result flag ``sh`` (``Flag``)                          1
 END   the sample is done: results out                              1
