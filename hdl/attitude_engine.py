@@ -18,10 +18,11 @@ routed critical path of ``report --timing`` ran through both); the MAC adds and 
 separate cycles (``hdl/multiply_accumulate.py``).
 A result is visible to the next instruction without stalls (forwarded into the operand
 registers); multi-cycle operations (MUL 3, or 1 to 2 when the next is a MUL that reads none
-of the results still to come; DIV 34, VEC 18, ROT 18 cycles) hold the pipeline; a taken branch
+of the results still to come; DIV 34, VEC 19, ROT 18 cycles) hold the pipeline; a taken branch
 on a register (A_ZERO, A_NEG) costs two bubbles (decided in execute, the ROM reads its target
 at once), one on a condition fixed for the run (ALWAYS, MAG_INVALID, FIRST, FILTER) none: it
-is decided as it leaves the ROM.
+is decided as it leaves the ROM (from the word's ``jump`` field, which any instruction may
+carry: the assembler folds most such branches into the instruction before them).
 """
 
 import math
@@ -479,13 +480,10 @@ class AttitudeEngine(wiring.Component):
                         m.d.comb += [advance.eq(0), cordic.start.eq(1)]
                         m.d.sync += phase.eq(1)
                     with m.Elif(phase == 1):
-                        # the first result: a vectoring's angle in the final iteration (from
-                        # z's adder: ``angle_next``), a rotation's cosine with ``done``; the
-                        # second then goes with ``done`` (vectoring) or after it
                         m.d.comb += advance.eq(0)
-                        with m.If(Mux(is_rot, cordic.done, cordic.last)):
+                        with m.If(cordic.done):
                             m.d.comb += [w_en.eq(1), w_addr.eq(x.d), x_wd.eq(1),
-                                         w_other.eq(Mux(is_rot, cordic.cos, cordic.angle_next))]
+                                         w_other.eq(Mux(is_rot, cordic.cos, cordic.angle))]
                             m.d.sync += phase.eq(2)
                     with m.Else():
                         m.d.sync += phase.eq(0)

@@ -18,12 +18,13 @@ MUL   acc = (acc if ``acc`` else 2^(s−1)) ± a·b, s = MUL_SHIFTS[sh]  3; 1 (o
       (exact, 66 bits: the rounding constant goes in first);
       if ``wb``: d = acc >> s  (= rshift_round of the sum)
 DIV   d = div_q24(a, b): ⌊a·2²⁴/b⌋, 0 if b ≤ 0                     34
-VEC   CORDIC vectoring of (x = a, y = b): d = atan2 (BAM32),       18; 10 if ``sh`` = 1
+VEC   CORDIC vectoring of (x = a, y = b): d = atan2 (BAM32),       19; 11 if ``sh`` = 1
       d+1 = magnitude · K; ``sh`` = 1: short (8 iterations: a
       length within 3·10⁻⁵, its angle coarse)
 ROT   CORDIC rotation of the angle in a: d = cos, d+1 = sin (Q1.30)  18
 BR    if condition (``cond``, inverted by ``inv``): go to target   1, or 3 when taken
-                                                                   on A_ZERO / A_NEG
+                                                                   on A_ZERO / A_NEG; 0
+                                                                   folded (below)
 SETF  set result flag ``sh`` (``Flag``)                          1
 END   the sample is done: results out                              1
 ====  ===========================================================  ======================
@@ -32,6 +33,11 @@ Conditions: ``ALWAYS``; ``A_ZERO`` (register a is 0); ``A_NEG`` (register a is n
 comparison is a SUB then this); ``MAG_INVALID`` (the sample's ``mag_valid`` flag is 0);
 ``FIRST`` (first sample since the filter was reset or another filter selected); ``FILTER``
 (the filter whose code is the instruction's ``sh`` field is selected: the dispatch).
+
+A branch on a condition fixed for the run (ALWAYS, MAG_INVALID, FIRST, FILTER) is decided as
+its word leaves the ROM, and the assembler folds it into the instruction before it
+(``Instruction.then``) unless that one is a branch or END or a label names the branch: then it
+costs no cycle at all.
 
 The assembler (``Assembler``) gives registers names, resolves labels and checks ranges; it
 knows nothing about hazards because the engine has none: a result is visible to the very next
@@ -142,30 +148,42 @@ class Instruction:
     cond: Cond = Cond.ALWAYS
     inv: bool = False
     target: object = 0          # label name until resolved
+    # a branch on a fixed condition folded into this instruction by ``Assembler.resolve``:
+    # (cond, code, target), taken after it as the branch would have been; costs no cycle
+    then: object = None
 
     def encode(self):
         """The ROM word (an integer laid out as ``Instr``)."""
         layout = data.Layout.cast(Instr)
-        jump = 0
+        jump, target = 0, self.target
         if self.op == Op.BR and self.cond not in REGISTER_CONDS:
             if self.inv:
                 raise ValueError(f"{self}: only a register test (A_ZERO, A_NEG) is inverted")
-            key = (self.cond, self.sh if self.cond == Cond.FILTER else 0)
-            if key not in FETCH_JUMPS:
-                raise ValueError(f"{self}: no such condition")
-            jump = FETCH_JUMPS[key]
+            jump = _fetch_jump(self, self.cond, self.sh)
+        if self.then is not None:
+            if self.op in (Op.BR, Op.END):
+                raise ValueError(f"{self}: a branch folded into a {self.op.name}")
+            cond, code, target = self.then
+            jump = _fetch_jump(self, cond, code)
         word = 0
         for name, value in (("op", int(self.op)), ("d", self.d), ("a", self.a), ("b", self.b),
                             ("sh", self.sh), ("wrap", self.wrap), ("sat16", self.sat16),
                             ("acc", self.acc), ("neg", self.neg), ("wb", self.wb),
                             ("cond", int(self.cond)), ("inv", self.inv),
-                            ("target", self.target), ("jump", jump)):
+                            ("target", target), ("jump", jump)):
             f = layout[name]
             value = int(value)
             if not 0 <= value < (1 << f.width):
                 raise ValueError(f"{self}: field {name}={value} does not fit {f.width} bits")
             word |= value << f.offset
         return word
+
+
+def _fetch_jump(ins, cond, code):
+    key = (cond, code if cond == Cond.FILTER else 0)
+    if key not in FETCH_JUMPS:
+        raise ValueError(f"{ins}: {Cond(cond).name} is not decided at the fetch")
+    return FETCH_JUMPS[key]
 
 
 def _reads_writes(ins):
@@ -285,14 +303,41 @@ class Assembler:
     def end(self):
         self._emit(Instruction(Op.END))
 
+    def _fold(self):
+        """Folds each branch on a fixed condition (``FETCH_JUMPS``) into the instruction
+        before it (``Instruction.then``), where that one is neither a branch nor END and no
+        label names the branch: the engine decides such a branch as the word leaves the ROM,
+        so folded it costs no cycle (its own word would cost one). Labels after it move up."""
+        code, i = self.code, 1
+        while i < len(code):
+            ins, prev = code[i], code[i - 1]
+            if (ins.op == Op.BR and ins.cond not in REGISTER_CONDS and not ins.inv
+                    and prev.op not in (Op.BR, Op.END) and prev.then is None
+                    and i not in self.labels.values()):
+                code[i - 1] = replace(prev, then=(ins.cond, ins.sh, ins.target))
+                del code[i]
+                self.labels = {k: v - 1 if v > i else v for k, v in self.labels.items()}
+            else:
+                i += 1
+
     def resolve(self):
-        """Instructions with label targets replaced by addresses."""
+        """Instructions with label targets replaced by addresses, the branches on fixed
+        conditions folded where they can be (``_fold``; ``labels`` then gives the addresses
+        of the folded program)."""
+        self._fold()
+
+        def address(label):
+            if label not in self.labels:
+                raise ValueError(f"branch to undefined label {label!r}")
+            return self.labels[label]
+
         out = []
         for ins in self.code:
             if ins.op == Op.BR:
-                if ins.target not in self.labels:
-                    raise ValueError(f"branch to undefined label {ins.target!r}")
-                ins = replace(ins, target=self.labels[ins.target])
+                ins = replace(ins, target=address(ins.target))
+            if ins.then is not None:
+                cond, code, target = ins.then
+                ins = replace(ins, then=(cond, code, address(target)))
             out.append(ins)
         if len(out) > ROM_DEPTH:
             raise ValueError(f"program of {len(out)} instructions exceeds the ROM ({ROM_DEPTH})")

@@ -26,8 +26,6 @@ class CORDIC(wiring.Component):
         ``done`` (out): one-cycle pulse when the results are valid; they hold until the next start.
         Vectoring results: ``angle`` (BAM32, atan2(y, x); (0, 0) gives 0), ``magnitude``
             (√(x² + y²)·K saturated to 32 bits; ``saturated`` set if it was clamped).
-        ``last`` (out): the final iteration runs (the cycle before ``done``); in vectoring,
-            ``angle_next`` is then the angle ``angle`` gives from ``done`` on.
         Rotation results: ``cos``, ``sin`` in Q1.30 (on ``magnitude``/``angle``'s neighbours
             ``x_out``, ``y_out``).
     Parameters (the datapath's by default; the formal check, ``tests/formal/test_cordic.py``, proves
@@ -64,20 +62,41 @@ class CORDIC(wiring.Component):
             "x_in": In(signed(n)), "y_in": In(signed(n)), "angle_in": In(signed(n)),
             "done": Out(1),
             "angle": Out(signed(n)),        # vectoring: atan2(y, x)
-            "last": Out(1),                 # the final iteration runs now
-            "angle_next": Out(signed(n)),   # vectoring, with ``last``: the angle, a cycle early
             "magnitude": Out(signed(n)),    # vectoring: |(x, y)|·K, saturated
             "saturated": Out(1),
             "cos": Out(signed(n)),          # rotation, Q1.(n − 2)
             "sin": Out(signed(n)),
         })
 
-    def _shifts(self, m, x, y, i, c, xs, ys):
-        """``xs`` = x >> i and ``ys`` = y >> i (``c`` = 2^(``low_bits`` − 1 − i))."""
+    def elaborate(self, platform):
+        m = Module()
+        n = self.width
+        iterations = len(self.atan_table)
+        inner = n + 2           # a vector's length times K (< 1.65) fits: no overflow inside
+        # reset-less: loaded by every start (a reset would cost a LUT per bit)
+        x = Signal(signed(inner), reset_less=True)
+        y = Signal(signed(inner), reset_less=True)
+        # angle accumulator: BAM wraps by itself, and in rotation |z| stays below 100°, so
+        # its sign is the direction
+        z = Signal(signed(n), reset_less=True)
+        i = Signal(range(iterations), reset_less=True)
+        rotate = Signal(reset_less=True)
+        last = Signal(range(iterations), reset_less=True)     # the final iteration's i
+
+        atan = Array(Const(v, signed(n)) for v in self.atan_table)
+        whole_sum, short_sum = (sum(self.atan_table[:k])
+                                for k in (iterations, self.short_iterations))
+        # σ = +1: x −= σ·(y >> i) … written out for both directions
+        up = Signal()
+        # the signs alone (y ≥ 0 rather than y > 0: no zero test)
+        m.d.comb += up.eq(Mux(rotate, z[-1], ~y[-1]))
+        xs, ys = Signal(signed(inner)), Signal(signed(inner))
         # y >> i by two 18 x 18 multipliers, not a shifter of logic (x's by one, below):
         # y = hi·2ᴸ + lo, lo the low L bits (unsigned), and with c = 2ᴸ⁻¹⁻ⁱ,
         # y >> i = (hi·c)·2 | (lo·c) >> (L − 1): the two parts in disjoint bits, no adder
-        low, inner = self.low_bits, len(x)
+        low = self.low_bits
+        # c is a register shifted right each iteration (no decoder of i before the blocks)
+        c = Signal(18, reset_less=True)
         hi, lo = y[low:].as_signed(), Cat(y[:low], C(0, 1)).as_signed()
         p_hi, p_lo = Signal(signed(36)), Signal(signed(36))
         if self.blackbox:
@@ -100,49 +119,12 @@ class CORDIC(wiring.Component):
                      ys.eq((p_hi << 1)[:inner].as_signed() |
                            p_lo[low - 1:low - 1 + inner].as_unsigned())]
 
-    def elaborate(self, platform):
-        m = Module()
-        n = self.width
-        iterations = len(self.atan_table)
-        inner = n + 2           # a vector's length times K (< 1.65) fits: no overflow inside
-        # reset-less: loaded by every start (a reset would cost a LUT per bit)
-        x = Signal(signed(inner), reset_less=True)
-        y = Signal(signed(inner), reset_less=True)
-        # angle accumulator: BAM wraps by itself, and in rotation |z| stays below 100°, so
-        # its sign is the direction
-        z = Signal(signed(n), reset_less=True)
-        i = Signal(range(iterations), reset_less=True)
-        rotate = Signal(reset_less=True)
-        last = Signal(range(iterations), reset_less=True)     # the final iteration's i
-        # i == last, registered: ``last`` (out) and the end of RUN follow a flip-flop, not a
-        # comparison (the engine's write of the angle hangs on it: report --timing)
-        final = Signal(reset_less=True)
-
-        atan = Array(Const(v, signed(n)) for v in self.atan_table)
-        whole_sum, short_sum = (sum(self.atan_table[:k])
-                                for k in (iterations, self.short_iterations))
-        # σ = +1: x −= σ·(y >> i) … written out for both directions
-        up = Signal()
-        # the signs alone (y ≥ 0 rather than y > 0: no zero test)
-        m.d.comb += up.eq(Mux(rotate, z[-1], ~y[-1]))
-        xs, ys = Signal(signed(inner)), Signal(signed(inner))
-        # z's adder is apart from x's and y's (no multiplier before it): its sum is the angle
-        # a cycle before ``done`` (``angle_next``, in the final iteration), so the engine writes
-        # a vectoring's angle then and its magnitude with ``done``
-        z_next = Signal(signed(n))
-        m.d.comb += [z_next.eq(z + Mux(up, atan[i], ~atan[i]) + ~up),
-                     self.angle_next.eq(z_next)]
-        low = self.low_bits
-        # c is a register shifted right each iteration (no decoder of i before the blocks)
-        c = Signal(18, reset_less=True)
-        self._shifts(m, x, y, i, c, xs, ys)
-
         with m.FSM():
             with m.State("IDLE"):
                 with m.If(self.start):
-                    final_i = Mux(self.short, self.short_iterations - 1, iterations - 1)
-                    m.d.sync += [rotate.eq(self.mode), last.eq(final_i),
-                                 final.eq(final_i == Mux(self.mode, 1, 0))]
+                    m.d.sync += [rotate.eq(self.mode),
+                                 last.eq(Mux(self.short, self.short_iterations - 1,
+                                             iterations - 1))]
                     m.next = "RUN"
                     with m.If(self.mode):
                         a = self.angle_in
@@ -163,7 +145,6 @@ class CORDIC(wiring.Component):
                         ]
                         # a rotation of one iteration is done with this one
                         with m.If(Mux(self.short, self.short_iterations, iterations) == 1):
-                            m.d.comb += self.last.eq(1)
                             m.next = "DONE"
                     with m.Else():
                         m.d.sync += [i.eq(0), c.eq(1 << (low - 1))]
@@ -183,11 +164,10 @@ class CORDIC(wiring.Component):
                 m.d.sync += [
                     x.eq(x + Mux(up, ys, ~ys) + ~up),
                     y.eq(y + Mux(up, ~xs, xs) + up),
-                    z.eq(z_next),
+                    z.eq(z + Mux(up, atan[i], ~atan[i]) + ~up),
                 ]
-                m.d.sync += [i.eq(i + 1), c.eq(c >> 1), final.eq(i + 1 == last)]
-                with m.If(final):
-                    m.d.comb += self.last.eq(1)
+                m.d.sync += [i.eq(i + 1), c.eq(c >> 1)]
+                with m.If(i == last):
                     m.next = "DONE"
             with m.State("DONE"):
                 m.d.comb += self.done.eq(1)

@@ -94,6 +94,11 @@ class AttitudeISAModel:
                 flags.add(Flag(ins.sh))
             elif op == Op.END:
                 return flags, st.saturated, steps
+            if ins.then is not None:                # a branch folded into it (the assembler)
+                cond, code, target = ins.then
+                if {Cond.ALWAYS: True, Cond.MAG_INVALID: not mag_valid, Cond.FIRST: self.first,
+                        Cond.FILTER: self.filter == code}[Cond(cond)]:
+                    pc = target
 
     def sample(self, gyro, accel, mag_ak, mag_valid=True, asa=(128, 128, 128), skipped=0):
         values = load_words(*([int(v) for v in x] for x in (gyro, accel, mag_ak, asa)),

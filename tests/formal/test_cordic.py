@@ -103,11 +103,6 @@ def cordic_harness(width=WIDTH, iterations=ITERATIONS, short_iterations=SHORT, d
     # a rotation's first iteration is made with the start: a cycle less
     m.d.comb += Assert(dut.done == (cycle == Mux(short, short_iterations, iterations) + 1 -
                                     mode), "latency")
-    # the final iteration comes the cycle before ``done``; in vectoring its z sum is the angle
-    m.d.comb += Assert(dut.last == (cycle == Mux(short, short_iterations, iterations) - mode),
-                       "last")
-    with m.If(dut.last & ~mode):
-        m.d.comb += Assert(dut.angle_next == angle, "angle_next")
     with m.If(dut.done & ~mode):
         m.d.comb += [Assert(dut.angle == angle, "angle"),
                      Assert(dut.magnitude == magnitude, "magnitude"),

@@ -77,3 +77,25 @@ def test_fixed_conditions_are_fetch_jumps():
     assert len(set(FETCH_JUMPS.values())) == len(FETCH_JUMPS) and 0 not in FETCH_JUMPS.values()
     with pytest.raises(ValueError, match="only a register test"):
         Instruction(Op.BR, cond=Cond.FIRST, inv=True).encode()
+
+
+def test_fixed_branches_fold_into_the_instruction_before():
+    """A branch on a fixed condition is folded into the instruction before it (``then``), not
+    into a branch or END, and not when a label names it; the labels after it move up."""
+    from mpu9250_ahrs.hdl.attitude_isa import Op
+    asm = Assembler()
+    asm.add(1, 2, 3)
+    asm.br("out", Cond.FILTER, code=2)          # folded into the ADD
+    asm.br("out", Cond.A_ZERO, a=4)
+    asm.br("out", Cond.FIRST)                   # after a branch: kept
+    asm.label("named")
+    asm.br("out")                               # named: kept
+    asm.end()
+    asm.br("out")                               # after END: kept
+    asm.label("out")
+    asm.sub(1, 2, 3)
+    code = asm.resolve()
+    assert [i.op for i in code] == [Op.ADD, Op.BR, Op.BR, Op.BR, Op.END, Op.BR, Op.SUB]
+    assert code[0].then == (Cond.FILTER, 2, 6) and asm.labels == {"named": 3, "out": 6}
+    assert all(i.target == 6 for i in code if i.op == Op.BR)
+    assert len(asm.resolve()) == len(code)      # nothing more to fold

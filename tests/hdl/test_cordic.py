@@ -39,8 +39,7 @@ def test_cordic_against_reference():
 
 def test_cordic_short_latency():
     """A short operation is done ``CORDIC_SHORT_ITERATIONS`` + 1 cycles after its start, a
-    whole one ``CORDIC_ITERATIONS`` + 1 (the engine's VEC writes its angle with ``last``, a cycle
-    before ``done``: 10 and 18 cycles)."""
+    whole one ``CORDIC_ITERATIONS`` + 1 (the engine's VEC: 11 and 19 cycles)."""
     dut = CORDIC()
     took = []
 
