@@ -272,12 +272,13 @@ class AttitudeEngine(wiring.Component):
             p.first, u.rom, u.host, u.alu, u.mac, u.cordic, u.divider, p.mag_valid)
         # A branch on a condition that holds still for the whole run (ALWAYS, MAG_INVALID,
         # FIRST, FILTER: set before it starts) is decided as it leaves the ROM: when taken, the
-        # ROM reads its target next rather than the word after it, so it costs its one cycle
-        # (it goes on as a no-op) instead of three bubbles more. Only the register tests
-        # (A_ZERO, A_NEG) are decided in execute. The word's ``jump`` field indexes a vector
-        # of those conditions (``FETCH_JUMPS``), registered (they hold still in RUN), so the
-        # ROM's output goes through one bit's choice to its own address. ``flush`` is not in
-        # this path: a flushed fetch is dropped (``rvalid``) wherever it read
+        # ROM reads its target next rather than the word after it, so it costs its own word's
+        # cycle (it goes on as a no-op), or none where the assembler folded it into the
+        # instruction before (any word may carry ``jump``: ``Instruction.then``). Only the
+        # register tests (A_ZERO, A_NEG) are decided in execute (``flush``, which overrides
+        # this). The word's ``jump`` field indexes a vector of those conditions
+        # (``FETCH_JUMPS``), registered (they hold still in RUN), so the ROM's output goes
+        # through one bit's choice to its own address
         held = {(Cond.ALWAYS, 0): C(1, 1), (Cond.MAG_INVALID, 0): ~mag_valid,
                 (Cond.FIRST, 0): first,
                 **{(Cond.FILTER, code): host.select == code

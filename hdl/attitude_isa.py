@@ -52,8 +52,9 @@ from amaranth.hdl import unsigned
 from amaranth.lib import data
 
 
-__all__ = ["Op", "Cond", "Flag", "FETCH_JUMPS", "REGISTER_CONDS", "MUL_SHIFTS", "Q14", "Q24", "DOUBLED", "Q30", "REG_COUNT",
-           "REG_BITS", "ROM_DEPTH", "ROM_BITS", "Instr", "Instruction", "Assembler"]
+__all__ = ["Op", "Cond", "Flag", "FETCH_JUMPS", "REGISTER_CONDS", "MUL_SHIFTS", "Q14", "Q24",
+           "DOUBLED", "Q30", "REG_COUNT", "REG_BITS", "ROM_DEPTH", "ROM_BITS", "Instr",
+           "Instruction", "Assembler"]
 
 REG_COUNT = 256
 ROM_DEPTH = 1024

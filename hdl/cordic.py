@@ -34,10 +34,11 @@ class CORDIC(wiring.Component):
     Q1.(``width`` − 2)), ``short_iterations`` (at most the table's).
     Latency: ``done`` ``CORDIC_ITERATIONS`` + 1 cycles after ``start`` (``short``:
     ``short_iterations`` + 1) in vectoring, a cycle less in rotation (its first iteration,
-    from y = 0, is made with the start); throughput one operation per that many cycles. Internal width 34
-    bits: a 32-bit vector's length times K (1.647) is below 2³³, so any 32-bit input converges
-    without overflow. Two 18 × 18 multipliers shift y by i, a third x's high bits
-    (``blackbox``: ``report`` makes them empty blocks, as the engine's multiplier's).
+    from y = 0, is made with the start); throughput one operation per that many cycles.
+    Internal width 34 bits: a 32-bit vector's length times K (1.647) is below 2³³, so any
+    32-bit input converges without overflow. Two 18 × 18 multipliers shift y by i, a third
+    x's high bits (``blackbox``: ``report`` makes them empty blocks, as the engine's
+    multiplier's).
     """
     blackbox = False        # ``report``: the shift's multipliers as empty 18 x 18 blocks
 
