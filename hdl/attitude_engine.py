@@ -33,7 +33,8 @@ from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
 from .alu import ALU
-from .attitude_isa import FETCH_JUMPS, REG_BITS, REG_COUNT, Cond, Flag, Instr, Op
+from .attitude_isa import (FETCH_JUMPS, REG_BITS, REG_COUNT, ROM_BITS, ROM_DEPTH, Cond, Flag,
+                           Instr, Op)
 from .register_map import HOST_WRITABLE, LOAD_BASE, LOAD_ORDER, REGS, config_init, load_words
 from .filter_registry import FILTER_CODES
 from .attitude_program import build_program
@@ -227,7 +228,9 @@ class AttitudeEngine(wiring.Component):
         """The sequencer's and the pipeline's signals (the module docstring has the pipeline),
         as a namespace for the parts of ``elaborate``."""
         # -- sequencer state ------------------------------------------------------------------
-        fetch_pc = Signal(range(len(self.program) + 1))
+        # the address the ROM read last (the next is the one after it, a branch's target or,
+        # after ``start``, the entry: ``start`` leaves the address before it here)
+        fetch_pc = Signal(ROM_BITS)
         rvalid = Signal()                                 # rom.data is a real instruction
         rinstr = data.View(Instr, rom.data)
         # datapath registers are reset-less: whatever they hold is qualified by a valid bit
@@ -290,15 +293,16 @@ class AttitudeEngine(wiring.Component):
         m.d.sync += fixed.eq(Cat(*bits))
         jump = Signal()
         m.d.comb += jump.eq(p.rvalid & fixed.bit_select(rinstr.jump, 1))
-        p.fetch_addr = Mux(jump, rinstr.target, fetch_pc)
-        # the next fetch address after this one: the incrementers side by side before the
-        # choice, not one after it (the ROM's output through the decision and a carry chain
-        # was the routed critical path, report --timing)
-        p.fetch_next = Mux(jump, rinstr.target + 1, fetch_pc + 1)
+        # the address read at this advance, which ``fetch_pc`` then keeps: one incrementer,
+        # of a register, before the choices (the ROM's output through a decision and a carry
+        # chain was the routed critical path once, report --timing)
+        p.fetch_addr = Signal(ROM_BITS)
+        m.d.comb += p.fetch_addr.eq(Mux(p.flush, x.target,
+                                        Mux(jump, rinstr.target, fetch_pc + 1)))
         # read port A: the instruction being fetched, or the host's read-back while idle
         m.d.comb += [
             # a register test taken in execute (``flush``) reads its target at once
-            rom.addr.eq(Mux(p.flush, x.target, p.fetch_addr)), rom.en.eq(advance),
+            rom.addr.eq(p.fetch_addr), rom.en.eq(advance),
             rf.ra_addr.eq(Mux(host.r_en, host.r_addr, rinstr.a)),
             rf.rb_addr.eq(Mux(self.peek_en,
                               Array(C(REGS[name], REG_BITS) for name in PEEKED)[self.peek_index],
@@ -504,7 +508,7 @@ class AttitudeEngine(wiring.Component):
                 o.eq(rom.data), ovalid.eq(rvalid & ~flush),
                 o_held_a.eq(w_en & (w_addr == rinstr.a)), o_hold_a.eq(w_data),
                 o_held_b.eq(w_en & (w_addr == rinstr.b)), o_hold_b.eq(w_data),
-                fetch_pc.eq(Mux(flush, x.target + 1, p.fetch_next)), rvalid.eq(1),
+                fetch_pc.eq(p.fetch_addr), rvalid.eq(1),
             ]
         with m.Else():
             # a write while ``o`` waits (a CORDIC's first result, a stalled MUL's) is kept
@@ -563,8 +567,8 @@ class AttitudeEngine(wiring.Component):
             p.xvalid, p.phase, p.w_en, p.w_addr, p.w_other, p.running_init, p.flags_set,
             p.flag_sat, p.mag_valid, p.out, p.x)
         def start(entry):
-            m.d.sync += [fetch_pc.eq(entry), rvalid.eq(0), ovalid.eq(0), xvalid.eq(0),
-                         phase.eq(0)]
+            m.d.sync += [fetch_pc.eq((entry - 1) % ROM_DEPTH), rvalid.eq(0), ovalid.eq(0),
+                         xvalid.eq(0), phase.eq(0)]
 
         load_index = Signal(range(len(LOAD_ORDER)), reset_less=True)
         held = self.sample
