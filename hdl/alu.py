@@ -9,16 +9,18 @@ from amaranth.lib.wiring import In, Out
 __all__ = ["ALU", "saturate"]
 
 
-def saturate(m, value, bits):
+def saturate(m, value, bits, *, keep=C(0)):
     """(clamped value, clamped?) of a signed value to a signed ``bits``-bit range. It fits when
-    the bits from ``bits`` − 1 up are all equal (a reduction, cheaper than two comparators)."""
+    the bits from ``bits`` − 1 up are all equal (a reduction, cheaper than two comparators).
+    ``keep``: the low ``bits`` go through unclamped (wrapped) whatever the flag says."""
     top = value[bits - 1:]
     fits = (top == 0) | (top == (1 << len(top)) - 1)
     sign = value[-1]
     out, flag = Signal(signed(bits)), Signal()
     hi = (1 << (bits - 1)) - 1
     m.d.comb += [flag.eq(~fits),
-                 out.eq(Mux(fits, value[:bits], Mux(sign, C(hi + 1, bits), C(hi, bits))))]
+                 out.eq(Mux(fits | keep, value[:bits],
+                            Mux(sign, C(hi + 1, bits), C(hi, bits))))]
     return out, flag
 
 
@@ -55,13 +57,10 @@ class ALU(wiring.Component):
         # sat32: a sum beyond 32 bits is beyond 16 with the same sign
         # Wrapping is the 32-bit clamp that never clamps (the OR never needs it: a | b of two
         # 32-bit values fits), so it shares the clamp's multiplexer: one fewer 32-bit choice
-        top = wide[31:]
-        fits32 = (top == 0) | top.all()
-        v32 = Mux(fits32 | self.wrap, wide[:32],
-                  Mux(wide[-1], C(-(1 << 31), signed(32)), C((1 << 31) - 1, signed(32))))
+        v32, f32 = saturate(m, wide, 32, keep=self.wrap)
         v16, f16 = saturate(m, wide, 16)
         m.d.comb += [
             self.result.eq(Mux(self.sat16 & ~self.wrap, v16, v32)),
-            self.saturated.eq(~self.wrap & Mux(self.sat16, f16, ~fits32)),
+            self.saturated.eq(~self.wrap & Mux(self.sat16, f16, f32)),
         ]
         return m

@@ -5,8 +5,9 @@ engine's loader and, through the engine, by the attitude framer.
 Why: a sample is 203 bits. Held in flip-flops, every reader of it needs a multiplexer of its
 words, and in a LUT4 fabric a multiplexer costs about a LUT per input bit (the engine's
 multiplexer of the sample it held, for its loader and the framer, was 286 LUTs of ``report``'s
-flow before this store: the engine alone, 3,008 LUTs with it and 2,722 with it tied to 0). Written where it is kept as the bytes come off the bus, and read through the block
-RAM's own read port, it costs no multiplexer in front of its readers.
+flow before this store: the engine alone, 3,008 LUTs with it and 2,722 with it tied to 0).
+Written where it is kept as the bytes come off the bus, and read through the block RAM's own
+read port, it costs no multiplexer in front of its readers.
 
 Layout. The RAM has ``SLOTS`` slots of ``SLOT_WORDS`` 32-bit words (``SAMPLE_STORE_DEPTH`` words,
 one M9K). Slot ``s``'s words ``0 .. STORE_WORDS - 1`` (at address ``s·SLOT_WORDS + k``) are a

@@ -38,6 +38,12 @@ class AttitudeISAModel:
         self.first |= code != self.filter
         self.filter = code
 
+    def _holds(self, cond, a, code, mag_valid):
+        """A branch's condition (``Cond``) on register a's value and the FILTER code."""
+        return {Cond.ALWAYS: True, Cond.A_ZERO: a == 0, Cond.A_NEG: a < 0,
+                Cond.MAG_INVALID: not mag_valid, Cond.FIRST: self.first,
+                Cond.FILTER: self.filter == code}[Cond(cond)]
+
     def run(self, pc, mag_valid=True, trace=False):
         """Run from ``pc`` to END; returns (flags set, saturated, instructions executed)."""
         r = self.regs
@@ -85,10 +91,7 @@ class AttitudeISAModel:
                 put(ins.d, c)
                 put(ins.d + 1, s)
             elif op == Op.BR:
-                cond = {Cond.ALWAYS: True, Cond.A_ZERO: a == 0, Cond.A_NEG: a < 0,
-                        Cond.MAG_INVALID: not mag_valid, Cond.FIRST: self.first,
-                        Cond.FILTER: self.filter == ins.sh}[Cond(ins.cond)]
-                if cond != bool(ins.inv):
+                if self._holds(ins.cond, a, ins.sh, mag_valid) != bool(ins.inv):
                     pc = ins.target
             elif op == Op.SETF:
                 flags.add(Flag(ins.sh))
@@ -96,8 +99,7 @@ class AttitudeISAModel:
                 return flags, st.saturated, steps
             if ins.then is not None:                # a branch folded into it (the assembler)
                 cond, code, target = ins.then
-                if {Cond.ALWAYS: True, Cond.MAG_INVALID: not mag_valid, Cond.FIRST: self.first,
-                        Cond.FILTER: self.filter == code}[Cond(cond)]:
+                if self._holds(cond, a, code, mag_valid):
                     pc = target
 
     def sample(self, gyro, accel, mag_ak, mag_valid=True, asa=(128, 128, 128), skipped=0):
