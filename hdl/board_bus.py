@@ -16,7 +16,9 @@ class BoardBusSignature(wiring.Signature):
     - ``ok`` (in): a write of ``w_data`` to ``addr`` is acceptable (the register is writable
       and the value in range); combinational from ``addr`` and ``w_data``, so the decoder
       can reply "refused" without writing anything.
-    - ``r_data`` (in, 32): the register at ``addr``, combinational.
+    - ``r_data`` (in, 32): the register at ``addr``, from the cycle after ``addr`` (a block
+      may register its reads, e.g. from a block RAM); the decoder holds ``addr`` from the
+      command's payload until it is answered.
     """
     def __init__(self):
         super().__init__({

@@ -10,10 +10,11 @@ from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
 from .board_bus import BoardBusSignature
+from .memories import FrameRAM
 
 
 __all__ = ["PWM_REGS", "PWM_CHANNELS", "SERVO_PERIOD_US", "MOTOR_MAX_HZ", "PERIOD_BITS",
-           "WATCHDOG_MS_AT_RESET", "PWMOutputs"]
+           "WATCHDOG_MS_AT_RESET", "shadow_index", "PWMOutputs"]
 
 
 PWM_CHANNELS = 4
@@ -28,6 +29,15 @@ PWM_REGS = {
     "PWM_SERVO_PERIOD": 0x04, "PWM_MOTOR_PERIOD": 0x05,
     **{f"PWM_HIGH{k}": 0x10 + k for k in range(PWM_CHANNELS)},
 }
+
+
+def shadow_index(addr):
+    """A register's word in ``PWMOutputs.shadow`` (its address's bits 0-2 and 4: every
+    register of ``PWM_REGS`` has a word of its own)."""
+    return (addr & 0b111) | ((addr >> 1) & 0b1000)
+
+
+assert len({shadow_index(a) for a in PWM_REGS.values()}) == len(PWM_REGS)
 
 
 class _Registers(NamedTuple):
@@ -88,13 +98,19 @@ class PWMOutputs(wiring.Component):
 
     Parameters
         ``clk_freq``: the clock (Hz); the servo unit is ``round(clk_freq / 1e6)`` cycles.
+    The 16-bit registers are read back from ``shadow`` (a ``FrameRAM``, one M9K, written with
+    every accepted write; ``shadow_index`` places them), not through a multiplexer of the
+    registers: the bus's reads are registered (``BoardBusSignature``).
+
     Members
         ``bus`` (in, ``BoardBusSignature`` flipped): the registers.
         ``kick`` (in): a pulse per accepted command: restarts the watchdog.
         ``pwm`` (out, 4): the outputs.
         ``tripped`` (out): the watchdog disabled the outputs (cleared by a PWM_ENABLE write).
+        ``shadow``: the ``FrameRAM`` of the read-back (for ``report``).
     Latency: a register write is acknowledged in the cycle it is made and takes effect at the
-    start of its group's next period (above).
+    start of its group's next period (above); a read's word is on ``r_data`` the cycle after
+    its address.
     """
     def __init__(self, *, clk_freq):
         self.clk_freq = clk_freq
@@ -103,6 +119,12 @@ class PWMOutputs(wiring.Component):
         if self.motor_min >= 1 << PERIOD_BITS:
             raise ValueError(f"a {MOTOR_MAX_HZ} Hz motor period at {clk_freq / 1e6:g} MHz "
                              f"does not fit {PERIOD_BITS} bits")
+        at_reset = {"PWM_WATCHDOG_MS": WATCHDOG_MS_AT_RESET,
+                    "PWM_SERVO_PERIOD": SERVO_PERIOD_US[1], "PWM_MOTOR_PERIOD": self.motor_min}
+        words = [0] * 16
+        for name, value in at_reset.items():
+            words[shadow_index(PWM_REGS[name])] = value
+        self.shadow = FrameRAM(16, PERIOD_BITS, init=words)
         super().__init__({
             "bus": In(BoardBusSignature()),
             "kick": In(1),
@@ -128,9 +150,9 @@ class PWMOutputs(wiring.Component):
         period = [Signal(PERIOD_BITS, init=SERVO_PERIOD_US[1], name="servo_period"),
                   Signal(PERIOD_BITS, init=self.motor_min, name="motor_period")]
         high = [Signal(PERIOD_BITS, name=f"high{k}") for k in range(n)]
-        # a high time given in the channel's present unit and period. A mode or period change
-        # clears this bit rather than the high time (the register then reads 0 and the output
-        # stays low): one bit per channel to clear instead of sixteen
+        # a high time other than 0 given in the channel's present unit and period. A mode or
+        # period change clears this bit rather than the high time (the register then reads 0
+        # and the output stays low): one bit per channel to clear instead of sixteen
         given = Signal(n)
 
         # register reads, existence and the range checks of a write
@@ -140,19 +162,26 @@ class PWMOutputs(wiring.Component):
         # a high time fits its channel's group period: one comparator for all channels (the
         # addressed channel's mode picks the period)
         high_fits = small & (low <= Mux(mode.bit_select(bus.addr[:2], 1), period[1], period[0]))
-        # the high times are read through one multiplexer, then masked by ``given``
-        high_read = Mux(given.bit_select(bus.addr[:2], 1),
-                        Array(high)[bus.addr[:2]], 0)
+        # the 16-bit registers' read-back: a copy of each accepted write in a block RAM (a
+        # multiplexer of the six would cost about a LUT per bit per register), read a cycle
+        # after the address; a high time masked by ``given``
+        m.submodules.shadow = shadow = self.shadow
+        index = Cat(bus.addr[:3], bus.addr[4])                  # ``shadow_index``
+        m.d.comb += [shadow.r_en.eq(1), shadow.r_addr.eq(index), shadow.w_addr.eq(index),
+                     shadow.w_data.eq(low)]
+        given_read = Signal()
+        m.d.sync += given_read.eq(given.bit_select(bus.addr[:2], 1))
+        high_read = Mux(given_read, shadow.r_data, 0)
         checks = {
             PWM_REGS["PWM_ENABLE"]: (enable, value < (1 << n)),
             # the mode of an enabled channel stays
             PWM_REGS["PWM_MODE"]: (mode, (value < (1 << n)) &
                                    (((value[:n] ^ mode) & enable) == 0)),
-            PWM_REGS["PWM_WATCHDOG_MS"]: (watchdog_ms, small),
+            PWM_REGS["PWM_WATCHDOG_MS"]: (shadow.r_data, small),
             PWM_REGS["PWM_STATUS"]: (Cat(self.tripped, C(0, 3), enable), C(0)),
-            PWM_REGS["PWM_SERVO_PERIOD"]: (period[0], small & (low >= SERVO_PERIOD_US[0]) &
+            PWM_REGS["PWM_SERVO_PERIOD"]: (shadow.r_data, small & (low >= SERVO_PERIOD_US[0]) &
                                            (low <= SERVO_PERIOD_US[1])),
-            PWM_REGS["PWM_MOTOR_PERIOD"]: (period[1], small & (low >= self.motor_min)),
+            PWM_REGS["PWM_MOTOR_PERIOD"]: (shadow.r_data, small & (low >= self.motor_min)),
             **{PWM_REGS[f"PWM_HIGH{k}"]: (high_read, high_fits) for k in range(n)},
         }
         with m.Switch(bus.addr):
@@ -160,6 +189,7 @@ class PWMOutputs(wiring.Component):
                 with m.Case(addr):
                     m.d.comb += [bus.exists.eq(1), bus.r_data.eq(signal), bus.ok.eq(ok)]
         write = bus.w_en & bus.ok
+        m.d.comb += shadow.w_en.eq(write)
         restart = Signal()              # the watchdog's count starts again (next cycle)
         m.d.sync += restart.eq(self.kick)
         with m.If(write):
@@ -179,7 +209,7 @@ class PWMOutputs(wiring.Component):
                         m.d.sync += given.eq(given & (mode if g == 0 else ~mode))
                 for k in range(n):
                     with m.Case(PWM_REGS[f"PWM_HIGH{k}"]):
-                        m.d.sync += [high[k].eq(low), given[k].eq(1)]
+                        m.d.sync += [high[k].eq(low), given[k].eq(low != 0)]
         return _Registers(enable, mode, watchdog_ms, period, high, given, write, restart)
 
     def _watchdog(self, m, r):
@@ -242,10 +272,10 @@ class PWMOutputs(wiring.Component):
             active_high = Signal(PERIOD_BITS, name=f"active_high{k}", reset_less=True)
             # ``count < active_high`` of the channel's group while it runs, kept as a bit: the
             # count starts at 0 at the wrap and goes up by one a tick, so it is set at the
-            # wrap (if the high time is not 0) and cleared when the count reaches the high
-            # time (equality; a high time equal to the period is never reached: high all
-            # period). 0 while the channel is disabled and until its group's next wrap, so an
-            # enabled channel starts at a wrap: its first pulse is a whole one
+            # wrap (if a high time was given: ``given``, never for 0) and cleared when the
+            # count reaches the high time (equality; a high time equal to the period is never
+            # reached: high all period). 0 while the channel is disabled and until its group's
+            # next wrap, so an enabled channel starts at a wrap: its first pulse is a whole one
             below = Signal(name=f"below{k}", reset_less=True)
             group_wrap = Mux(mode[k], wrap[1], wrap[0])
             reaches = Mux(mode[k], tick[1] & (step[1] == active_high),
@@ -255,7 +285,7 @@ class PWMOutputs(wiring.Component):
             with m.If(~enable[k]):
                 m.d.sync += [active_high.eq(high[k]), below.eq(0)]
             with m.Elif(group_wrap):
-                m.d.sync += [active_high.eq(high[k]), below.eq(given[k] & (high[k] != 0))]
+                m.d.sync += [active_high.eq(high[k]), below.eq(given[k])]
             with m.Elif(reaches):
                 m.d.sync += below.eq(0)
             m.d.comb += self.pwm[k].eq(enable[k] & below)

@@ -12,8 +12,9 @@ gateware has no option for it) and counts them from their sizes:
 - ``memory_bits``: the register file (twice: one copy per read port, as Quartus builds a RAM
   with two read addresses), the microcode ROM and (whole design) the other ``FrameRAM``s: the
   telemetry framer's frame buffer, the sample store, the sequencer's program, the command
-  decoder's FIFO and counters, the self-test's sums and table. Small constant tables Yosys
-  turns into ROMs (the CORDIC's arctangents) stay in logic here: ``rom_bits_in_logic``.
+  decoder's FIFO and counters, the PWM block's read-back, the self-test's sums and table.
+  Small constant tables Yosys turns into ROMs (the CORDIC's arctangents) stay in logic here:
+  ``rom_bits_in_logic``.
 - ``logic_elements``: ``fiftyfivenm_lcell_comb`` cells, or registers where those are more (a
   MAX10 LE holds one LUT and one register). Yosys 0.23 maps adders without the LE's carry chain,
   so this is pessimistic; ``logic_elements_carry_chain`` is the same design through
@@ -260,6 +261,7 @@ def report(*, clk_freq=None, config=None, latency=True, core_options=None):
                               core.frontend.driver.sequencer.rom,
                               *([core.decoder.fifo.ram, core.decoder.counters.ram]
                                 if core.commands else []),
+                              *([core.pwm_block.shadow] if core.has_pwm else []),
                               *([self_test.sums, self_test.table] if self_test else [])],
                         others=[self_test] if self_test else [], blocks=True,
                         ports=wrapped.ports())

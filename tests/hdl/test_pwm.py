@@ -9,6 +9,14 @@ from mpu9250_ahrs.hdl.pwm import PWM_REGS, PWMOutputs
 CLK = 4e6          # 4 cycles a µs; the motor period's minimum is 200 cycles (20 kHz)
 
 
+async def read(ctx, dut, name):
+    """A register's read-back: the bus's reads are registered (a word the cycle after its
+    address, ``BoardBusSignature``)."""
+    ctx.set(dut.bus.addr, PWM_REGS[name])
+    await ctx.tick()
+    return ctx.get(dut.bus.r_data)
+
+
 def bench(body):
     dut = PWMOutputs(clk_freq=CLK)
     sim = Simulator(dut)
@@ -105,8 +113,7 @@ def test_watchdog_disables_outputs_when_the_host_goes_quiet():
         out["kept"] = ctx.get(dut.tripped), len((await edges(2, 800))[0])
         await ctx.tick().repeat(9_000)
         out["tripped"] = ctx.get(dut.tripped), len((await edges(2, 800))[0])
-        ctx.set(dut.bus.addr, PWM_REGS["PWM_STATUS"])
-        out["status"] = ctx.get(dut.bus.r_data)
+        out["status"] = await read(ctx, dut, "PWM_STATUS")
         ctx.set(dut.kick, 1)                                       # the host is back: a
         await write("PWM_ENABLE", 0b0100)                         # command (it kicks too)
         ctx.set(dut.kick, 0)
@@ -124,8 +131,7 @@ def test_a_mode_change_drops_the_high_time():
     async def body(ctx, dut, write, edges, out):
         assert await write("PWM_HIGH0", 1_500)
         assert await write("PWM_MODE", 1)
-        ctx.set(dut.bus.addr, PWM_REGS["PWM_HIGH0"])
-        out["high"] = ctx.get(dut.bus.r_data)
+        out["high"] = await read(ctx, dut, "PWM_HIGH0")
         assert await write("PWM_ENABLE", 1)
         out["level"] = await edges(0, 1_000)
         assert await write("PWM_HIGH0", 50)                       # 25 % of the 200 cycles
@@ -148,12 +154,10 @@ def test_a_new_period_drops_the_groups_high_times():
         assert await write("PWM_SERVO_PERIOD", 2_500)
         highs = []
         for k in range(2):
-            ctx.set(dut.bus.addr, PWM_REGS[f"PWM_HIGH{k}"])
-            highs.append(ctx.get(dut.bus.r_data))
+            highs.append(await read(ctx, dut, f"PWM_HIGH{k}"))
         out["after_servo"] = highs
         assert await write("PWM_MOTOR_PERIOD", 700)
-        ctx.set(dut.bus.addr, PWM_REGS["PWM_HIGH1"])
-        out["after_motor"] = ctx.get(dut.bus.r_data)
+        out["after_motor"] = await read(ctx, dut, "PWM_HIGH1")
     out = bench(body)
     assert out["after_servo"] == [0, 800] and out["after_motor"] == 0
 
@@ -299,8 +303,7 @@ def test_an_asynchronous_reset_drops_the_outputs_at_once():
         ctx.set(top.domain.rst, 0)
         await ctx.tick().repeat(1_000)
         out["after"] = ctx.get(dut.pwm)
-        ctx.set(dut.bus.addr, PWM_REGS["PWM_ENABLE"])
-        out["enable"] = ctx.get(dut.bus.r_data)
+        out["enable"] = await read(ctx, dut, "PWM_ENABLE")
     sim.add_testbench(tb)
     sim.run()
     assert out["running"] == 0b1111
