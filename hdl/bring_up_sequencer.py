@@ -341,9 +341,11 @@ class BringUpSequencer(wiring.Component):
                      test.subtract.eq(step.mask[0]),
                      test.first.eq(step.mask[1] & (reads == step.repeat - 1))]
 
-        longest = max((w + 1 << (BACKOFF_MAX_SHIFT if s.backoff else 0))
-                      for s, w in zip(program, self.timer_loads))
-        timer = Signal(range(max(self.poll_load, longest) + 1))
+        timer = Signal(range(max(self.poll_load, *self.timer_loads) + 1))
+        # a WAIT marked ``backoff`` is its word's wait 2**backoff times over: ``repeats`` more
+        # times after the first (``(w + 1) << k`` ticks in all, as one count of that length
+        # would be, but the timer stays as wide as the longest word and needs no shifter)
+        repeats = Signal(BACKOFF_MAX_SHIFT)
 
         # a requested restart waits for the step under way (at most a poll time-out), so that
         # no command is left half done on the port
@@ -398,7 +400,7 @@ class BringUpSequencer(wiring.Component):
         with m.FSM(init="LOAD0"):
             self._states(m, SimpleNamespace(command=command, restart=restart, step=step,
                 timer=timer, next_step=next_step, reconfiguring=reconfiguring, backoff=backoff,
-                reads=reads, offset=offset, restart_pending=restart_pending, goto=goto,
+                repeats=repeats, reads=reads, offset=offset, restart_pending=restart_pending, goto=goto,
                 config_start=config_start, fail=fail, last=last, test=test, port=port,
                 mag_start=mag_start, offered=offered))
         return m
@@ -407,11 +409,12 @@ class BringUpSequencer(wiring.Component):
         """The sequencer's states: a step loaded from the program ROM and fetched, then
         waited for, accessed, tested or polled, and RUNNING once the program is done.
         ``c``: the sequencer's signals and helpers (``elaborate``)."""
-        (command, restart, step, timer, next_step, reconfiguring, backoff, reads, offset,
-         restart_pending, goto, config_start, fail, last, test, port, mag_start, offered) = (
+        (command, restart, step, timer, next_step, reconfiguring, backoff, repeats, reads,
+         offset, restart_pending, goto, config_start, fail, last, test, port, mag_start,
+         offered) = (
             c.command, c.restart, c.step, c.timer, c.next_step, c.reconfiguring, c.backoff,
-            c.reads, c.offset, c.restart_pending, c.goto, c.config_start, c.fail, c.last, c.test,
-            c.port, c.mag_start, c.offered)
+            c.repeats, c.reads, c.offset, c.restart_pending, c.goto, c.config_start, c.fail,
+            c.last, c.test, c.port, c.mag_start, c.offered)
         with m.State("LOAD0"):
             # the ROM reads the step at pc
             m.next = "LOAD1"
@@ -422,11 +425,17 @@ class BringUpSequencer(wiring.Component):
             with m.If(restart_pending & ~offered):
                 restart()
             with m.Else():
-                self._fetch(m, step, command, timer, next_step, reconfiguring, backoff, reads)
+                self._fetch(m, step, command, timer, next_step, reconfiguring, backoff, repeats,
+                            reads)
         with m.State("WAIT"):
-            m.d.sync += timer.eq(timer - self.tick)
-            with m.If(timer == 0):
+            # the count of ``repeats`` passes of ``wait + 1`` ticks and ``timer``: a pass
+            # ends with the tick that finds the timer at 0
+            with m.If(timer != 0):
+                m.d.sync += timer.eq(timer - self.tick)
+            with m.Elif(repeats == 0):
                 next_step()
+            with m.Elif(self.tick):
+                m.d.sync += [timer.eq(step.wait), repeats.eq(repeats - 1)]
         with m.State("ACCESS"):
             with m.If(port.rsp.valid):
                 with m.If(port.rsp.payload.error):
@@ -505,21 +514,18 @@ class BringUpSequencer(wiring.Component):
                 m.d.sync += reconfiguring.eq(1)
                 m.next = "LOAD0"
 
-    def _fetch(self, m, step, command, timer, next_step, reconfiguring, backoff, reads):
+    def _fetch(self, m, step, command, timer, next_step, reconfiguring, backoff, repeats,
+               reads):
         """FETCH: start the step at ``pc``."""
         port = self.port
         with m.Switch(step.op):
             with m.Case(Op.WAIT):
-                # ``step.wait`` is the cycles less one: (w + 1) << k cycles less one is
-                # w << k with k ones below it, a choice of wirings (no shifter, no adder)
-                with m.If(step.backoff):
-                    with m.Switch(backoff):
-                        for shift in range(BACKOFF_MAX_SHIFT + 1):
-                            with m.Case(shift):
-                                m.d.sync += timer.eq(Cat(Const((1 << shift) - 1, shift),
-                                                         step.wait))
-                with m.Else():
-                    m.d.sync += timer.eq(step.wait)
+                # ``step.wait`` is the cycles less one; a backoff's 2**k passes: 2**k - 1
+                # repeats, which is k ones (no shifter, no adder)
+                m.d.sync += [timer.eq(step.wait),
+                             repeats.eq(Mux(step.backoff,
+                                            Cat(*(backoff > k for k in range(len(repeats)))),
+                                            0))]
                 m.next = "WAIT"
             with m.Case(Op.WRITE):
                 command(write=1)
