@@ -3,6 +3,8 @@ a reply to a command) into a frame of the link layer (``hdl/frame_types.py`` has
 the layouts, ``hdl/FRAMES.md`` the reasons).
 """
 
+from types import SimpleNamespace
+
 from amaranth import *
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
@@ -47,6 +49,11 @@ class TelemetryFramer(wiring.Component):
             read from the sample store through the engine's port, which its loader uses too
             (``hdl/sample_store.py``). The bits of the last word beyond ``bits`` must read 0;
             ``i_stream``'s payload gives the rest of that word.
+        ``shared_crc`` (False): the CRC-16 is not computed here but by a processor outside,
+            which framers whose frames never interleave (a ``FrameArbiter``'s) share: the
+            framer drives ``crc_data``, ``crc_start`` and ``crc_valid`` (out: its
+            ``amaranth.lib.crc`` inputs, ``start`` and ``valid`` high only while this framer
+            sends) and reads ``crc_value`` (in, 16: its ``crc``).
     Members
         ``i_stream`` (in, stream of ``layout``); ``o_stream`` (out, stream of ``FrameByte``:
             to a ``FrameArbiter``, or a UART taking ``data``).
@@ -65,7 +72,7 @@ class TelemetryFramer(wiring.Component):
     the copy ends, ⌈``length``/4⌉ cycles after it (buffered).
     """
     def __init__(self, layout=SensorFrame, frame_type=0x01, *, buffered=False, short=None,
-                 fetch=None, borrow=None):
+                 fetch=None, borrow=None, shared_crc=False):
         self.layout = layout
         self.frame_type = frame_type
         self.buffered = buffered
@@ -88,6 +95,10 @@ class TelemetryFramer(wiring.Component):
             "short": In(1),
             "idle": Out(1),
         }
+        self.shared_crc = shared_crc
+        if shared_crc:
+            members.update({"crc_data": Out(8), "crc_start": Out(1), "crc_valid": Out(1),
+                            "crc_value": In(16)})
         self.fetch = fetch
         if fetch is not None:
             offset, n = fetch
@@ -117,7 +128,11 @@ class TelemetryFramer(wiring.Component):
         m = Module()
         n = self.length
         index = Signal(range(n + 7))
-        m.submodules.crc = crc = CRC(data_width=8).create()
+        if self.shared_crc:
+            crc = SimpleNamespace(data=self.crc_data, start=self.crc_start,
+                                  valid=self.crc_valid, crc=self.crc_value)
+        else:
+            m.submodules.crc = crc = CRC(data_width=8).create()
 
         value = self.i_stream.payload.as_value()
         bits = Cat(value, C(0, 8 * n - len(value)))

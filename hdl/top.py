@@ -202,7 +202,7 @@ class AHRSCore(wiring.Component):
             flagship_config = default_flagship_config(config)
         self.framer = TelemetryFramer(AttitudeFrame, ATTITUDE, buffered=True,
                                       short=(SENSOR, SensorFrame), fetch=result_fetch(),
-                                      borrow=sample_borrow())
+                                      borrow=sample_borrow(), shared_crc=commands)
         self.telemetry_divider = telemetry_divider
         self.engine = AttitudeEngine(filter_config, calibration, flagship_config,
                                      filter=filter,
@@ -224,7 +224,9 @@ class AHRSCore(wiring.Component):
                 writable=HOST_WRITABLE, version=self.version,
                 timeout=cycles(command_timeout_s, clk_freq),
                 tick_cycles=tick_cycles(self.frontend.driver.period_cycles))
-            self.reply_framer = TelemetryFramer(Reply, REPLY)
+            # the two framers share a CRC processor (the arbiter never interleaves their
+            # frames): ``_command_channel``
+            self.reply_framer = TelemetryFramer(Reply, REPLY, shared_crc=True)
             self.arbiter = FrameArbiter(2)             # replies first, then telemetry
         else:
             self.arbiter = FrameArbiter(1)
@@ -324,6 +326,13 @@ class AHRSCore(wiring.Component):
         m.d.comb += rx.rx.eq(self.uart_rx)
         connect(m, rx.o_stream, decoder.i_stream)
         connect(m, decoder.replies, reply_framer.i_stream)
+        # one CRC for both framers: only the one the arbiter lets send drives it
+        m.submodules.frame_crc = crc = CRC(data_width=8).create()
+        m.d.comb += [crc.data.eq(Mux(framer.crc_start | framer.crc_valid, framer.crc_data,
+                                     reply_framer.crc_data)),
+                     crc.start.eq(framer.crc_start | reply_framer.crc_start),
+                     crc.valid.eq(framer.crc_valid | reply_framer.crc_valid),
+                     framer.crc_value.eq(crc.crc), reply_framer.crc_value.eq(crc.crc)]
         if self.has_pwm:
             m.submodules.pwm = pwm = self.pwm_block
             connect(m, decoder.pwm, pwm.bus)
