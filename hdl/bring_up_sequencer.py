@@ -272,10 +272,14 @@ class BringUpSequencer(wiring.Component):
             "length": range(max(s.length for s in program) + 1), "fast": 1,
             "repeat": range(max(s.repeat for s in program) + 1)})
         layout = self.step_layout
+        # a word's length and fast bit are a TEST's; any other step's command reads one byte at
+        # the slow clock, so its word says so (the command's payload is the word's, whatever
+        # the step)
         words = [layout.const({
             "op": s.op, "device": s.device, "reg": s.reg, "value": s.value, "mask": s.mask,
             "fail": s.fail, "check_wia": s.check == "wia", "backoff": s.backoff,
-            "wait": load, "length": s.length, "fast": s.fast,
+            "wait": load, "length": s.length if s.op == Op.TEST else 1,
+            "fast": s.fast and s.op == Op.TEST,
             "repeat": s.repeat}).as_value().value for s, load in zip(program, timer_load)]
         # the program, one step a word (an M9K; ``report`` counts it)
         self.rom = FrameRAM(len(program), layout.size, init=words)
@@ -324,14 +328,15 @@ class BringUpSequencer(wiring.Component):
         with m.If(port.rx.valid):
             m.d.sync += last.eq(port.rx.payload)
 
-        def command(*, write=0, test=False):
-            p = port.cmd.payload
-            m.d.comb += [port.cmd.valid.eq(1), p.device.eq(step.device), p.reg.eq(step.reg),
-                         p.write.eq(write), p.data.eq(step.value)]
-            if test:
-                m.d.comb += [p.length.eq(step.length), p.fast.eq(step.fast)]
-            else:
-                m.d.comb += p.length.eq(1)
+        # the command is the step's word, whichever state offers it (a payload chosen per
+        # state would cost a LUT a bit)
+        p = port.cmd.payload
+        m.d.comb += [p.device.eq(step.device), p.reg.eq(step.reg),
+                     p.write.eq(step.op == Op.WRITE), p.data.eq(step.value),
+                     p.length.eq(step.length), p.fast.eq(step.fast)]
+
+        def command():
+            m.d.comb += port.cmd.valid.eq(1)
 
         # TEST: the read's bytes to the self-test, counted from the step's index
         reads = Signal.like(step.repeat)        # reads still to come after this one
@@ -460,7 +465,7 @@ class BringUpSequencer(wiring.Component):
                 with m.Else():
                     next_step()
         with m.State("TEST"):
-            command(test=True)
+            command()
             m.d.sync += offset.eq(0)
             with m.If(port.cmd.ready):
                 m.next = "TEST_READ"
@@ -528,7 +533,7 @@ class BringUpSequencer(wiring.Component):
                                             0))]
                 m.next = "WAIT"
             with m.Case(Op.WRITE):
-                command(write=1)
+                command()
                 with m.If(port.cmd.ready):
                     m.next = "ACCESS"
             with m.Case(Op.CHECK, Op.STORE):

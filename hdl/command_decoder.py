@@ -180,7 +180,10 @@ class CommandDecoder(wiring.Component):
         # one register and one multiplexer in front of it, not two
         reply = Signal.like(self.replies.payload, reset_less=True)
         m.d.comb += [self.replies.payload.eq(reply), self.cfg.payload.addr.eq(reply.addr[:8]),
-                     self.cfg.payload.data.eq(reply.value)]
+                     self.cfg.payload.data.eq(reply.value),
+                     # an engine read's address, offered in ENGINE_READ (not gated by it: a
+                     # LUT a bit)
+                     self.cfg_read.payload.eq(low)]
         write = SimpleNamespace(addr=reply.addr, data=reply.value)
 
         def count_up(name):
@@ -230,7 +233,7 @@ class CommandDecoder(wiring.Component):
                 with m.If(self.cfg.ready):
                     answer(RESULTS["ok"], keep=True)
             with m.State("ENGINE_READ"):
-                m.d.comb += [self.cfg_read.valid.eq(1), self.cfg_read.payload.eq(low)]
+                m.d.comb += self.cfg_read.valid.eq(1)
                 with m.If(self.cfg_read.ready):
                     m.next = "ENGINE_READ_DATA"
             with m.State("ENGINE_READ_DATA"):

@@ -45,22 +45,25 @@ class RegisterPortArbiter(wiring.Component):
         clients = (self.first, self.second)
         port = self.port
 
+        # the payloads pass unconditionally (their ``valid`` says whose they are): gating them
+        # would cost a LUT a bit
+        m.d.comb += port.cmd.payload.eq(Mux(grant, self.second.cmd.payload,
+                                            self.first.cmd.payload))
         with m.If(~busy):
             for index, client in enumerate(clients):
                 with m.If(grant == index):
                     m.d.comb += [port.cmd.valid.eq(client.cmd.valid),
-                                 port.cmd.payload.eq(client.cmd.payload),
                                  client.cmd.ready.eq(port.cmd.ready)]
             m.d.sync += owner.eq(grant)
             with m.If(port.cmd.valid & port.cmd.ready):
                 m.d.sync += busy.eq(1)
         for index, client in enumerate(clients):
+            m.d.comb += [client.rx.payload.eq(port.rx.payload),
+                         client.rsp.payload.eq(port.rsp.payload)]
             with m.If(busy & (owner == index)):
                 m.d.comb += [client.rx.valid.eq(port.rx.valid),
-                             client.rx.payload.eq(port.rx.payload),
                              port.rx.ready.eq(client.rx.ready),
                              client.rsp.valid.eq(port.rsp.valid),
-                             client.rsp.payload.eq(port.rsp.payload),
                              port.rsp.ready.eq(client.rsp.ready)]
         # The response ends the ownership, unless an ``rx`` byte still waits beside it (a port
         # that broke its order): that byte goes to the owner, never to the next client.
