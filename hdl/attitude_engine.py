@@ -34,8 +34,9 @@ from amaranth.lib.wiring import In, Out
 
 from .alu import ALU
 from .attitude_isa import (FETCH_JUMPS, REG_BITS, REG_COUNT, ROM_BITS, ROM_DEPTH, Cond, Flag,
-                           Instr, Op)
-from .register_map import HOST_WRITABLE, LOAD_BASE, LOAD_ORDER, REGS, config_init, load_words
+                           Instr, Op, _reads_writes)
+from .register_map import (CONTROL_ADDR, HOST_WRITABLE, LOAD_BASE, LOAD_ORDER, REGS, config_init,
+                           load_words)
 from .filter_registry import FILTER_CODES
 from .attitude_program import build_program
 from .host_port import HostPort
@@ -176,6 +177,12 @@ class AttitudeEngine(wiring.Component):
         registers = {**filter_registers(config, self.flagship),
                      **calibration_registers(self.cal), **(extra_registers or {})}
         self.regfile = RegisterFile(REG_COUNT, config_init(registers, INV_GAIN_Q30))
+        # the host port reads CONTROL as the register file's word at its address with the
+        # select ORed in (``HostPort``): that word reads 0 for ever (neither the program, the
+        # loader nor the host writes it; the host's CONTROL writes go to the select)
+        assert self.regfile.init[CONTROL_ADDR] == 0
+        assert not any(CONTROL_ADDR in _reads_writes(i)[1] for i in self.program)
+        assert CONTROL_ADDR not in range(LOAD_BASE, LOAD_BASE + len(LOAD_ORDER))
         self.rom = MicrocodeROM([i.encode() for i in self.program],
                                 data.Layout.cast(Instr).size)
         super().__init__({

@@ -49,10 +49,14 @@ class HostPort(wiring.Component):
         ``refused`` (out, 16): writes refused since reset (saturating at 65535).
         ``cfg_read`` (in, stream of addresses) / ``cfg_read_data`` (out, stream of signed 32):
             a read per transfer, taken while ``open`` and no read is outstanding; the word
-            comes one cycle later (``CONTROL_ADDR`` reads ``select``) and is held until taken.
+            comes one cycle later and is held until taken. ``CONTROL_ADDR`` reads ``select``:
+            the register file's word there is never written and reads 0 (the engine checks
+            its program and reset values), and the select is ORed into its low bits.
         ``open`` (in): the engine is idle and will not start anything this cycle.
-        ``w_en``, ``w_addr``, ``w_data`` (out): the register-file write.
-        ``r_en``, ``r_addr`` (out), ``r_data`` (in, signed 32): the read port, word next cycle.
+        ``w_en``, ``w_addr``, ``w_data`` (out): the register-file write (the address and data
+            are the transfer's whatever ``w_en``).
+        ``r_en``, ``r_addr`` (out), ``r_data`` (in, signed 32): the read port, word next cycle
+            (the address is the read transfer's whatever ``r_en``).
         ``select`` (out, 2): the filter select; ``reset``, ``switched`` (out): one-cycle pulses.
     Latency: a write reaches the register file's write port in the cycle it is taken; a
     read's word is offered the cycle after its address is taken.
@@ -75,7 +79,9 @@ class HostPort(wiring.Component):
     def elaborate(self, platform):
         m = Module()
         write = self.cfg.payload
-        m.d.comb += self.cfg.ready.eq(self.open)
+        # addresses and data pass ungated (their enables qualify them): a LUT a bit saved
+        m.d.comb += [self.cfg.ready.eq(self.open), self.w_addr.eq(write.addr),
+                     self.w_data.eq(write.data), self.r_addr.eq(self.cfg_read.payload)]
         allowed = Signal()
         in_map = C(1) if self.writable is None else address_in(write.addr, self.writable)
         m.d.comb += allowed.eq(in_map & ((write.addr != CONTROL_ADDR) |
@@ -91,8 +97,7 @@ class HostPort(wiring.Component):
                 m.d.comb += [self.switched.eq(new != self.select),
                              self.reset.eq(write.data[CONTROL_RESET.bit_length() - 1])]
             with m.Else():
-                m.d.comb += [self.w_en.eq(1), self.w_addr.eq(write.addr),
-                             self.w_data.eq(write.data)]
+                m.d.comb += self.w_en.eq(1)
 
         # read-back: the word arrives one cycle after the address
         busy, control = Signal(), Signal()
@@ -101,10 +106,10 @@ class HostPort(wiring.Component):
                      self.cfg_read.ready.eq(self.open & ~busy & ~self.cfg_read_data.valid)]
         with m.If(busy):
             m.d.sync += [busy.eq(0), self.cfg_read_data.valid.eq(1),
-                         word.eq(Mux(control, self.select, self.r_data))]
+                         word.eq(self.r_data | Mux(control, self.select, 0))]
         with m.If(self.cfg_read_data.valid & self.cfg_read_data.ready):
             m.d.sync += self.cfg_read_data.valid.eq(0)
         with m.If(self.cfg_read.valid & self.cfg_read.ready):
-            m.d.comb += [self.r_addr.eq(self.cfg_read.payload), self.r_en.eq(1)]
+            m.d.comb += self.r_en.eq(1)
             m.d.sync += [busy.eq(1), control.eq(self.cfg_read.payload == CONTROL_ADDR)]
         return m
