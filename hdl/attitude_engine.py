@@ -364,6 +364,9 @@ class AttitudeEngine(wiring.Component):
         wr_data = Signal(signed(32), reset_less=True)
         m.d.sync += [wr_en.eq(w_en), wr_addr.eq(w_addr), wr_data.eq(w_data)]
         m.d.comb += [rf.w_en.eq(wr_en), rf.w_addr.eq(wr_addr), rf.w_data.eq(wr_data)]
+        # the MAC's write-back is the address and data when no other writer chooses them
+        # (ungated: whatever they are without ``w_en``, nothing reads them then)
+        m.d.comb += [w_addr.eq(mac.wb_addr), w_other.eq(mac.wb_data)]
         with m.If(host.w_en):
             m.d.comb += [w_en.eq(1), w_addr.eq(host.w_addr), w_other.eq(host.w_data)]
         # the result is snooped from the register writes (no copy at the end of an update)
@@ -453,8 +456,7 @@ class AttitudeEngine(wiring.Component):
             p.flags_set, p.o_reads_acc)
         m.d.comb += advance.eq(1)                       # overridden below by stalls
         with m.If(mac.wb_en):
-            m.d.comb += [w_en.eq(1), w_addr.eq(mac.wb_addr), w_other.eq(mac.wb_data),
-                         w_sat_other.eq(mac.wb_saturated)]
+            m.d.comb += [w_en.eq(1), w_sat_other.eq(mac.wb_saturated)]
         with m.If(xvalid):
             with m.Switch(x.op):
                 with m.Case(Op.ADD, Op.SUB, Op.OR):

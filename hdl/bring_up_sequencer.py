@@ -405,8 +405,8 @@ class BringUpSequencer(wiring.Component):
         with m.FSM(init="LOAD0"):
             self._states(m, SimpleNamespace(command=command, restart=restart, step=step,
                 timer=timer, next_step=next_step, reconfiguring=reconfiguring, backoff=backoff,
-                repeats=repeats, reads=reads, offset=offset, restart_pending=restart_pending, goto=goto,
-                config_start=config_start, fail=fail, last=last, test=test, port=port,
+                repeats=repeats, reads=reads, offset=offset, restart_pending=restart_pending,
+                goto=goto, config_start=config_start, fail=fail, last=last, test=test, port=port,
                 mag_start=mag_start, offered=offered))
         return m
 

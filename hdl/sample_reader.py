@@ -236,6 +236,9 @@ class SampleReader(wiring.Component):
         assert len(writes) == OFFER_WRITES
         n.after = after = Signal(range(len(writes) + 1))     # the next of them, from 1
         n.zero_field = zero_field = Signal()
+        # a byte's write is the address and data unless an offer's write chooses them (not
+        # gated by its own condition: ``w_en`` says when)
+        m.d.comb += [store.w_addr.eq(Cat(word, written)), store.w_data.eq(rx.payload.replicate(4))]
         with m.If(after != 0):
             with m.Switch(after):
                 for step, (w, lanes, value) in enumerate(writes, 1):
@@ -245,8 +248,7 @@ class SampleReader(wiring.Component):
             done = (after == len(writes)) | ((after == tail) & ~zero_field)
             m.d.sync += after.eq(Mux(done, 0, after + 1))
         with m.Elif(rx.valid & (n.rx_index < SAMPLE_BYTES) & placed):
-            m.d.comb += [store.w_en.eq(1 << lane), store.w_addr.eq(Cat(word, written)),
-                         store.w_data.eq(rx.payload.replicate(4))]
+            m.d.comb += store.w_en.eq(1 << lane)
 
     def _burst_checks(self, m, n):
         """The checks that look at every byte, made as the bytes come in (one comparator and

@@ -134,7 +134,11 @@ class SelfTest(wiring.Component):
         sum_axis = Mux(word > 3, word - 1, word)
         axis = Signal(3)                    # the sum or the axis the byte is for
         hi = Signal()                       # a sum byte is its word's high byte
-        m.d.comb += [sums.r_en.eq(1), table.r_en.eq(1)]
+        # the RAMs read every cycle, their addresses from the byte offered (what IDLE reads is
+        # what SUM and CODE use; addresses and data pass ungated, a LUT a bit)
+        m.d.comb += [sums.r_en.eq(1), table.r_en.eq(1),
+                     sums.r_addr.eq(Mux(index >= 16, index - 16, sum_axis)),
+                     table.r_addr.eq(i.byte)]
 
         # what the byte was, kept while it is worked on
         byte = Signal(8, reset_less=True)
@@ -161,6 +165,13 @@ class SelfTest(wiring.Component):
         else:
             m.d.comb += mul_p.eq(mul_a * mul_b)
 
+        # SUM's write: the byte added at its place in the word to the sum read in IDLE (or
+        # to 0), one adder (old - addend = old + ~addend + 1); written in SUM only
+        addend = Signal(signed(w))
+        m.d.comb += addend.eq(Mux(hi, byte.as_signed() << 8, byte))
+        old = Mux(replace, 0, sums.r_data.as_signed())
+        m.d.comb += [sums.w_addr.eq(axis), sums.w_data.eq(old + Mux(sub, ~addend, addend) + sub)]
+
         with m.FSM() as fsm:
             with m.State("IDLE"):
                 with m.If(i.valid):
@@ -180,16 +191,9 @@ class SelfTest(wiring.Component):
                             m.d.sync += mag_lo.eq(i.byte)
                         with m.Else():
                             m.next = "MAG"
-                m.d.comb += [sums.r_addr.eq(Mux(index >= 16, index - 16, sum_axis)),
-                             table.r_addr.eq(i.byte)]
             with m.State("SUM"):
-                # the sum was read in IDLE; the byte goes in at its place in the word
-                addend = Signal(signed(w))
-                m.d.comb += addend.eq(Mux(hi, byte.as_signed() << 8, byte))
-                old = Mux(replace, 0, sums.r_data.as_signed())
-                # one adder: old - addend = old + ~addend + 1
-                m.d.comb += [sums.w_en.eq(1), sums.w_addr.eq(axis),
-                             sums.w_data.eq(old + Mux(sub, ~addend, addend) + sub)]
+                # the sum was read in IDLE; the byte goes in at its place in the word (below)
+                m.d.comb += sums.w_en.eq(1)
                 m.next = "IDLE"
             with m.State("CODE"):
                 average = sums.r_data.as_signed() >> k        # floor(sum / N)

@@ -158,9 +158,11 @@ class TelemetryFramer(wiring.Component):
                 payload_words, borrowed = self._borrowed(m, payload_words, copy_index, sending)
                 fetched = fetched | borrowed
             # copy: the payload's words into the RAM, one per cycle, through one multiplexer
+            # (the address and data ungated: ``w_en`` says when)
+            m.d.comb += [ram.w_addr.eq(copy_index),
+                         ram.w_data.eq(Array(payload_words)[copy_index] | fetched)]
             with m.If(self.i_stream.valid & ~sending):
-                m.d.comb += [ram.w_en.eq(1), ram.w_addr.eq(copy_index),
-                             ram.w_data.eq(Array(payload_words)[copy_index] | fetched)]
+                m.d.comb += ram.w_en.eq(1)
                 m.d.sync += copy_index.eq(copy_index + 1)
                 if self.short_type is not None:
                     with m.If(copy_index == 0):
