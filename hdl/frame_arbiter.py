@@ -62,10 +62,12 @@ class FrameArbiter(wiring.Component):
                                  last.eq(port.payload.last),
                                  port.ready.eq(self.o_stream.ready)]
         sent = self.o_stream.valid & self.o_stream.ready
+        # the sequence number is the count of frames sent, mod 256: one counter, not two
+        m.d.comb += self.seq.eq(self.frames[:8])
         with m.If(sent):
             m.d.sync += [busy.eq(~last), held.eq(grant)]
             with m.If(last):
-                m.d.sync += [self.seq.eq(self.seq + 1), self.frames.eq(self.frames + 1)]
+                m.d.sync += self.frames.eq(self.frames + 1)
         with m.Elif(self.o_stream.valid):
             # a first byte waits: the choice is made
             m.d.sync += [busy.eq(1), held.eq(grant)]
