@@ -13,17 +13,20 @@ BITS_PER_CYCLE = 1
 class Divider(wiring.Component):
     """Fixed-point divider for the Kalman gains: q = ⌊num·2²⁴ / den⌋, saturated to 32 bits.
 
-    Computes exactly ``reference.fixed_point.div_q24``: a restoring divider, ``BITS_PER_CYCLE``
-    quotient bits per cycle (one: a second bit per cycle costs another 33-bit subtractor and
-    multiplexer, about 130 LEs of the whole design's count, for 16 cycles per division), 32
-    quotient bits. A quotient that does not fit 32 bits saturates (2³¹ − 1, or −2³¹) and a
-    denominator ≤ 0 gives 0; both set ``saturated``.
+    Computes exactly ``reference.fixed_point.div_q24``: a non-restoring divider,
+    ``BITS_PER_CYCLE`` quotient bits per cycle (one: two cost another 33-bit adder, about 120
+    LUTs more in the divider alone by ``report``'s flow, for 16 cycles less per division), 32
+    quotient bits. Non-restoring: the partial remainder may go negative (−den ≤ r < den), and the next
+    step adds den back instead of subtracting it, so there is no multiplexer to restore it; its
+    quotient bits (1 where the new remainder is ≥ 0) are the restoring divider's. A quotient
+    that does not fit 32 bits saturates (2³¹ − 1, or −2³¹) and a denominator ≤ 0 gives 0; both
+    set ``saturated``.
 
     Why it is small: there is no negation anywhere. The result rounds towards −∞ (floor), so for a
     negative numerator N = num·2²⁴ it divides ~N ≥ 0 (the inverted numerator followed by 24 ones)
     and inverts the quotient: ⌊N/d⌋ = ~⌊~N/d⌋. Why 32 iterations are enough: they start with the
     partial remainder at the numerator's top bits (``|num| >> 8``); if that is already ≥ den the
-    first quotient bit (2³¹) is set by the first trial anyway, and a set bit 31 means "saturate"
+    first quotient bit (2³¹) is set by the first step anyway, and a set bit 31 means "saturate"
     either way. One register holds the dividend's low bits, shifted out at the top, and the
     quotient, shifted in at the bottom.
 
@@ -54,7 +57,7 @@ class Divider(wiring.Component):
         m = Module()
         w, f = self.width, self.frac
         # reset-less: loaded by every start (a reset would cost a LUT per bit)
-        rem = Signal(w - 1, reset_less=True)    # < den ≤ 2^(w−1) − 1
+        rem = Signal(signed(w), reset_less=True)  # −den ≤ rem < den (non-restoring)
         shreg = Signal(w, reset_less=True)      # dividend bits (top) / quotient bits (bottom)
         den = Signal(w - 1, reset_less=True)
         negative = Signal(reset_less=True)
@@ -63,12 +66,13 @@ class Divider(wiring.Component):
 
         r, q = rem, shreg
         for _ in range(BITS_PER_CYCLE):
-            trial = Cat(q[w - 1], r)                         # (r << 1) | next bit, w bits
-            diff = Signal(signed(w + 1))
-            m.d.comb += diff.eq(trial - den)                 # its sign is the comparison
-            ge = ~diff[w]
-            r = Mux(ge, diff[:w - 1], trial[:w - 1])
-            q = Cat(ge, q[:w - 1])
+            trial = Cat(q[w - 1], r).as_signed()             # (r << 1) | next bit, w + 1 bits
+            nxt = Signal(signed(w + 1))
+            # r >= 0: subtract den, else add it back (the restoring divider's quotient bits)
+            d = Cat(den, C(0, 2)).as_signed()
+            m.d.comb += nxt.eq(trial + Mux(r[w - 1], d, ~d) + ~r[w - 1])
+            r = nxt[:w]
+            q = Cat(~nxt[w], q[:w - 1])
 
         num = self.num
         inverted = (num ^ num[w - 1].replicate(w))[:w - 1]   # num ≥ 0: num; else ~num ≥ 0
@@ -84,7 +88,7 @@ class Divider(wiring.Component):
                     bad = self.den[w - 1] | (self.den == 0)
                     m.d.sync += [
                         negative.eq(num[w - 1]), den.eq(self.den[:w - 1]), den_bad.eq(bad),
-                        rem.eq(inverted >> (w - f)),
+                        rem.eq((inverted >> (w - f)).as_unsigned()),
                         # the dividend's low w bits: the numerator's low w − f, then f fill bits
                         shreg.eq(Cat(num[w - 1].replicate(f), inverted[:w - f])),
                         count.eq(0),

@@ -3,7 +3,7 @@
 The definition is ``reference.fixed_point.div_q24``'s: q = ⌊num·2^frac / den⌋ (towards −∞),
 saturated to the width; a denominator ≤ 0 gives 0; both set ``saturated``. Here it is written
 with Amaranth's ``//`` (floor division) on the full-width product, nothing shared with the
-divider's restoring, negation-free loop. The divider is the same logic at any width
+divider's non-restoring, negation-free loop. The divider is the same logic at any width
 (``Divider(width=, frac=)``): 12/8 keeps the datapath's 8 integer bits.
 """
 
