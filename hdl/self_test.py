@@ -117,7 +117,9 @@ class SelfTest(wiring.Component):
         self.samples_log2 = samples_log2
         self.width = 17 + samples_log2
         self.sums = FrameRAM(8, self.width)
-        self.table = FrameRAM(256, 16, init=[0] + [otp(c) for c in range(1, 256)])
+        # the factory response T and 3·T for each code (16 + 17 bits: one M9K word)
+        self.table = FrameRAM(256, 33, init=[0] + [otp(c) | 3 * otp(c) << 16
+                                                   for c in range(1, 256)])
         super().__init__({"i": In(TestByte), "asa": In(data.ArrayLayout(8, 3)),
                           "busy": Out(1), "status": Out(SelfTestStatus)})
 
@@ -148,10 +150,13 @@ class SelfTest(wiring.Component):
         gyro = Signal(reset_less=True)
         mag_lo = Signal(8, reset_less=True)
         product = Signal(signed(26), reset_less=True)
-        # S: the averaged response (the sum floored by N), or its size for code 0; T: the
-        # factory response or a code-0 limit
+        # S: the averaged response (the sum floored by N); T and 3·T: the factory response or
+        # a code-0 limit. For code 0 the rules are on |S|: a negative S is kept as ~S = |S| - 1
+        # (no negation: an adder) and the code-0 limits are lowered to match (2·|S| > T is
+        # 2·~S > T - 2; 2·|S| < 3·T is 2·~S < 3·T - 2)
         s = Signal(signed(18), reset_less=True)
         t = Signal(16, reset_less=True)
+        t3 = Signal(17, reset_less=True)
         asa = Signal(8)
         # a choice of three, not an indexed slice (which is a multiply by the element width)
         m.d.comb += asa.eq(Mux(axis == 0, self.asa[0], Mux(axis == 1, self.asa[1], self.asa[2])))
@@ -197,13 +202,19 @@ class SelfTest(wiring.Component):
                 m.next = "IDLE"
             with m.State("CODE"):
                 average = sums.r_data.as_signed() >> k        # floor(sum / N)
-                const = Mux(gyro, GYRO_CODE0, ACCEL_CODE0)
-                m.d.sync += [s.eq(Mux(code0 & (average < 0), -average, average)),
-                             t.eq(Mux(code0, const, table.r_data))]
+                neg = code0 & average[-1]
+                # constants, chosen (not a subtraction)
+                limit = Mux(gyro, Mux(neg, GYRO_CODE0 - 2, GYRO_CODE0),
+                            Mux(neg, ACCEL_CODE0 - 2, ACCEL_CODE0))
+                limit3 = Mux(gyro, Mux(neg, 3 * GYRO_CODE0 - 2, 3 * GYRO_CODE0),
+                             Mux(neg, 3 * ACCEL_CODE0 - 2, 3 * ACCEL_CODE0))
+                m.d.sync += [s.eq(Mux(neg, ~average, average)),
+                             t.eq(Mux(code0, limit, table.r_data[:16])),
+                             t3.eq(Mux(code0, limit3, table.r_data[16:]))]
                 m.next = "JUDGE"
             with m.State("JUDGE"):
                 twice = s << 1
-                passes = (twice > t) & (gyro | (twice < t + (t << 1)))
+                passes = (twice > t) & (gyro | (twice < t3))
                 m.d.sync += status.fail.bit_select(axis, 1).eq(~passes)
                 with m.If(axis == 5):
                     m.d.sync += status.done.eq(1)
