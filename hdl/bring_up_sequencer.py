@@ -270,7 +270,7 @@ class BringUpSequencer(wiring.Component):
             "op": Op, "device": 1, "reg": 8, "value": 8, "mask": 8, "fail": Fail,
             "check_wia": 1, "backoff": 1, "wait": range(max(timer_load) + 1),
             "length": range(max(s.length for s in program) + 1), "fast": 1,
-            "repeat": range(max(s.repeat for s in program) + 1)})
+            "more": range(max(s.repeat for s in program))})
         layout = self.step_layout
         # a word's length and fast bit are a TEST's; any other step's command reads one byte at
         # the slow clock, so its word says so (the command's payload is the word's, whatever
@@ -280,7 +280,7 @@ class BringUpSequencer(wiring.Component):
             "fail": s.fail, "check_wia": s.check == "wia", "backoff": s.backoff,
             "wait": load, "length": s.length if s.op == Op.TEST else 1,
             "fast": s.fast and s.op == Op.TEST,
-            "repeat": s.repeat}).as_value().value for s, load in zip(program, timer_load)]
+            "more": s.repeat - 1}).as_value().value for s, load in zip(program, timer_load)]
         # the program, one step a word (an M9K; ``report`` counts it)
         self.rom = FrameRAM(len(program), layout.size, init=words)
         super().__init__({
@@ -339,12 +339,14 @@ class BringUpSequencer(wiring.Component):
             m.d.comb += port.cmd.valid.eq(1)
 
         # TEST: the read's bytes to the self-test, counted from the step's index
-        reads = Signal.like(step.repeat)        # reads still to come after this one
+        # a TEST's reads after its first (the word's ``more``: its repeat less one, no
+        # subtractor), and those still to come after the present one
+        reads = Signal.like(step.more)
         offset = Signal(5)
         test = self.test
         m.d.comb += [test.byte.eq(port.rx.payload), test.index.eq(step.value[:5] + offset),
                      test.subtract.eq(step.mask[0]),
-                     test.first.eq(step.mask[1] & (reads == step.repeat - 1))]
+                     test.first.eq(step.mask[1] & (reads == step.more))]
 
         timer = Signal(range(max(self.poll_load, *self.timer_loads) + 1))
         # a WAIT marked ``backoff`` is its word's wait 2**backoff times over: ``repeats`` more
@@ -544,7 +546,7 @@ class BringUpSequencer(wiring.Component):
                 m.d.sync += timer.eq(self.poll_load)
                 m.next = "POLL"
             with m.Case(Op.TEST):
-                m.d.sync += reads.eq(step.repeat - 1)
+                m.d.sync += reads.eq(step.more)
                 m.next = "TEST"
             with m.Case(Op.MARK):
                 m.d.sync += [self.mag_ok.eq(1), self.mag_absent.eq(0),
