@@ -14,6 +14,7 @@ from mpu9250_ahrs.hdl.register_map import (CONFIG_REGS, CONTROL_ADDR, CONTROL_KE
 from mpu9250_ahrs.hdl.command_decoder import (BOARD_REGS, COMMAND_STATS, COMMANDS, COUNTED,
                                               COUNTER_WORDS, FIFO_DEPTH, REGMAP_VERSION,
                                               RESULTS, CommandDecoder, counter_word)
+from mpu9250_ahrs.hdl.driver_status import SelfTestStatus
 from mpu9250_ahrs.hdl.pwm import PWM_REGS, PWMOutputs
 from mpu9250_ahrs.host.protocol import encode_command, encode_frame, to_python
 from mpu9250_ahrs.sim.streams import check_stream_rules
@@ -36,9 +37,10 @@ class Harness(Elaboratable):
         return m
 
 
-def run(data, *, gaps=None, busy_cycles=3):
+def run(data, *, gaps=None, busy_cycles=3, inputs=None):
     """Feed ``data`` (bytes; ``gaps``: {index: idle cycles before that byte}); the engine port
     model takes a write after ``busy_cycles`` and answers a read of address a with 3a + 1.
+    ``inputs``: {name: value} of the decoder's inputs to drive (the board registers' sources).
     Returns (engine writes, replies, stats, raw_mode)."""
     h = Harness()
     dec = h.decoder
@@ -77,6 +79,8 @@ def run(data, *, gaps=None, busy_cycles=3):
     sim.add_testbench(engine, background=True)
 
     async def host(ctx):
+        for name, value in (inputs or {}).items():
+            ctx.set(getattr(dec, name), value)
         for k, byte in enumerate(data):
             if gaps and k in gaps:
                 await ctx.tick().repeat(gaps[k])
@@ -330,3 +334,20 @@ def test_time_out_counted_in_ticks():
     exact = dropped_after(1)
     for phase in range(4):
         assert exact <= dropped_after(4, phase) <= exact + 2 * 4
+
+
+def test_board_registers_read_their_sources():
+    """Every read-only board register answers with its source: the build's words, the frames
+    sent, the rate errors, WHO_AM_I and the self-test status as the core drives them."""
+    inputs = {"frames_sent": 0x89ABCDEF, "rate_errors": 0x1234, "who_am_i": 0x71,
+              "self_test": {"fail": 0b101000011, "done": 1, "mag_done": 1}}
+    names = ["VERSION", "REGMAP_VERSION", "FRAMES_SENT", "RATE_ERRORS", "WHO_AM_I",
+             "SELF_TEST", "RAW_MODE"]
+    commands = [encode_command("read", k, addr=BOARD_REGS[name], space="board")
+                for k, name in enumerate(names)]
+    _, replies, _, _ = run(b"".join(commands), inputs=inputs)
+    got = {names[x["cmd_seq"]]: (x["result"], x["value"]) for x in replies}
+    status = SelfTestStatus.const(inputs["self_test"]).as_value().value
+    assert got == {name: (RESULTS["ok"], value) for name, value in (
+        ("VERSION", VERSION), ("REGMAP_VERSION", REGMAP_VERSION), ("FRAMES_SENT", 0x89ABCDEF),
+        ("RATE_ERRORS", 0x1234), ("WHO_AM_I", 0x71), ("SELF_TEST", status), ("RAW_MODE", 0))}
