@@ -99,8 +99,9 @@ class PWMOutputs(wiring.Component):
     Parameters
         ``clk_freq``: the clock (Hz); the servo unit is ``round(clk_freq / 1e6)`` cycles.
     The 16-bit registers are read back from ``shadow`` (a ``FrameRAM``, one M9K, written with
-    every accepted write; ``shadow_index`` places them), not through a multiplexer of the
-    registers: the bus's reads are registered (``BoardBusSignature``).
+    every accepted write, and with the reset values in the three cycles after a reset;
+    ``shadow_index`` places them), not through a multiplexer of the registers: the bus's reads
+    are registered (``BoardBusSignature``).
 
     Members
         ``bus`` (in, ``BoardBusSignature`` flipped): the registers.
@@ -119,11 +120,13 @@ class PWMOutputs(wiring.Component):
         if self.motor_min >= 1 << PERIOD_BITS:
             raise ValueError(f"a {MOTOR_MAX_HZ} Hz motor period at {clk_freq / 1e6:g} MHz "
                              f"does not fit {PERIOD_BITS} bits")
-        at_reset = {"PWM_WATCHDOG_MS": WATCHDOG_MS_AT_RESET,
-                    "PWM_SERVO_PERIOD": SERVO_PERIOD_US[1], "PWM_MOTOR_PERIOD": self.motor_min}
+        # the registers whose reset value is not 0 (the copy's words for them)
+        self.at_reset = {shadow_index(PWM_REGS[name]): value for name, value in (
+            ("PWM_WATCHDOG_MS", WATCHDOG_MS_AT_RESET), ("PWM_SERVO_PERIOD", SERVO_PERIOD_US[1]),
+            ("PWM_MOTOR_PERIOD", self.motor_min))}
         words = [0] * 16
-        for name, value in at_reset.items():
-            words[shadow_index(PWM_REGS[name])] = value
+        for index, value in self.at_reset.items():
+            words[index] = value
         self.shadow = FrameRAM(16, PERIOD_BITS, init=words)
         super().__init__({
             "bus": In(BoardBusSignature()),
@@ -167,8 +170,20 @@ class PWMOutputs(wiring.Component):
         # after the address; a high time masked by ``given``
         m.submodules.shadow = shadow = self.shadow
         index = Cat(bus.addr[:3], bus.addr[4])                  # ``shadow_index``
-        m.d.comb += [shadow.r_en.eq(1), shadow.r_addr.eq(index), shadow.w_addr.eq(index),
-                     shadow.w_data.eq(low)]
+        # A block RAM keeps its words through a reset: after one, the registers whose reset
+        # value is not 0 have it written into the copy again, one a cycle (``restore``: the
+        # next of them; no command can come within those cycles). The high times read 0 by
+        # ``given`` (0 at reset), whatever their words hold
+        restore = Signal(range(len(self.at_reset) + 1))
+        restoring = restore != len(self.at_reset)
+        places = list(self.at_reset)
+        with m.If(restoring):
+            m.d.sync += restore.eq(restore + 1)
+        m.d.comb += [shadow.r_en.eq(1), shadow.r_addr.eq(index),
+                     shadow.w_addr.eq(Mux(restoring, Array(C(i, 4) for i in places)[restore],
+                                          index)),
+                     shadow.w_data.eq(Mux(restoring, Array(C(self.at_reset[i], PERIOD_BITS)
+                                                           for i in places)[restore], low))]
         given_read = Signal()
         m.d.sync += given_read.eq(given.bit_select(bus.addr[:2], 1))
         high_read = Mux(given_read, shadow.r_data, 0)
@@ -189,7 +204,7 @@ class PWMOutputs(wiring.Component):
                 with m.Case(addr):
                     m.d.comb += [bus.exists.eq(1), bus.r_data.eq(signal), bus.ok.eq(ok)]
         write = bus.w_en & bus.ok
-        m.d.comb += shadow.w_en.eq(write)
+        m.d.comb += shadow.w_en.eq(write | restoring)
         restart = Signal()              # the watchdog's count starts again (next cycle)
         m.d.sync += restart.eq(self.kick)
         with m.If(write):

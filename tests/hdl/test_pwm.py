@@ -264,7 +264,8 @@ def test_no_output_high_for_a_whole_period_unless_asked(ops):
 def test_an_asynchronous_reset_drops_the_outputs_at_once():
     """As a board builds it (``hdl/top.py``: the core's domain has an asynchronous reset), a
     reset takes every output low at once, before any clock edge, and they stay low after it
-    (every channel disabled at reset)."""
+    (every channel disabled at reset). The registers read their reset values after it, though
+    the read-back's block RAM kept the words written before."""
     from amaranth import ClockDomain, Elaboratable, Module
 
     class InAsyncReset(Elaboratable):
@@ -286,6 +287,7 @@ def test_an_asynchronous_reset_drops_the_outputs_at_once():
 
     async def tb(ctx):
         for name, value in (("PWM_MODE", 0b1111), ("PWM_MOTOR_PERIOD", 400),
+                            ("PWM_SERVO_PERIOD", 2_500), ("PWM_WATCHDOG_MS", 7),
                             *((f"PWM_HIGH{k}", 400) for k in range(4)),   # high all period
                             ("PWM_ENABLE", 0b1111)):
             ctx.set(dut.bus.addr, PWM_REGS[name])
@@ -304,7 +306,11 @@ def test_an_asynchronous_reset_drops_the_outputs_at_once():
         await ctx.tick().repeat(1_000)
         out["after"] = ctx.get(dut.pwm)
         out["enable"] = await read(ctx, dut, "PWM_ENABLE")
+        out["read"] = {name: await read(ctx, dut, name) for name in (
+            "PWM_MODE", "PWM_MOTOR_PERIOD", "PWM_SERVO_PERIOD", "PWM_WATCHDOG_MS", "PWM_HIGH0")}
     sim.add_testbench(tb)
     sim.run()
     assert out["running"] == 0b1111
     assert out["in_reset"] == 0 and out["after"] == 0 and out["enable"] == 0
+    assert out["read"] == {"PWM_MODE": 0, "PWM_MOTOR_PERIOD": dut.motor_min,
+                           "PWM_SERVO_PERIOD": 20_000, "PWM_WATCHDOG_MS": 500, "PWM_HIGH0": 0}
