@@ -96,13 +96,13 @@ class PWMOutputs(wiring.Component):
     channel of its group is enabled, at once), so a pulse is never cut short or stretched by
     an update; a channel enabled starts at its group's next period.
 
-    Parameters
-        ``clk_freq``: the clock (Hz); the servo unit is ``round(clk_freq / 1e6)`` cycles.
     The 16-bit registers are read back from ``shadow`` (a ``FrameRAM``, one M9K, written with
     every accepted write, and with the reset values in the three cycles after a reset;
     ``shadow_index`` places them), not through a multiplexer of the registers: the bus's reads
     are registered (``BoardBusSignature``).
 
+    Parameters
+        ``clk_freq``: the clock (Hz); the servo unit is ``round(clk_freq / 1e6)`` cycles.
     Members
         ``bus`` (in, ``BoardBusSignature`` flipped): the registers.
         ``kick`` (in): a pulse per accepted command: restarts the watchdog.
