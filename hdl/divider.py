@@ -15,11 +15,11 @@ class Divider(wiring.Component):
 
     Computes exactly ``reference.fixed_point.div_q24``: a non-restoring divider,
     ``BITS_PER_CYCLE`` quotient bits per cycle (one: two cost another 33-bit adder for 16
-    cycles less per division), 32 quotient bits. Non-restoring: the partial remainder may go negative (−den ≤ r < den), and the next
-    step adds den back instead of subtracting it, so there is no multiplexer to restore it; its
-    quotient bits (1 where the new remainder is ≥ 0) are the restoring divider's. A quotient
-    that does not fit 32 bits saturates (2³¹ − 1, or −2³¹) and a denominator ≤ 0 gives 0; both
-    set ``saturated``.
+    cycles less per division), 32 quotient bits. Non-restoring: the partial remainder may go
+    negative (−den ≤ r < den), and the next step adds den back instead of subtracting it, so
+    there is no multiplexer to restore it; its quotient bits (1 where the new remainder is
+    ≥ 0) are the restoring divider's. A quotient that does not fit 32 bits saturates (2³¹ − 1,
+    or −2³¹) and a denominator ≤ 0 gives 0; both set ``saturated``.
 
     Why it is small: there is no negation anywhere. The result rounds towards −∞ (floor), so for a
     negative numerator N = num·2²⁴ it divides ~N ≥ 0 (the inverted numerator followed by 24 ones)

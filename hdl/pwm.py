@@ -33,7 +33,8 @@ PWM_REGS = {
 
 def shadow_index(addr):
     """A register's word in ``PWMOutputs.shadow`` (its address's bits 0-2 and 4: every
-    register of ``PWM_REGS`` has a word of its own)."""
+    register of ``PWM_REGS`` has a word of its own): of an integer, or of the bus's address
+    (a ``Value``: wiring, no logic)."""
     return (addr & 0b111) | ((addr >> 1) & 0b1000)
 
 
@@ -169,7 +170,7 @@ class PWMOutputs(wiring.Component):
         # multiplexer of the six would cost about a LUT per bit per register), read a cycle
         # after the address; a high time masked by ``given``
         m.submodules.shadow = shadow = self.shadow
-        index = Cat(bus.addr[:3], bus.addr[4])                  # ``shadow_index``
+        index = shadow_index(bus.addr)[:4]
         # A block RAM keeps its words through a reset: after one, the registers whose reset
         # value is not 0 have it written into the copy again, one a cycle (``restore``: the
         # next of them; no command can come within those cycles). The high times read 0 by
