@@ -489,6 +489,9 @@ class AttitudeEngine(wiring.Component):
                                      w_other.eq(divider.quotient),
                                      w_sat_other.eq(divider.saturated)]
                 with m.Case(Op.VEC, Op.ROT):
+                    # the CORDIC's ``x_out`` first (ROT's cos into d, VEC's magnitude into
+                    # d + 1), then its ``y_out`` (sin into d + 1, the angle into d): one source
+                    # a write, the mode chosen inside the CORDIC
                     is_rot = x.op == Op.ROT
                     with m.If(phase == 0):
                         m.d.comb += [advance.eq(0), cordic.start.eq(1)]
@@ -496,14 +499,16 @@ class AttitudeEngine(wiring.Component):
                     with m.Elif(phase == 1):
                         m.d.comb += advance.eq(0)
                         with m.If(cordic.done):
-                            m.d.comb += [w_en.eq(1), w_addr.eq(x.d), x_wd.eq(1),
-                                         w_other.eq(Mux(is_rot, cordic.cos, cordic.angle))]
+                            m.d.comb += [w_en.eq(1), w_addr.eq(Mux(is_rot, x.d, x.d + 1)),
+                                         x_wd.eq(is_rot), x_wd1.eq(~is_rot),
+                                         w_other.eq(cordic.x_out),
+                                         w_sat_other.eq(cordic.saturated)]
                             m.d.sync += phase.eq(2)
                     with m.Else():
                         m.d.sync += phase.eq(0)
-                        m.d.comb += [w_en.eq(1), w_addr.eq(x.d + 1), x_wd1.eq(1),
-                                     w_other.eq(Mux(is_rot, cordic.sin, cordic.magnitude)),
-                                     w_sat_other.eq(~is_rot & cordic.saturated)]
+                        m.d.comb += [w_en.eq(1), w_addr.eq(Mux(is_rot, x.d + 1, x.d)),
+                                     x_wd.eq(~is_rot), x_wd1.eq(is_rot),
+                                     w_other.eq(cordic.y_out)]
                 with m.Case(Op.BR):
                     with m.If(cond ^ x.inv):
                         m.d.comb += flush.eq(1)

@@ -24,10 +24,14 @@ class CORDIC(wiring.Component):
         ``short`` (in): stop after ``short_iterations`` (``CORDIC_SHORT_ITERATIONS``, 8): a
             vectoring whose angle is not wanted (a length: ``cordic_vector(iterations=)``).
         ``done`` (out): one-cycle pulse when the results are valid; they hold until the next start.
-        Vectoring results: ``angle`` (BAM32, atan2(y, x); (0, 0) gives 0), ``magnitude``
-            (√(x² + y²)·K saturated to 32 bits; ``saturated`` set if it was clamped).
-        Rotation results: ``cos``, ``sin`` in Q1.30 (on ``magnitude``/``angle``'s neighbours
-            ``x_out``, ``y_out``).
+        ``x_out`` (out, signed 32): vectoring, the magnitude √(x² + y²)·K saturated to 32 bits
+            (``saturated`` set if it was clamped); rotation, cos in Q1.30.
+        ``y_out`` (out, signed 32): vectoring, the angle (BAM32, atan2(y, x); (0, 0) gives 0);
+            rotation, sin in Q1.30.
+        ``saturated`` (out): vectoring's magnitude was clamped; 0 after a rotation.
+        Each result port holds both modes' results (the mode chooses, inside), so that a user
+        writing them one after the other, as the engine does, has one source a write rather
+        than a multiplexer of four.
     Parameters (the datapath's by default; the formal check, ``tests/formal/test_cordic.py``, proves
     the same logic at a reduced width): ``width`` (32: inputs, results and the angle's BAM bits),
     ``atan_table`` (one entry per iteration, BAM of ``width`` bits), ``inv_gain`` (1/K in
@@ -62,11 +66,9 @@ class CORDIC(wiring.Component):
             "short": In(1),                 # stop after ``short_iterations``
             "x_in": In(signed(n)), "y_in": In(signed(n)), "angle_in": In(signed(n)),
             "done": Out(1),
-            "angle": Out(signed(n)),        # vectoring: atan2(y, x)
-            "magnitude": Out(signed(n)),    # vectoring: |(x, y)|·K, saturated
+            "x_out": Out(signed(n)),        # vectoring: |(x, y)|·K, saturated; rotation: cos
+            "y_out": Out(signed(n)),        # vectoring: atan2(y, x); rotation: sin
             "saturated": Out(1),
-            "cos": Out(signed(n)),          # rotation, Q1.(n − 2)
-            "sin": Out(signed(n)),
         })
 
     def elaborate(self, platform):
@@ -176,14 +178,12 @@ class CORDIC(wiring.Component):
 
         # In vectoring x is never negative: it starts at |x_in| (or -x_in - 1) and each
         # iteration adds |y| >> i. So it is over 2^(n-1) - 1 when a bit from n - 1 up is set,
-        # and the limit is x with its low bits forced to ones: no comparator, no multiplexer
-        # (in rotation ``magnitude`` and ``saturated`` mean nothing)
-        over = x[n - 1:].any()
+        # and the limit is x with its low bits forced to ones: no comparator, no multiplexer.
+        # In rotation x is cos (Q1.30: it fits 32 bits), passed on whole
+        over = x[n - 1:].any() & ~rotate
         m.d.comb += [
-            self.angle.eq(z),
-            self.magnitude.eq(Cat(x[:n - 1] | over.replicate(n - 1), C(0, 1))),
+            self.x_out.eq(Cat(x[:n - 1] | over.replicate(n - 1), x[n - 1] & rotate)),
+            self.y_out.eq(Mux(rotate, y, z)),
             self.saturated.eq(over),
-            self.cos.eq(x),
-            self.sin.eq(y),
         ]
         return m

@@ -25,7 +25,7 @@ class MultiplyAccumulate(wiring.Component):
     Members
         ``a``, ``b`` (in, signed 32): the operands, read in the issue cycle.
         ``ins`` (in, ``Instr``): the MUL instruction, read in the issue cycle (``sh``: the
-            ``MUL_SHIFTS`` index, ``acc``, ``neg``, ``wb``, ``d``).
+            ``MUL_SHIFTS`` index, its low two bits read; ``acc``, ``neg``, ``wb``, ``d``).
         ``issue`` (in): take a MUL now.
         ``pending`` (out): a product is being accumulated this cycle.
         ``wb_next``, ``wb_next_addr`` (out): that product's instruction writes back, next
@@ -68,7 +68,11 @@ class MultiplyAccumulate(wiring.Component):
         ins = Signal(Instr, reset_less=True)                # the MUL being accumulated
         ins_wb = Signal(Instr, reset_less=True)             # the MUL being written back
         m.d.comb += [mult.a.eq(self.a), mult.b.eq(self.b)]
-        with m.Switch(ins.sh):
+        # ``sh``'s low two bits choose the shift: the assembler codes only MUL_SHIFTS's four
+        # (a third bit's cases would each be a default of zeros to select from)
+        shift = ins.sh[:2]
+        assert len(MUL_SHIFTS) == 4
+        with m.Switch(shift):
             for code, s in enumerate(MUL_SHIFTS):
                 with m.Case(code):
                     m.d.comb += rounding.eq(1 << (s - 1))
@@ -89,7 +93,7 @@ class MultiplyAccumulate(wiring.Component):
         wb_fits = Signal(reset_less=True)
         slice_next = Signal(signed(32))
         wb_slice = Signal(signed(32), reset_less=True)
-        with m.Switch(ins.sh):
+        with m.Switch(shift):
             for code, s in enumerate(MUL_SHIFTS):
                 with m.Case(code):
                     top = acc_next[s + 31:]
