@@ -294,8 +294,10 @@ class PWMOutputs(wiring.Component):
             # next wrap, so an enabled channel starts at a wrap: its first pulse is a whole one
             below = Signal(name=f"below{k}", reset_less=True)
             group_wrap = Mux(mode[k], wrap[1], wrap[0])
-            reaches = Mux(mode[k], tick[1] & (step[1] == active_high),
-                          tick[0] & (step[0] == active_high))
+            # one comparison with the group's count chosen first (a LUT a bit holds the
+            # choice and the XOR), not one per group
+            reaches = Mux(mode[k], tick[1], tick[0]) & (
+                Mux(mode[k], step[1], step[0]) == active_high)
             # a disabled channel takes its high time at once; an enabled one at its group's
             # wrap
             with m.If(~enable[k]):
