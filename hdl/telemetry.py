@@ -141,7 +141,17 @@ class TelemetryFramer(wiring.Component):
         # the frame's length and type: this one's, or (short) the short type's
         length = Signal(8, init=n)
         ftype = Signal(8, init=self.frame_type)
-        end = index == length + 6
+        # the index of the CRC's high byte, length + 5: with a short type (the length a
+        # register) a register of its own, loaded with the length, and ``end`` (the byte at the
+        # index is the CRC's low one, the last) registered as the high one is sent: no adder
+        # before the comparisons with the index. Else constants
+        if self.short_type is not None:
+            crc_index = Signal(8, init=n + 5)
+            end = Signal()
+            with m.If(sent):
+                m.d.sync += end.eq(index == crc_index)
+        else:
+            crc_index, end = C(n + 5, 8), index == n + 6
         last = sent & end
 
         if self.buffered:
@@ -167,6 +177,7 @@ class TelemetryFramer(wiring.Component):
                 if self.short_type is not None:
                     with m.If(copy_index == 0):
                         m.d.sync += [length.eq(Mux(self.short, self.short_length, n)),
+                                     crc_index.eq(Mux(self.short, self.short_length + 5, n + 5)),
                                      ftype.eq(Mux(self.short, self.short_type,
                                                   self.frame_type))]
                 with m.If(copy_index == words - 1):
@@ -205,7 +216,7 @@ class TelemetryFramer(wiring.Component):
             m.d.comb += byte.eq(seq)
         with m.Elif(index == 4):
             m.d.comb += byte.eq(length)
-        with m.Elif(index == length + 5):
+        with m.Elif(index == crc_index):
             m.d.comb += byte.eq(crc.crc[8:])
         with m.Elif(end):
             m.d.comb += byte.eq(crc.crc[:8])
@@ -217,7 +228,7 @@ class TelemetryFramer(wiring.Component):
             self.o_stream.payload.last.eq(end),
             crc.data.eq(byte),
             crc.start.eq(sent & (index == 0)),
-            crc.valid.eq(sent & (index >= 2) & (index < length + 5)),
+            crc.valid.eq(sent & (index >= 2) & (index < crc_index)),
         ]
         with m.If(sent):
             m.d.sync += index.eq(Mux(end, 0, index + 1))
