@@ -21,7 +21,20 @@ from amaranth.lib.memory import Memory, MemoryData
 from amaranth.lib.wiring import In, Out
 
 
-__all__ = ["RegisterFile", "MicrocodeROM", "FrameRAM", "blackbox_stub"]
+__all__ = ["RegisterFile", "MicrocodeROM", "FrameRAM", "blackbox_stub", "m9k_blocks"]
+
+
+# A MAX10 M9K's depth × width modes (Intel's MAX 10 Embedded Memory User Guide): 8,192 bits,
+# or 9,216 in the modes with a ninth bit a byte
+M9K_MODES = ((8192, 1), (4096, 2), (2048, 4), (1024, 9), (512, 18), (256, 36))
+
+
+def m9k_blocks(depth, width, *, byte_enables=False):
+    """The M9K blocks a ``depth`` × ``width`` memory takes on a MAX10: the fewest over the
+    block's modes (blocks side by side for the width, stacked for the depth). With
+    ``byte_enables``, only the ×18 and ×36 modes, which have them."""
+    modes = M9K_MODES[-2:] if byte_enables else M9K_MODES
+    return min(-(-depth // d) * -(-width // w) for d, w in modes)
 
 
 class RegisterFile(wiring.Component):
@@ -104,6 +117,11 @@ class MicrocodeROM(wiring.Component):
     def bits(self):
         return len(self.words) * self.width
 
+    @property
+    def m9k_blocks(self):
+        """M9Ks it takes on a MAX10 (``m9k_blocks``)."""
+        return m9k_blocks(len(self.words), self.width)
+
     def elaborate(self, platform):
         m = Module()
         if self.blackbox:
@@ -156,11 +174,8 @@ class FrameRAM(wiring.Component):
 
     @property
     def m9k_blocks(self):
-        """M9Ks it takes on a MAX10: 36 bits wide at most (256 words deep), 8,192 data bits
-        each beyond."""
-        if self.depth <= 256:
-            return -(-self.width // 36)
-        return -(-self.bits // 8192)
+        """M9Ks it takes on a MAX10 (``m9k_blocks``; with lanes, the modes with byte enables)."""
+        return m9k_blocks(self.depth, self.width, byte_enables=self.lanes > 1)
 
     def stub(self):
         """Verilog declaring the blackbox module (``report``)."""

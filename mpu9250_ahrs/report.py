@@ -81,6 +81,7 @@ def synthesize(top, name, engine, rams=(), others=(), *, blocks=False, ports=Non
     ``FrameRAM``s in it); their hard blocks are synthesised as empty modules. With ``blocks``,
     also ``blocks``: the same synthesis without flattening, per block (``block_figures``).
     ``ports``: the top's ports, for an elaboratable that is not a component."""
+    from .hdl.memories import m9k_blocks
     from .hdl.multiplier import BLACKBOX_NAME
     hard_blocks_as_blackboxes(engine, rams, others)
     with tempfile.TemporaryDirectory() as tmp:
@@ -127,8 +128,8 @@ def synthesize(top, name, engine, rams=(), others=(), *, blocks=False, ports=Non
         "registers": ffs,
         "memory_bits": engine.regfile.bits + engine.rom.bits + sum(r.bits for r in rams),
         "rom_bits_in_logic": rom_bits,
-        "m9k_blocks": 2 * math.ceil(engine.regfile.depth * 32 / 9216)
-        + math.ceil(engine.rom.width / 36) * math.ceil(len(engine.rom.words) / 256)
+        # the register file twice (a copy per read port), the ROM and RAMs in their best modes
+        "m9k_blocks": 2 * m9k_blocks(engine.regfile.depth, 32) + engine.rom.m9k_blocks
         + sum(ram.m9k_blocks for ram in rams),
         "multipliers_18x18": multipliers,
         "other_multiplies": other_muls,

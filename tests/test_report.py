@@ -98,3 +98,13 @@ def test_timing_ecp5_measures_the_core():
     # the engine's four blocks, the CORDIC's three (its shifts) and the self-test's one
     assert t["cells"]["MULT18X18D"] == 8
     assert block_of("engine.regfile.mem.1.0") == "engine.regfile" and block_of("x") == "top"
+
+
+def test_m9k_blocks_takes_the_best_mode():
+    from mpu9250_ahrs.hdl.memories import m9k_blocks
+    # the microcode ROM's shape: six blocks of 1,024 × 9 (eight of 256 × 36)
+    assert m9k_blocks(966, 53) == 6
+    assert m9k_blocks(256, 32) == m9k_blocks(22, 32) == m9k_blocks(8192, 1) == 1
+    assert m9k_blocks(8193, 1) == 2 and m9k_blocks(100, 56) == 2
+    # byte enables: the x18 and x36 modes only (two of 512 x 18, not one of 1,024 x 9)
+    assert m9k_blocks(600, 8, byte_enables=True) == 2 and m9k_blocks(600, 8) == 1
