@@ -594,21 +594,16 @@ class SampleReader(wiring.Component):
 
     def _counts(self, m, n):
         """The samples read (returned: 32 bits, wrapping) and ``rate_errors`` (16,
-        saturating) share one adder: a check (``n.counting`` set, ``n.early_count``: its
-        sample came early) is counted in the two cycles after it, the two counts rotating
-        through the adder (each register loaded from the other: no multiplexer in front of
-        it), ``rate_errors`` then copied out. Checks are a burst apart."""
-        head = Signal(32)                       # the count of samples read, when still
-        tail = Signal(32)                       # the early ones, when still
-        n.counting = Signal()                   # the first of the two steps, then the second
-        second = Signal()
+        saturating): a check (``n.counting`` set, ``n.early_count``: its sample came early) is
+        counted in the cycle after it. Each count has its incrementer (a 32-bit adder shared
+        by rotating the two through it cost more: its operand's choice and the rotation)."""
+        head = Signal(32)                       # the count of samples read
+        n.counting = Signal()
         n.early_count = Signal()
-        added = Signal(32)
-        m.d.comb += added.eq(head + Mux(second, n.early_count & ~head[:16].all(), 1))
-        with m.If(n.counting | second):
-            m.d.sync += [head.eq(tail), tail.eq(added), n.counting.eq(0), second.eq(n.counting)]
-        with m.If(second):
-            m.d.sync += self.rate_errors.eq(added[:16])
+        with m.If(n.counting):
+            m.d.sync += [head.eq(head + 1), n.counting.eq(0)]
+            with m.If(n.early_count & ~self.rate_errors.all()):
+                m.d.sync += self.rate_errors.eq(self.rate_errors + 1)
         return head
 
     def _emit(self, m, sample, buf, counter, overrun, dropped, skipped, resumed, prev_field,
