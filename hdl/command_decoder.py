@@ -63,19 +63,27 @@ COMMAND_STATS = (
     "ok",           # commands done
     "refused",      # well-formed commands refused (read-only, out of range, no address)
 )
-# The board registers counted in the decoder's ``EventCounters``, the receiver's two included,
-# and its words: a power of two, so that a board address less CMD_DISCARDED's, cut to its low
-# bits, is the word (``counter_word``)
-COUNTED = ("RX_FRAMING_ERRORS", "RX_OVERRUNS", *(f"CMD_{name.upper()}" for name in COMMAND_STATS))
+# The board registers counted in the decoder's ``EventCounters``, the receiver's two and the
+# sample reader's early samples included, and its words: a power of two, so that a board
+# address less CMD_DISCARDED's, cut to its low bits, is the word (``counter_word``)
+COUNTED = ("RX_FRAMING_ERRORS", "RX_OVERRUNS", *(f"CMD_{name.upper()}" for name in COMMAND_STATS),
+           "RATE_ERRORS")
 COUNTER_WORDS = 8
+# RATE_ERRORS's address would share RX_FRAMING_ERRORS's word: it has the one word left
+RATE_ERRORS_WORD = 5
 
 
 def counter_word(name):
     """A counted board register's word in the counters' RAM: its address less CMD_DISCARDED's,
     modulo ``COUNTER_WORDS`` (the receiver's two, before it, are words 6 and 7; the discarded
-    bytes, which come fastest, word 0: the first served). The command names its word with its
-    address's low bits, no table."""
+    bytes, which come fastest, word 0: the first served), but RATE_ERRORS's, word 5. The
+    command names its word with its address's low bits (``CommandDecoder._counters``)."""
+    if name == "RATE_ERRORS":
+        return RATE_ERRORS_WORD
     return (BOARD_REGS[name] - BOARD_REGS["CMD_DISCARDED"]) % COUNTER_WORDS
+
+
+assert sorted(counter_word(name) for name in COUNTED) == list(range(COUNTER_WORDS))
 
 
 class CommandDecoder(wiring.Component):
@@ -114,11 +122,13 @@ class CommandDecoder(wiring.Component):
         ``kick`` (out): a pulse per accepted command (result ``ok``; the PWM watchdog).
         ``fifo``: the ``RewindableFIFO`` (its ``ram``, one M9K, for ``report``).
         ``rx_framing_error``, ``rx_overrun`` (in): the receiver's pulses, counted.
+        ``early_sample`` (in): the sample reader's pulse per sample that came early, counted
+            (RATE_ERRORS).
         ``counters``: the ``EventCounters`` of the ``COUNTED`` board registers
-            (RX_FRAMING_ERRORS ... CMD_REFUSED; word ``counter_word(name)``: ``COMMAND_STATS``
-            are words 0-4), its ``ram`` for ``report`` and for tests (``ram.data[k]``).
-        ``frames_sent``, ``rate_errors``, ``who_am_i``, ``self_test`` (in): read back as
-            board registers.
+            (RX_FRAMING_ERRORS ... CMD_REFUSED, RATE_ERRORS; word ``counter_word(name)``:
+            ``COMMAND_STATS`` are words 0-4), its ``ram`` for ``report`` and for tests
+            (``ram.data[k]``).
+        ``frames_sent``, ``who_am_i``, ``self_test`` (in): read back as board registers.
     Latency: a board command's reply is offered two cycles after its last (CRC) byte is
     taken; an engine write or read waits in addition until the engine takes it (at once while
     it is idle, ``WORST_UPDATE_CYCLES`` at most) and, for a read, its word (one cycle).
@@ -145,7 +155,7 @@ class CommandDecoder(wiring.Component):
             "rx_framing_error": In(1),
             "rx_overrun": In(1),
             "frames_sent": In(32),
-            "rate_errors": In(16),
+            "early_sample": In(1),
             "who_am_i": In(8),
             "self_test": In(SelfTestStatus),
             "tick": In(1, init=1),
@@ -292,7 +302,10 @@ class CommandDecoder(wiring.Component):
         m.d.comb += [
             counters.events[counter_word("RX_FRAMING_ERRORS")].eq(self.rx_framing_error),
             counters.events[counter_word("RX_OVERRUNS")].eq(self.rx_overrun),
-            counters.r_en.eq(read), counters.r_addr.eq(low - BOARD_REGS["CMD_DISCARDED"])]
+            counters.events[counter_word("RATE_ERRORS")].eq(self.early_sample),
+            counters.r_en.eq(read),
+            counters.r_addr.eq(Mux(low == BOARD_REGS["RATE_ERRORS"], RATE_ERRORS_WORD,
+                                   low - BOARD_REGS["CMD_DISCARDED"]))]
 
     def _board_regs(self, count):
         """What each board register reads back, by address (``BOARD_REGS``: the one map of
@@ -303,11 +316,11 @@ class CommandDecoder(wiring.Component):
             "REGMAP_VERSION": C(REGMAP_VERSION, 32),
             # the counters' word, read as the frame's last byte was taken (``elaborate``)
             **{name: count for name in COUNTED},
-            "FRAMES_SENT": self.frames_sent, "RATE_ERRORS": self.rate_errors,
+            "FRAMES_SENT": self.frames_sent,
             "WHO_AM_I": self.who_am_i, "SELF_TEST": self.self_test.as_value(),
         }
-        assert list(sources) == list(BOARD_REGS), "a board register without its source"
-        return {BOARD_REGS[name]: value for name, value in sources.items()}
+        assert set(sources) == set(BOARD_REGS), "a board register without its source"
+        return {BOARD_REGS[name]: sources[name] for name in BOARD_REGS}
 
     def _parse(self, m, c):
         """The parsing states of the decoder's FSM, HUNT to CRC_LOW (EXECUTE follows a frame

@@ -26,7 +26,8 @@ class EventCounters(wiring.Component):
     word is written back); a higher counter's, if each comes once its last has been taken.
     The command decoder's: discarded bytes (the lowest) at most two in a row (the byte its
     second-sync check turns back, then the one the hunt takes) and never while it reads a
-    counter (as a frame ends); the others at most once per byte or frame.
+    counter (as a frame ends); the others at most once per byte or frame, or (the sample
+    reader's early samples) once per sample.
 
     A reset clears a bit per counter (set by its first count) rather than the RAM: a counter
     whose bit is clear reads 0, so the counts are from the reset, as registers' would be, and

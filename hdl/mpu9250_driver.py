@@ -237,15 +237,15 @@ class DriverTiming:
 
 def driver_members():
     """The driver's ports towards the sensor's INT pin and downstream, which the sensor front
-    end passes on unchanged: ``int_pin``, ``samples``, ``status``, ``asa``, ``rate_errors``
-    (16, saturating: samples that came early, ``DriverStatus.rate_error``), ``who_am_i``
-    (8: the last WHO_AM_I value read), ``self_test`` (``SelfTestStatus``), and the sample
-    store's write port and the offered sample's slot (``store``, ``sample_slot``:
-    ``SampleReader``, ``hdl/sample_store.py``), and the reader's free-running ``tick``
-    (``tick_cycles``)."""
+    end passes on unchanged: ``int_pin``, ``samples``, ``status``, ``asa``, ``early_sample``
+    (a pulse per sample that came early, ``DriverStatus.rate_error``: the board counts them in
+    RATE_ERRORS), ``who_am_i`` (8: the last WHO_AM_I value read), ``self_test``
+    (``SelfTestStatus``), and the sample store's write port and the offered sample's slot
+    (``store``, ``sample_slot``: ``SampleReader``, ``hdl/sample_store.py``), and the reader's
+    free-running ``tick`` (``tick_cycles``)."""
     return {"int_pin": In(1), "samples": Out(stream.Signature(Sample)),
             "status": Out(DriverStatus), "asa": Out(data.ArrayLayout(8, 3)),
-            "rate_errors": Out(16), "who_am_i": Out(8), "self_test": Out(SelfTestStatus),
+            "early_sample": Out(1), "who_am_i": Out(8), "self_test": Out(SelfTestStatus),
             "store": Out(SampleStoreWriteSignature()), "sample_slot": Out(range(SLOTS)),
             "tick": Out(1)}
 
@@ -316,7 +316,7 @@ class MPU9250Driver(wiring.Component):
             reader.restarted.eq(seq.restarted), reader.mag_ok.eq(seq.mag_ok),
             reader.mag_setup.eq(seq.mag_setup),
             seq.restart.eq(reader.restart), seq.mag_lost.eq(reader.mag_lost),
-            seq.reconfigure.eq(reader.reconfigure), self.rate_errors.eq(reader.rate_errors),
+            seq.reconfigure.eq(reader.reconfigure), self.early_sample.eq(reader.reconfigure),
             status.rate_error.eq(reader.rate_error),
             seq.mag_nack.eq(reader.mag_nack),
             self.asa.eq(seq.asa),

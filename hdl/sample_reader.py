@@ -16,8 +16,8 @@ The rules it applies (``hdl/FAULTS.md`` has what each catches):
   show in the next interval;
 - a data-ready interval shorter than ``EARLY_FRACTION`` (7/8) of the period whose burst holds a
   new sample means the sensor runs faster than configured (SMPLRT_DIV or CONFIG changed under the
-  driver: a glitch, a brown-out of that register): ``rate_error`` is set, ``rate_errors``
-  counts it, and the reader asks for the configuration to be written again (``reconfigure``).
+  driver: a glitch, a brown-out of that register): ``rate_error`` is set and the reader asks
+  for the configuration to be written again (``reconfigure``, a pulse the board counts).
   The sample itself is real and is passed on (flagged).
 """
 
@@ -145,7 +145,8 @@ class SampleReader(wiring.Component):
         ``int_timeout``, ``bad_burst``, ``mag_stale``, ``read_error``, ``rate_error`` (out):
             status, as ``DriverStatus`` has them (``read_error``: the MPU9250's read failed,
             I2C; ``rate_error``: the last sample came early, cleared by one on time).
-        ``rate_errors`` (out, 16): early samples since power-on, saturating.
+            ``reconfigure`` is also the pulse per early sample that the board counts
+            (RATE_ERRORS, in the command decoder's counters).
         ``tick`` (out): a pulse every ``tick_cycles(period_cycles)`` cycles, free-running (the
             prescaler of its clocks and time-outs; the driver's sequencer counts it too).
         ``store`` (out, ``SampleStoreWriteSignature``): the burst's sensor bytes, written into
@@ -180,7 +181,7 @@ class SampleReader(wiring.Component):
             "mag_ok": In(1), "mag_setup": In(1),
             "restart": Out(1), "reconfigure": Out(1), "mag_lost": Out(1), "mag_nack": Out(1),
             "int_timeout": Out(1), "bad_burst": Out(1), "mag_stale": Out(1),
-            "read_error": Out(1), "rate_error": Out(1), "rate_errors": Out(16),
+            "read_error": Out(1), "rate_error": Out(1),
             "tick": Out(1),
             "store": Out(SampleStoreWriteSignature()),
             "sample_slot": Out(range(SLOTS), init=SLOTS - 1),
@@ -547,7 +548,7 @@ class SampleReader(wiring.Component):
                         m.d.comb += self.mag_nack.eq(1)
                         m.d.sync += mag_read_failed.eq(1)
             with m.State("CHECK"):
-                m.d.sync += [n.counting.eq(1), n.early_count.eq(0),
+                m.d.sync += [n.counting.eq(1),
                              timer.eq(n.after_ticks), self.int_timeout.eq(0)]
                 m.next = "IDLE"
                 plausible = buf[0][0] & (buf[0] != 0xFF) & ~n.data_ones
@@ -579,7 +580,6 @@ class SampleReader(wiring.Component):
                     with m.If(early):
                         # a new sample too soon: the part runs faster than it was told
                         m.d.comb += self.reconfigure.eq(1)
-                        m.d.sync += n.early_count.eq(1)       # ``rate_errors``, after
                     if not spi:
                         m.d.sync += self.read_error.eq(0)
                     self._emit(m, sample, buf, counter, overrun, dropped, skipped, resumed,
@@ -593,17 +593,12 @@ class SampleReader(wiring.Component):
                                      n.zero_field.eq(~self.mag_ok | mag_read_failed)]
 
     def _counts(self, m, n):
-        """The samples read (returned: 32 bits, wrapping) and ``rate_errors`` (16,
-        saturating): a check (``n.counting`` set, ``n.early_count``: its sample came early) is
-        counted in the cycle after it. Each count has its incrementer (a 32-bit adder shared
-        by rotating the two through it cost more: its operand's choice and the rotation)."""
+        """The samples read (returned: 32 bits, wrapping): a check (``n.counting`` set) is
+        counted in the cycle after it."""
         head = Signal(32)                       # the count of samples read
         n.counting = Signal()
-        n.early_count = Signal()
         with m.If(n.counting):
             m.d.sync += [head.eq(head + 1), n.counting.eq(0)]
-            with m.If(n.early_count & ~self.rate_errors.all()):
-                m.d.sync += self.rate_errors.eq(self.rate_errors + 1)
         return head
 
     def _emit(self, m, sample, buf, counter, overrun, dropped, skipped, resumed, prev_field,

@@ -89,7 +89,7 @@ class SensorFrontEnd(wiring.Component):
         connect(m, driver.samples, flipped(self.samples))
         connect(m, driver.store, flipped(self.store))
         m.d.comb += [driver.int_pin.eq(self.int_pin), self.status.eq(driver.status),
-                     self.asa.eq(driver.asa), self.rate_errors.eq(driver.rate_errors),
+                     self.asa.eq(driver.asa), self.early_sample.eq(driver.early_sample),
                      self.who_am_i.eq(driver.who_am_i), self.self_test.eq(driver.self_test),
                      self.sample_slot.eq(driver.sample_slot), self.tick.eq(driver.tick)]
         if self.config.wiring == "i2c":

@@ -340,7 +340,7 @@ class AHRSCore(wiring.Component):
         m.d.comb += [decoder.tick.eq(fe.tick), decoder.rx_framing_error.eq(rx.framing_error),
                      decoder.rx_overrun.eq(rx.overrun),
                      decoder.frames_sent.eq(arbiter.frames),
-                     decoder.rate_errors.eq(fe.rate_errors),
+                     decoder.early_sample.eq(fe.early_sample),
                      decoder.who_am_i.eq(fe.who_am_i), decoder.self_test.eq(fe.self_test),
                      self.raw_mode.eq(decoder.raw_mode),
                      framer.short.eq(decoder.raw_mode)]

@@ -162,7 +162,7 @@ def frontend_design(harness, dut, *, spi, key, cached_only=False, trace=False):
         harness, spi=spi, extra_inputs={"samples_ready": dut.samples.ready},
         extra_outputs={"samples_valid": dut.samples.valid, "status": dut.status,
                        "samples_payload": dut.samples.payload, "asa": dut.asa,
-                       "rate_errors": dut.rate_errors, "who_am_i": dut.who_am_i,
+                       "rate_errors": harness.rate_errors, "who_am_i": dut.who_am_i,
                        "self_test": dut.self_test})
     return CompiledDesign(harness, inputs, outputs, name="frontend-" + ("spi" if spi else "i2c"),
                           key=key, cached_only=cached_only, trace=trace)

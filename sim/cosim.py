@@ -48,10 +48,15 @@ class CosimHarness(Monitored):
     ``wake_at`` is the cycle at which the models next want to run with
     no pin change; ``wake`` is high in it. ``monitor(stream, name)`` watches a stream of the
     design for the stream rules; ``check(ctx)`` at the end of the run (``Monitored``).
+    ``early_sample``: the front end's pulse per early sample, counted in ``rate_errors`` (16
+    bits, saturating, as the board's RATE_ERRORS counts them in the command decoder, which a
+    front end alone does not have).
     """
-    def __init__(self, dut, *, spi=None, i2c=None, int_pin=None):
+    def __init__(self, dut, *, spi=None, i2c=None, int_pin=None, early_sample=None):
         super().__init__(dut)
         self.spi, self.i2c, self.int_pin = spi, i2c, int_pin
+        self.early_sample = early_sample
+        self.rate_errors = Signal(16)
         self.cycle = Signal(40)
         self.wake_at = Signal(40, init=(1 << 40) - 1)
         self.wake = Signal()
@@ -66,6 +71,9 @@ class CosimHarness(Monitored):
         m = super().elaborate(platform)                 # the design and its monitors
         m.d.sync += self.cycle.eq(self.cycle + 1)
         m.d.comb += self.wake.eq(self.cycle == self.wake_at)
+        if self.early_sample is not None:
+            with m.If(self.early_sample & ~self.rate_errors.all()):
+                m.d.sync += self.rate_errors.eq(self.rate_errors + 1)
         if self.spi is not None:
             # the pin itself: the model process drives the level it has at the next clock edge
             m.d.comb += self.spi.cipo.eq(self.cipo_model)
@@ -314,7 +322,7 @@ class CosimResult:
     status_log: List[tuple] = field(default_factory=list)   # (cycle, status dict) on change
     asa: List[int] = field(default_factory=list)            # the driver's asa port at the end
     sample_cycles: List[int] = field(default_factory=list)  # when each sample was taken
-    rate_errors: int = 0                                    # the driver's count at the end
+    rate_errors: int = 0                                    # early samples (its pulses counted)
     who_am_i: Optional[int] = None                          # its who_am_i port at the end
     self_test: dict = field(default_factory=dict)           # its self_test port at the end
     compiled: bool = False                                  # the compiled path ran
@@ -428,9 +436,11 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
 
     bus = None
     if setup.config.wiring == "spi":
-        harness = CosimHarness(dut, spi=dut.pins, int_pin=dut.int_pin)
+        harness = CosimHarness(dut, spi=dut.pins, int_pin=dut.int_pin,
+                               early_sample=dut.early_sample)
     else:
-        harness = CosimHarness(dut, i2c=dut.pins, int_pin=dut.int_pin)
+        harness = CosimHarness(dut, i2c=dut.pins, int_pin=dut.int_pin,
+                               early_sample=dut.early_sample)
         address = setup.config.i2c_address
         def lookup(a):
             if model is None or (injector is not None and injector.mpu_absent):
@@ -512,7 +522,7 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
                     observe(cycle + 1, taken, payload, status)
         except Done:
             out["asa"] = to_python(ctx.get(dut.asa))
-            out["rate_errors"] = ctx.get(dut.rate_errors)
+            out["rate_errors"] = ctx.get(harness.rate_errors)
             out["who_am_i"] = ctx.get(dut.who_am_i)
             out["self_test"] = to_python(ctx.get(dut.self_test))
             harness.check(ctx)

@@ -37,10 +37,11 @@ class Harness(Elaboratable):
         return m
 
 
-def run(data, *, gaps=None, busy_cycles=3, inputs=None):
+def run(data, *, gaps=None, busy_cycles=3, inputs=None, pulses=None):
     """Feed ``data`` (bytes; ``gaps``: {index: idle cycles before that byte}); the engine port
     model takes a write after ``busy_cycles`` and answers a read of address a with 3a + 1.
-    ``inputs``: {name: value} of the decoder's inputs to drive (the board registers' sources).
+    ``inputs``: {name: value} of the decoder's inputs to drive (the board registers' sources);
+    ``pulses``: {name: n}: n one-cycle pulses of that event input, every other cycle, first.
     Returns (engine writes, replies, stats, raw_mode)."""
     h = Harness()
     dec = h.decoder
@@ -81,6 +82,12 @@ def run(data, *, gaps=None, busy_cycles=3, inputs=None):
     async def host(ctx):
         for name, value in (inputs or {}).items():
             ctx.set(getattr(dec, name), value)
+        for name, n in (pulses or {}).items():
+            for _ in range(n):
+                ctx.set(getattr(dec, name), 1)
+                await ctx.tick()
+                ctx.set(getattr(dec, name), 0)
+                await ctx.tick()
         for k, byte in enumerate(data):
             if gaps and k in gaps:
                 await ctx.tick().repeat(gaps[k])
@@ -338,16 +345,17 @@ def test_time_out_counted_in_ticks():
 
 def test_board_registers_read_their_sources():
     """Every read-only board register answers with its source: the build's words, the frames
-    sent, the rate errors, WHO_AM_I and the self-test status as the core drives them."""
-    inputs = {"frames_sent": 0x89ABCDEF, "rate_errors": 0x1234, "who_am_i": 0x71,
+    sent, WHO_AM_I and the self-test status as the core drives them, and the rate errors as
+    the early-sample pulses counted."""
+    inputs = {"frames_sent": 0x89ABCDEF, "who_am_i": 0x71,
               "self_test": {"fail": 0b101000011, "done": 1, "mag_done": 1}}
     names = ["VERSION", "REGMAP_VERSION", "FRAMES_SENT", "RATE_ERRORS", "WHO_AM_I",
              "SELF_TEST", "RAW_MODE"]
     commands = [encode_command("read", k, addr=BOARD_REGS[name], space="board")
                 for k, name in enumerate(names)]
-    _, replies, _, _ = run(b"".join(commands), inputs=inputs)
+    _, replies, _, _ = run(b"".join(commands), inputs=inputs, pulses={"early_sample": 37})
     got = {names[x["cmd_seq"]]: (x["result"], x["value"]) for x in replies}
     status = SelfTestStatus.const(inputs["self_test"]).as_value().value
     assert got == {name: (RESULTS["ok"], value) for name, value in (
         ("VERSION", VERSION), ("REGMAP_VERSION", REGMAP_VERSION), ("FRAMES_SENT", 0x89ABCDEF),
-        ("RATE_ERRORS", 0x1234), ("WHO_AM_I", 0x71), ("SELF_TEST", status), ("RAW_MODE", 0))}
+        ("RATE_ERRORS", 37), ("WHO_AM_I", 0x71), ("SELF_TEST", status), ("RAW_MODE", 0))}
