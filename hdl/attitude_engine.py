@@ -251,7 +251,6 @@ class AttitudeEngine(wiring.Component):
         # ``x``'s adder controls, decoded as ``x`` is loaded (not from its opcode in the cycle:
         # the adder's carry chain starts at flip-flops, report --timing). Like ``x``, they
         # matter only while ``xvalid``, which rises only at an ``advance`` that loads them
-        x_alu = Signal(reset_less=True)                   # ADD, SUB or OR
         x_sub = Signal(reset_less=True)
         x_or = Signal(reset_less=True)
         phase = Signal(2)
@@ -267,7 +266,7 @@ class AttitudeEngine(wiring.Component):
         out = Signal(Attitude, reset_less=True)
         result_valid = Signal()
         return SimpleNamespace(fetch_pc=fetch_pc, rvalid=rvalid, rinstr=rinstr, o=o, ovalid=ovalid,
-                               x=x, xvalid=xvalid, xa=xa, xb=xb, x_alu=x_alu, x_sub=x_sub,
+                               x=x, xvalid=xvalid, xa=xa, xb=xb, x_sub=x_sub,
                                x_or=x_or, phase=phase, advance=advance, flush=flush,
                                first=first, init_pending=init_pending,
                                running_init=running_init, mag_valid=mag_valid, flags_set=flags_set,
@@ -344,15 +343,16 @@ class AttitudeEngine(wiring.Component):
         """The register file's write port (loader, host or the execute stage), the result
         snooped from it, and the forwarding of a write into ``o``'s operands (``p.o_a``,
         ``p.o_b``) with the facts it and the MUL's stall test use."""
-        (mac, o, rinstr, alu, host, xvalid, x_alu, flag_sat, advance, rf, out, x) = (
-            u.mac, p.o, p.rinstr, u.alu, u.host, p.xvalid, p.x_alu, p.flag_sat, p.advance, u.rf,
-            p.out, p.x)
+        (mac, o, rinstr, alu, host, flag_sat, advance, rf, out, x) = (
+            u.mac, p.o, p.rinstr, u.alu, u.host, p.flag_sat, p.advance, u.rf, p.out, p.x)
         # -- the write port: loader, host, or the execute stage (MAC write-back, then ALU,
         # DIV, CORDIC: never two in one cycle, the sequencer sees to it) -----------------------
         w_en, w_addr, w_data, w_sat = Signal(), Signal(REG_BITS), Signal(signed(32)), Signal()
         # the ALU's result joins the write data last (``alu_w``: the ALU writes now), after the
-        # other sources' multiplexer (``w_other``): the forwarding below takes it from the
-        # ALU directly, so the adder's path to the operand registers has no write multiplexer
+        # other sources' multiplexer (``w_other``), and the forwarding below takes the write
+        # data: the adder's path to the operand registers is one choice longer than from the
+        # adder itself, and each operand chooses among three sources, not four (report --timing
+        # still finds its critical path elsewhere)
         w_other, w_sat_other, alu_w = Signal(signed(32)), Signal(), Signal()
         m.d.comb += [w_data.eq(Mux(alu_w, alu.result, w_other)),
                      w_sat.eq(Mux(alu_w, alu.saturated, w_sat_other))]
@@ -403,12 +403,11 @@ class AttitudeEngine(wiring.Component):
             facts[port] = (x_wd & eq_x) | (x_wd1 & eq_x1) | (~x_wd & ~x_wd1 & mac.wb_en & eq_wb)
             reads_xd[port] = eq_x
         hit_a, hit_b = facts["a"], facts["b"]
-        # the ALU's result forwarded straight from the adder (``x_wd & eq_x`` for an ALU
-        # instruction, which writes ``x.d`` whatever else is pending: its write wins); any
-        # other write through the write multiplexer without the ALU
-        alu_a, alu_b = (xvalid & x_alu & reads_xd[port] for port in ("a", "b"))
-        o_a = Mux(alu_a, alu.result, Mux(hit_a, w_other, Mux(o_held_a, o_hold_a, rf.ra_data)))
-        o_b = Mux(alu_b, alu.result, Mux(hit_b, w_other, Mux(o_held_b, o_hold_b, rf.rb_data)))
+        # this cycle's write forwarded from the write data (the ALU's result or another's: an
+        # ALU instruction writes ``x.d`` whatever else is pending, so ``hit`` is then its
+        # write), ahead of a write held for ``o`` or the register file's read
+        o_a = Mux(hit_a, w_data, Mux(o_held_a, o_hold_a, rf.ra_data))
+        o_b = Mux(hit_b, w_data, Mux(o_held_b, o_hold_b, rf.rb_data))
         # snooped from the registered write (a cycle after the execute stage's): the ALU's and
         # the write multiplexer's paths end at ``wr_data``, not at the result's 320 flip-flops
         # as well. The last write of an update is at the latest in the cycle before END
@@ -446,11 +445,11 @@ class AttitudeEngine(wiring.Component):
     def _execute(self, m, u, p):
         """The execute stage for ``x`` (an FSM state body)."""
         (advance, xvalid, mac, o, w_data, hit_a, hit_b, w_en, w_addr, w_other, w_sat_other, x,
-         ovalid, x_alu, x_sub, x_or, rom, rvalid, o_held_a, o_hold_a, o_held_b, o_hold_b, fetch_pc,
+         ovalid, x_sub, x_or, rom, rvalid, o_held_a, o_hold_a, o_held_b, o_hold_b, fetch_pc,
          flush, x_wd, alu_w, o_reads_x, phase, cond, rinstr, divider, cordic, x_wd1,
          flags_set, o_reads_acc) = (
             p.advance, p.xvalid, u.mac, p.o, p.w_data, p.hit_a, p.hit_b, p.w_en, p.w_addr,
-            p.w_other, p.w_sat_other, p.x, p.ovalid, p.x_alu, p.x_sub, p.x_or, u.rom, p.rvalid,
+            p.w_other, p.w_sat_other, p.x, p.ovalid, p.x_sub, p.x_or, u.rom, p.rvalid,
             p.o_held_a, p.o_hold_a, p.o_held_b, p.o_hold_b, p.fetch_pc, p.flush,
             p.x_wd, p.alu_w, p.o_reads_x, p.phase, p.cond, p.rinstr, u.divider, u.cordic, p.x_wd1,
             p.flags_set, p.o_reads_acc)
@@ -517,7 +516,6 @@ class AttitudeEngine(wiring.Component):
         with m.If(advance):
             m.d.sync += [
                 x.eq(o), xvalid.eq(ovalid & ~flush),
-                x_alu.eq(o.op.matches(Op.ADD, Op.SUB, Op.OR)),
                 x_sub.eq(o.op == Op.SUB), x_or.eq(o.op == Op.OR),
                 o.eq(rom.data), ovalid.eq(rvalid & ~flush),
                 o_held_a.eq(w_en & (w_addr == rinstr.a)), o_hold_a.eq(w_data),
