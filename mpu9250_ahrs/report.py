@@ -14,7 +14,8 @@ gateware has no option for it) and counts them from their sizes:
   telemetry framer's frame buffer, the sample store, the sequencer's program, the command
   decoder's FIFO and counters, the PWM block's read-back, the self-test's sums and table.
   Small constant tables Yosys turns into ROMs (the CORDIC's arctangents) stay in logic here:
-  ``rom_bits_in_logic``.
+  ``rom_bits_in_logic``. ``m9k_blocks``: each memory in the M9K mode that takes the fewest
+  (``hdl.memories.m9k_blocks``; the register file twice), an estimate of Quartus' packing.
 - ``logic_elements``: ``fiftyfivenm_lcell_comb`` cells, or registers where those are more (a
   MAX10 LE holds one LUT and one register). Yosys 0.23 maps adders without the LE's carry chain,
   so this is pessimistic; ``logic_elements_carry_chain`` is the same design through
