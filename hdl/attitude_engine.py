@@ -11,11 +11,14 @@ reset default), the per-axis Kalman filter, the complementary filter and Madgwic
 descent.
 
 Pipeline: fetch (instruction ROM, synchronous) → read (register file, two synchronous read
-ports, transparent to the write port) → operands registered → execute → write back (the
-register file written from registers a cycle later). The operand and write registers keep the
-block RAM's clock-to-output and input set-up times out of the execute stage's adders (the
-routed critical path of ``report --timing`` ran through both); the MAC adds and saturates in
-separate cycles (``hdl/multiply_accumulate.py``).
+ports, transparent to the write port; while an instruction waits they read its operands again
+each cycle) → operands registered → execute, which writes the register file in its own cycle.
+The operand registers keep the block RAM's clock-to-output time out of the execute stage's
+adders (the routed critical path of ``report --timing`` ran through it once); the MAC adds and
+saturates in separate cycles (``hdl/multiply_accumulate.py``). The write is not registered
+first: that stage, and a held copy of each operand for a write it delayed past the operands'
+read, cost registers and LUTs (``report``) for Fmax margin that the CORDIC's path, the routed
+critical one, does not leave (``report --timing``).
 A result is visible to the next instruction without stalls (forwarded into the operand
 registers); multi-cycle operations (MUL 3, or 1 to 2 when the next is a MUL that reads none
 of the results still to come; DIV 34, VEC 19, ROT 18 cycles) hold the pipeline; a taken branch
@@ -309,11 +312,14 @@ class AttitudeEngine(wiring.Component):
         m.d.comb += [
             # a register test taken in execute (``flush``) reads its target at once
             rom.addr.eq(p.fetch_addr), rom.en.eq(advance),
-            rf.ra_addr.eq(Mux(host.r_en, host.r_addr, rinstr.a)),
+            rf.ra_addr.eq(Mux(host.r_en, host.r_addr, Mux(advance, rinstr.a, p.o.a))),
             rf.rb_addr.eq(Mux(self.peek_en,
                               Array(C(REGS[name], REG_BITS) for name in PEEKED)[self.peek_index],
-                              rinstr.b)),
-            rf.r_en.eq(advance | host.r_en | self.peek_en), host.r_data.eq(rf.ra_data),
+                              Mux(advance, rinstr.b, p.o.b))),
+            # the ports read every cycle: the instruction fetched at an advance, else ``o``'s
+            # operands again (so a write while ``o`` waits reaches it through the register
+            # file), or the host's or the framer's word (each taken the cycle after)
+            rf.r_en.eq(1), host.r_data.eq(rf.ra_data),
             self.peek_data.eq(rf.rb_data),
             self.results.payload.eq(out),
         ]
@@ -356,14 +362,14 @@ class AttitudeEngine(wiring.Component):
         w_other, w_sat_other, alu_w = Signal(signed(32)), Signal(), Signal()
         m.d.comb += [w_data.eq(Mux(alu_w, alu.result, w_other)),
                      w_sat.eq(Mux(alu_w, alu.saturated, w_sat_other))]
-        # the register file is written a cycle later, from registers: the execute stage's
-        # multiplexers end at flip-flops, not at the block RAM's data inputs (a read at the same
-        # edge as that write sees it: the register file is transparent)
+        # the register file is written in the execute stage's cycle (a read at the same edge
+        # sees the write: the register file is transparent); ``wr_*``, the write registered,
+        # is what the result is snooped from
         wr_en = Signal()
         wr_addr = Signal(REG_BITS, reset_less=True)
         wr_data = Signal(signed(32), reset_less=True)
         m.d.sync += [wr_en.eq(w_en), wr_addr.eq(w_addr), wr_data.eq(w_data)]
-        m.d.comb += [rf.w_en.eq(wr_en), rf.w_addr.eq(wr_addr), rf.w_data.eq(wr_data)]
+        m.d.comb += [rf.w_en.eq(w_en), rf.w_addr.eq(w_addr), rf.w_data.eq(w_data)]
         # the MAC's write-back is the address and data when no other writer chooses them
         # (ungated: whatever they are without ``w_en``, nothing reads them then)
         m.d.comb += [w_addr.eq(mac.wb_addr), w_other.eq(mac.wb_data)]
@@ -373,12 +379,9 @@ class AttitudeEngine(wiring.Component):
         fields = [*(out.quat[i] for i in range(4)), *(out.angles[i] for i in range(3)),
                   *(out.bias[i] for i in range(3))]
         snooped = list(zip(fields, PEEKED))
-        # the operands of ``o``, as they are now: the register file's read when it came in,
-        # a write since or in the cycle it came in (which reached the register file after
-        # its read: ``o_hold_*``), or the write in this very cycle (forwarded)
-        o_hold_a = Signal(signed(32), reset_less=True)
-        o_hold_b = Signal(signed(32), reset_less=True)
-        o_held_a, o_held_b = Signal(), Signal()
+        # the operands of ``o``, as they are now: the register file's read of the cycle before
+        # (which saw every write up to then: the ports read ``o``'s operands again each cycle
+        # it waits), or the write in this very cycle (forwarded)
         # Whether this cycle's write is to ``o``'s operand: ``w_en & (w_addr == o.a)``, made
         # from registered facts (does ``o`` read what ``x`` writes, ``x.d + 1``, what the MAC
         # writes back), kept with the registers they compare, so that no address comparison
@@ -406,8 +409,8 @@ class AttitudeEngine(wiring.Component):
         # this cycle's write forwarded from the write data (the ALU's result or another's: an
         # ALU instruction writes ``x.d`` whatever else is pending, so ``hit`` is then its
         # write), ahead of a write held for ``o`` or the register file's read
-        o_a = Mux(hit_a, w_data, Mux(o_held_a, o_hold_a, rf.ra_data))
-        o_b = Mux(hit_b, w_data, Mux(o_held_b, o_hold_b, rf.rb_data))
+        o_a = Mux(hit_a, w_data, rf.ra_data)
+        o_b = Mux(hit_b, w_data, rf.rb_data)
         # snooped from the registered write (a cycle after the execute stage's): the ALU's and
         # the write multiplexer's paths end at ``wr_data``, not at the result's 320 flip-flops
         # as well. The last write of an update is at the latest in the cycle before END
@@ -436,23 +439,20 @@ class AttitudeEngine(wiring.Component):
                                Mux(mac.issue, reads(rinstr, x.d), reads(rinstr, mac.wb_next_addr)),
                                Mux(mac.issue, reads(o, x.d), o_reads_acc))),
         ]
-        (p.w_en, p.w_addr, p.w_data, p.w_other, p.w_sat_other, p.alu_w, p.o_hold_a, p.o_hold_b,
-         p.o_held_a, p.o_held_b, p.x_wd, p.x_wd1, p.hit_a, p.hit_b, p.o_a, p.o_b, p.o_reads_x,
-         p.o_reads_acc) = (
-            w_en, w_addr, w_data, w_other, w_sat_other, alu_w, o_hold_a, o_hold_b, o_held_a,
-            o_held_b, x_wd, x_wd1, hit_a, hit_b, o_a, o_b, o_reads_x, o_reads_acc)
+        (p.w_en, p.w_addr, p.w_data, p.w_other, p.w_sat_other, p.alu_w, p.x_wd, p.x_wd1,
+         p.hit_a, p.hit_b, p.o_a, p.o_b, p.o_reads_x, p.o_reads_acc) = (
+            w_en, w_addr, w_data, w_other, w_sat_other, alu_w, x_wd, x_wd1, hit_a, hit_b, o_a,
+            o_b, o_reads_x, o_reads_acc)
 
     def _execute(self, m, u, p):
         """The execute stage for ``x`` (an FSM state body)."""
-        (advance, xvalid, mac, o, w_data, hit_a, hit_b, w_en, w_addr, w_other, w_sat_other, x,
-         ovalid, x_sub, x_or, rom, rvalid, o_held_a, o_hold_a, o_held_b, o_hold_b, fetch_pc,
-         flush, x_wd, alu_w, o_reads_x, phase, cond, rinstr, divider, cordic, x_wd1,
-         flags_set, o_reads_acc) = (
-            p.advance, p.xvalid, u.mac, p.o, p.w_data, p.hit_a, p.hit_b, p.w_en, p.w_addr,
-            p.w_other, p.w_sat_other, p.x, p.ovalid, p.x_sub, p.x_or, u.rom, p.rvalid,
-            p.o_held_a, p.o_hold_a, p.o_held_b, p.o_hold_b, p.fetch_pc, p.flush,
-            p.x_wd, p.alu_w, p.o_reads_x, p.phase, p.cond, p.rinstr, u.divider, u.cordic, p.x_wd1,
-            p.flags_set, p.o_reads_acc)
+        (advance, xvalid, mac, o, w_en, w_addr, w_other, w_sat_other, x, ovalid, x_sub, x_or,
+         rom, rvalid, fetch_pc, flush, x_wd, alu_w, o_reads_x, phase, cond, divider, cordic,
+         x_wd1, flags_set, o_reads_acc) = (
+            p.advance, p.xvalid, u.mac, p.o, p.w_en, p.w_addr, p.w_other, p.w_sat_other, p.x,
+            p.ovalid, p.x_sub, p.x_or, u.rom, p.rvalid, p.fetch_pc, p.flush, p.x_wd, p.alu_w,
+            p.o_reads_x, p.phase, p.cond, u.divider, u.cordic, p.x_wd1, p.flags_set,
+            p.o_reads_acc)
         m.d.comb += advance.eq(1)                       # overridden below by stalls
         with m.If(mac.wb_en):
             m.d.comb += [w_en.eq(1), w_sat_other.eq(mac.wb_saturated)]
@@ -518,17 +518,8 @@ class AttitudeEngine(wiring.Component):
                 x.eq(o), xvalid.eq(ovalid & ~flush),
                 x_sub.eq(o.op == Op.SUB), x_or.eq(o.op == Op.OR),
                 o.eq(rom.data), ovalid.eq(rvalid & ~flush),
-                o_held_a.eq(w_en & (w_addr == rinstr.a)), o_hold_a.eq(w_data),
-                o_held_b.eq(w_en & (w_addr == rinstr.b)), o_hold_b.eq(w_data),
                 fetch_pc.eq(p.fetch_addr), rvalid.eq(1),
             ]
-        with m.Else():
-            # a write while ``o`` waits (a CORDIC's first result, a stalled MUL's) is kept
-            # for it: its register-file read happened when it came in
-            with m.If(hit_a):
-                m.d.sync += [o_hold_a.eq(w_data), o_held_a.eq(1)]
-            with m.If(hit_b):
-                m.d.sync += [o_hold_b.eq(w_data), o_held_b.eq(1)]
 
     def _load_data(self, m, load_index, taking, in_load):
         """The loader's word ``load_index`` (16 bits; the write sign-extends it): a sensor
