@@ -357,8 +357,8 @@ class AttitudeEngine(wiring.Component):
         # the ALU's result joins the write data last (``alu_w``: the ALU writes now), after the
         # other sources' multiplexer (``w_other``), and the forwarding below takes the write
         # data: the adder's path to the operand registers is one choice longer than from the
-        # adder itself, and each operand chooses among three sources, not four (report --timing
-        # still finds its critical path elsewhere)
+        # adder itself, and each operand chooses between two sources, the write data and the
+        # register file (report --timing still finds its critical path elsewhere)
         w_other, w_sat_other, alu_w = Signal(signed(32)), Signal(), Signal()
         m.d.comb += [w_data.eq(Mux(alu_w, alu.result, w_other)),
                      w_sat.eq(Mux(alu_w, alu.saturated, w_sat_other))]
@@ -379,9 +379,6 @@ class AttitudeEngine(wiring.Component):
         fields = [*(out.quat[i] for i in range(4)), *(out.angles[i] for i in range(3)),
                   *(out.bias[i] for i in range(3))]
         snooped = list(zip(fields, PEEKED))
-        # the operands of ``o``, as they are now: the register file's read of the cycle before
-        # (which saw every write up to then: the ports read ``o``'s operands again each cycle
-        # it waits), or the write in this very cycle (forwarded)
         # Whether this cycle's write is to ``o``'s operand: ``w_en & (w_addr == o.a)``, made
         # from registered facts (does ``o`` read what ``x`` writes, ``x.d + 1``, what the MAC
         # writes back), kept with the registers they compare, so that no address comparison
@@ -406,9 +403,11 @@ class AttitudeEngine(wiring.Component):
             facts[port] = (x_wd & eq_x) | (x_wd1 & eq_x1) | (~x_wd & ~x_wd1 & mac.wb_en & eq_wb)
             reads_xd[port] = eq_x
         hit_a, hit_b = facts["a"], facts["b"]
-        # this cycle's write forwarded from the write data (the ALU's result or another's: an
-        # ALU instruction writes ``x.d`` whatever else is pending, so ``hit`` is then its
-        # write), ahead of a write held for ``o`` or the register file's read
+        # the operands of ``o``, as they are now: this cycle's write forwarded from the write
+        # data (the ALU's result or another's: an ALU instruction writes ``x.d`` whatever else
+        # is pending, so ``hit`` is then its write), else the register file's read of the cycle
+        # before (which saw every write up to then: the ports read ``o``'s operands again each
+        # cycle it waits)
         o_a = Mux(hit_a, w_data, rf.ra_data)
         o_b = Mux(hit_b, w_data, rf.rb_data)
         # snooped from the registered write (a cycle after the execute stage's): the ALU's and
