@@ -21,7 +21,8 @@ read, cost registers and LUTs (``report``) for Fmax margin that the CORDIC's pat
 critical one, does not leave (``report --timing``).
 A result is visible to the next instruction without stalls (forwarded into the operand
 registers); multi-cycle operations (MUL 3, or 1 to 2 when the next is a MUL that reads none
-of the results still to come; DIV 34, VEC 19, ROT 18 cycles) hold the pipeline; a taken branch
+of the results still to come; DIV 34, VEC 19, ROT 18 cycles) hold the pipeline, except a VEC
+or ROT started in the background (``attitude_isa``: its collect waits for the CORDIC); a taken branch
 on a register (A_ZERO, A_NEG) costs two bubbles (decided in execute, the ROM reads its target
 at once), one on a condition fixed for the run (ALWAYS, MAG_INVALID, FIRST, FILTER) none: it
 is decided as it leaves the ROM (from the word's ``jump`` field, which any instruction may
@@ -36,8 +37,8 @@ from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
 from .alu import ALU
-from .attitude_isa import (FETCH_JUMPS, REG_BITS, REG_COUNT, ROM_BITS, ROM_DEPTH, Cond, Flag,
-                           Instr, Op, _reads_writes)
+from .attitude_isa import (CORDIC_COLLECT, CORDIC_GO_ON, CORDIC_SHORT, FETCH_JUMPS, REG_BITS,
+                           REG_COUNT, ROM_BITS, ROM_DEPTH, Cond, Flag, Instr, Op, _reads_writes)
 from .register_map import (CONTROL_ADDR, HOST_WRITABLE, LOAD_BASE, LOAD_ORDER, REGS, config_init,
                            load_words)
 from .filter_registry import FILTER_CODES
@@ -123,7 +124,8 @@ class AttitudeEngine(wiring.Component):
             (``FlagshipFixedConfig``): the register file's reset values. ``filter``: the filter
             selected at reset (a ``FILTER_CODES`` name: the flagship unless told).
             ``extra_registers`` (name: value): more reset values of the register map, e.g.
-            ``TELEMETRY_DIV``.
+            ``TELEMETRY_DIV``. ``program``: (instructions, entries ``init`` and ``sample``)
+            to run instead of ``build_program()``'s (a test's own).
     Members
         ``samples`` (in, stream of ``Sample``): one update per sample. Taken when the engine is
             idle and the previous result has been taken; the sample is held (``sample``) as
@@ -166,13 +168,13 @@ class AttitudeEngine(wiring.Component):
     """
 
     def __init__(self, config=KalmanFixedConfig(), cal=None, flagship=None, *,
-                 filter="flagship", extra_registers=None, sample_store=False):
+                 filter="flagship", extra_registers=None, sample_store=False, program=None):
         self.config = config
         self.sample_store = sample_store
         self.cal = CalibrationFixed() if cal is None else cal
         self.flagship = FlagshipFixedConfig.matching(config) if flagship is None else flagship
         self.filter_at_reset = FILTER_CODES[filter]
-        self.program, self.entry = build_program()
+        self.program, self.entry = build_program() if program is None else program
         # the hard blocks, kept as attributes: ``report`` substitutes them for its synthesis
         self.multiplier = Multiplier()
         self.cordic = CORDIC()                  # three of its own 18 x 18 blocks (its shifts)
@@ -329,7 +331,7 @@ class AttitudeEngine(wiring.Component):
             alu.wrap.eq(x.wrap), alu.sat16.eq(x.sat16),
             mac.a.eq(opa), mac.b.eq(opb), mac.ins.eq(x),
             cordic.x_in.eq(opa), cordic.y_in.eq(opb), cordic.angle_in.eq(opa),
-            cordic.mode.eq(x.op == Op.ROT), cordic.short.eq(x.sh[0]),
+            cordic.mode.eq(x.op == Op.ROT), cordic.short.eq((x.sh & CORDIC_SHORT).any()),
             divider.num.eq(opa), divider.den.eq(opb),
         ]
 
@@ -490,13 +492,19 @@ class AttitudeEngine(wiring.Component):
                     # the CORDIC's ``x_out`` first (ROT's cos into d, VEC's magnitude into
                     # d + 1), then its ``y_out`` (sin into d + 1, the angle into d): one source
                     # a write, the mode chosen inside the CORDIC
+                    # In the background (``attitude_isa``): a start (CORDIC_GO_ON) goes on at
+                    # once; its collect (CORDIC_COLLECT) skips the start and waits, as phase 1
+                    # does, for the CORDIC to be idle (its results hold until the next start)
                     is_rot = x.op == Op.ROT
-                    with m.If(phase == 0):
-                        m.d.comb += [advance.eq(0), cordic.start.eq(1)]
-                        m.d.sync += phase.eq(1)
-                    with m.Elif(phase == 1):
+                    go_on, collect = (x.sh & CORDIC_GO_ON).any(), (x.sh & CORDIC_COLLECT).any()
+                    with m.If((phase == 0) & ~collect):
+                        m.d.comb += cordic.start.eq(1)
+                        with m.If(~go_on):
+                            m.d.comb += advance.eq(0)
+                            m.d.sync += phase.eq(1)
+                    with m.Elif(phase != 2):
                         m.d.comb += advance.eq(0)
-                        with m.If(cordic.done):
+                        with m.If(~cordic.busy):
                             m.d.comb += [w_en.eq(1), w_addr.eq(Mux(is_rot, x.d, x.d + 1)),
                                          x_wd.eq(is_rot), x_wd1.eq(~is_rot),
                                          w_other.eq(cordic.x_out),

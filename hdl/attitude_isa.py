@@ -18,16 +18,27 @@ MUL   acc = (acc if ``acc`` else 2^(s−1)) ± a·b, s = MUL_SHIFTS[sh]  3; 1 (o
       (exact, 66 bits: the rounding constant goes in first);
       if ``wb``: d = acc >> s  (= rshift_round of the sum)
 DIV   d = div_q24(a, b): ⌊a·2²⁴/b⌋, 0 if b ≤ 0                     34
-VEC   CORDIC vectoring of (x = a, y = b): d = atan2 (BAM32),       19; 11 if ``sh`` = 1
-      d+1 = magnitude · K; ``sh`` = 1: short (8 iterations: a
-      length within 3·10⁻⁵, its angle coarse)
+VEC   CORDIC vectoring of (x = a, y = b): d = atan2 (BAM32),       19; 11 if short
+      d+1 = magnitude · K; ``sh`` bit 0 (``CORDIC_SHORT``): short
+      (8 iterations: a length within 3·10⁻⁵, its angle coarse)
 ROT   CORDIC rotation of the angle in a: d = cos, d+1 = sin (Q1.30)  18
+      VEC and ROT in the background (``sh`` bits 1 and 2, below):   start 1; collect 2
+      after the CORDIC is done (16 cycles after the start, 15 for
+      a ROT, 8 for a short VEC), else the rest of that wait too
 BR    if condition (``cond``, inverted by ``inv``): go to target   1, or 3 when taken
                                                                    on A_ZERO / A_NEG; 0
                                                                    folded (below)
 SETF  set result flag ``sh`` (``Flag``)                          1
 END   the sample is done: results out                              1
 ====  ===========================================================  ======================
+
+Background CORDIC: a VEC or ROT with ``sh`` bit 1 (``CORDIC_GO_ON``: the start) takes its
+operands and starts the CORDIC, and the next instruction follows at once; the same op with
+``sh`` bit 2 (``CORDIC_COLLECT``: the collect, ``d`` the start's) waits for the CORDIC if it is
+still running, then writes d and d + 1 as a VEC or ROT does. Between the two the program does
+other work, under the assembler's rules (``Assembler.resolve`` checks them): in the same basic
+block (no branch, label, folded jump or END between them), no other VEC or ROT, and nothing
+reads or writes d or d + 1 (a read would find the old value, a write be overwritten).
 
 Conditions: ``ALWAYS``; ``A_ZERO`` (register a is 0); ``A_NEG`` (register a is negative: a
 comparison is a SUB then this); ``MAG_INVALID`` (the sample's ``mag_valid`` flag is 0);
@@ -39,9 +50,9 @@ its word leaves the ROM, and the assembler folds it into the instruction before 
 (``Instruction.then``) unless that one is a branch or END or a label names the branch: then it
 costs no cycle at all.
 
-The assembler (``Assembler``) gives registers names, resolves labels and checks ranges; it
-knows nothing about hazards because the engine has none: a result is visible to the very next
-instruction.
+The assembler (``Assembler``) gives registers names, resolves labels and checks ranges. The
+engine has no hazards but the background CORDIC's: a result is visible to the very next
+instruction, and the assembler checks the rules above for a CORDIC started in the background.
 """
 
 import enum
@@ -53,7 +64,7 @@ from amaranth.lib import data
 
 
 __all__ = ["Op", "Cond", "Flag", "FETCH_JUMPS", "REGISTER_CONDS", "MUL_SHIFTS", "Q14", "Q24",
-           "DOUBLED", "Q30", "REG_COUNT", "REG_BITS", "ROM_DEPTH", "ROM_BITS", "Instr",
+           "DOUBLED", "Q30", "CORDIC_SHORT", "CORDIC_GO_ON", "CORDIC_COLLECT", "REG_COUNT", "REG_BITS", "ROM_DEPTH", "ROM_BITS", "Instr",
            "Instruction", "Assembler"]
 
 REG_COUNT = 256
@@ -70,6 +81,10 @@ Q24 = 24            # Q8.24 covariances, gains, T
 DOUBLED = 29        # 2·a·b of Q2.30 values (a rotation matrix's products)
 Q30 = 30            # products of Q1.30 / Q2.30 values, ½x as a MUL by 2²⁹
 MUL_SHIFTS = (Q14, Q24, DOUBLED, Q30)
+# VEC and ROT: the ``sh`` field's bits (the module docstring has the background CORDIC)
+CORDIC_SHORT = 1            # VEC: 8 iterations (a length)
+CORDIC_GO_ON = 2            # the start: the next instruction follows at once
+CORDIC_COLLECT = 4          # the collect: wait for the CORDIC, write d and d + 1
 
 
 class Op(enum.IntEnum):
@@ -110,7 +125,7 @@ class Instr(data.Struct):
     d: unsigned(REG_BITS)
     a: unsigned(REG_BITS)
     b: unsigned(REG_BITS)
-    sh: unsigned(3)         # MUL: MUL_SHIFTS index; SETF: the flag; VEC: 1 = short
+    sh: unsigned(3)         # MUL: MUL_SHIFTS index; SETF: the flag; VEC, ROT: CORDIC_* bits
     wrap: unsigned(1)       # ADD/SUB: wrap to 32 bits (angles) instead of saturating
     sat16: unsigned(1)      # ADD/SUB: saturate to 16 bits (calibrated sensor values)
     acc: unsigned(1)        # MUL: add to the running accumulator
@@ -190,7 +205,10 @@ def _fetch_jump(ins, cond, code):
 def _reads_writes(ins):
     """(registers read, registers written) by an instruction."""
     op = ins.op
-    if op in (Op.ADD, Op.SUB, Op.OR, Op.DIV, Op.VEC, Op.MUL):
+    cordic = op in (Op.VEC, Op.ROT)
+    if cordic and ins.sh & CORDIC_COLLECT:
+        reads = ()
+    elif op in (Op.ADD, Op.SUB, Op.OR, Op.DIV, Op.VEC, Op.MUL):
         reads = (ins.a, ins.b)
     elif op == Op.ROT:
         reads = (ins.a,)
@@ -198,7 +216,9 @@ def _reads_writes(ins):
         reads = (ins.a,)
     else:
         reads = ()
-    if op in (Op.VEC, Op.ROT):
+    if cordic and ins.sh & CORDIC_GO_ON:
+        writes = ()
+    elif cordic:
         writes = (ins.d, ins.d + 1)
     elif op in (Op.ADD, Op.SUB, Op.OR, Op.DIV) or (op == Op.MUL and ins.wb):
         writes = (ins.d,)
@@ -287,12 +307,23 @@ class Assembler:
     def div(self, d, a, b):
         self._emit(Instruction(Op.DIV, d, a, b))
 
-    def vec(self, d, x, y, *, short=False):
-        """``short``: a length only (``CORDIC_SHORT_ITERATIONS``: d's angle is coarse)."""
-        self._emit(Instruction(Op.VEC, d, x, y, sh=int(short)))
+    def vec(self, d, x, y, *, short=False, go_on=False):
+        """``short``: a length only (``CORDIC_SHORT_ITERATIONS``: d's angle is coarse).
+        ``go_on``: in the background (the start; ``collect`` writes d and d + 1)."""
+        self._emit(Instruction(Op.VEC, d, x, y, sh=(CORDIC_SHORT if short else 0)
+                               | (CORDIC_GO_ON if go_on else 0)))
 
-    def rot(self, d, angle):
-        self._emit(Instruction(Op.ROT, d, angle))
+    def rot(self, d, angle, *, go_on=False):
+        """``go_on``: in the background, as ``vec``'s."""
+        self._emit(Instruction(Op.ROT, d, angle, sh=CORDIC_GO_ON if go_on else 0))
+
+    def collect(self):
+        """The results of the VEC or ROT started last with ``go_on``, into its d and d + 1."""
+        start = next((i for i in reversed(self.code) if i.op in (Op.VEC, Op.ROT)), None)
+        if start is None or not start.sh & CORDIC_GO_ON:
+            raise ValueError(f"instruction {len(self.code)}: a collect with no VEC or ROT "
+                             f"started in the background before it")
+        self._emit(Instruction(start.op, start.d, sh=CORDIC_COLLECT))
 
     def br(self, target, cond=Cond.ALWAYS, *, a=0, inv=False, code=0):
         """``code``: the filter code a ``Cond.FILTER`` branch tests for."""
@@ -342,4 +373,43 @@ class Assembler:
             out.append(ins)
         if len(out) > ROM_DEPTH:
             raise ValueError(f"program of {len(out)} instructions exceeds the ROM ({ROM_DEPTH})")
+        _check_background(out, set(self.labels.values()))
         return out
+
+
+def _check_background(code, labelled):
+    """The background CORDIC's rules (the module docstring): each start (``CORDIC_GO_ON``) is
+    followed in its basic block by its collect, with no other VEC or ROT, and no access to its
+    d or d + 1, between them; every collect has its start. ``labelled``: the addresses labels
+    name (a branch may land there)."""
+    collected = set()
+    for i, ins in enumerate(code):
+        if ins.op not in (Op.VEC, Op.ROT) or not ins.sh & CORDIC_GO_ON:
+            continue
+        pair = {ins.d, ins.d + 1}
+        j, why = i, None
+        while why is None:
+            if code[j].then is not None:
+                why = "a jump folded into it"
+            j += 1
+            if j == len(code):
+                why = "the end of the program"
+                break
+            nxt = code[j]
+            if j in labelled:
+                why = "a label"
+            elif nxt.op in (Op.BR, Op.END):
+                why = nxt.op.name
+            elif nxt.op in (Op.VEC, Op.ROT):
+                if nxt.sh & CORDIC_COLLECT and nxt.op == ins.op and nxt.d == ins.d:
+                    collected.add(j)
+                    break
+                why = f"another {nxt.op.name}"
+            elif pair & set(sum(_reads_writes(nxt), ())):
+                why = f"{nxt.op.name} at {j}, which reads or writes d or d + 1"
+        if why is not None:
+            raise ValueError(f"instruction {i}: {ins.op.name} started in the background meets "
+                             f"{why} before its collect")
+    for j, ins in enumerate(code):
+        if ins.op in (Op.VEC, Op.ROT) and ins.sh & CORDIC_COLLECT and j not in collected:
+            raise ValueError(f"instruction {j}: a collect with no start before it")

@@ -24,6 +24,10 @@ class CORDIC(wiring.Component):
         ``short`` (in): stop after ``short_iterations`` (``CORDIC_SHORT_ITERATIONS``, 8): a
             vectoring whose angle is not wanted (a length: ``cordic_vector(iterations=)``).
         ``done`` (out): one-cycle pulse when the results are valid; they hold until the next start.
+        ``busy`` (out): an operation is running (from the cycle after ``start`` to the one
+            before ``done``): the results are valid whenever it is low and an operation was
+            started since reset. A user that goes on with other work after ``start`` (the
+            engine's background VEC and ROT) waits for it to fall rather than for ``done``.
         ``x_out`` (out, signed 32): vectoring, the magnitude √(x² + y²)·K saturated to 32 bits
             (``saturated`` set if it was clamped); rotation, cos in Q1.30.
         ``y_out`` (out, signed 32): vectoring, the angle (BAM32, atan2(y, x); (0, 0) gives 0);
@@ -66,6 +70,7 @@ class CORDIC(wiring.Component):
             "short": In(1),                 # stop after ``short_iterations``
             "x_in": In(signed(n)), "y_in": In(signed(n)), "angle_in": In(signed(n)),
             "done": Out(1),
+            "busy": Out(1),
             "x_out": Out(signed(n)),        # vectoring: |(x, y)|·K, saturated; rotation: cos
             "y_out": Out(signed(n)),        # vectoring: atan2(y, x); rotation: sin
             "saturated": Out(1),
@@ -162,6 +167,7 @@ class CORDIC(wiring.Component):
                                      z.eq(Mux(zero, Mux(self.short, -short_sum, -whole_sum),
                                               Cat(C(0, n - 1), left)))]
             with m.State("RUN"):
+                m.d.comb += self.busy.eq(1)
                 # x ∓ (y >> i), y ± (x >> i), z ∓ atan: one adder each, the operand inverted
                 # (plus one) to subtract
                 m.d.sync += [

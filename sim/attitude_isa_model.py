@@ -7,7 +7,8 @@ before the slower gateware simulation, and to debug a program one instruction at
 under test here.
 """
 
-from ..hdl.attitude_isa import MUL_SHIFTS, Cond, Flag, Op
+from ..hdl.attitude_isa import (CORDIC_COLLECT, CORDIC_GO_ON, CORDIC_SHORT, MUL_SHIFTS, Cond,
+                                Flag, Op)
 from ..hdl.register_map import CONFIG_REGS, LOAD_ORDER, REGS, config_init, load_words
 from ..hdl.filter_registry import FILTER_CODES
 from ..hdl.attitude_program import build_program
@@ -51,6 +52,7 @@ class AttitudeISAModel:
         flags = set()
         st = Status()
         steps = 0
+        pending = None          # a background VEC's or ROT's results, until its collect
         while True:
             ins = self.program[pc]
             steps += 1
@@ -81,15 +83,22 @@ class AttitudeISAModel:
                     put(ins.d, acc >> s)
             elif op == Op.DIV:
                 put(ins.d, div_q24(a, b, st))
-            elif op == Op.VEC:
-                angle, mag = cordic_vector(a, b, st, CORDIC_SHORT_ITERATIONS if ins.sh
-                                           else CORDIC_ITERATIONS)
-                put(ins.d, angle)
-                put(ins.d + 1, mag)
-            elif op == Op.ROT:
-                c, s = cordic_rotate(a)
-                put(ins.d, c)
-                put(ins.d + 1, s)
+            elif op in (Op.VEC, Op.ROT):
+                # a background start (CORDIC_GO_ON) keeps the results for its collect
+                # (CORDIC_COLLECT); the assembler has checked that nothing between them touches
+                # d or d + 1, so computing them at the start is the same
+                if ins.sh & CORDIC_COLLECT:
+                    results, pending = pending, None
+                elif op == Op.VEC:
+                    results = cordic_vector(a, b, st, CORDIC_SHORT_ITERATIONS
+                                            if ins.sh & CORDIC_SHORT else CORDIC_ITERATIONS)
+                else:
+                    results = cordic_rotate(a)
+                if ins.sh & CORDIC_GO_ON:
+                    pending = results
+                else:
+                    put(ins.d, results[0])
+                    put(ins.d + 1, results[1])
             elif op == Op.BR:
                 if self._holds(ins.cond, a, ins.sh, mag_valid) != bool(ins.inv):
                     pc = ins.target

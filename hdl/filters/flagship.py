@@ -3,7 +3,9 @@ for operation, on the attitude engine (instruction set: ``hdl/attitude_isa.py``)
 
 Every reference operation that can saturate is one instruction here, under the same conditions,
 so that the result and the sample's ``saturated`` flag agree bit for bit; the order within a
-section is chosen for the MAC's overlap (independent MULs back to back). Register names are
+section is chosen for the MAC's overlap (independent MULs back to back) and for the CORDIC's
+background (work that needs no CORDIC result between a VEC or ROT started with ``go_on`` and
+its collect: ``hdl/attitude_isa.py``). Register names are
 those of the reference's state (``QG``, ``QA``, ``LP`` ...); values that live across sections
 have registers of the routine's own (``F_`` names), short-lived ones come from the assembler's
 scratch pool (``asm.scratch``).
@@ -123,15 +125,20 @@ def _low_pass(asm, r, states, inputs, gain):
             asm.add(s, s, t)
 
 
-def _butterworth(asm, r, low, band, inputs, gain):
-    """The second-order low-pass (state-variable form, ``reference.flagship_fixed``), each
-    axis: low += mul(gain, band, 30); then band += mul(gain, input − low − mul(band, √2, 30),
-    30). MULs back to back where they can be."""
-    with asm.scratch(len(low)) as t, asm.scratch(len(low)) as u:
+def _butterworth_low(asm, r, low, band, gain):
+    """The second-order low-pass (state-variable form, ``reference.flagship_fixed``), its first
+    half, each axis: low += mul(gain, band, 30). MULs back to back."""
+    with asm.scratch(len(low)) as t:
         for ti, b in zip(t, band):
             asm.mul(ti, r[gain], b, Q30)
         for ti, lo in zip(t, low):
             asm.add(lo, lo, ti)
+
+
+def _butterworth_band(asm, r, low, band, inputs, gain):
+    """Its second half, from the new ``low``: band += mul(gain, input − low − mul(band, √2,
+    30), 30). MULs back to back where they can be."""
+    with asm.scratch(len(low)) as t, asm.scratch(len(low)) as u:
         for ti, b in zip(t, band):
             asm.mul(ti, b, r["SQRT2"], Q30)
         for ui, x, lo, ti in zip(u, inputs, low, t):
@@ -199,15 +206,20 @@ def _inclination(asm, r):
     asm.br("f_no_acc", Cond.A_ZERO, a=r["ACC_OK"])
     _matrix(asm, r, "RG", "QG")
     _rotate(asm, r, "AI", "RG", "A16")
-    _butterworth(asm, r, v("LP"), v("BAND"), v("AI"), "A_ACC")
+    _butterworth_low(asm, r, v("LP"), v("BAND"), "A_ACC")
     _matrix(asm, r, "RA", "QA")
     _rotate(asm, r, "E", "RA", "LP")
-    asm.vec(r["F_PHI"], r["E0"], r["E1"])                    # φ, s·K
+    # E needs the low-pass's new state only: its band is updated while the CORDIC vectors E
+    # in the background (``attitude_isa``), and SXY is scaled while it rotates by φ
+    asm.vec(r["F_PHI"], r["E0"], r["E1"], go_on=True)        # φ, s·K
+    _butterworth_band(asm, r, v("LP"), v("BAND"), v("AI"), "A_ACC")
+    asm.collect()
     asm.br("f_no_acc", Cond.A_ZERO, a=r["F_SK"])
+    asm.rot(r["F_CPHI"], r["F_PHI"], go_on=True)
     asm.setf(Flag.ACC_USED)
     asm.mul(r["F_SXY"], r["F_SK"], r["INV_GAIN"], Q30)
+    asm.collect()
     asm.vec(r["F_TH"], r["E2"], r["F_SXY"])                  # θ from up
-    asm.rot(r["F_CPHI"], r["F_PHI"])
     with asm.scratch(1) as (t0,):
         asm.mul(t0, r["F_TH"], r["HALF"], Q30)
         asm.rot(r["F_CH"], t0)
@@ -319,16 +331,21 @@ def _heading(asm, r):
 def _output(asm, r):
     """The flagship's output: q = (cos δ/2, 0, 0, sin δ/2) ⊗ q_a ⊗ q_g, and its angles
     (``flagship_routine``'s part)."""
-    with asm.scratch(1) as (t0,):
-        asm.mul(t0, r["DELTA"], r["HALF"], Q30)
-        asm.rot(r["F_CD"], t0)
-        cd, sd = r["F_CD"], r["F_SD"]
-        w, x, y, z = (r[f"QAG{i}"] for i in range(4))
+    cd, sd = r["F_CD"], r["F_SD"]
+    w, x, y, z = (r[f"QAG{i}"] for i in range(4))
+
+    def half_delta(t):
+        asm.mul(t, r["DELTA"], r["HALF"], Q30)
+
+    def quaternion():
         asm.mac(r["QOUT0"], [(cd, w), (sd, z, -1)], Q30)
         asm.mac(r["QOUT1"], [(cd, x), (sd, y, -1)], Q30)
         asm.mac(r["QOUT2"], [(cd, y), (sd, x)], Q30)
         asm.mac(r["QOUT3"], [(cd, z), (sd, w)], Q30)
-    matrix_angles(asm, r, [r[f"RAG{i}"] for i in range(9)], r["F_YAW"], r["DELTA"])
+    # the rotation by δ/2 and the quaternion beside the angles' VECs, in the CORDIC's
+    # background (``matrix_angles``)
+    matrix_angles(asm, r, [r[f"RAG{i}"] for i in range(9)], r["F_YAW"], r["DELTA"],
+                  rotation=(cd, half_delta, quaternion))
     asm.end()
 
 

@@ -125,15 +125,34 @@ def euler_rates(asm, r, U, name):
         asm.add(U[0], U[0], w)
 
 
-def matrix_angles(asm, r, m, yaw, delta):
+def matrix_angles(asm, r, m, yaw, delta, rotation=None):
     """THETA = the ZYX angles of Rz(δ)·R (``quat_angles_fixed``), R the nine registers ``m``
     (Q2.30): roll and pitch from R's bottom row, yaw = δ (register ``delta``) + atan2(R10,
-    R00), vectored into the CORDIC pair ``yaw`` (the VECs write magnitudes beside angles)."""
-    with asm.scratch(2) as (t0, t1):
-        asm.vec(r["THETA0"], m[8], m[7])
-        asm.mul(t0, r["THETA1"], r["INV_GAIN"], Q30)
+    R00), vectored into the CORDIC pair ``yaw`` (the VECs write magnitudes beside angles).
+
+    ``rotation`` (the flagship's output): (``dst``, ``prepare``, ``use``), a rotation the caller
+    wants beside the angles, made in the CORDIC's turn between the roll and the pitch:
+    ``prepare(t)`` writes its angle into the scratch register ``t`` while the roll's VEC runs
+    in the background, and ``use()`` reads its cos and sin (``dst``, ``dst`` + 1) while the
+    pitch's does. Neither may branch or use the CORDIC (``attitude_isa``'s background
+    rules)."""
+    with asm.scratch(3) as (t0, t1, t2):
+        asm.vec(r["THETA0"], m[8], m[7], go_on=True)
         asm.sub(t1, r["ZERO"], m[6])
-        asm.vec(r["THETA1"], t0, t1)
+        if rotation is not None:
+            dst, prepare, use = rotation
+            prepare(t2)
+        asm.collect()
+        if rotation is not None:
+            asm.rot(dst, t2, go_on=True)
+            asm.mul(t0, r["THETA1"], r["INV_GAIN"], Q30)
+            asm.collect()
+            asm.vec(r["THETA1"], t0, t1, go_on=True)
+            use()
+            asm.collect()
+        else:
+            asm.mul(t0, r["THETA1"], r["INV_GAIN"], Q30)
+            asm.vec(r["THETA1"], t0, t1)
     asm.vec(yaw, m[0], m[3])
     asm.add(r["THETA2"], delta, yaw, wrap=True)
 

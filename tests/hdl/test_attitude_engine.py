@@ -364,3 +364,66 @@ def test_euler_rates_follow_a_coning_motion_better():
         out[euler] = np.degrees(np.asarray(r["angles"]) * 2.0 ** -32 * 2 * np.pi)
     assert abs(out[True][0] - 45) < 1 and abs(out[True][1]) < 1
     assert abs(out[False][1]) > 10
+
+
+# a chain of CORDIC operations for ``test_background_cordic``: (op, shadow) with op "vec",
+# "short" (an 8-iteration VEC) or "rot", and the instructions between a background start and
+# its collect; each takes its operands from the one before, so a result collected early
+# changes every later one
+BACKGROUND_CHAIN = [("vec", 0), ("rot", 1), ("short", 7), ("short", 9), ("vec", 15),
+                    ("rot", 15), ("vec", 16), ("rot", 17), ("vec", 20)]
+CORDIC_WAIT = {"vec": 16, "rot": 15, "short": 8}        # cycles from its start to its results
+
+
+def _background_program(go_on):
+    """A program of ``BACKGROUND_CHAIN`` (CORDIC operations started in the background, or
+    each blocking with its ``shadow`` ADDs after it: the same results), its pairs written
+    round the result's quaternion, angles and bias words; BIAS2 counts the ADDs."""
+    from mpu9250_ahrs.hdl.attitude_isa import Assembler
+    from mpu9250_ahrs.hdl.register_map import TEMPS
+    asm, r = Assembler(scratch_pool=tuple(TEMPS)), REGS
+    asm.label("init")
+    asm.end()
+    asm.label("sample")
+    asm.add(r["BIAS2"], r["ZERO"], r["ZERO"])
+    pairs = ["QOUT0", "QOUT2", "THETA0", "BIAS0"]
+    x, y = r["GRAW0"], r["GRAW1"]
+    for k, (op, shadow) in enumerate(BACKGROUND_CHAIN):
+        d = r[pairs[k % len(pairs)]]
+        if op == "rot":
+            asm.rot(d, x, go_on=go_on)
+        else:
+            asm.vec(d, x, y, short=op == "short", go_on=go_on)
+        for _ in range(shadow):
+            asm.add(r["BIAS2"], r["BIAS2"], r["INT1"])
+        if go_on:
+            asm.collect()
+        x, y = d, d + 1
+    asm.end()
+    return asm.resolve(), {"init": asm.labels["init"], "sample": asm.labels["sample"]}
+
+
+def test_background_cordic():
+    """VEC and ROT started in the background (``attitude_isa``) against the instruction model
+    running the same program, bit for bit, and against the same chain made blocking: a
+    collect that comes before the CORDIC is done waits for it (at once, after one instruction,
+    after all but one of its cycles), one that comes after does not; each saves the cycles of
+    the work between, up to the CORDIC's wait."""
+    from mpu9250_ahrs.reference.engine_model import EngineModel
+    from mpu9250_ahrs.sim.attitude_isa_model import AttitudeISAModel
+
+    gyro, accel, mag_ak = ([[1200, -3400, 50]], [[0, 0, 8192]], [[10, 20, 30]])
+    runs = {}
+    for go_on in (False, True):
+        program, entry = _background_program(go_on)
+        runs[go_on] = run = run_engine(AttitudeEngine(program=(program, entry)), gyro, accel,
+                                       mag_ak)
+        model = AttitudeISAModel(EngineModel().reg)
+        model.program, model.entry = program, entry
+        model.sample(gyro[0], accel[0], mag_ak[0])
+        quat, angles, bias = model.outputs()
+        assert (run.quat[0].tolist(), run.angles[0].tolist(), run.bias[0].tolist()) == (
+            quat, angles, bias)
+        assert bias[2] == sum(shadow for _, shadow in BACKGROUND_CHAIN)     # INT1 is 1
+    saved = sum(min(shadow, CORDIC_WAIT[op]) for op, shadow in BACKGROUND_CHAIN)
+    assert runs[False].cycles[0] - runs[True].cycles[0] == saved

@@ -99,3 +99,47 @@ def test_fixed_branches_fold_into_the_instruction_before():
     assert code[0].then == (Cond.FILTER, 2, 6) and asm.labels == {"named": 3, "out": 6}
     assert all(i.target == 6 for i in code if i.op == Op.BR)
     assert len(asm.resolve()) == len(code)      # nothing more to fold
+
+
+def test_background_cordic_rules():
+    """A VEC or ROT started in the background (``go_on``) and its collect: work between them
+    resolves; a branch, a label, a folded jump, another CORDIC operation, an access to the
+    pair (d, d + 1) or a missing collect between them is refused at ``resolve``."""
+    from mpu9250_ahrs.hdl.attitude_isa import CORDIC_COLLECT, CORDIC_GO_ON, Op
+
+    def program(*between, start=lambda asm: asm.vec(20, 1, 2, go_on=True), collect=True):
+        asm = Assembler()
+        start(asm)
+        for emit in between:
+            emit(asm)
+        if collect:
+            asm.collect()
+        asm.label("out")
+        asm.end()
+        return asm
+
+    code = program(lambda asm: asm.add(5, 20 + 2, 1), lambda asm: asm.mul(6, 1, 2, Q30),
+                   start=lambda asm: asm.rot(20, 3, go_on=True)).resolve()
+    assert [i.op for i in code[:4]] == [Op.ROT, Op.ADD, Op.MUL, Op.ROT]
+    assert (code[0].sh, code[3].sh, code[3].d) == (CORDIC_GO_ON, CORDIC_COLLECT, 20)
+    touches = "which reads or writes d or d \\+ 1"
+    refused = [
+        (touches, lambda asm: asm.add(5, 21, 1)),           # reads d + 1
+        (touches, lambda asm: asm.add(20, 1, 1)),           # writes d
+        ("meets BR", lambda asm: asm.br("out", Cond.A_ZERO, a=5)),
+        ("meets a label", lambda asm: asm.label("inside")),
+        ("meets a jump folded into it", lambda asm: asm.br("out")),
+    ]
+    for why, between in refused:
+        with pytest.raises(ValueError, match=why):
+            program(between).resolve()
+    with pytest.raises(ValueError, match="meets another ROT"):
+        program(lambda asm: asm.rot(30, 1, go_on=True), lambda asm: asm.collect(),
+                collect=False).resolve()
+    asm = Assembler()
+    asm.rot(20, 3, go_on=True)
+    asm.end()
+    with pytest.raises(ValueError, match="meets END"):
+        asm.resolve()
+    with pytest.raises(ValueError, match="a collect with no VEC or ROT started"):
+        program(start=lambda asm: asm.vec(20, 1, 2))
