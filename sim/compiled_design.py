@@ -189,12 +189,19 @@ def _sources_hash():
     beside a caller's parameters, decides the Verilog of a design made by this package (read
     once a process)."""
     import amaranth
-    root = Path(__file__).resolve().parent.parent
     h = hashlib.sha256(amaranth.__version__.encode())
-    for folder in ("hdl", "sim"):
-        for path in sorted((root / folder).glob("*.py")):
-            h.update(path.name.encode() + b"\0" + path.read_bytes())
+    for name, path in _source_files():
+        h.update(name.encode() + b"\0" + path.read_bytes())
     return h.hexdigest()
+
+
+def _source_files():
+    """(name, path) of every module of the package's ``hdl`` and ``sim``, sub-packages
+    included: the filters' microcode is in ``hdl/filters/`` (a change there alone once left
+    a stale build in the cache)."""
+    root = Path(__file__).resolve().parent.parent
+    return [(str(path.relative_to(root)), path) for folder in ("hdl", "sim")
+            for path in sorted((root / folder).rglob("*.py"))]
 
 
 def _mark_used(root):

@@ -71,3 +71,12 @@ def test_waveforms_from_the_compiled_path(tmp_path):
     assert shown and set(shown) <= ports, (shown, sorted(ports)[:20])
     # the clock edges are there: a few thousand time steps at least
     assert text.count("\n#") > 1000
+
+
+def test_cache_key_covers_the_microcode():
+    """A compiled build is looked up by its parameters and a hash of the package's sources:
+    those of the sub-packages (the filters' microcode in ``hdl/filters/``) are in the hash, so
+    a change to a filter's program alone builds again rather than running the old one."""
+    from mpu9250_ahrs.sim.compiled_design import _source_files
+    names = {name for name, _ in _source_files()}
+    assert {"hdl/filters/flagship.py", "hdl/attitude_engine.py", "sim/cosim.py"} <= names
