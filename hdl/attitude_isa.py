@@ -22,9 +22,6 @@ VEC   CORDIC vectoring of (x = a, y = b): d = atan2 (BAM32),       19; 11 if sho
       d+1 = magnitude · K; ``sh`` bit 0 (``CORDIC_SHORT``): short
       (8 iterations: a length within 3·10⁻⁵, its angle coarse)
 ROT   CORDIC rotation of the angle in a: d = cos, d+1 = sin (Q1.30)  18
-      VEC and ROT in the background (``sh`` bits 1 and 2, below):   start 1; collect 2
-      after the CORDIC is done (16 cycles after the start, 15 for
-      a ROT, 8 for a short VEC), else the rest of that wait too
 BR    if condition (``cond``, inverted by ``inv``): go to target   1, or 3 when taken
                                                                    on A_ZERO / A_NEG; 0
                                                                    folded (below)
@@ -32,13 +29,18 @@ SETF  set result flag ``sh`` (``Flag``)                          1
 END   the sample is done: results out                              1
 ====  ===========================================================  ======================
 
-Background CORDIC: a VEC or ROT with ``sh`` bit 1 (``CORDIC_GO_ON``: the start) takes its
-operands and starts the CORDIC, and the next instruction follows at once; the same op with
-``sh`` bit 2 (``CORDIC_COLLECT``: the collect, ``d`` the start's) waits for the CORDIC if it is
-still running, then writes d and d + 1 as a VEC or ROT does. Between the two the program does
-other work, under the assembler's rules (``Assembler.resolve`` checks them): in the same basic
-block (no branch, label, folded jump or END between them), no other VEC or ROT, and nothing
-reads or writes d or d + 1 (a read would find the old value, a write be overwritten).
+In the background: a VEC, ROT or DIV with ``sh`` bit 1 (``GO_ON``: the start) takes its
+operands and starts its unit (the CORDIC, the divider), and the next instruction follows at
+once; the same op with ``sh`` bit 2 (``COLLECT``: the collect, ``d`` the start's) waits for
+the unit if it is still running, then writes its result (d and d + 1, or d) as the blocking
+op does. Between the two the program does other work, under the assembler's rules
+(``Assembler.resolve`` checks them): in the same basic block (no branch, label, folded jump or
+END between them), no other operation of the same unit, and nothing reads or writes what the
+collect writes (a read would find the old value, a write be overwritten). The other unit may
+work meanwhile: a division in the background of CORDIC operations, or the other way round.
+Cycles: the start takes 1 and the collect 2 (DIV: 1) once the unit is done; the work between
+them is free up to 16 cycles after a VEC (8 after a short one), 15 after a ROT and 32 after a
+DIV (the blocking op's time less those), and the collect waits out what is left of them.
 
 Conditions: ``ALWAYS``; ``A_ZERO`` (register a is 0); ``A_NEG`` (register a is negative: a
 comparison is a SUB then this); ``MAG_INVALID`` (the sample's ``mag_valid`` flag is 0);
@@ -51,8 +53,8 @@ its word leaves the ROM, and the assembler folds it into the instruction before 
 costs no cycle at all.
 
 The assembler (``Assembler``) gives registers names, resolves labels and checks ranges. The
-engine has no hazards but the background CORDIC's: a result is visible to the very next
-instruction, and the assembler checks the rules above for a CORDIC started in the background.
+engine has no hazards but the background units': a result is visible to the very next
+instruction, and the assembler checks the rules above for a unit started in the background.
 """
 
 import enum
@@ -64,8 +66,8 @@ from amaranth.lib import data
 
 
 __all__ = ["Op", "Cond", "Flag", "FETCH_JUMPS", "REGISTER_CONDS", "MUL_SHIFTS", "Q14", "Q24",
-           "DOUBLED", "Q30", "CORDIC_SHORT", "CORDIC_GO_ON", "CORDIC_COLLECT", "REG_COUNT", "REG_BITS", "ROM_DEPTH", "ROM_BITS", "Instr",
-           "Instruction", "Assembler"]
+           "DOUBLED", "Q30", "CORDIC_SHORT", "GO_ON", "COLLECT", "UNITS", "REG_COUNT", "REG_BITS",
+           "ROM_DEPTH", "ROM_BITS", "Instr", "Instruction", "Assembler"]
 
 REG_COUNT = 256
 ROM_DEPTH = 1024
@@ -81,10 +83,10 @@ Q24 = 24            # Q8.24 covariances, gains, T
 DOUBLED = 29        # 2·a·b of Q2.30 values (a rotation matrix's products)
 Q30 = 30            # products of Q1.30 / Q2.30 values, ½x as a MUL by 2²⁹
 MUL_SHIFTS = (Q14, Q24, DOUBLED, Q30)
-# VEC and ROT: the ``sh`` field's bits (the module docstring has the background CORDIC)
+# VEC, ROT and DIV: the ``sh`` field's bits (the module docstring has the background units)
 CORDIC_SHORT = 1            # VEC: 8 iterations (a length)
-CORDIC_GO_ON = 2            # the start: the next instruction follows at once
-CORDIC_COLLECT = 4          # the collect: wait for the CORDIC, write d and d + 1
+GO_ON = 2                   # the start: the next instruction follows at once
+COLLECT = 4                 # the collect: wait for the unit, write its result
 
 
 class Op(enum.IntEnum):
@@ -99,6 +101,10 @@ class Op(enum.IntEnum):
     BR = 8
     SETF = 9
     END = 10
+
+
+# the ops that can run in the background (``GO_ON``), by the unit they use
+UNITS = {"VEC": "cordic", "ROT": "cordic", "DIV": "divider"}
 
 
 class Cond(enum.IntEnum):
@@ -205,8 +211,8 @@ def _fetch_jump(ins, cond, code):
 def _reads_writes(ins):
     """(registers read, registers written) by an instruction."""
     op = ins.op
-    cordic = op in (Op.VEC, Op.ROT)
-    if cordic and ins.sh & CORDIC_COLLECT:
+    background = op.name in UNITS
+    if background and ins.sh & COLLECT:
         reads = ()
     elif op in (Op.ADD, Op.SUB, Op.OR, Op.DIV, Op.VEC, Op.MUL):
         reads = (ins.a, ins.b)
@@ -216,9 +222,9 @@ def _reads_writes(ins):
         reads = (ins.a,)
     else:
         reads = ()
-    if cordic and ins.sh & CORDIC_GO_ON:
+    if background and ins.sh & GO_ON:
         writes = ()
-    elif cordic:
+    elif op in (Op.VEC, Op.ROT):
         writes = (ins.d, ins.d + 1)
     elif op in (Op.ADD, Op.SUB, Op.OR, Op.DIV) or (op == Op.MUL and ins.wb):
         writes = (ins.d,)
@@ -304,26 +310,28 @@ class Assembler:
             self.mul(d if last else 0, t[0], t[1], shr, acc=i > 0,
                      neg=len(t) > 2 and t[2] < 0, wb=last)
 
-    def div(self, d, a, b):
-        self._emit(Instruction(Op.DIV, d, a, b))
+    def div(self, d, a, b, *, go_on=False):
+        """``go_on``: in the background (the start; ``collect("divider")`` writes d)."""
+        self._emit(Instruction(Op.DIV, d, a, b, sh=GO_ON if go_on else 0))
 
     def vec(self, d, x, y, *, short=False, go_on=False):
         """``short``: a length only (``CORDIC_SHORT_ITERATIONS``: d's angle is coarse).
         ``go_on``: in the background (the start; ``collect`` writes d and d + 1)."""
         self._emit(Instruction(Op.VEC, d, x, y, sh=(CORDIC_SHORT if short else 0)
-                               | (CORDIC_GO_ON if go_on else 0)))
+                               | (GO_ON if go_on else 0)))
 
     def rot(self, d, angle, *, go_on=False):
         """``go_on``: in the background, as ``vec``'s."""
-        self._emit(Instruction(Op.ROT, d, angle, sh=CORDIC_GO_ON if go_on else 0))
+        self._emit(Instruction(Op.ROT, d, angle, sh=GO_ON if go_on else 0))
 
-    def collect(self):
-        """The results of the VEC or ROT started last with ``go_on``, into its d and d + 1."""
-        start = next((i for i in reversed(self.code) if i.op in (Op.VEC, Op.ROT)), None)
-        if start is None or not start.sh & CORDIC_GO_ON:
-            raise ValueError(f"instruction {len(self.code)}: a collect with no VEC or ROT "
-                             f"started in the background before it")
-        self._emit(Instruction(start.op, start.d, sh=CORDIC_COLLECT))
+    def collect(self, unit="cordic"):
+        """The result of the operation started last with ``go_on`` on ``unit`` (``UNITS``: the
+        CORDIC's VEC or ROT, the divider's DIV), into its d (and d + 1)."""
+        start = next((i for i in reversed(self.code) if UNITS.get(i.op.name) == unit), None)
+        if start is None or not start.sh & GO_ON:
+            raise ValueError(f"instruction {len(self.code)}: a collect with no {unit} "
+                             f"operation started in the background before it")
+        self._emit(Instruction(start.op, start.d, sh=COLLECT))
 
     def br(self, target, cond=Cond.ALWAYS, *, a=0, inv=False, code=0):
         """``code``: the filter code a ``Cond.FILTER`` branch tests for."""
@@ -378,15 +386,16 @@ class Assembler:
 
 
 def _check_background(code, labelled):
-    """The background CORDIC's rules (the module docstring): each start (``CORDIC_GO_ON``) is
-    followed in its basic block by its collect, with no other VEC or ROT, and no access to its
-    d or d + 1, between them; every collect has its start. ``labelled``: the addresses labels
-    name (a branch may land there)."""
+    """The background units' rules (the module docstring): each start (``GO_ON``) is followed
+    in its basic block by its collect, with no other operation of its unit, and no access to
+    what the collect writes, between them; every collect has its start. ``labelled``: the
+    addresses labels name (a branch may land there)."""
     collected = set()
     for i, ins in enumerate(code):
-        if ins.op not in (Op.VEC, Op.ROT) or not ins.sh & CORDIC_GO_ON:
+        unit = UNITS.get(ins.op.name)
+        if unit is None or not ins.sh & GO_ON:
             continue
-        pair = {ins.d, ins.d + 1}
+        written = set(_reads_writes(replace(ins, sh=COLLECT))[1])
         j, why = i, None
         while why is None:
             if code[j].then is not None:
@@ -400,16 +409,16 @@ def _check_background(code, labelled):
                 why = "a label"
             elif nxt.op in (Op.BR, Op.END):
                 why = nxt.op.name
-            elif nxt.op in (Op.VEC, Op.ROT):
-                if nxt.sh & CORDIC_COLLECT and nxt.op == ins.op and nxt.d == ins.d:
+            elif UNITS.get(nxt.op.name) == unit:
+                if nxt.sh & COLLECT and nxt.op == ins.op and nxt.d == ins.d:
                     collected.add(j)
                     break
                 why = f"another {nxt.op.name}"
-            elif pair & set(sum(_reads_writes(nxt), ())):
-                why = f"{nxt.op.name} at {j}, which reads or writes d or d + 1"
+            elif written & set(sum(_reads_writes(nxt), ())):
+                why = f"{nxt.op.name} at {j}, which reads or writes its result's registers"
         if why is not None:
             raise ValueError(f"instruction {i}: {ins.op.name} started in the background meets "
                              f"{why} before its collect")
     for j, ins in enumerate(code):
-        if ins.op in (Op.VEC, Op.ROT) and ins.sh & CORDIC_COLLECT and j not in collected:
+        if ins.op.name in UNITS and ins.sh & COLLECT and j not in collected:
             raise ValueError(f"instruction {j}: a collect with no start before it")

@@ -38,6 +38,9 @@ class Divider(wiring.Component):
         ``start`` (in): pulse with ``num``, ``den`` (signed 32) valid; ignored until the cycle after
             ``done``.
         ``done`` (out): one-cycle pulse; ``quotient`` and ``saturated`` hold until the next start.
+        ``busy`` (out): a division is running (from the cycle after ``start`` to the one before
+            ``done``): the results are valid whenever it is low and a division was started
+            since reset (the engine's background DIV waits for it to fall).
     Latency: ``done`` 32 / ``BITS_PER_CYCLE`` + 1 cycles after ``start`` (33 with one bit per
     cycle; 1 cycle for a denominator ≤ 0); throughput one division per 32 / ``BITS_PER_CYCLE`` + 2
     cycles (34).
@@ -48,7 +51,7 @@ class Divider(wiring.Component):
         self.width, self.frac = width, frac
         super().__init__({
             "start": In(1), "num": In(signed(width)), "den": In(signed(width)),
-            "done": Out(1), "quotient": Out(signed(width)),
+            "done": Out(1), "busy": Out(1), "quotient": Out(signed(width)),
             "saturated": Out(1),
         })
 
@@ -97,6 +100,7 @@ class Divider(wiring.Component):
                     with m.Else():
                         m.next = "RUN"
             with m.State("RUN"):
+                m.d.comb += self.busy.eq(1)
                 m.d.sync += [rem.eq(r), shreg.eq(q), count.eq(count + 1)]
                 with m.If(count == w // BITS_PER_CYCLE - 1):
                     m.next = "DONE"

@@ -7,8 +7,7 @@ before the slower gateware simulation, and to debug a program one instruction at
 under test here.
 """
 
-from ..hdl.attitude_isa import (CORDIC_COLLECT, CORDIC_GO_ON, CORDIC_SHORT, MUL_SHIFTS, Cond,
-                                Flag, Op)
+from ..hdl.attitude_isa import COLLECT, CORDIC_SHORT, GO_ON, MUL_SHIFTS, UNITS, Cond, Flag, Op
 from ..hdl.register_map import CONFIG_REGS, LOAD_ORDER, REGS, config_init, load_words
 from ..hdl.filter_registry import FILTER_CODES
 from ..hdl.attitude_program import build_program
@@ -52,7 +51,7 @@ class AttitudeISAModel:
         flags = set()
         st = Status()
         steps = 0
-        pending = None          # a background VEC's or ROT's results, until its collect
+        pending = {}            # a background start's results by unit, until its collect
         while True:
             ins = self.program[pc]
             steps += 1
@@ -81,24 +80,25 @@ class AttitudeISAModel:
                 acc = (acc if ins.acc else (1 << s >> 1)) + p     # rounding constant first
                 if ins.wb:
                     put(ins.d, acc >> s)
-            elif op == Op.DIV:
-                put(ins.d, div_q24(a, b, st))
-            elif op in (Op.VEC, Op.ROT):
-                # a background start (CORDIC_GO_ON) keeps the results for its collect
-                # (CORDIC_COLLECT); the assembler has checked that nothing between them touches
-                # d or d + 1, so computing them at the start is the same
-                if ins.sh & CORDIC_COLLECT:
-                    results, pending = pending, None
+            elif op.name in UNITS:
+                # a background start (GO_ON) keeps its results for its collect (COLLECT): the
+                # assembler has checked that nothing between them touches what it writes, so
+                # computing them at the start is the same
+                unit = UNITS[op.name]
+                if ins.sh & COLLECT:
+                    results = pending.pop(unit)
+                elif op == Op.DIV:
+                    results = (div_q24(a, b, st),)
                 elif op == Op.VEC:
                     results = cordic_vector(a, b, st, CORDIC_SHORT_ITERATIONS
                                             if ins.sh & CORDIC_SHORT else CORDIC_ITERATIONS)
                 else:
                     results = cordic_rotate(a)
-                if ins.sh & CORDIC_GO_ON:
-                    pending = results
+                if ins.sh & GO_ON:
+                    pending[unit] = results
                 else:
-                    put(ins.d, results[0])
-                    put(ins.d + 1, results[1])
+                    for k, value in enumerate(results):
+                        put(ins.d + k, value)
             elif op == Op.BR:
                 if self._holds(ins.cond, a, ins.sh, mag_valid) != bool(ins.inv):
                     pc = ins.target

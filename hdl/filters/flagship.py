@@ -46,11 +46,12 @@ def flagship_names():
 
 def _aliases(r):
     """Registers that only live within one sample share words with others that are dead by
-    then: the field takes the gyro's words, the transformed field the rotated accelerometer's,
-    R(q_g) and R(q_a) one matrix, the rotation vector's quaternion the vector itself."""
+    then: the field takes the rotation vector's words (the gyro's live until the rest
+    detection, at the end), the transformed field the rotated accelerometer's, R(q_g) and
+    R(q_a) one matrix, the rotation vector's quaternion the vector itself."""
     r = dict(r)
     for i in range(3):
-        r[f"M16{i}"], r[f"ME{i}"] = r[f"G16{i}"], r[f"AI{i}"]
+        r[f"M16{i}"], r[f"ME{i}"] = r[f"V{i}"], r[f"AI{i}"]
     for i in range(9):
         r[f"RG{i}"] = r[f"RA{i}"] = r[f"RM{i}"]
     r["QV0"] = r["F_C"]
@@ -150,22 +151,51 @@ def _butterworth_band(asm, r, low, band, inputs, gain):
             asm.add(b, b, ui)
 
 
+def _rest_steps(asm, r, temps):
+    """The flagship's rest detection, its straight-line part (the input low-passes, the
+    deviations from them and their sums of squares against the thresholds), as four steps
+    (callables) for the output's CORDIC waits (``_output``); ``temps``: six scratch
+    registers, held across them. The rate error U it uses is ``_rate_error``'s."""
+    v = lambda name: [r[f"{name}{i}"] for i in range(3)]
+    states, inputs = v("GLP") + v("ALP"), v("G16") + v("A16")
+
+    def low_pass_products():                # state += mul(A_DET, input − state, 30) ...
+        for t, st, x in zip(temps, states, inputs):
+            asm.sub(t, x, st)
+        for t in temps:
+            asm.mul(t, r["A_DET"], t, Q30)
+
+    def low_pass_sums():
+        for t, st in zip(temps, states):
+            asm.add(st, st, t)
+        for i in range(3):
+            asm.sub(r[f"DA{i}"], r[f"A16{i}"], r[f"ALP{i}"])
+
+    def deviations():
+        for i in range(3):
+            asm.mul(r[f"DG{i}"], r[f"U{i}"], r["SHR10"], Q30)       # Q.6 counts
+        for i in range(3):
+            asm.mul(r[f"DA{i}"], r[f"DA{i}"], r["SHR10"], Q30)
+
+    def sums():
+        asm.mac(r["F_SG"], [(d, d) for d in v("DG")], Q14)
+        asm.mac(r["F_SA"], [(d, d) for d in v("DA")], Q14)
+        asm.sub(r["F_SG"], r["F_SG"], r["REST_GYRO2"])
+        asm.sub(r["F_SA"], r["F_SA"], r["REST_ACC2"])
+    return low_pass_products, low_pass_sums, deviations, sums
+
+
+def _rate_error(asm, r):
+    """U = ω − b, Q16.16, with the bias of the previous sample: the strapdown's and the rest
+    detection's."""
+    for i in range(3):
+        asm.sub(r[f"U{i}"], r[f"G16{i}"], r[f"BIAS{i}"])
+
+
 def _rest_and_bias(asm, r):
-    """The flagship's rest detection and bias at rest (``flagship_routine``'s part)."""
+    """The flagship's rest decision on ``_rest_steps``' sums, and the bias at rest."""
     v = lambda name: [r[f"{name}{i}"] for i in range(3)]
     ZERO, INT1 = r["ZERO"], r["INT1"]
-    _low_pass(asm, r, v("GLP") + v("ALP"), v("G16") + v("A16"), "A_DET")
-    for i in range(3):
-        asm.sub(r[f"U{i}"], r[f"G16{i}"], r[f"BIAS{i}"])     # ω − b, Q16.16
-        asm.sub(r[f"DA{i}"], r[f"A16{i}"], r[f"ALP{i}"])
-    for i in range(3):
-        asm.mul(r[f"DG{i}"], r[f"U{i}"], r["SHR10"], Q30)     # Q.6 counts
-    for i in range(3):
-        asm.mul(r[f"DA{i}"], r[f"DA{i}"], r["SHR10"], Q30)
-    asm.mac(r["F_SG"], [(d, d) for d in v("DG")], Q14)
-    asm.mac(r["F_SA"], [(d, d) for d in v("DA")], Q14)
-    asm.sub(r["F_SG"], r["F_SG"], r["REST_GYRO2"])
-    asm.sub(r["F_SA"], r["F_SA"], r["REST_ACC2"])
     asm.br("f_moving", Cond.A_NEG, a=r["F_SG"], inv=True)
     asm.br("f_moving", Cond.A_NEG, a=r["F_SA"], inv=True)
     asm.br("f_rest_checked", Cond.A_ZERO, a=r["REST_LEFT"])
@@ -342,10 +372,12 @@ def _output(asm, r):
         asm.mac(r["QOUT1"], [(cd, x), (sd, y, -1)], Q30)
         asm.mac(r["QOUT2"], [(cd, y), (sd, x)], Q30)
         asm.mac(r["QOUT3"], [(cd, z), (sd, w)], Q30)
-    # the rotation by δ/2 and the quaternion beside the angles' VECs, in the CORDIC's
-    # background (``matrix_angles``)
-    matrix_angles(asm, r, [r[f"RAG{i}"] for i in range(9)], r["F_YAW"], r["DELTA"],
-                  rotation=(cd, half_delta, quaternion))
+    # the rotation by δ/2, the quaternion and the rest detection's sums beside the angles'
+    # VECs, in the CORDIC's background (``matrix_angles``); then the rest decision
+    with asm.scratch(6) as temps:
+        matrix_angles(asm, r, [r[f"RAG{i}"] for i in range(9)], r["F_YAW"], r["DELTA"],
+                      rotation=(cd, half_delta, quaternion), beside=_rest_steps(asm, r, temps))
+    _rest_and_bias(asm, r)
     asm.end()
 
 
@@ -387,7 +419,7 @@ def flagship_routine(asm, r):
         asm.br(f"f_{t}_0", Cond.A_ZERO, a=r[t])
         asm.sub(r[t], r[t], INT1)
         asm.label(f"f_{t}_0")
-    _rest_and_bias(asm, r)
+    _rate_error(asm, r)
     _strapdown(asm, r)
     _inclination(asm, r)
     _heading(asm, r)

@@ -14,29 +14,79 @@ CONFIG_REGISTERS = ()       # run-time registers from 0x70: none (its own are in
 REGISTERS = ()              # state and working registers beyond the base map: none
 
 
-def _kalman_update(asm, r, i, z):
-    with asm.scratch(12) as T:
+def _gains(r, i, s, k0, k1):
+    """The divisions of axis ``i``'s gains, (d, a, b) each: k0 = P00 / s (Q0.24) and k1 = P10 / s
+    (Q8.24), ``s`` = P00 + R (``_innovation_sum``)."""
+    return [(k0, r[f"P{i}_00"], s), (k1, r[f"P{i}_10"], s)]
+
+
+def _innovation_sum(asm, r, i, s):
+    asm.add(s, r[f"P{i}_00"], r["R"])
+
+
+def _kalman_update(asm, r, i, z, k0, k1, before_k1=None):
+    """Axis ``i``'s measurement update with its gains in ``k0``, ``k1`` (``_gains``). With
+    ``before_k1`` (the start and the collect of a division made in the background, k1's),
+    what needs k0 only is done while it runs."""
+    with asm.scratch(7) as T:
         th, b = r[f"THETA{i}"], r[f"BIAS{i}"]
         p00, p01, p10, p11 = (r[f"P{i}_{e}"] for e in ("00", "01", "10", "11"))
-        asm.add(T[4], p00, r["R"])                           # s
-        asm.div(T[5], p00, T[4])                             # k0, Q0.24
-        asm.div(T[6], p10, T[4])                             # k1, Q8.24
-        asm.sub(T[7], z, th, wrap=True)                      # innovation y
+        y, t0, t1, t10, t11, kth, kb = T
+        if before_k1 is not None:
+            before_k1[0]()
+        asm.sub(y, z, th, wrap=True)                         # innovation y
         # the products in one run (a MUL followed by a MUL that does not read its result
-        # takes one cycle, by anything else three), then the sums
-        asm.mul(T[8], T[5], T[7], Q24)
-        asm.mul(T[9], T[6], T[7], Q24)                        # k1·y, BAM/s
-        asm.mul(T[0], T[5], p00, Q24)
-        asm.mul(T[1], T[5], p01, Q24)
-        asm.mul(T[10], T[6], p00, Q24)
-        asm.mul(T[11], T[6], p01, Q24)
-        asm.mul(T[9], T[9], r["BIAS_SCALE"], Q24)
-        asm.add(th, th, T[8], wrap=True)
-        asm.add(b, b, T[9])
-        asm.sub(p00, p00, T[0])
-        asm.sub(p01, p01, T[1])
-        asm.sub(p10, p10, T[10])
-        asm.sub(p11, p11, T[11])
+        # takes one cycle, by anything else three), then the sums; k0's first
+        asm.mul(kth, k0, y, Q24)
+        asm.mul(t0, k0, p00, Q24)
+        asm.mul(t1, k0, p01, Q24)
+        if before_k1 is not None:
+            before_k1[1]()
+        asm.mul(kb, k1, y, Q24)                              # k1·y, BAM/s
+        asm.mul(t10, k1, p00, Q24)
+        asm.mul(t11, k1, p01, Q24)
+        asm.mul(kb, kb, r["BIAS_SCALE"], Q24)
+        asm.add(th, th, kth, wrap=True)
+        asm.add(b, b, kb)
+        asm.sub(p00, p00, t0)
+        asm.sub(p01, p01, t1)
+        asm.sub(p10, p10, t10)
+        asm.sub(p11, p11, t11)
+
+
+def _measurements(asm, r):
+    """The tilt and heading measurements and the updates they feed. The gains' divisions are
+    made in the background (``attitude_isa``) of what does not need them: axes 0 and 1's (on
+    an accelerometer measurement) while the tilt is vectored and, axis 1's, while axis 0 is
+    updated; axis 2's (on a field) while the heading is computed. The heading uses the
+    predicted roll and pitch, so axis 2 is updated first; the axes' updates are independent."""
+    with asm.scratch(2) as (k0_0, k1_0):
+        asm.br("k_no_tilt", Cond.A_ZERO, a=r["ACC_OK"])
+        with asm.scratch(1) as (s,):
+            _innovation_sum(asm, r, 0, s)
+            tilt(asm, r, r["MEAS0"], divisions=_gains(r, 0, s, k0_0, k1_0))
+        asm.label("k_no_tilt")
+        asm.br("k_no_heading", Cond.A_ZERO, a=r["MAG_OK"])
+        with asm.scratch(3) as (s, k0_2, k1_2):
+            _innovation_sum(asm, r, 2, s)
+            heading(asm, r, r["THETA0"], r["THETA1"], r["MEAS2"],      # the predicted tilt
+                    divisions=_gains(r, 2, s, k0_2, k1_2))
+            _kalman_update(asm, r, 2, r["MEAS2"], k0_2, k1_2)
+        asm.setf(Flag.MAG_USED)
+        asm.setf(Flag.BIAS_UPDATED)
+        asm.label("k_no_heading")
+        asm.br("angles_out", Cond.A_ZERO, a=r["ACC_OK"])
+        with asm.scratch(3) as (s, k0_1, k1_1):
+            _innovation_sum(asm, r, 1, s)
+            asm.div(k0_1, r["P1_00"], s, go_on=True)
+            _kalman_update(asm, r, 0, r["MEAS0"], k0_0, k1_0)
+            asm.collect("divider")
+            _kalman_update(asm, r, 1, r["MEAS1"], k0_1, k1_1, before_k1=(
+                lambda: asm.div(k1_1, r["P1_10"], s, go_on=True),
+                lambda: asm.collect("divider")))
+        asm.setf(Flag.ACC_USED)
+        asm.setf(Flag.BIAS_UPDATED)
+        asm.br("angles_out")
 
 
 def emit(asm, r):
@@ -80,23 +130,7 @@ def emit(asm, r):
                 asm.sub(p10, p10, TP[i])
                 asm.add(p11, p11, r["Q_BIAS"])
     zero_tests(asm, r, "k")
-    asm.br("k_no_tilt", Cond.A_ZERO, a=r["ACC_OK"])
-    tilt(asm, r, r["MEAS0"])
-    asm.label("k_no_tilt")
-    asm.br("k_no_heading", Cond.A_ZERO, a=r["MAG_OK"])
-    heading(asm, r, r["THETA0"], r["THETA1"], r["MEAS2"])    # with the predicted tilt
-    asm.label("k_no_heading")
-    asm.br("k_skip_rp", Cond.A_ZERO, a=r["ACC_OK"])
-    _kalman_update(asm, r, 0, r["MEAS0"])
-    _kalman_update(asm, r, 1, r["MEAS1"])
-    asm.setf(Flag.ACC_USED)
-    asm.setf(Flag.BIAS_UPDATED)
-    asm.label("k_skip_rp")
-    asm.br("angles_out", Cond.A_ZERO, a=r["MAG_OK"])
-    _kalman_update(asm, r, 2, r["MEAS2"])
-    asm.setf(Flag.MAG_USED)
-    asm.setf(Flag.BIAS_UPDATED)
-    asm.br("angles_out")
+    _measurements(asm, r)
     asm.label("k_first")
     for i in range(3):
         asm.add(r[f"PREV{i}"], r[f"G{i}"], r["ZERO"])

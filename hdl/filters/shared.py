@@ -63,26 +63,50 @@ def zero_tests(asm, r, name):
 
 
 
-def tilt(asm, r, roll):
+def _divisions(asm, divisions):
+    """Emitters for ``tilt``'s and ``heading``'s ``divisions``: (start, collect) of each, or of
+    nothing where there is no division."""
+    steps = []
+    for d, a, b in divisions:
+        steps.append((lambda d=d, a=a, b=b: asm.div(d, a, b, go_on=True),
+                      lambda: asm.collect("divider")))
+    if len(steps) > 2:
+        raise ValueError(f"{len(steps)} divisions asked for, two fit")
+    return steps + [(lambda: None, lambda: None)] * (2 - len(steps))
+
+
+def tilt(asm, r, roll, divisions=()):
     """roll = atan2(ay, az) into ``roll``, pitch = atan2(−ax, √(ay² + az²)) into ``roll`` + 1,
     inputs scaled by 2⁸. Clobbers ``roll`` + 2 (the vectoring CORDIC writes its magnitude
-    beside the angle; the first one's is used for the pitch)."""
+    beside the angle; the first one's is used for the pitch). ``divisions``: up to two
+    (d, a, b) the caller wants made in the background meanwhile (``attitude_isa``: their
+    operands written before, nothing here touches their d), one a VEC."""
+    (start0, collect0), (start1, collect1) = _divisions(asm, divisions)
     with asm.scratch(4) as T:
         # a << 8 (exact); −ax << 8 by a MUL that subtracts its product (exact too, and no
         # ADD after it: a MUL followed by one takes three cycles, by a MUL one)
+        start0()
         asm.mul(T[0], r["A0"], r["SHL8"], Q14, neg=True)
         for i in (1, 2):
             asm.mul(T[i], r[f"A{i}"], r["SHL8"], Q14)
         asm.vec(roll, T[2], T[1])
+        collect0()
+        start1()
         asm.mul(T[3], roll + 1, r["INV_GAIN"], Q30)
         asm.vec(roll + 1, T[3], T[0])
+        collect1()
 
 
-def heading(asm, r, roll, pitch, out):
-    """Tilt-compensated heading into ``out``; clobbers ``out`` + 1."""
+def heading(asm, r, roll, pitch, out, divisions=()):
+    """Tilt-compensated heading into ``out``; clobbers ``out`` + 1. ``divisions``: as
+    ``tilt``'s (the first beside the two rotations, the second beside the rest)."""
+    (start0, collect0), (start1, collect1) = _divisions(asm, divisions)
     with asm.scratch(7) as T:
+        start0()
         asm.rot(r["CR"], roll)
         asm.rot(r["CP"], pitch)
+        collect0()
+        start1()
         # (sine · m) >> 18 as (sine · (m << 12)) >> 30: the same bits, one rounding shift fewer
         ms = T[4:7]
         for i in range(3):
@@ -92,6 +116,7 @@ def heading(asm, r, roll, pitch, out):
         asm.mac(T[2], [(r["CP"], ms[0]), (T[0], ms[1]), (T[1], ms[2])], Q30)      # hx
         asm.mac(T[3], [(r["CR"], ms[1]), (r["SR"], ms[2], -1)], Q30)              # hy
         asm.vec(out, T[3], T[2])
+        collect1()
 
 
 
@@ -125,7 +150,7 @@ def euler_rates(asm, r, U, name):
         asm.add(U[0], U[0], w)
 
 
-def matrix_angles(asm, r, m, yaw, delta, rotation=None):
+def matrix_angles(asm, r, m, yaw, delta, rotation=None, beside=()):
     """THETA = the ZYX angles of Rz(δ)·R (``quat_angles_fixed``), R the nine registers ``m``
     (Q2.30): roll and pitch from R's bottom row, yaw = δ (register ``delta``) + atan2(R10,
     R00), vectored into the CORDIC pair ``yaw`` (the VECs write magnitudes beside angles).
@@ -134,26 +159,34 @@ def matrix_angles(asm, r, m, yaw, delta, rotation=None):
     wants beside the angles, made in the CORDIC's turn between the roll and the pitch:
     ``prepare(t)`` writes its angle into the scratch register ``t`` while the roll's VEC runs
     in the background, and ``use()`` reads its cos and sin (``dst``, ``dst`` + 1) while the
-    pitch's does. Neither may branch or use the CORDIC (``attitude_isa``'s background
-    rules)."""
+    pitch's does. ``beside``: more of the caller's work (routines) for the CORDIC's waits, in
+    order: the roll's, the rotation's, the pitch's and the yaw's. None of them may branch or
+    use the CORDIC (``attitude_isa``'s background rules)."""
+    work = list(beside) + [lambda: None] * (4 - len(beside))
     with asm.scratch(3) as (t0, t1, t2):
         asm.vec(r["THETA0"], m[8], m[7], go_on=True)
         asm.sub(t1, r["ZERO"], m[6])
         if rotation is not None:
             dst, prepare, use = rotation
             prepare(t2)
+        work[0]()
         asm.collect()
         if rotation is not None:
             asm.rot(dst, t2, go_on=True)
             asm.mul(t0, r["THETA1"], r["INV_GAIN"], Q30)
+            work[1]()
             asm.collect()
             asm.vec(r["THETA1"], t0, t1, go_on=True)
             use()
-            asm.collect()
         else:
             asm.mul(t0, r["THETA1"], r["INV_GAIN"], Q30)
-            asm.vec(r["THETA1"], t0, t1)
-    asm.vec(yaw, m[0], m[3])
+            work[1]()
+            asm.vec(r["THETA1"], t0, t1, go_on=True)
+        work[2]()
+        asm.collect()
+    asm.vec(yaw, m[0], m[3], go_on=True)
+    work[3]()
+    asm.collect()
     asm.add(r["THETA2"], delta, yaw, wrap=True)
 
 

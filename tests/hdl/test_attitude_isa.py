@@ -101,11 +101,12 @@ def test_fixed_branches_fold_into_the_instruction_before():
     assert len(asm.resolve()) == len(code)      # nothing more to fold
 
 
-def test_background_cordic_rules():
-    """A VEC or ROT started in the background (``go_on``) and its collect: work between them
-    resolves; a branch, a label, a folded jump, another CORDIC operation, an access to the
-    pair (d, d + 1) or a missing collect between them is refused at ``resolve``."""
-    from mpu9250_ahrs.hdl.attitude_isa import CORDIC_COLLECT, CORDIC_GO_ON, Op
+def test_background_rules():
+    """A VEC, ROT or DIV started in the background (``go_on``) and its collect: work between
+    them resolves, the other unit's operations included; a branch, a label, a folded jump,
+    another operation of the same unit, an access to what the collect writes or a missing
+    collect between them is refused at ``resolve``."""
+    from mpu9250_ahrs.hdl.attitude_isa import COLLECT, GO_ON, Op
 
     def program(*between, start=lambda asm: asm.vec(20, 1, 2, go_on=True), collect=True):
         asm = Assembler()
@@ -121,8 +122,8 @@ def test_background_cordic_rules():
     code = program(lambda asm: asm.add(5, 20 + 2, 1), lambda asm: asm.mul(6, 1, 2, Q30),
                    start=lambda asm: asm.rot(20, 3, go_on=True)).resolve()
     assert [i.op for i in code[:4]] == [Op.ROT, Op.ADD, Op.MUL, Op.ROT]
-    assert (code[0].sh, code[3].sh, code[3].d) == (CORDIC_GO_ON, CORDIC_COLLECT, 20)
-    touches = "which reads or writes d or d \\+ 1"
+    assert (code[0].sh, code[3].sh, code[3].d) == (GO_ON, COLLECT, 20)
+    touches = "which reads or writes its result's registers"
     refused = [
         (touches, lambda asm: asm.add(5, 21, 1)),           # reads d + 1
         (touches, lambda asm: asm.add(20, 1, 1)),           # writes d
@@ -141,5 +142,25 @@ def test_background_cordic_rules():
     asm.end()
     with pytest.raises(ValueError, match="meets END"):
         asm.resolve()
-    with pytest.raises(ValueError, match="a collect with no VEC or ROT started"):
+    with pytest.raises(ValueError, match="a collect with no cordic operation started"):
         program(start=lambda asm: asm.vec(20, 1, 2))
+    # the divider's: the CORDIC may work meanwhile (blocking or in the background), not
+    # another division
+    asm = Assembler()
+    asm.div(20, 1, 2, go_on=True)
+    asm.vec(30, 1, 2, go_on=True)
+    asm.add(5, 1, 2)
+    asm.collect("cordic")
+    asm.collect("divider")
+    asm.div(21, 1, 2, go_on=True)
+    asm.vec(30, 1, 2)
+    asm.collect("divider")
+    asm.end()
+    asm.resolve()
+    asm = Assembler()
+    asm.div(20, 1, 2, go_on=True)
+    asm.div(22, 1, 2, go_on=True)
+    asm.collect("divider")
+    asm.end()
+    with pytest.raises(ValueError, match="meets another DIV"):
+        asm.resolve()
