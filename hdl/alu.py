@@ -1,5 +1,5 @@
-"""The attitude engine's adder: ADD, SUB or OR of two 32-bit registers, then wrapped (angles),
-or saturated to 32 or 16 bits."""
+"""The attitude engine's adder: ADD or SUB of two 32-bit registers, then wrapped (angles), or
+saturated to 32 or 16 bits."""
 
 from amaranth import *
 from amaranth.lib import wiring
@@ -25,12 +25,14 @@ def saturate(m, value, bits, *, keep=C(0)):
 
 
 class ALU(wiring.Component):
-    """One adder for a ± b (exact at 33 bits), or a | b, then the result wrapped to 32 bits or
-    saturated to 32 bits, or to 16 (calibrated sensor values: sat16 of sat32, which is sat16).
+    """One adder for a ± b (exact at 33 bits), then the result wrapped to 32 bits or saturated
+    to 32 bits, or to 16 (calibrated sensor values: sat16 of sat32, which is sat16). No OR:
+    the zero tests it served are register tests (``filters.shared.zero_tests``), and its
+    choice cost a LUT a bit (``report``).
 
     Members
         ``a``, ``b`` (in, signed 32): the operands.
-        ``sub`` (in): a − b instead of a + b; ``or_`` (in): a | b (zero tests).
+        ``sub`` (in): a − b instead of a + b.
         ``wrap`` (in): wrap instead of saturating (angles in BAM32); ``sat16`` (in): saturate
             to 16 bits.
         ``result`` (out, signed 32), ``saturated`` (out): a clamp happened (never with wrap).
@@ -39,7 +41,6 @@ class ALU(wiring.Component):
     a: In(signed(32))
     b: In(signed(32))
     sub: In(1)
-    or_: In(1)
     wrap: In(1)
     sat16: In(1)
     result: Out(signed(32))
@@ -49,14 +50,13 @@ class ALU(wiring.Component):
         m = Module()
         full = Signal(signed(33))
         m.d.comb += full.eq(self.a + Mux(self.sub, ~self.b, self.b) + self.sub)   # one adder
-        wide = Signal(signed(33))
-        m.d.comb += wide.eq(Mux(self.or_, self.a | self.b, full))
+        wide = full
         # both clamps of the one sum, side by side rather than one after the other (the
         # ALU's result is forwarded to the next instruction's operands in the same cycle:
         # the longest path of the engine, report --timing). sat16 of the sum is sat16 of its
         # sat32: a sum beyond 32 bits is beyond 16 with the same sign
-        # Wrapping is the 32-bit clamp that never clamps (the OR never needs it: a | b of two
-        # 32-bit values fits), so it shares the clamp's multiplexer: one fewer 32-bit choice
+        # Wrapping is the 32-bit clamp that never clamps, so it shares the clamp's
+        # multiplexer: one fewer 32-bit choice
         v32, f32 = saturate(m, wide, 32, keep=self.wrap)
         v16, f16 = saturate(m, wide, 16)
         m.d.comb += [

@@ -259,7 +259,6 @@ class AttitudeEngine(wiring.Component):
         # the adder's carry chain starts at flip-flops, report --timing). Like ``x``, they
         # matter only while ``xvalid``, which rises only at an ``advance`` that loads them
         x_sub = Signal(reset_less=True)
-        x_or = Signal(reset_less=True)
         phase = Signal(2)
         advance = Signal()
         flush = Signal()
@@ -274,7 +273,7 @@ class AttitudeEngine(wiring.Component):
         result_valid = Signal()
         return SimpleNamespace(fetch_pc=fetch_pc, rvalid=rvalid, rinstr=rinstr, o=o, ovalid=ovalid,
                                x=x, xvalid=xvalid, xa=xa, xb=xb, x_sub=x_sub,
-                               x_or=x_or, phase=phase, advance=advance, flush=flush,
+                               phase=phase, advance=advance, flush=flush,
                                first=first, init_pending=init_pending,
                                running_init=running_init, mag_valid=mag_valid, flags_set=flags_set,
                                flag_sat=flag_sat, out=out, result_valid=result_valid)
@@ -282,9 +281,9 @@ class AttitudeEngine(wiring.Component):
     def _operands(self, m, u, p):
         """The read ports' addresses, the units' operands (``xa``, ``xb``) and the branch
         condition of ``x`` (``p.cond``)."""
-        (xa, xb, fetch_pc, advance, out, x_sub, x_or, x, rinstr, rf, first, rom, host, alu, mac,
+        (xa, xb, fetch_pc, advance, out, x_sub, x, rinstr, rf, first, rom, host, alu, mac,
          cordic, divider, mag_valid) = (
-            p.xa, p.xb, p.fetch_pc, p.advance, p.out, p.x_sub, p.x_or, p.x, p.rinstr, u.rf,
+            p.xa, p.xb, p.fetch_pc, p.advance, p.out, p.x_sub, p.x, p.rinstr, u.rf,
             p.first, u.rom, u.host, u.alu, u.mac, u.cordic, u.divider, p.mag_valid)
         # A branch on a condition that holds still for the whole run (ALWAYS, MAG_INVALID,
         # FIRST, FILTER: set before it starts) is decided as it leaves the ROM: when taken, the
@@ -329,7 +328,7 @@ class AttitudeEngine(wiring.Component):
         ]
         opa, opb = xa, xb
         m.d.comb += [
-            alu.a.eq(opa), alu.b.eq(opb), alu.sub.eq(x_sub), alu.or_.eq(x_or),
+            alu.a.eq(opa), alu.b.eq(opb), alu.sub.eq(x_sub),
             alu.wrap.eq(x.wrap), alu.sat16.eq(x.sat16),
             mac.a.eq(opa), mac.b.eq(opb), mac.ins.eq(x),
             cordic.x_in.eq(opa), cordic.y_in.eq(opb), cordic.angle_in.eq(opa),
@@ -449,11 +448,11 @@ class AttitudeEngine(wiring.Component):
 
     def _execute(self, m, u, p):
         """The execute stage for ``x`` (an FSM state body)."""
-        (advance, xvalid, mac, o, w_en, w_addr, w_other, w_sat_other, x, ovalid, x_sub, x_or,
+        (advance, xvalid, mac, o, w_en, w_addr, w_other, w_sat_other, x, ovalid, x_sub,
          rom, rvalid, fetch_pc, flush, x_wd, alu_w, o_reads_x, phase, cond, divider, cordic,
          x_wd1, flags_set, o_reads_acc) = (
             p.advance, p.xvalid, u.mac, p.o, p.w_en, p.w_addr, p.w_other, p.w_sat_other, p.x,
-            p.ovalid, p.x_sub, p.x_or, u.rom, p.rvalid, p.fetch_pc, p.flush, p.x_wd, p.alu_w,
+            p.ovalid, p.x_sub, u.rom, p.rvalid, p.fetch_pc, p.flush, p.x_wd, p.alu_w,
             p.o_reads_x, p.phase, p.cond, u.divider, u.cordic, p.x_wd1, p.flags_set,
             p.o_reads_acc)
         m.d.comb += advance.eq(1)                       # overridden below by stalls
@@ -463,7 +462,7 @@ class AttitudeEngine(wiring.Component):
             m.d.comb += [w_en.eq(1), w_sat_other.eq(mac.wb_saturated)]
         with m.If(xvalid):
             with m.Switch(x.op):
-                with m.Case(Op.ADD, Op.SUB, Op.OR):
+                with m.Case(Op.ADD, Op.SUB):
                     m.d.comb += [w_en.eq(1), w_addr.eq(x.d), x_wd.eq(1), alu_w.eq(1)]
                 with m.Case(Op.MUL):
                     # the write-back comes two cycles after the issue: the MUL stays
@@ -531,7 +530,7 @@ class AttitudeEngine(wiring.Component):
         with m.If(advance):
             m.d.sync += [
                 x.eq(o), xvalid.eq(ovalid & ~flush),
-                x_sub.eq(o.op == Op.SUB), x_or.eq(o.op == Op.OR),
+                x_sub.eq(o.op == Op.SUB),
                 o.eq(rom.data), ovalid.eq(rvalid & ~flush),
                 fetch_pc.eq(p.fetch_addr), rvalid.eq(1),
             ]

@@ -11,7 +11,6 @@ op    effect                                                       cycles (engin
 NOP   nothing                                                      1
 ADD   d = a + b                                                    1
 SUB   d = a − b                                                    1
-OR    d = a | b   (zero tests)                                     1
 MUL   acc = (acc if ``acc`` else 2^(s−1)) ± a·b, s = MUL_SHIFTS[sh]  3; 1 (or 2) when a
                                                                    MUL follows that reads no
                                                                    d still to be written
@@ -93,7 +92,7 @@ class Op(enum.IntEnum):
     NOP = 0
     ADD = 1
     SUB = 2
-    OR = 3
+    # 3 was OR (the zero tests' until they became register tests: the ALU has no OR)
     MUL = 4
     DIV = 5
     VEC = 6
@@ -214,7 +213,7 @@ def _reads_writes(ins):
     background = op.name in UNITS
     if background and ins.sh & COLLECT:
         reads = ()
-    elif op in (Op.ADD, Op.SUB, Op.OR, Op.DIV, Op.VEC, Op.MUL):
+    elif op in (Op.ADD, Op.SUB, Op.DIV, Op.VEC, Op.MUL):
         reads = (ins.a, ins.b)
     elif op == Op.ROT:
         reads = (ins.a,)
@@ -226,7 +225,7 @@ def _reads_writes(ins):
         writes = ()
     elif op in (Op.VEC, Op.ROT):
         writes = (ins.d, ins.d + 1)
-    elif op in (Op.ADD, Op.SUB, Op.OR, Op.DIV) or (op == Op.MUL and ins.wb):
+    elif op in (Op.ADD, Op.SUB, Op.DIV) or (op == Op.MUL and ins.wb):
         writes = (ins.d,)
     else:
         writes = ()
@@ -295,9 +294,6 @@ class Assembler:
 
     def sub(self, d, a, b, *, wrap=False, sat16=False):
         self._emit(Instruction(Op.SUB, d, a, b, wrap=wrap, sat16=sat16))
-
-    def or_(self, d, a, b):
-        self._emit(Instruction(Op.OR, d, a, b))
 
     def mul(self, d, a, b, shr, *, acc=False, neg=False, wb=True):
         self._emit(Instruction(Op.MUL, d, a, b, self._code(MUL_SHIFTS, shr, "MUL"),

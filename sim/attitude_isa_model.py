@@ -72,8 +72,6 @@ class AttitudeISAModel:
                 put(ins.d, a + b, wrap=ins.wrap)
             elif op == Op.SUB:
                 put(ins.d, a - b, wrap=ins.wrap)
-            elif op == Op.OR:
-                put(ins.d, a | b)
             elif op == Op.MUL:
                 p = -a * b if ins.neg else a * b
                 s = MUL_SHIFTS[ins.sh]

@@ -52,14 +52,20 @@ def calibrate(asm, r):
 
 
 def zero_tests(asm, r, name):
-    """ACC_OK = ax|ay|az; MAG_OK = mx|my|mz, or 0 when the sample's magnetometer is invalid."""
-    asm.or_(r["ACC_OK"], r["A0"], r["A1"])
-    asm.or_(r["ACC_OK"], r["ACC_OK"], r["A2"])
-    asm.add(r["MAG_OK"], r["ZERO"], r["ZERO"])
-    asm.br(f"{name}_mag_checked", Cond.MAG_INVALID)
-    asm.or_(r["MAG_OK"], r["M0"], r["M1"])
-    asm.or_(r["MAG_OK"], r["MAG_OK"], r["M2"])
-    asm.label(f"{name}_mag_checked")
+    """ACC_OK = 0 when the calibrated accelerometer vector is zero, else not (its first axis
+    that is not 0); MAG_OK likewise for the field, or 0 when the sample's magnetometer is
+    invalid. Copies and register tests (the ALU has no OR): an axis that is not 0 ends the
+    test, so a usual one costs a copy and a taken branch."""
+    for ok, v in (("ACC_OK", "A"), ("MAG_OK", "M")):
+        done = f"{name}_{ok.lower()}_tested"
+        if ok == "MAG_OK":
+            asm.add(r[ok], r["ZERO"], r["ZERO"])
+            asm.br(done, Cond.MAG_INVALID)
+        for i in range(3):
+            asm.add(r[ok], r[f"{v}{i}"], r["ZERO"])
+            if i < 2:
+                asm.br(done, Cond.A_ZERO, a=r[ok], inv=True)
+        asm.label(done)
 
 
 
@@ -103,14 +109,16 @@ def heading(asm, r, roll, pitch, out, divisions=()):
     (start0, collect0), (start1, collect1) = _divisions(asm, divisions)
     with asm.scratch(7) as T:
         start0()
-        asm.rot(r["CR"], roll)
+        # (sine · m) >> 18 as (sine · (m << 12)) >> 30: the same bits, one rounding shift
+        # fewer; m << 12 while the CORDIC turns by the roll (in the background)
+        ms = T[4:7]
+        asm.rot(r["CR"], roll, go_on=True)
+        for i in range(3):
+            asm.mul(ms[i], r[f"M{i}"], r["SHL12"], Q14)
+        asm.collect()
         asm.rot(r["CP"], pitch)
         collect0()
         start1()
-        # (sine · m) >> 18 as (sine · (m << 12)) >> 30: the same bits, one rounding shift fewer
-        ms = T[4:7]
-        for i in range(3):
-            asm.mul(ms[i], r[f"M{i}"], r["SHL12"], Q14)
         asm.mul(T[0], r["SP"], r["SR"], Q30)
         asm.mul(T[1], r["SP"], r["CR"], Q30)
         asm.mac(T[2], [(r["CP"], ms[0]), (T[0], ms[1]), (T[1], ms[2])], Q30)      # hx
@@ -194,16 +202,23 @@ def euler_quat(asm, r, angles):
     """QOUT = the quaternion of the ZYX angles in the three registers ``angles`` (roll,
     pitch, yaw; ``euler_quat_fixed``); clobbers CR .. SY."""
     with asm.scratch(4) as T:
-        for i in range(3):
-            asm.mul(T[i], angles[i], r["HALF"], Q30)
-        for i, pair in enumerate(("CR", "CP", "CY")):
-            asm.rot(r[pair], T[i])
         cr, sr, cp, sp, cy, sy = (r[n] for n in ("CR", "SR", "CP", "SP", "CY", "SY"))
         cc, ss, cs, sc = T[0:4]
+        # the half angles of roll and pitch while the CORDIC turns by the yaw's, the yaw's and
+        # pitch's products while it turns by the roll's (in the background); the CORDIC
+        # takes its angle as it starts, so T0 is free again then
+        asm.mul(T[2], angles[2], r["HALF"], Q30)
+        asm.rot(cy, T[2], go_on=True)
+        for i in range(2):
+            asm.mul(T[i], angles[i], r["HALF"], Q30)
+        asm.collect()
+        asm.rot(cp, T[1])
+        asm.rot(cr, T[0], go_on=True)
         asm.mul(cc, cy, cp, Q30)
         asm.mul(ss, sy, sp, Q30)
         asm.mul(cs, cy, sp, Q30)
         asm.mul(sc, sy, cp, Q30)
+        asm.collect()
         asm.mac(r["QOUT0"], [(cr, cc), (sr, ss)], Q30)
         asm.mac(r["QOUT1"], [(sr, cc), (cr, ss, -1)], Q30)
         asm.mac(r["QOUT2"], [(cr, cs), (sr, sc)], Q30)
