@@ -20,8 +20,8 @@ first: that stage, and a held copy of each operand for a write it delayed past t
 read, cost registers and LUTs (``report``) for Fmax margin that the CORDIC's path, the routed
 critical one, does not leave (``report --timing``).
 A result is visible to the next instruction without stalls (forwarded into the operand
-registers); multi-cycle operations (MUL 3, or 1 to 2 when the next is a MUL that reads none
-of the results still to come; DIV 34, VEC 19, ROT 18 cycles) hold the pipeline, except a VEC,
+registers); multi-cycle operations (MUL 3, or 1 when the next is a MUL that does not read
+its result: ``attitude_isa``; DIV 34, VEC 19, ROT 18 cycles) hold the pipeline, except a VEC,
 ROT or DIV started in the background (``attitude_isa``: its collect waits for its unit); a
 taken branch on a register (A_ZERO, A_NEG) costs two bubbles (decided in execute, the ROM
 reads its target at once), one on a condition fixed for the run (ALWAYS, MAG_INVALID, FIRST,
@@ -383,27 +383,27 @@ class AttitudeEngine(wiring.Component):
                   *(out.bias[i] for i in range(3))]
         snooped = list(zip(fields, PEEKED))
         # Whether this cycle's write is to ``o``'s operand: ``w_en & (w_addr == o.a)``, made
-        # from registered facts (does ``o`` read what ``x`` writes, ``x.d + 1``, what the MAC
-        # writes back), kept with the registers they compare, so that no address comparison
-        # is between the write-back's multiplexers and the operands' forwarding (that path
-        # limited the routed Fmax, report --timing). ``x_wd``/``x_wd1``: the execute stage
-        # writes ``x.d``/``x.d + 1`` now (it takes the write port over the MAC's, as below).
-        # Outside RUN only ``xa``/``xb`` see them, and those are not read there.
-        x_wd, x_wd1 = Signal(), Signal()
+        # from registered facts (does ``o`` read what ``x`` writes, what the MAC writes back),
+        # kept with the registers they compare, so that no address comparison is between the
+        # write-back's multiplexers and the operands' forwarding (that path limited the routed
+        # Fmax, report --timing). ``x_wd``: the execute stage writes ``x.d`` now (it takes the
+        # write port over the MAC's, as below). A VEC's or ROT's write of d + 1 is never the
+        # last of its instruction (d follows a cycle later), so ``o``, waiting, reads it from
+        # the register file: no fact for d + 1. Outside RUN only ``xa``/``xb`` see them, and
+        # those are not read there.
+        x_wd = Signal()
         wb_next_d = Mux(mac.pending, mac.wb_next_addr, mac.wb_addr)   # the MAC's d next cycle
         facts, reads_xd = {}, {}
         for port in ("a", "b"):
             own = getattr(o, port)
             incoming = getattr(rinstr, port)
             eq_x = Signal(reset_less=True, init=1, name=f"eq_xd_{port}")
-            eq_x1 = Signal(reset_less=True, init=0, name=f"eq_xd1_{port}")
             eq_wb = Signal(reset_less=True, init=1, name=f"eq_wb_{port}")
             m.d.sync += [
                 eq_x.eq(Mux(advance, o.d == incoming, eq_x)),
-                eq_x1.eq(Mux(advance, (o.d + 1)[:REG_BITS] == incoming, eq_x1)),
                 eq_wb.eq(Mux(advance, wb_next_d == incoming, wb_next_d == own)),
             ]
-            facts[port] = (x_wd & eq_x) | (x_wd1 & eq_x1) | (~x_wd & ~x_wd1 & mac.wb_en & eq_wb)
+            facts[port] = (x_wd & eq_x) | (~x_wd & mac.wb_en & eq_wb)
             reads_xd[port] = eq_x
         hit_a, hit_b = facts["a"], facts["b"]
         # the operands of ``o``, as they are now: this cycle's write forwarded from the write
@@ -424,37 +424,24 @@ class AttitudeEngine(wiring.Component):
         with m.If(w_en & w_sat):
             m.d.sync += flag_sat.eq(1)
 
-        # Whether ``o`` reads the register ``x`` writes (from the forwarding's facts above),
-        # and the one the MAC's accumulating instruction writes: the MUL's stall test needs
-        # both, and ``advance`` fans out to every pipeline register's enable, so they are
-        # registered facts (updated with ``o``, ``x`` and the MAC's instruction, which change
-        # only at ``advance`` and at an issue; a comparison of the next values, chosen late)
-        # rather than compared in the cycle. No reset, like the registers they describe (zero
-        # instructions: equal).
-        def reads(instr, addr):
-            return (instr.a == addr) | (instr.b == addr)
-
+        # Whether ``o`` reads the register ``x`` writes, from the forwarding's facts above
+        # (registered: ``advance`` fans out to every pipeline register's enable): the MUL's
+        # stall test. A MUL reading the result of the MUL two before it, when the one between
+        # overlapped, is not tested: the assembler refuses it (``attitude_isa``)
         o_reads_x = reads_xd["a"] | reads_xd["b"]
-        o_reads_acc = Signal(reset_less=True, init=1)
-        m.d.sync += [
-            o_reads_acc.eq(Mux(advance,
-                               Mux(mac.issue, reads(rinstr, x.d), reads(rinstr, mac.wb_next_addr)),
-                               Mux(mac.issue, reads(o, x.d), o_reads_acc))),
-        ]
-        (p.w_en, p.w_addr, p.w_data, p.w_other, p.w_sat_other, p.alu_w, p.x_wd, p.x_wd1,
-         p.hit_a, p.hit_b, p.o_a, p.o_b, p.o_reads_x, p.o_reads_acc) = (
-            w_en, w_addr, w_data, w_other, w_sat_other, alu_w, x_wd, x_wd1, hit_a, hit_b, o_a,
-            o_b, o_reads_x, o_reads_acc)
+        (p.w_en, p.w_addr, p.w_data, p.w_other, p.w_sat_other, p.alu_w, p.x_wd,
+         p.hit_a, p.hit_b, p.o_a, p.o_b, p.o_reads_x) = (
+            w_en, w_addr, w_data, w_other, w_sat_other, alu_w, x_wd, hit_a, hit_b, o_a,
+            o_b, o_reads_x)
 
     def _execute(self, m, u, p):
         """The execute stage for ``x`` (an FSM state body)."""
         (advance, xvalid, mac, o, w_en, w_addr, w_other, w_sat_other, x, ovalid, x_sub,
          rom, rvalid, fetch_pc, flush, x_wd, alu_w, o_reads_x, phase, cond, divider, cordic,
-         x_wd1, flags_set, o_reads_acc) = (
+         flags_set) = (
             p.advance, p.xvalid, u.mac, p.o, p.w_en, p.w_addr, p.w_other, p.w_sat_other, p.x,
             p.ovalid, p.x_sub, u.rom, p.rvalid, p.fetch_pc, p.flush, p.x_wd, p.alu_w,
-            p.o_reads_x, p.phase, p.cond, u.divider, u.cordic, p.x_wd1, p.flags_set,
-            p.o_reads_acc)
+            p.o_reads_x, p.phase, p.cond, u.divider, u.cordic, p.flags_set)
         m.d.comb += advance.eq(1)                       # overridden below by stalls
         # a VEC's, ROT's or DIV's background start or collect (``attitude_isa``)
         go_on, collect = (x.sh & GO_ON).any(), (x.sh & COLLECT).any()
@@ -467,12 +454,13 @@ class AttitudeEngine(wiring.Component):
                 with m.Case(Op.MUL):
                     # the write-back comes two cycles after the issue: the MUL stays
                     # until then, unless the next instruction is a MUL (it writes nothing
-                    # in its issue cycle) that reads no result still to be written (its
-                    # operands are taken as it goes on)
+                    # in its issue cycle) that does not read this one's result (its
+                    # operands are taken as it goes on; nor the result of the MUL before,
+                    # if that one overlapped: the assembler sees to it)
                     overlap = ovalid & (o.op == Op.MUL) & ~(x.wb & o_reads_x)
                     with m.If(phase == 0):
                         m.d.comb += mac.issue.eq(1)
-                        with m.If(~overlap | (mac.wb_next & o_reads_acc)):
+                        with m.If(~overlap):
                             m.d.comb += advance.eq(0)
                             m.d.sync += phase.eq(1)
                     with m.Elif((phase == 1) & ~overlap):
@@ -497,13 +485,13 @@ class AttitudeEngine(wiring.Component):
                                      w_other.eq(divider.quotient),
                                      w_sat_other.eq(divider.saturated)]
                 with m.Case(Op.VEC, Op.ROT):
-                    # the CORDIC's ``x_out`` first (ROT's cos into d, VEC's magnitude into
-                    # d + 1), then its ``y_out`` (sin into d + 1, the angle into d): one source
-                    # a write, the mode chosen inside the CORDIC
+                    # the CORDIC's ``mag_sin`` into d + 1 first (VEC's magnitude, ROT's sin),
+                    # then its ``angle_cos`` into d (the angle, cos): one source and one
+                    # address a write, the mode chosen inside the CORDIC, and d, the one
+                    # forwarded (``x_wd``), last
                     # In the background (``attitude_isa``): a start (GO_ON) goes on at once;
                     # its collect (COLLECT) skips the start and waits, as phase 1 does, for
                     # the CORDIC to be idle (its results hold until the next start)
-                    is_rot = x.op == Op.ROT
                     with m.If((phase == 0) & ~collect):
                         m.d.comb += cordic.start.eq(1)
                         with m.If(~go_on):
@@ -512,16 +500,14 @@ class AttitudeEngine(wiring.Component):
                     with m.Elif(phase != 2):
                         m.d.comb += advance.eq(0)
                         with m.If(~cordic.busy):
-                            m.d.comb += [w_en.eq(1), w_addr.eq(Mux(is_rot, x.d, x.d + 1)),
-                                         x_wd.eq(is_rot), x_wd1.eq(~is_rot),
-                                         w_other.eq(cordic.x_out),
+                            m.d.comb += [w_en.eq(1), w_addr.eq(x.d + 1),
+                                         w_other.eq(cordic.mag_sin),
                                          w_sat_other.eq(cordic.saturated)]
                             m.d.sync += phase.eq(2)
                     with m.Else():
                         m.d.sync += phase.eq(0)
-                        m.d.comb += [w_en.eq(1), w_addr.eq(Mux(is_rot, x.d + 1, x.d)),
-                                     x_wd.eq(~is_rot), x_wd1.eq(is_rot),
-                                     w_other.eq(cordic.y_out)]
+                        m.d.comb += [w_en.eq(1), w_addr.eq(x.d), x_wd.eq(1),
+                                     w_other.eq(cordic.angle_cos)]
                 with m.Case(Op.BR):
                     with m.If(cond ^ x.inv):
                         m.d.comb += flush.eq(1)

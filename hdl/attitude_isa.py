@@ -11,9 +11,9 @@ op    effect                                                       cycles (engin
 NOP   nothing                                                      1
 ADD   d = a + b                                                    1
 SUB   d = a − b                                                    1
-MUL   acc = (acc if ``acc`` else 2^(s−1)) ± a·b, s = MUL_SHIFTS[sh]  3; 1 (or 2) when a
-                                                                   MUL follows that reads no
-                                                                   d still to be written
+MUL   acc = (acc if ``acc`` else 2^(s−1)) ± a·b, s = MUL_SHIFTS[sh]  3; 1 when a MUL
+                                                                   follows that does not
+                                                                   read its d (below)
       (exact, 66 bits: the rounding constant goes in first);
       if ``wb``: d = acc >> s  (= rshift_round of the sum)
 DIV   d = div_q24(a, b): ⌊a·2²⁴/b⌋, 0 if b ≤ 0                     34
@@ -40,6 +40,13 @@ work meanwhile: a division in the background of CORDIC operations, or the other 
 Cycles: the start takes 1 and the collect 2 (DIV: 1) once the unit is done; the work between
 them is free up to 16 cycles after a VEC (8 after a short one), 15 after a ROT and 32 after a
 DIV (the blocking op's time less those), and the collect waits out what is left of them.
+
+MUL after MUL: a MUL followed by a MUL that does not read its result goes on at once (their
+products overlap in the MAC's stages); one followed by anything else, or by a MUL that reads
+its result, waits for its write-back. The engine does not test the third case: a MUL that
+reads the result of the MUL two before it, when the one between went on at once, would read
+it a cycle too early. The assembler refuses such a program (``Assembler.resolve``: put
+another instruction between them, or order the MULs otherwise).
 
 Conditions: ``ALWAYS``; ``A_ZERO`` (register a is 0); ``A_NEG`` (register a is negative: a
 comparison is a SUB then this); ``MAG_INVALID`` (the sample's ``mag_valid`` flag is 0);
@@ -378,7 +385,44 @@ class Assembler:
         if len(out) > ROM_DEPTH:
             raise ValueError(f"program of {len(out)} instructions exceeds the ROM ({ROM_DEPTH})")
         _check_background(out, set(self.labels.values()))
+        _check_mul_chains(out)
         return out
+
+
+def _successors(code, i):
+    """The instructions that may run after instruction ``i`` (its word and a folded jump's
+    target; none after END; a branch's in ``_check_mul_chains``'s sense: none, a branch is not
+    a MUL and ends a chain)."""
+    ins = code[i]
+    if ins.op in (Op.END, Op.BR):
+        return []
+    after = []
+    if ins.then is not None:
+        cond, _, target = ins.then
+        after.append(target)
+        if cond == Cond.ALWAYS:
+            return after
+    return after + [i + 1] if i + 1 < len(code) else after
+
+
+def _check_mul_chains(code):
+    """The MUL timing the engine does not test (the module docstring): no MUL reads the result
+    of the MUL two before it on any path when the MUL between does not read it (and so went
+    on at once)."""
+    for i, a in enumerate(code):
+        if a.op != Op.MUL or not a.wb:
+            continue
+        for j in _successors(code, i):
+            b = code[j]
+            if b.op != Op.MUL or a.d in _reads_writes(b)[0]:
+                continue
+            for k in _successors(code, j):
+                c = code[k]
+                if c.op == Op.MUL and a.d in _reads_writes(c)[0]:
+                    raise ValueError(f"instruction {k}: a MUL reads the result of instruction "
+                                     f"{i}, the MUL two before it, while the MUL between "
+                                     f"({j}) goes on at once: the engine would read it a "
+                                     f"cycle early (put another instruction between them)")
 
 
 def _check_background(code, labelled):

@@ -1,5 +1,5 @@
 """The attitude engine's program: the reset program, then per sample the calibration, the
-dispatch on the selected filter and the filters' routines (``hdl/filters/``, one module each, in
+zero tests, the dispatch on the selected filter and the filters' routines (``hdl/filters/``, one module each, in
 the registry's order: ``hdl/filter_registry.py``), and the per-axis filters' angles-out tail.
 
 The microcode computes exactly ``reference.engine_model.EngineModel`` (formats in
@@ -10,7 +10,7 @@ formats, reset values) is ``hdl/register_map.py``.
 
 from .attitude_isa import Assembler, Cond
 from .filters import routines
-from .filters.shared import angles_out, calibrate, init
+from .filters.shared import angles_out, calibrate, init, zero_tests
 from .register_map import REGS, TEMPS
 
 
@@ -24,6 +24,9 @@ def build_program():
     init(asm, r)
     asm.label("sample")
     calibrate(asm, r)
+    # every filter's ACC_OK and MAG_OK, once here (a copy in each filter's routine took
+    # words of a ROM that is nearly full)
+    zero_tests(asm, r, "s")
     filters = routines()
     for f in filters[1:]:
         asm.br(f.name, Cond.FILTER, code=f.code)

@@ -28,14 +28,15 @@ class CORDIC(wiring.Component):
             before ``done``): the results are valid whenever it is low and an operation was
             started since reset. A user that goes on with other work after ``start`` (the
             engine's background VEC and ROT) waits for it to fall rather than for ``done``.
-        ``x_out`` (out, signed 32): vectoring, the magnitude √(x² + y²)·K saturated to 32 bits
-            (``saturated`` set if it was clamped); rotation, cos in Q1.30.
-        ``y_out`` (out, signed 32): vectoring, the angle (BAM32, atan2(y, x); (0, 0) gives 0);
-            rotation, sin in Q1.30.
+        ``mag_sin`` (out, signed 32): vectoring, the magnitude √(x² + y²)·K saturated to 32
+            bits (``saturated`` set if it was clamped); rotation, sin in Q1.30.
+        ``angle_cos`` (out, signed 32): vectoring, the angle (BAM32, atan2(y, x); (0, 0) gives
+            0); rotation, cos in Q1.30.
         ``saturated`` (out): vectoring's magnitude was clamped; 0 after a rotation.
         Each result port holds both modes' results (the mode chooses, inside), so that a user
-        writing them one after the other, as the engine does, has one source a write rather
-        than a multiplexer of four.
+        writing them one after the other, as the engine does (``mag_sin`` into d + 1, then
+        ``angle_cos`` into d), has one source and one address a write rather than a
+        multiplexer of four, and writes the same register last in both modes.
     Parameters (the datapath's by default; the formal check, ``tests/formal/test_cordic.py``, proves
     the same logic at a reduced width): ``width`` (32: inputs, results and the angle's BAM bits),
     ``atan_table`` (one entry per iteration, BAM of ``width`` bits), ``inv_gain`` (1/K in
@@ -71,8 +72,8 @@ class CORDIC(wiring.Component):
             "x_in": In(signed(n)), "y_in": In(signed(n)), "angle_in": In(signed(n)),
             "done": Out(1),
             "busy": Out(1),
-            "x_out": Out(signed(n)),        # vectoring: |(x, y)|·K, saturated; rotation: cos
-            "y_out": Out(signed(n)),        # vectoring: atan2(y, x); rotation: sin
+            "mag_sin": Out(signed(n)),      # vectoring: |(x, y)|·K, saturated; rotation: sin
+            "angle_cos": Out(signed(n)),    # vectoring: atan2(y, x); rotation: cos
             "saturated": Out(1),
         })
 
@@ -185,11 +186,12 @@ class CORDIC(wiring.Component):
         # In vectoring x is never negative: it starts at |x_in| (or -x_in - 1) and each
         # iteration adds |y| >> i. So it is over 2^(n-1) - 1 when a bit from n - 1 up is set,
         # and the limit is x with its low bits forced to ones: no comparator, no multiplexer.
-        # In rotation x is cos (Q1.30: it fits 32 bits), passed on whole
+        # In rotation x and y are cos and sin (Q1.30: they fit 32 bits), passed on whole
         over = x[n - 1:].any() & ~rotate
+        magnitude = Cat(x[:n - 1] | over.replicate(n - 1), C(0, 1))
         m.d.comb += [
-            self.x_out.eq(Cat(x[:n - 1] | over.replicate(n - 1), x[n - 1] & rotate)),
-            self.y_out.eq(Mux(rotate, y, z)),
+            self.mag_sin.eq(Mux(rotate, y[:n], magnitude)),
+            self.angle_cos.eq(Mux(rotate, x[:n], z)),
             self.saturated.eq(over),
         ]
         return m

@@ -3,7 +3,7 @@ tilt and the magnetometer's heading, a = τ/(τ + dt) (``ONE_MINUS_A`` = 1 − a
 ``hdl/register_map.py``, as its state)."""
 
 from ..attitude_isa import Q14, Q24, Q30, Cond, Flag
-from .shared import euler_rates, heading, step_n, tilt, zero_tests
+from .shared import euler_rates, heading, step_n, tilt
 
 
 __all__ = ["CONFIG_REGISTERS", "REGISTERS", "emit"]
@@ -25,7 +25,6 @@ def emit(asm, r):
             asm.add(r[f"PRED{i}"], r[f"THETA{i}"], T[i], wrap=True)
             asm.add(r[f"PREV{i}"], r[f"G{i}"], r["ZERO"])
         asm.label("c_predicted")
-        zero_tests(asm, r, "c")
         asm.add(r["MEAS0"], r["PRED0"], r["ZERO"])
         asm.add(r["MEAS1"], r["PRED1"], r["ZERO"])
         asm.br("c_no_tilt", Cond.A_ZERO, a=r["ACC_OK"])

@@ -14,7 +14,7 @@ Cost: ``python -m mpu9250_ahrs report`` (``cycles_per_update.flagship``).
 """
 
 from ..attitude_isa import DOUBLED, Q14, Q30, Cond, Flag
-from .shared import matrix_angles, step_n, zero_tests
+from .shared import matrix_angles, step_n
 
 
 __all__ = ["CONFIG_REGISTERS", "REGISTERS", "FLAGSHIP_REGISTERS", "flagship_names",
@@ -428,9 +428,8 @@ def flagship_routine(asm, r):
 
 
 def emit(asm, r):
-    """The filter's entry: the zero tests, the per-period rotation (its strapdown step uses
-    STEP_N), then the routine."""
-    zero_tests(asm, r, "f")
+    """The filter's entry: the per-period rotation (its strapdown step uses STEP_N), then the
+    routine."""
     step_n(asm, r, "K_RAD")
     flagship_routine(asm, r)
 

@@ -5,7 +5,7 @@ the accelerometer's tilt and the magnetometer's heading. Its run-time registers 
 base map (``hdl/register_map.py``)."""
 
 from ..attitude_isa import Q14, Q24, Q30, Cond, Flag
-from .shared import euler_rates, heading, step_n, tilt, zero_tests
+from .shared import euler_rates, heading, step_n, tilt
 
 
 __all__ = ["CONFIG_REGISTERS", "REGISTERS", "emit"]
@@ -129,7 +129,6 @@ def emit(asm, r):
                 asm.sub(p01, p01, TP[i])
                 asm.sub(p10, p10, TP[i])
                 asm.add(p11, p11, r["Q_BIAS"])
-    zero_tests(asm, r, "k")
     _measurements(asm, r)
     asm.label("k_first")
     for i in range(3):

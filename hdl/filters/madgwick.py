@@ -14,7 +14,7 @@ Cost: ``python -m mpu9250_ahrs report`` (``cycles_per_update.madgwick``).
 
 from ..attitude_isa import Q14, Q24, Q30, Cond, Flag
 from .flagship import _PAIRS, _matrix, _normalise
-from .shared import euler_quat, heading, matrix_angles, step_n, tilt, zero_tests
+from .shared import euler_quat, heading, matrix_angles, step_n, tilt
 
 
 __all__ = ["CONFIG_REGISTERS", "REGISTERS", "emit"]
@@ -209,9 +209,9 @@ def _align(asm, r):
 def emit(asm, r):
     """The routine, from the calibrated sample to QOUT, THETA (BIAS untouched)."""
     r = _aliases(r)
-    zero_tests(asm, r, "m")
-    step_n(asm, r, "K_RAD")
+    # STEP_N last: the MUL after the branch reads it (``attitude_isa``: MUL after MUL)
     step_n(asm, r, "BETA_K", "BN")
+    step_n(asm, r, "K_RAD")
     asm.br("m_start", Cond.FIRST)
     asm.label("m_started")
     # ½·q ⊗ (0, ω·T·n)

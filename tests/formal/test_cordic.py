@@ -104,8 +104,8 @@ def cordic_harness(width=WIDTH, iterations=ITERATIONS, short_iterations=SHORT, d
     m.d.comb += Assert(dut.done == (cycle == Mux(short, short_iterations, iterations) + 1 -
                                     mode), "latency")
     with m.If(dut.done & ~mode):
-        m.d.comb += [Assert(dut.y_out == angle, "angle"),
-                     Assert(dut.x_out == magnitude, "magnitude"),
+        m.d.comb += [Assert(dut.angle_cos == angle, "angle"),
+                     Assert(dut.mag_sin == magnitude, "magnitude"),
                      Assert(dut.saturated == saturated, "saturated"),
                      Cover((x == 0) & (y == 0), "zero_vector"),
                      Cover((x < 0) & (y > 0), "left_half_plane_up"),
@@ -113,8 +113,8 @@ def cordic_harness(width=WIDTH, iterations=ITERATIONS, short_iterations=SHORT, d
                      Cover(saturated, "magnitude_saturates"),
                      Cover(short & (x == 0) & (y == 0), "short_zero_vector")]
     with m.If(dut.done & mode):
-        m.d.comb += [Assert(dut.x_out == cos[:width].as_signed(), "cos"),
-                     Assert(dut.y_out == sin[:width].as_signed(), "sin"),
+        m.d.comb += [Assert(dut.angle_cos == cos[:width].as_signed(), "cos"),
+                     Assert(dut.mag_sin == sin[:width].as_signed(), "sin"),
                      # the rotated vector fits the outputs: no wrap hidden by the slices above
                      Assert((cos >> (width - 1) == 0) | (cos >> (width - 1) == -1), "cos_fits"),
                      Assert((sin >> (width - 1) == 0) | (sin >> (width - 1) == -1), "sin_fits"),

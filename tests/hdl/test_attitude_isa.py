@@ -164,3 +164,30 @@ def test_background_rules():
     asm.end()
     with pytest.raises(ValueError, match="meets another DIV"):
         asm.resolve()
+
+
+def test_mul_two_after_a_mul_it_reads():
+    """The MUL timing the engine does not test: a MUL reading the result of the MUL two
+    before it while the one between goes on at once is refused, on a path through a folded
+    jump too; with the one between reading it too (it waits), or another instruction between,
+    it is taken."""
+    def program(*emits):
+        asm = Assembler()
+        for emit in emits:
+            emit(asm)
+        asm.end()
+        asm.label("x")
+        asm.mul(7, 5, 1, Q30)
+        asm.end()
+        return asm
+
+    first = lambda asm: asm.mul(5, 1, 2, Q30)
+    between = lambda asm: asm.mul(6, 1, 2, Q30)
+    reads = lambda asm: asm.mul(7, 5, 3, Q30)
+    with pytest.raises(ValueError, match="reads the result of instruction 0, the MUL two"):
+        program(first, between, reads).resolve()
+    # the one between ends in a jump to a MUL that reads it
+    with pytest.raises(ValueError, match="reads the result of instruction 0"):
+        program(first, between, lambda asm: asm.br("x")).resolve()
+    program(first, lambda asm: asm.mul(6, 5, 2, Q30), reads).resolve()
+    program(first, between, lambda asm: asm.add(8, 1, 2), reads).resolve()
