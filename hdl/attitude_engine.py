@@ -20,10 +20,10 @@ first: that stage, and a held copy of each operand for a write it delayed past t
 read, cost registers and LUTs (``report``) for Fmax margin that the CORDIC's path, the routed
 critical one, does not leave (``report --timing``).
 A result is visible to the next instruction without stalls (forwarded into the operand
-registers); multi-cycle operations (MUL 3, or 1 when the next is a MUL that does not read
-its result: ``attitude_isa``; DIV 34, VEC 19, ROT 18 cycles) hold the pipeline, except a VEC,
-ROT or DIV started in the background (``attitude_isa``: its collect waits for its unit); a
-taken branch on a register (A_ZERO, A_NEG) costs two bubbles (decided in execute, the ROM
+registers); multi-cycle operations (MUL 3, or 1 when the next is a MUL, which the assembler
+keeps from reading its result: ``attitude_isa``; DIV 34, VEC 19, ROT 18 cycles) hold the
+pipeline, except a VEC, ROT or DIV started in the background (``attitude_isa``: its collect
+waits for its unit); a taken branch on a register (A_ZERO, A_NEG) costs two bubbles (decided in execute, the ROM
 reads its target at once), one on a condition fixed for the run (ALWAYS, MAG_INVALID, FIRST,
 FILTER) none: it is decided as it leaves the ROM (from the word's ``jump`` field, which any
 instruction may carry: the assembler folds most such branches into the instruction before
@@ -393,7 +393,7 @@ class AttitudeEngine(wiring.Component):
         # those are not read there.
         x_wd = Signal()
         wb_next_d = Mux(mac.pending, mac.wb_next_addr, mac.wb_addr)   # the MAC's d next cycle
-        facts, reads_xd = {}, {}
+        facts = {}
         for port in ("a", "b"):
             own = getattr(o, port)
             incoming = getattr(rinstr, port)
@@ -404,7 +404,6 @@ class AttitudeEngine(wiring.Component):
                 eq_wb.eq(Mux(advance, wb_next_d == incoming, wb_next_d == own)),
             ]
             facts[port] = (x_wd & eq_x) | (~x_wd & mac.wb_en & eq_wb)
-            reads_xd[port] = eq_x
         hit_a, hit_b = facts["a"], facts["b"]
         # the operands of ``o``, as they are now: this cycle's write forwarded from the write
         # data (the ALU's result or another's: an ALU instruction writes ``x.d`` whatever else
@@ -424,24 +423,18 @@ class AttitudeEngine(wiring.Component):
         with m.If(w_en & w_sat):
             m.d.sync += flag_sat.eq(1)
 
-        # Whether ``o`` reads the register ``x`` writes, from the forwarding's facts above
-        # (registered: ``advance`` fans out to every pipeline register's enable): the MUL's
-        # stall test. A MUL reading the result of the MUL two before it, when the one between
-        # overlapped, is not tested: the assembler refuses it (``attitude_isa``)
-        o_reads_x = reads_xd["a"] | reads_xd["b"]
         (p.w_en, p.w_addr, p.w_data, p.w_other, p.w_sat_other, p.alu_w, p.x_wd,
-         p.hit_a, p.hit_b, p.o_a, p.o_b, p.o_reads_x) = (
-            w_en, w_addr, w_data, w_other, w_sat_other, alu_w, x_wd, hit_a, hit_b, o_a,
-            o_b, o_reads_x)
+         p.hit_a, p.hit_b, p.o_a, p.o_b) = (
+            w_en, w_addr, w_data, w_other, w_sat_other, alu_w, x_wd, hit_a, hit_b, o_a, o_b)
 
     def _execute(self, m, u, p):
         """The execute stage for ``x`` (an FSM state body)."""
         (advance, xvalid, mac, o, w_en, w_addr, w_other, w_sat_other, x, ovalid, x_sub,
-         rom, rvalid, fetch_pc, flush, x_wd, alu_w, o_reads_x, phase, cond, divider, cordic,
+         rom, rvalid, fetch_pc, flush, x_wd, alu_w, phase, cond, divider, cordic,
          flags_set) = (
             p.advance, p.xvalid, u.mac, p.o, p.w_en, p.w_addr, p.w_other, p.w_sat_other, p.x,
             p.ovalid, p.x_sub, u.rom, p.rvalid, p.fetch_pc, p.flush, p.x_wd, p.alu_w,
-            p.o_reads_x, p.phase, p.cond, u.divider, u.cordic, p.flags_set)
+            p.phase, p.cond, u.divider, u.cordic, p.flags_set)
         m.d.comb += advance.eq(1)                       # overridden below by stalls
         # a VEC's, ROT's or DIV's background start or collect (``attitude_isa``)
         go_on, collect = (x.sh & GO_ON).any(), (x.sh & COLLECT).any()
@@ -454,10 +447,10 @@ class AttitudeEngine(wiring.Component):
                 with m.Case(Op.MUL):
                     # the write-back comes two cycles after the issue: the MUL stays
                     # until then, unless the next instruction is a MUL (it writes nothing
-                    # in its issue cycle) that does not read this one's result (its
-                    # operands are taken as it goes on; nor the result of the MUL before,
-                    # if that one overlapped: the assembler sees to it)
-                    overlap = ovalid & (o.op == Op.MUL) & ~(x.wb & o_reads_x)
+                    # in its issue cycle; its operands are taken as it goes on). That MUL
+                    # reads neither this one's result nor the one's before: the assembler
+                    # sees to it (``attitude_isa``: MUL after MUL), the engine tests nothing
+                    overlap = ovalid & (o.op == Op.MUL)
                     with m.If(phase == 0):
                         m.d.comb += mac.issue.eq(1)
                         with m.If(~overlap):

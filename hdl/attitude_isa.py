@@ -8,12 +8,11 @@ bits, as the instruction says) and a saturation sets the sample's ``saturated`` 
 ====  ===========================================================  ======================
 op    effect                                                       cycles (engine)
 ====  ===========================================================  ======================
-NOP   nothing                                                      1
+NOP   nothing (``nop``: the assembler's, between MULs, below)     1
 ADD   d = a + b                                                    1
 SUB   d = a − b                                                    1
 MUL   acc = (acc if ``acc`` else 2^(s−1)) ± a·b, s = MUL_SHIFTS[sh]  3; 1 when a MUL
-                                                                   follows that does not
-                                                                   read its d (below)
+                                                                   follows (below)
       (exact, 66 bits: the rounding constant goes in first);
       if ``wb``: d = acc >> s  (= rshift_round of the sum)
 DIV   d = div_q24(a, b): ⌊a·2²⁴/b⌋, 0 if b ≤ 0                     34
@@ -41,12 +40,14 @@ Cycles: the start takes 1 and the collect 2 (DIV: 1) once the unit is done; the 
 them is free up to 16 cycles after a VEC (8 after a short one), 15 after a ROT and 32 after a
 DIV (the blocking op's time less those), and the collect waits out what is left of them.
 
-MUL after MUL: a MUL followed by a MUL that does not read its result goes on at once (their
-products overlap in the MAC's stages); one followed by anything else, or by a MUL that reads
-its result, waits for its write-back. The engine does not test the third case: a MUL that
-reads the result of the MUL two before it, when the one between went on at once, would read
-it a cycle too early. The assembler refuses such a program (``Assembler.resolve``: put
-another instruction between them, or order the MULs otherwise).
+MUL after MUL: a MUL followed by a MUL goes on at once (their products overlap in the MAC's
+stages); one followed by anything else waits for its write-back. The engine tests no
+operand: a MUL that read the result of the MUL just before it, or of the one two before it,
+would read it too early. The assembler keeps them apart: ``Assembler.resolve`` puts a NOP
+before a MUL that reads the result of the MUL that runs just before it (the first then waits
+for its write-back, as before any other instruction), and refuses a MUL that reads the
+result of the MUL two before it (put another instruction between them, or order the MULs
+otherwise).
 
 Conditions: ``ALWAYS``; ``A_ZERO`` (register a is 0); ``A_NEG`` (register a is negative: a
 comparison is a SUB then this); ``MAG_INVALID`` (the sample's ``mag_valid`` flag is 0);
@@ -137,7 +138,8 @@ class Instr(data.Struct):
     d: unsigned(REG_BITS)
     a: unsigned(REG_BITS)
     b: unsigned(REG_BITS)
-    sh: unsigned(3)         # MUL: MUL_SHIFTS index; SETF: the flag; VEC, ROT: CORDIC_* bits
+    sh: unsigned(3)         # MUL: MUL_SHIFTS index; SETF: the flag; VEC, ROT, DIV: the
+                            # CORDIC_SHORT, GO_ON and COLLECT bits
     wrap: unsigned(1)       # ADD/SUB: wrap to 32 bits (angles) instead of saturating
     sat16: unsigned(1)      # ADD/SUB: saturate to 16 bits (calibrated sensor values)
     acc: unsigned(1)        # MUL: add to the running accumulator
@@ -306,6 +308,9 @@ class Assembler:
         self._emit(Instruction(Op.MUL, d, a, b, self._code(MUL_SHIFTS, shr, "MUL"),
                                acc=acc, neg=neg, wb=wb))
 
+    def nop(self):
+        self._emit(Instruction(Op.NOP))
+
     def mac(self, d, terms, shr):
         """d = rshift_round(Σ ±a·b, shr); ``terms``: (a, b) or (a, b, -1)."""
         for i, t in enumerate(terms):
@@ -363,11 +368,31 @@ class Assembler:
             else:
                 i += 1
 
+    def _separate_muls(self):
+        """A NOP before a MUL that reads the result of the MUL that runs just before it (MUL
+        after MUL, the module docstring): after the word before it, or at a folded jump's
+        target (where every path to it takes the NOP). Labels after it move down."""
+        code, i = self.code, 0
+        while i < len(code):
+            a = code[i]
+            if a.op == Op.MUL and a.wb:
+                after = [] if a.then is not None and a.then[0] == Cond.ALWAYS else [i + 1]
+                if a.then is not None and a.then[2] in self.labels:
+                    after.append(self.labels[a.then[2]])
+                for t in after:
+                    if t < len(code) and code[t].op == Op.MUL and a.d in _reads_writes(code[t])[0]:
+                        code.insert(t, Instruction(Op.NOP))
+                        self.labels = {k: v + 1 if v > t else v for k, v in self.labels.items()}
+                        i += t <= i
+            i += 1
+
     def resolve(self):
         """Instructions with label targets replaced by addresses, the branches on fixed
-        conditions folded where they can be (``_fold``; ``labels`` then gives the addresses
-        of the folded program)."""
+        conditions folded where they can be (``_fold``), NOPs between MULs where one reads the
+        result of the one just before (``_separate_muls``; ``labels`` then gives the addresses
+        of the final program), and the background units' and MULs' rules checked."""
         self._fold()
+        self._separate_muls()
 
         def address(label):
             if label not in self.labels:
@@ -390,9 +415,9 @@ class Assembler:
 
 
 def _successors(code, i):
-    """The instructions that may run after instruction ``i`` (its word and a folded jump's
-    target; none after END; a branch's in ``_check_mul_chains``'s sense: none, a branch is not
-    a MUL and ends a chain)."""
+    """The instructions that may run right after instruction ``i``: the next word and a folded
+    jump's target (only the target, for an ALWAYS one); none after END or a branch (a branch is
+    not a MUL: it ends a chain of them, all that ``_check_mul_chains`` follows)."""
     ins = code[i]
     if ins.op in (Op.END, Op.BR):
         return []
@@ -406,23 +431,21 @@ def _successors(code, i):
 
 
 def _check_mul_chains(code):
-    """The MUL timing the engine does not test (the module docstring): no MUL reads the result
-    of the MUL two before it on any path when the MUL between does not read it (and so went
-    on at once)."""
+    """The MUL timing the engine does not test (the module docstring): on no path does a MUL
+    read the result of the MUL just before it, or of the one two before it."""
     for i, a in enumerate(code):
         if a.op != Op.MUL or not a.wb:
             continue
         for j in _successors(code, i):
-            b = code[j]
-            if b.op != Op.MUL or a.d in _reads_writes(b)[0]:
+            if code[j].op != Op.MUL:
                 continue
-            for k in _successors(code, j):
-                c = code[k]
-                if c.op == Op.MUL and a.d in _reads_writes(c)[0]:
+            for k, apart in [(j, "just before it")] + [(k, "two before it")
+                                                       for k in _successors(code, j)]:
+                if code[k].op == Op.MUL and a.d in _reads_writes(code[k])[0]:
                     raise ValueError(f"instruction {k}: a MUL reads the result of instruction "
-                                     f"{i}, the MUL two before it, while the MUL between "
-                                     f"({j}) goes on at once: the engine would read it a "
-                                     f"cycle early (put another instruction between them)")
+                                     f"{i}, the MUL {apart}, which goes on at once: the engine "
+                                     f"would read it too early (put another instruction "
+                                     f"between them)")
 
 
 def _check_background(code, labelled):

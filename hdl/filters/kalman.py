@@ -56,9 +56,9 @@ def _kalman_update(asm, r, i, z, k0, k1, before_k1=None):
 
 def _measurements(asm, r):
     """The tilt and heading measurements and the updates they feed. The gains' divisions are
-    made in the background (``attitude_isa``) of what does not need them: axes 0 and 1's (on
-    an accelerometer measurement) while the tilt is vectored and, axis 1's, while axis 0 is
-    updated; axis 2's (on a field) while the heading is computed. The heading uses the
+    made in the background (``attitude_isa``) of what does not need them: axis 0's while the
+    tilt is vectored and axis 1's while axis 0 is updated (both on an accelerometer
+    measurement), axis 2's (on a field) while the heading is computed. The heading uses the
     predicted roll and pitch, so axis 2 is updated first; the axes' updates are independent."""
     with asm.scratch(2) as (k0_0, k1_0):
         asm.br("k_no_tilt", Cond.A_ZERO, a=r["ACC_OK"])

@@ -68,7 +68,6 @@ def zero_tests(asm, r, name):
         asm.label(done)
 
 
-
 def _divisions(asm, divisions):
     """Emitters for ``tilt``'s and ``heading``'s ``divisions``: (start, collect) of each, or of
     nothing where there is no division."""
@@ -86,7 +85,7 @@ def tilt(asm, r, roll, divisions=()):
     inputs scaled by 2⁸. Clobbers ``roll`` + 2 (the vectoring CORDIC writes its magnitude
     beside the angle; the first one's is used for the pitch). ``divisions``: up to two
     (d, a, b) the caller wants made in the background meanwhile (``attitude_isa``: their
-    operands written before, nothing here touches their d), one a VEC."""
+    operands written before, nothing here touches their d), each beside one of the VECs."""
     (start0, collect0), (start1, collect1) = _divisions(asm, divisions)
     with asm.scratch(4) as T:
         # a << 8 (exact); −ax << 8 by a MUL that subtracts its product (exact too, and no
@@ -168,8 +167,9 @@ def matrix_angles(asm, r, m, yaw, delta, rotation=None, beside=()):
     ``prepare(t)`` writes its angle into the scratch register ``t`` while the roll's VEC runs
     in the background, and ``use()`` reads its cos and sin (``dst``, ``dst`` + 1) while the
     pitch's does. ``beside``: more of the caller's work (routines) for the CORDIC's waits, in
-    order: the roll's, the rotation's, the pitch's and the yaw's. None of them may branch or
-    use the CORDIC (``attitude_isa``'s background rules)."""
+    order: the roll's, the rotation's (without a rotation, between the roll and the pitch),
+    the pitch's and the yaw's. None of them may branch or use the CORDIC (``attitude_isa``'s
+    background rules)."""
     work = list(beside) + [lambda: None] * (4 - len(beside))
     with asm.scratch(3) as (t0, t1, t2):
         asm.vec(r["THETA0"], m[8], m[7], go_on=True)

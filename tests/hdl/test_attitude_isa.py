@@ -166,11 +166,12 @@ def test_background_rules():
         asm.resolve()
 
 
-def test_mul_two_after_a_mul_it_reads():
-    """The MUL timing the engine does not test: a MUL reading the result of the MUL two
-    before it while the one between goes on at once is refused, on a path through a folded
-    jump too; with the one between reading it too (it waits), or another instruction between,
-    it is taken."""
+def test_muls_that_read_a_result_too_early():
+    """The MUL timing the engine does not test: a NOP goes before a MUL that reads the result
+    of the MUL just before it (after the word, or at a folded jump's target); a MUL reading
+    the result of the MUL two before it is refused, on a path through a folded jump too, and
+    taken with another instruction between."""
+    from mpu9250_ahrs.hdl.attitude_isa import Op
     def program(*emits):
         asm = Assembler()
         for emit in emits:
@@ -189,5 +190,12 @@ def test_mul_two_after_a_mul_it_reads():
     # the one between ends in a jump to a MUL that reads it
     with pytest.raises(ValueError, match="reads the result of instruction 0"):
         program(first, between, lambda asm: asm.br("x")).resolve()
-    program(first, lambda asm: asm.mul(6, 5, 2, Q30), reads).resolve()
     program(first, between, lambda asm: asm.add(8, 1, 2), reads).resolve()
+    # the one between reads it: a NOP before it, and then the third is three after the first
+    code = program(first, lambda asm: asm.mul(6, 5, 2, Q30), reads).resolve()
+    assert [i.op for i in code[:4]] == [Op.MUL, Op.NOP, Op.MUL, Op.MUL]
+    # through a folded jump: the NOP at its target, which the label names
+    asm = program(first, lambda asm: asm.br("x"))
+    code = asm.resolve()
+    assert code[0].then[2] == asm.labels["x"] and code[asm.labels["x"]].op == Op.NOP
+    assert code[asm.labels["x"] + 1].op == Op.MUL
