@@ -50,15 +50,14 @@ class ALU(wiring.Component):
         m = Module()
         full = Signal(signed(33))
         m.d.comb += full.eq(self.a + Mux(self.sub, ~self.b, self.b) + self.sub)   # one adder
-        wide = full
         # both clamps of the one sum, side by side rather than one after the other (the
         # ALU's result is forwarded to the next instruction's operands in the same cycle:
         # the longest path of the engine, report --timing). sat16 of the sum is sat16 of its
         # sat32: a sum beyond 32 bits is beyond 16 with the same sign
         # Wrapping is the 32-bit clamp that never clamps, so it shares the clamp's
         # multiplexer: one fewer 32-bit choice
-        v32, f32 = saturate(m, wide, 32, keep=self.wrap)
-        v16, f16 = saturate(m, wide, 16)
+        v32, f32 = saturate(m, full, 32, keep=self.wrap)
+        v16, f16 = saturate(m, full, 16)
         m.d.comb += [
             self.result.eq(Mux(self.sat16 & ~self.wrap, v16, v32)),
             self.saturated.eq(~self.wrap & Mux(self.sat16, f16, f32)),
