@@ -376,11 +376,8 @@ class Assembler:
         while i < len(code):
             a = code[i]
             if a.op == Op.MUL and a.wb:
-                after = [] if a.then is not None and a.then[0] == Cond.ALWAYS else [i + 1]
-                if a.then is not None and a.then[2] in self.labels:
-                    after.append(self.labels[a.then[2]])
-                for t in after:
-                    if t < len(code) and code[t].op == Op.MUL and a.d in _reads_writes(code[t])[0]:
+                for t in _successors(code, i, self.labels.get):
+                    if code[t].op == Op.MUL and a.d in _reads_writes(code[t])[0]:
                         code.insert(t, Instruction(Op.NOP))
                         self.labels = {k: v + 1 if v > t else v for k, v in self.labels.items()}
                         i += t <= i
@@ -414,17 +411,21 @@ class Assembler:
         return out
 
 
-def _successors(code, i):
+def _successors(code, i, address=None):
     """The instructions that may run right after instruction ``i``: the next word and a folded
-    jump's target (only the target, for an ALWAYS one); none after END or a branch (a branch is
-    not a MUL: it ends a chain of them, all that ``_check_mul_chains`` follows)."""
+    jump's target (only the target, for an ALWAYS one; not one past the last word); none after
+    END or a branch (a branch is not a MUL: it ends a chain of them, all that the MUL rules
+    follow). ``address``: a folded jump's target from its label (before ``resolve`` replaces
+    them; None: undefined, left out, ``resolve`` refuses it)."""
     ins = code[i]
     if ins.op in (Op.END, Op.BR):
         return []
     after = []
     if ins.then is not None:
         cond, _, target = ins.then
-        after.append(target)
+        target = target if address is None else address(target)
+        if target is not None and target < len(code):
+            after.append(target)
         if cond == Cond.ALWAYS:
             return after
     return after + [i + 1] if i + 1 < len(code) else after

@@ -116,14 +116,25 @@ def _abs(asm, r, x, label):
 
 def _low_pass(asm, r, states, inputs, gain):
     """state += mul(gain, input − state, 30) for each pair: the SUBs, then the MULs back to
-    back, then the ADDs."""
+    back (``_low_pass_steps``' two halves)."""
     with asm.scratch(len(states)) as temps:
+        for step in _low_pass_steps(asm, r, temps, states, inputs, gain):
+            step()
+
+
+def _low_pass_steps(asm, r, temps, states, inputs, gain):
+    """``_low_pass`` in two steps (callables) over the scratch registers ``temps``: the
+    products (the SUBs, then the MULs back to back), then the sums (the ADDs)."""
+    def products():
         for t, s, x in zip(temps, states, inputs):
             asm.sub(t, x, s)
         for t in temps:
             asm.mul(t, r[gain], t, Q30)
+
+    def sums():
         for t, s in zip(temps, states):
             asm.add(s, s, t)
+    return products, sums
 
 
 def _butterworth_low(asm, r, low, band, gain):
@@ -157,17 +168,11 @@ def _rest_steps(asm, r, temps):
     (callables) for the output's CORDIC waits (``_output``); ``temps``: six scratch
     registers, held across them. The rate error U it uses is ``_rate_error``'s."""
     v = lambda name: [r[f"{name}{i}"] for i in range(3)]
-    states, inputs = v("GLP") + v("ALP"), v("G16") + v("A16")
-
-    def low_pass_products():                # state += mul(A_DET, input − state, 30) ...
-        for t, st, x in zip(temps, states, inputs):
-            asm.sub(t, x, st)
-        for t in temps:
-            asm.mul(t, r["A_DET"], t, Q30)
+    low_pass_products, low_pass_state = _low_pass_steps(
+        asm, r, temps, v("GLP") + v("ALP"), v("G16") + v("A16"), "A_DET")
 
     def low_pass_sums():
-        for t, st in zip(temps, states):
-            asm.add(st, st, t)
+        low_pass_state()
         for i in range(3):
             asm.sub(r[f"DA{i}"], r[f"A16{i}"], r[f"ALP{i}"])
 

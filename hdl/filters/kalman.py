@@ -5,7 +5,7 @@ the accelerometer's tilt and the magnetometer's heading. Its run-time registers 
 base map (``hdl/register_map.py``)."""
 
 from ..attitude_isa import Q14, Q24, Q30, Cond, Flag
-from .shared import euler_rates, heading, step_n, tilt
+from .shared import background_divisions, euler_rates, heading, step_n, tilt
 
 
 __all__ = ["CONFIG_REGISTERS", "REGISTERS", "emit"]
@@ -78,12 +78,11 @@ def _measurements(asm, r):
         asm.br("angles_out", Cond.A_ZERO, a=r["ACC_OK"])
         with asm.scratch(3) as (s, k0_1, k1_1):
             _innovation_sum(asm, r, 1, s)
-            asm.div(k0_1, r["P1_00"], s, go_on=True)
+            k0, k1 = background_divisions(asm, _gains(r, 1, s, k0_1, k1_1))
+            k0[0]()
             _kalman_update(asm, r, 0, r["MEAS0"], k0_0, k1_0)
-            asm.collect("divider")
-            _kalman_update(asm, r, 1, r["MEAS1"], k0_1, k1_1, before_k1=(
-                lambda: asm.div(k1_1, r["P1_10"], s, go_on=True),
-                lambda: asm.collect("divider")))
+            k0[1]()
+            _kalman_update(asm, r, 1, r["MEAS1"], k0_1, k1_1, before_k1=k1)
         asm.setf(Flag.ACC_USED)
         asm.setf(Flag.BIAS_UPDATED)
         asm.br("angles_out")

@@ -6,7 +6,8 @@ result quaternion of the per-axis filters (``angles_out``). Each writes into an 
 from ..attitude_isa import Q14, Q24, Q30, Cond
 
 
-__all__ = ["init", "calibrate", "zero_tests", "tilt", "heading", "step_n", "euler_rates",
+__all__ = ["init", "calibrate", "zero_tests", "background_divisions", "tilt", "heading",
+           "step_n", "euler_rates",
            "matrix_angles", "euler_quat", "angles_out"]
 
 
@@ -68,9 +69,10 @@ def zero_tests(asm, r, name):
         asm.label(done)
 
 
-def _divisions(asm, divisions):
-    """Emitters for ``tilt``'s and ``heading``'s ``divisions``: (start, collect) of each, or of
-    nothing where there is no division."""
+def background_divisions(asm, divisions):
+    """The start and the collect (callables) of each division (d, a, b) made in the
+    background (``attitude_isa``), two at most: ``tilt``'s and ``heading``'s ``divisions``
+    (where there are fewer, of nothing)."""
     steps = []
     for d, a, b in divisions:
         steps.append((lambda d=d, a=a, b=b: asm.div(d, a, b, go_on=True),
@@ -86,7 +88,7 @@ def tilt(asm, r, roll, divisions=()):
     beside the angle; the first one's is used for the pitch). ``divisions``: up to two
     (d, a, b) the caller wants made in the background meanwhile (``attitude_isa``: their
     operands written before, nothing here touches their d), each beside one of the VECs."""
-    (start0, collect0), (start1, collect1) = _divisions(asm, divisions)
+    (start0, collect0), (start1, collect1) = background_divisions(asm, divisions)
     with asm.scratch(4) as T:
         # a << 8 (exact); −ax << 8 by a MUL that subtracts its product (exact too, and no
         # ADD after it: a MUL followed by one takes three cycles, by a MUL one)
@@ -105,7 +107,7 @@ def tilt(asm, r, roll, divisions=()):
 def heading(asm, r, roll, pitch, out, divisions=()):
     """Tilt-compensated heading into ``out``; clobbers ``out`` + 1. ``divisions``: as
     ``tilt``'s (the first beside the two rotations, the second beside the rest)."""
-    (start0, collect0), (start1, collect1) = _divisions(asm, divisions)
+    (start0, collect0), (start1, collect1) = background_divisions(asm, divisions)
     with asm.scratch(7) as T:
         start0()
         # (sine · m) >> 18 as (sine · (m << 12)) >> 30: the same bits, one rounding shift
