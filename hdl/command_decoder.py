@@ -1,7 +1,9 @@
 """Command decoder: the host's commands, framed like the telemetry (``hdl/FRAMES.md``),
 checked whole before anything is done, executed, and answered with a reply frame."""
 
+import operator
 from contextlib import contextmanager
+from functools import reduce
 from types import SimpleNamespace
 
 from amaranth import *
@@ -36,6 +38,13 @@ COMMANDS = {
     "who": (0x16, 0),          # who are you: version/build word and register-map version
 }
 MAX_COMMAND_PAYLOAD = max(n for _, n in COMMANDS.values())
+# The commands whose payload is one or two bytes, a value: kept where a write's value is
+# (``CommandDecoder``'s ``payload``, from byte 2), so that a reply's or an engine write's
+# value comes from the same bits in every command
+SHORT = ("filter", "rate", "raw")
+assert all(COMMANDS[name][1] <= 2 for name in SHORT)
+# the command's value in a reply, masked: a write's (echo), or a short payload's
+ECHOED = {"echo": (1 << 32) - 1, "byte": 0xFF, "half": 0xFFFF, "bit": 1}
 # the input FIFO: a whole frame kept (13 bytes at most) and room for the bytes that arrive
 # while a command waits for the engine and its reply is sent (about 17 byte times)
 FIFO_DEPTH = 32
@@ -180,7 +189,11 @@ class CommandDecoder(wiring.Component):
         seq = Signal(8, reset_less=True)
         length = Signal(8, reset_less=True)
         count = Signal(range(MAX_COMMAND_PAYLOAD + 1))
+        # The payload's bytes in the order they come, but a short payload's (``SHORT``: one
+        # or two bytes) from byte 2 on, where a write's value begins: the reply and an engine
+        # write take their value from those bits in every command, never from the first two
         payload = Signal(8 * MAX_COMMAND_PAYLOAD, reset_less=True)
+        place = Signal(range(8), reset_less=True)           # the next byte's in ``payload``
         gap = Signal(range(self.timeout_ticks + 1))          # ticks without a byte
         addr = payload[:16]
         value = payload[16:48]
@@ -194,18 +207,57 @@ class CommandDecoder(wiring.Component):
                      # an engine read's address, offered in ENGINE_READ (not gated by it: a
                      # LUT a bit)
                      self.cfg_read.payload.eq(low)]
-        write = SimpleNamespace(addr=reply.addr, data=reply.value)
+        # What the reply's fields are loaded with: each source of the value an AND with its
+        # own select, OR-ed, the selects set by the FSM's branches (``fields``), so that the
+        # decisions are made once for all the bits rather than a multiplexer's per bit. The
+        # command's own value is one source, masked to its bytes (``ECHOED``: a write's
+        # four, a short payload's fewer)
+        sources = {
+            "engine": self.cfg_read_data.payload, "pwm": self.pwm.r_data,
+            **self._board_sources(counters.r_data),
+        }
+        echo_mask = Signal(32)
+        load_fields = Signal()                  # the address and value are loaded
+        load_header = Signal()                  # the type, sequence number and result
+        chosen = {name: Signal(name=f"reply_{name}") for name in sources}
+        addr_echo = Signal()                    # the address the command named
+        addr_const = Signal(16)                 # OR-ed in: a command's own address
+        value_const = Signal(32)                # OR-ed in: a constant's value
+        result = Signal(8)
+        with m.If(load_header):
+            m.d.sync += [reply.command.eq(ctype), reply.cmd_seq.eq(seq), reply.result.eq(result)]
+        with m.If(load_fields):
+            m.d.sync += [
+                reply.addr.eq(Mux(addr_echo, addr, 0) | addr_const),
+                reply.value.eq(reduce(operator.or_, (
+                    Mux(chosen[name], source.as_unsigned(), 0)
+                    for name, source in sources.items()), value_const | (value & echo_mask)))]
 
         def count_up(name):
             m.d.comb += counters.events[counter_word(f"CMD_{name.upper()}")].eq(1)
 
-        def answer(result, value_=None, addr_=None, *, keep=False):
+        def fields(value_, addr_="echo"):
+            """The reply's address and value (an engine write's too): ``value_`` the command's
+            value (a key of ``ECHOED``), a source's name (``sources``) or a constant;
+            ``addr_`` "echo" or a constant."""
+            m.d.comb += load_fields.eq(1)
+            if value_ in ECHOED:
+                m.d.comb += echo_mask.eq(ECHOED[value_])
+            elif isinstance(value_, str):
+                m.d.comb += chosen[value_].eq(1)
+            else:
+                m.d.comb += value_const.eq(value_)
+            if addr_ == "echo":
+                m.d.comb += addr_echo.eq(1)
+            else:
+                m.d.comb += addr_const.eq(addr_)
+
+        def answer(result_, value_="echo", addr_="echo", *, keep=False):
             """The reply (``keep``: its address and value as they are: an engine write's)."""
-            m.d.sync += [reply.command.eq(ctype), reply.cmd_seq.eq(seq), reply.result.eq(result)]
+            m.d.comb += [load_header.eq(1), result.eq(result_)]
             if not keep:
-                m.d.sync += [reply.addr.eq(addr if addr_ is None else addr_),
-                             reply.value.eq(value if value_ is None else value_)]
-            if result == RESULTS["ok"]:
+                fields(value_, addr_)
+            if result_ == RESULTS["ok"]:
                 # only an accepted command restarts the PWM watchdog: a host stuck sending
                 # refused or unknown commands is as good as a silent one
                 m.d.comb += self.kick.eq(1)
@@ -215,7 +267,7 @@ class CommandDecoder(wiring.Component):
             m.next = "REPLY"
 
         m.d.comb += [crc.data.eq(byte)]
-        board_regs = self._board_regs(counters.r_data)
+        board_regs = self._board_regs()
         # an engine write the engine would refuse is answered "refused" here (the host learns
         # why): an address it may not write, or a CONTROL word with no meaning
         writable = address_in(low, self.writable) & (
@@ -230,12 +282,12 @@ class CommandDecoder(wiring.Component):
                 src=src, fifo=fifo, crc=crc, take=take, byte=byte, looked=looked,
                 is_sync0=is_sync0, is_sync1=is_sync1, too_long=too_long, empty=empty,
                 crc_ok=crc_ok, high_ok=high_ok, timed_out=timed_out, ctype=ctype, seq=seq,
-                length=length, count=count, payload=payload, count_up=count_up))
+                length=length, count=count, place=place, payload=payload, count_up=count_up))
 
             with m.State("EXECUTE"):
                 self._execute(m, SimpleNamespace(
-                    ctype=ctype, length=length, payload=payload, space=space, low=low,
-                    value=value, write=write, writable=writable, board_regs=board_regs,
+                    ctype=ctype, length=length, space=space, low=low,
+                    value=value, fields=fields, writable=writable, board_regs=board_regs,
                     answer=answer, count_up=count_up))
 
             with m.State("ENGINE_WRITE"):
@@ -249,7 +301,7 @@ class CommandDecoder(wiring.Component):
             with m.State("ENGINE_READ_DATA"):
                 m.d.comb += self.cfg_read_data.ready.eq(1)
                 with m.If(self.cfg_read_data.valid):
-                    answer(RESULTS["ok"], value_=self.cfg_read_data.payload)
+                    answer(RESULTS["ok"], value_="engine")
             with m.State("REPLY"):
                 m.d.comb += self.replies.valid.eq(1)
                 with m.If(self.replies.ready):
@@ -307,17 +359,21 @@ class CommandDecoder(wiring.Component):
             counters.r_addr.eq(Mux(low == BOARD_REGS["RATE_ERRORS"], RATE_ERRORS_WORD,
                                    low - BOARD_REGS["CMD_DISCARDED"]))]
 
-    def _board_regs(self, count):
+    def _board_sources(self, count):
+        """The board registers' sources that are not constants, by name (each a source of the
+        reply's value); ``count``: the decoder's counter the command addresses
+        (``EventCounters.r_data``, read as the frame's last byte was taken: ``elaborate``)."""
+        return {"raw_mode": self.raw_mode, "count": count, "frames_sent": self.frames_sent,
+                "who_am_i": self.who_am_i, "self_test": self.self_test.as_value()}
+
+    def _board_regs(self):
         """What each board register reads back, by address (``BOARD_REGS``: the one map of
-        names and addresses, which the host's register map reads too); ``count``: the
-        decoder's counter the command addresses (``EventCounters.r_data``)."""
+        names and addresses, which the host's register map reads too): a source of
+        ``_board_sources`` by name, or a constant."""
         sources = {
-            "RAW_MODE": self.raw_mode, "VERSION": C(self.version, 32),
-            "REGMAP_VERSION": C(REGMAP_VERSION, 32),
-            # the counters' word, read as the frame's last byte was taken (``elaborate``)
-            **{name: count for name in COUNTED},
-            "FRAMES_SENT": self.frames_sent,
-            "WHO_AM_I": self.who_am_i, "SELF_TEST": self.self_test.as_value(),
+            "RAW_MODE": "raw_mode", "VERSION": self.version, "REGMAP_VERSION": REGMAP_VERSION,
+            **{name: "count" for name in COUNTED},
+            "FRAMES_SENT": "frames_sent", "WHO_AM_I": "who_am_i", "SELF_TEST": "self_test",
         }
         assert set(sources) == set(BOARD_REGS), "a board register without its source"
         return {BOARD_REGS[name]: sources[name] for name in BOARD_REGS}
@@ -326,10 +382,10 @@ class CommandDecoder(wiring.Component):
         """The parsing states of the decoder's FSM, HUNT to CRC_LOW (EXECUTE follows a frame
         that passed its CRC). ``c``: the parser's registers, the FIFO's head and helpers."""
         (src, fifo, crc, take, byte, looked, is_sync0, is_sync1, too_long, empty, crc_ok,
-         high_ok, timed_out, ctype, seq, length, count, payload, count_up) = (
+         high_ok, timed_out, ctype, seq, length, count, place, payload, count_up) = (
             c.src, c.fifo, c.crc, c.take, c.byte, c.looked, c.is_sync0, c.is_sync1,
             c.too_long, c.empty, c.crc_ok, c.high_ok, c.timed_out, c.ctype, c.seq, c.length,
-            c.count, c.payload, c.count_up)
+            c.count, c.place, c.payload, c.count_up)
         with m.State("HUNT"):
             m.d.comb += src.ready.eq(looked)
             with m.If(take):
@@ -378,7 +434,9 @@ class CommandDecoder(wiring.Component):
         with receiving("LENGTH"):
             # the payload's bytes are not cleared (a LUT a bit on a MAX10): a command reads only
             # the bytes its length brings, checked in EXECUTE; a bad one's reply is all zeros
-            m.d.sync += [length.eq(byte), count.eq(0)]
+            short = Const(sum(1 << COMMANDS[name][0] for name in SHORT), 256).bit_select(
+                ctype, 1)
+            m.d.sync += [length.eq(byte), count.eq(0), place.eq(Mux(short, 2, 0))]
             with m.If(too_long):
                 count_up("malformed")
                 m.d.comb += fifo.rewind.eq(1)           # search the rest for a header
@@ -388,7 +446,8 @@ class CommandDecoder(wiring.Component):
             with m.Else():
                 m.next = "PAYLOAD"
         with receiving("PAYLOAD"):
-            m.d.sync += [payload.word_select(count, 8).eq(byte), count.eq(count + 1)]
+            m.d.sync += [payload.word_select(place, 8).eq(byte), count.eq(count + 1),
+                         place.eq(place + 1)]
             with m.If(count + 1 == length):
                 m.next = "CRC_HIGH"
         with receiving("CRC_HIGH", checked=False):
@@ -408,10 +467,10 @@ class CommandDecoder(wiring.Component):
         against its type (known, its length) and done, or answered at once: a board
         register, a PWM register, the raw-sample mode, "who"; an engine write or read
         goes on to ENGINE_WRITE / ENGINE_READ. ``c``: the parser's registers and helpers."""
-        (ctype, length, payload, space, low, value,
-         write, writable, board_regs, answer, count_up) = (
-            c.ctype, c.length, c.payload, c.space, c.low, c.value,
-            c.write, c.writable, c.board_regs, c.answer, c.count_up)
+        (ctype, length, space, low, value,
+         fields, writable, board_regs, answer, count_up) = (
+            c.ctype, c.length, c.space, c.low, c.value,
+            c.fields, c.writable, c.board_regs, c.answer, c.count_up)
         expected = Signal(8)
         known = Signal()
         with m.Switch(ctype):
@@ -424,8 +483,7 @@ class CommandDecoder(wiring.Component):
         with m.Elif(ctype == COMMANDS["write"][0]):
             with m.If(space == SPACES["engine"]):
                 with m.If(writable):
-                    m.d.sync += [write.addr.eq(low),
-                                 write.data.eq(value)]
+                    fields("echo")
                     m.next = "ENGINE_WRITE"
                 with m.Else():
                     answer(RESULTS["refused"])
@@ -459,29 +517,26 @@ class CommandDecoder(wiring.Component):
                         answer(RESULTS["bad_address"], value_=0)
             with m.Elif(space == SPACES["pwm"]):
                 with m.If(self.pwm.exists):
-                    answer(RESULTS["ok"], value_=self.pwm.r_data)
+                    answer(RESULTS["ok"], value_="pwm")
                 with m.Else():
                     answer(RESULTS["bad_address"], value_=0)
             with m.Else():
                 answer(RESULTS["bad_address"], value_=0)
         with m.Elif(ctype == COMMANDS["filter"][0]):
-            with m.If(payload[:8] <= max(FILTER_CODES.values())):
-                m.d.sync += [write.addr.eq(CONTROL_ADDR),
-                             write.data.eq(payload[:8])]
+            with m.If(value[:8] <= max(FILTER_CODES.values())):
+                fields("byte", CONTROL_ADDR)
                 m.next = "ENGINE_WRITE"
             with m.Else():
-                answer(RESULTS["refused"], addr_=CONTROL_ADDR, value_=payload[:8])
+                answer(RESULTS["refused"], addr_=CONTROL_ADDR, value_="byte")
         with m.Elif(ctype == COMMANDS["reset"][0]):
-            m.d.sync += [write.addr.eq(CONTROL_ADDR),
-                         write.data.eq(CONTROL_KEEP | CONTROL_RESET)]
+            fields(CONTROL_KEEP | CONTROL_RESET, CONTROL_ADDR)
             m.next = "ENGINE_WRITE"
         with m.Elif(ctype == COMMANDS["rate"][0]):
-            m.d.sync += [write.addr.eq(TELEMETRY_DIV_ADDR),
-                         write.data.eq(payload[:16])]
+            fields("half", TELEMETRY_DIV_ADDR)
             m.next = "ENGINE_WRITE"
         with m.Elif(ctype == COMMANDS["raw"][0]):
-            m.d.sync += self.raw_mode.eq(payload[0])
+            m.d.sync += self.raw_mode.eq(value[0])
             answer(RESULTS["ok"], addr_=(SPACES["board"] << 8) | BOARD_REGS["RAW_MODE"],
-                   value_=payload[0])
+                   value_="bit")
         with m.Else():                                  # who
             answer(RESULTS["ok"], addr_=REGMAP_VERSION, value_=self.version)

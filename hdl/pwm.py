@@ -46,6 +46,7 @@ class _Registers(NamedTuple):
     enable: Signal
     mode: Signal
     watchdog_ms: Signal
+    watchdog_on: Signal
     period: list
     high: list
     given: Signal
@@ -98,9 +99,10 @@ class PWMOutputs(wiring.Component):
     an update; a channel enabled starts at its group's next period.
 
     The 16-bit registers are read back from ``shadow`` (a ``FrameRAM``, one M9K, written with
-    every accepted write, and with the reset values in the three cycles after a reset;
-    ``shadow_index`` places them), not through a multiplexer of the registers: the bus's reads
-    are registered (``BoardBusSignature``).
+    every accepted write; ``shadow_index`` places them), not through a multiplexer of the
+    registers: the bus's reads are registered (``BoardBusSignature``). A block RAM keeps its
+    words through a reset, so a register not written since the last reset reads its reset
+    value instead (a bit each for the three whose reset value is not 0).
 
     Parameters
         ``clk_freq``: the clock (Hz); the servo unit is ``round(clk_freq / 1e6)`` cycles.
@@ -125,10 +127,7 @@ class PWMOutputs(wiring.Component):
         self.at_reset = {shadow_index(PWM_REGS[name]): value for name, value in (
             ("PWM_WATCHDOG_MS", WATCHDOG_MS_AT_RESET), ("PWM_SERVO_PERIOD", SERVO_PERIOD_US[1]),
             ("PWM_MOTOR_PERIOD", self.motor_min))}
-        words = [0] * 16
-        for index, value in self.at_reset.items():
-            words[index] = value
-        self.shadow = FrameRAM(16, PERIOD_BITS, init=words)
+        self.shadow = FrameRAM(16, PERIOD_BITS)
         super().__init__({
             "bus": In(BoardBusSignature()),
             "kick": In(1),
@@ -150,6 +149,7 @@ class PWMOutputs(wiring.Component):
         enable = Signal(n)
         mode = Signal(n)
         watchdog_ms = Signal(16, init=WATCHDOG_MS_AT_RESET)
+        watchdog_on = Signal(init=WATCHDOG_MS_AT_RESET != 0)     # ``watchdog_ms`` is not 0
         # the two groups: 0 servo (µs), 1 motor (cycles)
         period = [Signal(PERIOD_BITS, init=SERVO_PERIOD_US[1], name="servo_period"),
                   Signal(PERIOD_BITS, init=self.motor_min, name="motor_period")]
@@ -171,41 +171,57 @@ class PWMOutputs(wiring.Component):
         # after the address; a high time masked by ``given``
         m.submodules.shadow = shadow = self.shadow
         index = shadow_index(bus.addr)[:4]
-        # A block RAM keeps its words through a reset: after one, the registers whose reset
-        # value is not 0 have it written into the copy again, one a cycle (``restore``: the
-        # next of them; no command can come within those cycles). The high times read 0 by
-        # ``given`` (0 at reset), whatever their words hold
-        restore = Signal(range(len(self.at_reset) + 1))
-        restoring = restore != len(self.at_reset)
-        places = list(self.at_reset)
-        with m.If(restoring):
-            m.d.sync += restore.eq(restore + 1)
-        m.d.comb += [shadow.r_en.eq(1), shadow.r_addr.eq(index),
-                     shadow.w_addr.eq(Mux(restoring, Array(C(i, 4) for i in places)[restore],
-                                          index)),
-                     shadow.w_data.eq(Mux(restoring, Array(C(self.at_reset[i], PERIOD_BITS)
-                                                           for i in places)[restore], low))]
-        given_read = Signal()
-        m.d.sync += given_read.eq(given.bit_select(bus.addr[:2], 1))
-        high_read = Mux(given_read, shadow.r_data, 0)
+        # A block RAM keeps its words through a reset: the registers whose reset value is not
+        # 0 read it until they are written after one (``written``, a bit each, 0 at reset).
+        # What a read returns is chosen a cycle ahead, with the address, as the RAM's word is
+        # read (the bus holds the address): each source of the read-back an AND with its own
+        # registered select, OR-ed (the RAM's word, a reset value, the small registers), not a
+        # multiplexer on the address in front of the RAM's output
+        places = sorted(self.at_reset)
+        written = Signal(len(places))
+        m.d.comb += [shadow.r_en.eq(1), shadow.r_addr.eq(index), shadow.w_addr.eq(index),
+                     shadow.w_data.eq(low)]
+        addressed = {name: bus.addr == a for name, a in PWM_REGS.items()}
+        # the registers with a reset value other than 0, in ``places``' order
+        kept = sorted((name for name in PWM_REGS if shadow_index(PWM_REGS[name]) in places),
+                      key=lambda name: shadow_index(PWM_REGS[name]))
+        is_high = (bus.addr >> 2) == (PWM_REGS["PWM_HIGH0"] >> 2)
+        from_ram = Signal()                     # the RAM's word: written since, or a high time
+        at_reset = Signal(len(places))          # a reset value: ``places[j]``'s
+        read_enable, read_mode, read_status = Signal(), Signal(), Signal()
+        m.d.sync += [
+            from_ram.eq((is_high & given.bit_select(bus.addr[:2], 1)) |
+                        (Cat(*(addressed[name] for name in kept)) & written).any()),
+            at_reset.eq(Cat(*(addressed[name] for name in kept)) & ~written),
+            read_enable.eq(addressed["PWM_ENABLE"]), read_mode.eq(addressed["PWM_MODE"]),
+            read_status.eq(addressed["PWM_STATUS"]),
+        ]
+        read_back = shadow.r_data & from_ram.replicate(PERIOD_BITS)
+        for j, place in enumerate(places):
+            read_back = read_back | Mux(at_reset[j], self.at_reset[place], 0)
+        read_back = (read_back | Mux(read_enable, enable, 0) | Mux(read_mode, mode, 0) |
+                     Mux(read_status, Cat(self.tripped, C(0, 3), enable), 0))
+        m.d.comb += bus.r_data.eq(read_back)
         checks = {
-            PWM_REGS["PWM_ENABLE"]: (enable, value < (1 << n)),
+            PWM_REGS["PWM_ENABLE"]: value < (1 << n),
             # the mode of an enabled channel stays
-            PWM_REGS["PWM_MODE"]: (mode, (value < (1 << n)) &
-                                   (((value[:n] ^ mode) & enable) == 0)),
-            PWM_REGS["PWM_WATCHDOG_MS"]: (shadow.r_data, small),
-            PWM_REGS["PWM_STATUS"]: (Cat(self.tripped, C(0, 3), enable), C(0)),
-            PWM_REGS["PWM_SERVO_PERIOD"]: (shadow.r_data, small & (low >= SERVO_PERIOD_US[0]) &
-                                           (low <= SERVO_PERIOD_US[1])),
-            PWM_REGS["PWM_MOTOR_PERIOD"]: (shadow.r_data, small & (low >= self.motor_min)),
-            **{PWM_REGS[f"PWM_HIGH{k}"]: (high_read, high_fits) for k in range(n)},
+            PWM_REGS["PWM_MODE"]: (value < (1 << n)) & (((value[:n] ^ mode) & enable) == 0),
+            PWM_REGS["PWM_WATCHDOG_MS"]: small,
+            PWM_REGS["PWM_STATUS"]: C(0),
+            PWM_REGS["PWM_SERVO_PERIOD"]: small & (low >= SERVO_PERIOD_US[0]) &
+                                          (low <= SERVO_PERIOD_US[1]),
+            PWM_REGS["PWM_MOTOR_PERIOD"]: small & (low >= self.motor_min),
+            **{PWM_REGS[f"PWM_HIGH{k}"]: high_fits for k in range(n)},
         }
         with m.Switch(bus.addr):
-            for addr, (signal, ok) in checks.items():
+            for addr, ok in checks.items():
                 with m.Case(addr):
-                    m.d.comb += [bus.exists.eq(1), bus.r_data.eq(signal), bus.ok.eq(ok)]
+                    m.d.comb += [bus.exists.eq(1), bus.ok.eq(ok)]
         write = bus.w_en & bus.ok
-        m.d.comb += shadow.w_en.eq(write | restoring)
+        m.d.comb += shadow.w_en.eq(write)
+        with m.If(write):
+            m.d.sync += written.eq(written | Cat(*(addressed[name] for name in kept)))
+        nonzero = low != 0
         restart = Signal()              # the watchdog's count starts again (next cycle)
         m.d.sync += restart.eq(self.kick)
         with m.If(write):
@@ -213,20 +229,29 @@ class PWMOutputs(wiring.Component):
                 with m.Case(PWM_REGS["PWM_ENABLE"]):
                     m.d.sync += [enable.eq(value[:n]), self.tripped.eq(0)]
                 with m.Case(PWM_REGS["PWM_MODE"]):
-                    # a high time is in its mode's unit: a channel changing mode drops it
-                    m.d.sync += [mode.eq(value[:n]), given.eq(given & ~(value[:n] ^ mode))]
+                    m.d.sync += mode.eq(value[:n])
                 with m.Case(PWM_REGS["PWM_WATCHDOG_MS"]):
-                    m.d.sync += [watchdog_ms.eq(low), restart.eq(1)]
+                    m.d.sync += [watchdog_ms.eq(low), watchdog_on.eq(nonzero), restart.eq(1)]
                 for g, name in enumerate(("PWM_SERVO_PERIOD", "PWM_MOTOR_PERIOD")):
                     with m.Case(PWM_REGS[name]):
                         m.d.sync += period[g].eq(low)
-                        # a high time was a duty of the old period: the group's channels drop
-                        # theirs (a period shrunk under one would hold that output high)
-                        m.d.sync += given.eq(given & (mode if g == 0 else ~mode))
                 for k in range(n):
                     with m.Case(PWM_REGS[f"PWM_HIGH{k}"]):
-                        m.d.sync += [high[k].eq(low), given[k].eq(low != 0)]
-        return _Registers(enable, mode, watchdog_ms, period, high, given, write, restart)
+                        m.d.sync += high[k].eq(low)
+        # ``given``: a high time written sets a channel's bit (if not 0); a write drops it where
+        # the high time no longer means what it did: a mode change (the high time was in the
+        # other unit), or its group's period written (it was a duty of the old period; a
+        # period shrunk under it would hold that output high)
+        for k in range(n):
+            dropped = ((addressed["PWM_MODE"] & (value[k] ^ mode[k])) |
+                       (addressed["PWM_SERVO_PERIOD"] & ~mode[k]) |
+                       (addressed["PWM_MOTOR_PERIOD"] & mode[k]))
+            with m.If(write & addressed[f"PWM_HIGH{k}"]):
+                m.d.sync += given[k].eq(nonzero)
+            with m.Elif(write & dropped):
+                m.d.sync += given[k].eq(0)
+        return _Registers(enable, mode, watchdog_ms, watchdog_on, period, high, given, write,
+                          restart)
 
     def _watchdog(self, m, r):
         """The microsecond tick of the time bases (returned) and the command watchdog."""
@@ -246,7 +271,7 @@ class PWMOutputs(wiring.Component):
             m.d.sync += [left.eq(r.watchdog_ms), ms_us.eq(999)]
         with m.Elif(ms_tick & (left != 0)):
             m.d.sync += left.eq(left - 1)
-        with m.If((r.watchdog_ms != 0) & (left == 0) & ~r.restart & (r.enable != 0) & ~r.write):
+        with m.If(r.watchdog_on & (left == 0) & ~r.restart & (r.enable != 0) & ~r.write):
             m.d.sync += [r.enable.eq(0), self.tripped.eq(1)]
         return us_tick
 

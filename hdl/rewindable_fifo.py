@@ -69,55 +69,37 @@ class RewindableFIFO(wiring.Component):
             m.d.sync += write.eq(write + 1)
 
         # the read port read last cycle at the pointer ``read`` has now (below), so its word
-        # is the byte there: written before, or in that cycle (then from ``bypass``).
-        # ``read`` lies between ``keep`` and ``write``, so this is ``read != write``; written
-        # as a distance it says so to an induction proof, which starts anywhere
+        # is the byte there: written before, or in that cycle (then from ``bypass``)
         bypass, bypass_data = Signal(), Signal(8)
-        # valid, registered: the same test on the pointers' next values (its subtractions and
-        # comparison are then not in the path from the consumer's ready to the RAM's address)
         valid = Signal()
         m.d.comb += [self.r_stream.valid.eq(valid),
                      self.r_stream.payload.eq(Mux(bypass, bypass_data, ram.r_data))]
         take = self.r_stream.valid & self.r_stream.ready
-        # The reader's take, mark, release and rewind come late in the cycle (the reader
-        # decides them from its state and the byte offered). Every sum and comparison below
-        # is of registers only, one per case, and those four signals only choose among the
-        # results: the same function as the pointers' next values compared directly
-        # (read_next = rewind ? keep + 1 : read + take; keep_next = rewind ? keep + 1 :
-        # mark & take ? read : release ? read_next : keep; valid: a byte at read_next).
-        # A byte at ``r`` is waiting after this cycle, ``k`` the oldest kept: r - k < write' - k
-        # with write' = write + put. ``put`` only chooses between two comparisons of registers
-        # (< without a byte put, <= with one), so the input's ready is not in front of the
-        # subtractions (that path limited the routed Fmax, report --timing). Equal in every
-        # state, reachable or not (an induction proof starts anywhere): where write - k + 1
-        # wraps to 0, nothing is below it.
-        def offered(r, k):
-            ahead, stored_k = (r - k)[:bits], (write - k)[:bits]
-            return Mux(put, (ahead <= stored_k) & ~stored_k.all(), ahead < stored_k)
-
+        # ``valid`` is registered, from the pointers' next values (read', keep', write'): a byte
+        # at read' is waiting when read' - keep' < write' - keep'. ``read`` lies between
+        # ``keep`` and ``write``, so this is read' != write'; written as distances it says so
+        # to an induction proof, which starts anywhere (the inequality would offer a byte from
+        # states no reset reaches, and take it back). The routed Fmax has its critical path
+        # elsewhere (report --timing); this logic once had the pointers' sums speculated for
+        # each case (about 55 LUTs more)
         read_1, keep_1 = (read + 1)[:bits], (keep + 1)[:bits]
         read_next = Signal(bits)
         keep_next = Signal(bits)
         valid_next = Signal()
-        m.d.comb += read_next.eq(Mux(take, read_1, read))
+        m.d.comb += [read_next.eq(Mux(take, read_1, read)), keep_next.eq(keep)]
         with m.If(self.rewind):
-            m.d.comb += [read_next.eq(keep_1), keep_next.eq(keep_1),
-                         valid_next.eq(offered(keep_1, keep_1))]
+            m.d.comb += [read_next.eq(keep_1), keep_next.eq(keep_1)]
         with m.Elif(self.mark & take):
-            m.d.comb += [keep_next.eq(read), valid_next.eq(offered(read_1, read))]
+            m.d.comb += keep_next.eq(read)
         with m.Elif(self.release):
-            m.d.comb += [keep_next.eq(read_next),
-                         valid_next.eq(Mux(take, offered(read_1, read_1), offered(read, read)))]
-        with m.Else():
-            m.d.comb += [keep_next.eq(keep),
-                         valid_next.eq(Mux(take, offered(read_1, keep), offered(read, keep)))]
+            m.d.comb += keep_next.eq(read_next)
+        write_next = (write + put)[:bits]
+        m.d.comb += valid_next.eq((read_next - keep_next)[:bits] < (write_next - keep_next)[:bits])
         m.d.sync += [read.eq(read_next), keep.eq(keep_next), valid.eq(valid_next)]
         # the RAM reads the old word at an address written in the same cycle: the byte written
         # there is taken from a register instead
         waddr = write[:bits - 1]
         m.d.comb += [ram.r_en.eq(1), ram.r_addr.eq(read_next[:bits - 1])]
-        m.d.sync += [bypass.eq(put & Mux(self.rewind, waddr == keep_1[:bits - 1],
-                                         Mux(take, waddr == read_1[:bits - 1],
-                                             waddr == read[:bits - 1]))),
+        m.d.sync += [bypass.eq(put & (waddr == read_next[:bits - 1])),
                      bypass_data.eq(self.w_stream.payload)]
         return m
