@@ -155,15 +155,18 @@ class AttitudeEngine(wiring.Component):
             payload): ``sample_slot`` (in), beside ``samples``: the sample's slot;
             ``store_addr`` (out) / ``store_data`` (in, 32): the store's read port (a word the
             cycle after its address). The loader reads the sensor fields from the sample's
-            slot; outside LOAD the port reads word ``sample_index`` (in, 0..``STORE_WORDS`` −
-            1) of the slot of the sample held, on ``sample_word`` (out, 32) a cycle later: the
-            framer copies the sample from there. ``sample`` then holds ``skipped`` only.
+            slot; outside LOAD the port reads word ``sample_index`` (in, 0..``STORE_WORDS``)
+            of the slot of the sample held, on ``sample_word`` (out, 32) a cycle later: the
+            framer copies the sample from there (word ``STORE_WORDS``, which no sample fills,
+            reads 0). ``sample`` then holds ``skipped`` only.
         ``peek_en``, ``peek_index`` (in, 0..9) / ``peek_data`` (out, signed 32): the offered
             result's words read from the register file (``PEEKED``: the quaternion, angles and
             bias, in ``Attitude``'s order; the word the cycle after ``peek_en``), equal to
             ``results.payload``'s while ``results`` is valid: the framer copies them from here
             rather than through a multiplexer of the result's bits. Only while ``results``
-            is valid (the engine is idle then).
+            is valid (the engine is idle then). While the engine is idle ``peek_data`` is 0
+            the cycle after one without ``peek_en`` (the port reads ZERO): the framer ORs the
+            words in, with no gate of its own.
     Latency (sample valid to result valid) and throughput (one sample per update): ``report``'s
     ``cycles_per_update`` per filter; every instruction has a fixed time, so only the branches
     taken (measurements skipped or rejected) make an update shorter.
@@ -203,7 +206,7 @@ class AttitudeEngine(wiring.Component):
             "cfg_refused": Out(16),
             "sample": Out(Sample),
             **({"sample_slot": In(range(SLOTS)), "store_addr": Out(range(SAMPLE_STORE_DEPTH)),
-                "store_data": In(32), "sample_index": In(range(STORE_WORDS)),
+                "store_data": In(32), "sample_index": In(range(STORE_WORDS + 1)),
                 "sample_word": Out(32)} if sample_store else {}),
             "peek_en": In(1), "peek_index": In(range(len(PEEKED))),
             "peek_data": Out(signed(32)),
@@ -318,7 +321,7 @@ class AttitudeEngine(wiring.Component):
             rf.ra_addr.eq(Mux(host.r_en, host.r_addr, Mux(advance, rinstr.a, p.o.a))),
             rf.rb_addr.eq(Mux(self.peek_en,
                               Array(C(REGS[name], REG_BITS) for name in PEEKED)[self.peek_index],
-                              Mux(advance, rinstr.b, p.o.b))),
+                              Mux(self.busy, Mux(advance, rinstr.b, p.o.b), REGS["ZERO"]))),
             # the ports read every cycle: the instruction fetched at an advance, else ``o``'s
             # operands again (so a write while ``o`` waits reaches it through the register
             # file), or the host's or the framer's word (each taken the cycle after)
@@ -536,7 +539,8 @@ class AttitudeEngine(wiring.Component):
         with m.If(taking):
             m.d.sync += held_slot.eq(self.sample_slot)
         words = [h // 2 for h in SENSOR_FIELD_HALVES]
-        assert max(words) < STORE_WORDS <= SLOT_WORDS
+        # a slot's word STORE_WORDS is never written: it reads 0 (``sample_index``)
+        assert max(words) < STORE_WORDS < SLOT_WORDS
         # load word k's store word is read k cycles after the sample is taken, which is at the
         # earliest in the first cycle of ``valid``: the magnetometer's words only once the
         # reader's zeros over them are in (``OFFER_WRITES``, ``hdl/sample_store.py``)

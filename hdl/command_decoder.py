@@ -198,59 +198,16 @@ class CommandDecoder(wiring.Component):
         addr = payload[:16]
         value = payload[16:48]
         space, low = addr[8:], addr[:8]
-        # the reply is written before it is offered: no reset. An engine write is made from
-        # its address and value fields (a write's reply echoes them), set before ENGINE_WRITE:
-        # one register and one multiplexer in front of it, not two
-        reply = Signal.like(self.replies.payload, reset_less=True)
+        reply, fields, load_header, result = self._reply(m, ctype, seq, addr, value,
+                                                         counters.r_data)
         m.d.comb += [self.replies.payload.eq(reply), self.cfg.payload.addr.eq(reply.addr[:8]),
                      self.cfg.payload.data.eq(reply.value),
                      # an engine read's address, offered in ENGINE_READ (not gated by it: a
                      # LUT a bit)
                      self.cfg_read.payload.eq(low)]
-        # What the reply's fields are loaded with: each source of the value an AND with its
-        # own select, OR-ed, the selects set by the FSM's branches (``fields``), so that the
-        # decisions are made once for all the bits rather than a multiplexer's per bit. The
-        # command's own value is one source, masked to its bytes (``ECHOED``: a write's
-        # four, a short payload's fewer)
-        sources = {
-            "engine": self.cfg_read_data.payload, "pwm": self.pwm.r_data,
-            **self._board_sources(counters.r_data),
-        }
-        echo_mask = Signal(32)
-        load_fields = Signal()                  # the address and value are loaded
-        load_header = Signal()                  # the type, sequence number and result
-        chosen = {name: Signal(name=f"reply_{name}") for name in sources}
-        addr_echo = Signal()                    # the address the command named
-        addr_const = Signal(16)                 # OR-ed in: a command's own address
-        value_const = Signal(32)                # OR-ed in: a constant's value
-        result = Signal(8)
-        with m.If(load_header):
-            m.d.sync += [reply.command.eq(ctype), reply.cmd_seq.eq(seq), reply.result.eq(result)]
-        with m.If(load_fields):
-            m.d.sync += [
-                reply.addr.eq(Mux(addr_echo, addr, 0) | addr_const),
-                reply.value.eq(reduce(operator.or_, (
-                    Mux(chosen[name], source.as_unsigned(), 0)
-                    for name, source in sources.items()), value_const | (value & echo_mask)))]
 
         def count_up(name):
             m.d.comb += counters.events[counter_word(f"CMD_{name.upper()}")].eq(1)
-
-        def fields(value_, addr_="echo"):
-            """The reply's address and value (an engine write's too): ``value_`` the command's
-            value (a key of ``ECHOED``), a source's name (``sources``) or a constant;
-            ``addr_`` "echo" or a constant."""
-            m.d.comb += load_fields.eq(1)
-            if value_ in ECHOED:
-                m.d.comb += echo_mask.eq(ECHOED[value_])
-            elif isinstance(value_, str):
-                m.d.comb += chosen[value_].eq(1)
-            else:
-                m.d.comb += value_const.eq(value_)
-            if addr_ == "echo":
-                m.d.comb += addr_echo.eq(1)
-            else:
-                m.d.comb += addr_const.eq(addr_)
 
         def answer(result_, value_="echo", addr_="echo", *, keep=False):
             """The reply (``keep``: its address and value as they are: an engine write's)."""
@@ -318,6 +275,59 @@ class CommandDecoder(wiring.Component):
             count_up("malformed")
             m.d.sync += gap.eq(0)
         return m
+
+    def _reply(self, m, ctype, seq, addr, value, count):
+        """The reply register (returned, with ``fields``, the FSM's way to load its address
+        and value, and ``load_header`` and ``result``, its header's load and result code):
+        ``ctype``, ``seq``, the command's ``addr`` and ``value`` fields and ``count``, the
+        counter read (``EventCounters.r_data``)."""
+        # the reply is written before it is offered: no reset. An engine write is made from
+        # its address and value fields (a write's reply echoes them), set before ENGINE_WRITE:
+        # one register and one multiplexer in front of it, not two
+        reply = Signal.like(self.replies.payload, reset_less=True)
+        # What the reply's fields are loaded with: each source of the value an AND with its
+        # own select, OR-ed, the selects set by the FSM's branches (``fields``), so that the
+        # decisions are made once for all the bits rather than a multiplexer's per bit. The
+        # command's own value is one source, masked to its bytes (``ECHOED``: a write's
+        # four, a short payload's fewer)
+        sources = {
+            "engine": self.cfg_read_data.payload, "pwm": self.pwm.r_data,
+            **self._board_sources(count),
+        }
+        echo_mask = Signal(32)
+        load_fields = Signal()                  # the address and value are loaded
+        load_header = Signal()                  # the type, sequence number and result
+        chosen = {name: Signal(name=f"reply_{name}") for name in sources}
+        addr_echo = Signal()                    # the address the command named
+        addr_const = Signal(16)                 # OR-ed in: a command's own address
+        value_const = Signal(32)                # OR-ed in: a constant's value
+        result = Signal(8)
+        with m.If(load_header):
+            m.d.sync += [reply.command.eq(ctype), reply.cmd_seq.eq(seq), reply.result.eq(result)]
+        with m.If(load_fields):
+            m.d.sync += [
+                reply.addr.eq(Mux(addr_echo, addr, 0) | addr_const),
+                reply.value.eq(reduce(operator.or_, (
+                    Mux(chosen[name], source.as_unsigned(), 0)
+                    for name, source in sources.items()), value_const | (value & echo_mask)))]
+
+        def fields(value_, addr_="echo"):
+            """The reply's address and value (an engine write's too): ``value_`` the command's
+            value (a key of ``ECHOED``), a source's name (``sources``) or a constant;
+            ``addr_`` "echo" or a constant."""
+            m.d.comb += load_fields.eq(1)
+            if value_ in ECHOED:
+                m.d.comb += echo_mask.eq(ECHOED[value_])
+            elif isinstance(value_, str):
+                m.d.comb += chosen[value_].eq(1)
+            else:
+                m.d.comb += value_const.eq(value_)
+            if addr_ == "echo":
+                m.d.comb += addr_echo.eq(1)
+            else:
+                m.d.comb += addr_const.eq(addr_)
+
+        return reply, fields, load_header, result
 
     def _look(self, m, src, take, crc):
         """The facts about the FIFO's head byte the parser decides on (``looked`` says they

@@ -40,12 +40,16 @@ class TelemetryFramer(wiring.Component):
             (the attitude engine's result, read from its register file: in a LUT4 fabric a
             multiplexer costs about a LUT per input bit, and the copy's is most of the
             framer). The producer's port must give the word the payload would hold, the
-            cycle after ``fetch_en``, while ``i_stream`` is valid.
+            cycle after ``fetch_en``, while ``i_stream`` is valid, and 0 the cycle after one
+            without ``fetch_en`` while a frame is offered and in the cycle before (the copy
+            ORs the port's word in whatever the word copied: no gate of its own).
         ``borrow`` (buffered only): None, or ``(offset, bits)``: the payload's ``bits`` bits from
             bit ``offset`` (a multiple of 32) are not read from ``i_stream``'s payload either, but
             through a synchronous read port: their word ``k`` is ``borrow_data`` in the cycle
             after ``borrow_index`` was ``k``; the port is read every cycle, a word ahead of the
-            copy (word 0 while no frame is copied). The sample an attitude result came from,
+            copy (word 0 while no frame is copied), and index ``⌈bits/32⌉`` outside the
+            borrowed words, for which it must give 0 (the copy ORs the word in whatever the
+            word copied). The sample an attitude result came from,
             read from the sample store through the engine's port, which its loader uses too
             (``hdl/sample_store.py``). The bits of the last word beyond ``bits`` must read 0;
             ``i_stream``'s payload gives the rest of that word.
@@ -120,7 +124,7 @@ class TelemetryFramer(wiring.Component):
                     (fetched and offset < fetched.stop and fetched.start < offset + bits):
                 raise ValueError(f"borrow {borrow}: a buffered framer's bits from a multiple "
                                  f"of 32, inside the payload, apart from the fetched words")
-            members.update({"borrow_index": Out(range((bits + 31) // 32)),
+            members.update({"borrow_index": Out(range((bits + 31) // 32 + 1)),
                             "borrow_data": In(32)})
         super().__init__(members)
 
@@ -247,13 +251,14 @@ class TelemetryFramer(wiring.Component):
         m.d.comb += [self.fetch_en.eq(copying & (copy_index >= first - 1) &
                                       (copy_index < first + n - 1)),
                      self.fetch_index.eq(copy_index - first + 1)]
+        # The port gives 0 outside the fetched words (``fetch``), so neither its word nor
+        # ``held`` (loaded from it in every cycle of the copy: 0 again by the word after the
+        # last) needs a gate: a gate is a LUT a bit in the copy's multiplexer
         held = Signal(max(shift, 1), reset_less=True)
         if shift:
             with m.If(copying):
                 m.d.sync += held.eq(self.fetch_data[low:])
-        in_low = (copy_index >= first) & (copy_index < first + n)      # fetched low bits
-        in_high = (copy_index > first) & (copy_index <= first + n)     # held high bits
-        fetched = Cat(Mux(in_high, held, 0)[:shift], Mux(in_low, self.fetch_data[:low], 0))
+        fetched = Cat(held[:shift], self.fetch_data[:low])
         words = []
         for i, word in enumerate(payload_words):
             keep = [1] * 32
@@ -273,8 +278,11 @@ class TelemetryFramer(wiring.Component):
         offset, bits = self.borrow
         first, n = offset // 32, (bits + 31) // 32
         copying = self.i_stream.valid & ~sending
-        m.d.comb += self.borrow_index.eq(copy_index + copying - first)
-        inside = (copy_index >= first) & (copy_index < first + n) if first else copy_index < n
+        # the next cycle's copy word; outside the borrowed words index n, a word of zeros, so
+        # that the port's word needs no gate here (a LUT a bit in the copy's multiplexer)
+        ahead = copy_index + copying
+        m.d.comb += self.borrow_index.eq(Mux((ahead >= first) & (ahead < first + n),
+                                             ahead - first, n))
         words = []
         for i, word in enumerate(payload_words):
             low, high = max(offset, 32 * i), min(offset + bits, 32 * i + 32)
@@ -282,4 +290,4 @@ class TelemetryFramer(wiring.Component):
                 mask = ((1 << 32) - 1) ^ (((1 << (high - low)) - 1) << (low - 32 * i))
                 word = word & mask
             words.append(word)
-        return words, Mux(inside, self.borrow_data, 0)
+        return words, self.borrow_data

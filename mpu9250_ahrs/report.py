@@ -35,7 +35,8 @@ import tempfile
 from amaranth.back import verilog
 
 
-__all__ = ["DEVICE", "hard_blocks_as_blackboxes", "synthesize", "cycles_per_update", "report"]
+__all__ = ["DEVICE", "hard_blocks_as_blackboxes", "synthesize", "reordered",
+           "logic_element_spread", "cycles_per_update", "report"]
 
 # Intel MAX10 10M08SCU169: the budget the figures are read against.
 DEVICE = {"name": "10M08SCU169C8G", "logic_elements": 8064, "multipliers_18x18": 24,
@@ -77,19 +78,82 @@ def _count(stat_text, cell):
     return int(found.group(1)) if found else 0
 
 
-def synthesize(top, name, engine, rams=(), others=(), *, blocks=False, ports=None):
+def reordered(verilog_text, seed):
+    """The same netlist written otherwise: in each module, the single-line ``assign``
+    statements after its last declaration, in an order drawn from ``seed`` (0: as they are).
+    Yosys and ABC map equivalent netlists to counts that differ by about ±1.5 % (the order of
+    the statements is enough), so one count is one draw: ``logic_element_spread`` makes
+    several."""
+    import random
+    if seed == 0:
+        return verilog_text
+    rng = random.Random(seed)
+    declaration = re.compile(r"^\s*(wire|reg|input|output|inout)\b")
+    assign = re.compile(r"^\s+assign [^;]*;\s*$")
+    lines = verilog_text.split("\n")
+    out, module = [], []
+
+    def flush():
+        declared = [i for i, line in enumerate(module) if declaration.match(line)]
+        first = declared[-1] + 1 if declared else 0
+        places = [i for i in range(first, len(module)) if assign.match(module[i])]
+        moved = [module[i] for i in places]
+        rng.shuffle(moved)
+        for i, line in zip(places, moved):
+            module[i] = line
+        out.extend(module)
+        module.clear()
+
+    for line in lines:
+        module.append(line)
+        if line.strip() == "endmodule":
+            flush()
+    flush()
+    return "\n".join(out)
+
+
+def logic_element_spread(verilog_text, stubs, name, draws):
+    """``logic_elements`` of ``draws`` equivalent netlists (``reordered``, seeds 0 ..
+    ``draws`` − 1; seed 0 is the count ``synthesize`` gives), two syntheses at a time:
+    ``{"mean", "min", "max", "counts"}``. The mean is the figure to compare two designs by
+    when they differ by less than the spread."""
+    import concurrent.futures
+    import statistics
+
+    def count(seed):
+        with tempfile.TemporaryDirectory() as tmp:
+            with open(os.path.join(tmp, "design.v"), "w") as f:
+                f.write(reordered(verilog_text, seed))
+            with open(os.path.join(tmp, "stubs.v"), "w") as f:
+                f.write(stubs)
+            _yosys(f"read_verilog stubs.v; read_verilog design.v; synth_intel -family max10 "
+                   f"-top {name} -nobram; tee -q -o intel.txt stat", tmp)
+            intel = open(os.path.join(tmp, "intel.txt")).read()
+        return max(_count(intel, "fiftyfivenm_lcell_comb"), _count(intel, "dffeas"))
+
+    with concurrent.futures.ThreadPoolExecutor(2) as pool:
+        counts = list(pool.map(count, range(draws)))
+    return {"mean": round(statistics.mean(counts), 1), "min": min(counts), "max": max(counts),
+            "counts": counts}
+
+
+def synthesize(top, name, engine, rams=(), others=(), *, blocks=False, ports=None,
+                spread=0):
     """Figures for one elaboratable (``engine``: the AttitudeEngine inside it; ``rams``: other
     ``FrameRAM``s in it); their hard blocks are synthesised as empty modules. With ``blocks``,
     also ``blocks``: the same synthesis without flattening, per block (``block_figures``).
-    ``ports``: the top's ports, for an elaboratable that is not a component."""
+    ``ports``: the top's ports, for an elaboratable that is not a component. ``spread``: also
+    ``logic_elements_spread``, the count of that many equivalent netlists
+    (``logic_element_spread``)."""
     from .hdl.memories import m9k_blocks
     from .hdl.multiplier import BLACKBOX_NAME
     hard_blocks_as_blackboxes(engine, rams, others)
     with tempfile.TemporaryDirectory() as tmp:
+        text, stubs = verilog.convert(top, name=name, ports=ports), _stubs(engine, rams)
         with open(os.path.join(tmp, "design.v"), "w") as f:
-            f.write(verilog.convert(top, name=name, ports=ports))
+            f.write(text)
         with open(os.path.join(tmp, "stubs.v"), "w") as f:
-            f.write(_stubs(engine, rams))
+            f.write(stubs)
         read = "read_verilog stubs.v; read_verilog design.v"
         # netlist before mapping: multiplies and memories Yosys found itself
         _yosys(f"{read}; hierarchy -top {name}; proc; flatten; opt; memory -nomap; opt; "
@@ -141,6 +205,8 @@ def synthesize(top, name, engine, rams=(), others=(), *, blocks=False, ports=Non
         memories[f"mpu9250_ahrs_regfile{engine.regfile.depth}x32"] = engine.regfile.bits
         memories[f"mpu9250_ahrs_rom{len(engine.rom.words)}x{engine.rom.width}"] = engine.rom.bits
         figures["blocks"] = block_figures(hier, name, memories, BLACKBOX_NAME)
+    if spread:
+        figures["logic_elements_spread"] = logic_element_spread(text, stubs, name, spread)
     return figures
 
 
@@ -236,10 +302,12 @@ def drdy_to_attitude_us(clk_freq, config, results=21):
             "with_mag_correction": most(True), "without_mag_correction": most(False)}
 
 
-def report(*, clk_freq=None, config=None, latency=True, core_options=None):
+def report(*, clk_freq=None, config=None, latency=True, core_options=None, spread=0):
     """The figures (``report``'s JSON). ``core_options``: ``AHRSCore`` options of the build
     counted (``commands=False``, ``pwm=False``: what a user may leave out); the datapath,
-    cycles and latency are those of the default build either way."""
+    cycles and latency are those of the default build either way. ``spread``: the whole
+    design's ``logic_elements`` also over that many equivalent netlists
+    (``design.logic_elements_spread``)."""
     from .hdl.attitude_engine import AttitudeEngine
     from .hdl.clocking import SYSTEM_CLOCK_HZ
     from .hdl.mpu9250_driver import MPU9250Config
@@ -266,7 +334,7 @@ def report(*, clk_freq=None, config=None, latency=True, core_options=None):
                               *([core.pwm_block.shadow] if core.has_pwm else []),
                               *([self_test.sums, self_test.table] if self_test else [])],
                         others=[self_test] if self_test else [], blocks=True,
-                        ports=wrapped.ports())
+                        ports=wrapped.ports(), spread=spread)
     design["room_left_les"] = DEVICE["logic_elements"] - design["logic_elements"]
     shown.next("cycles per update (simulated, every filter)")
     cycles, first = cycles_per_update()

@@ -108,3 +108,27 @@ def test_m9k_blocks_takes_the_best_mode():
     assert m9k_blocks(8193, 1) == 2 and m9k_blocks(100, 56) == 2
     # byte enables: the x18 and x36 modes only (two of 512 x 18, not one of 1,024 x 9)
     assert m9k_blocks(600, 8, byte_enables=True) == 2 and m9k_blocks(600, 8) == 1
+
+
+def test_spread_counts_equivalent_netlists():
+    """``report --spread``: the same Verilog with its assignments in other orders (declarations
+    first, every line kept, seed 0 unchanged) and each one's count; a small block here (the
+    UART transmitter), two draws, a few seconds."""
+    require_tool("yosys", "apt-get install yosys")
+    from amaranth.back import verilog
+    from mpu9250_ahrs.hdl.uart_tx import UARTTransmitter
+    from mpu9250_ahrs.report import logic_element_spread, reordered
+    text = verilog.convert(UARTTransmitter(divisor=52), name="uart")
+    assert reordered(text, 0) == text
+    moved = reordered(text, 3)
+    assert moved != text and sorted(moved.split("\n")) == sorted(text.split("\n"))
+    # each module's lines up to its last declaration stay where they were: a wire is
+    # declared before any assignment that moved
+    for before, after in zip(text.split("endmodule")[:-1], moved.split("endmodule")[:-1]):
+        lines = before.split("\n")
+        last = max(i for i, line in enumerate(lines)
+                   if line.lstrip().startswith(("wire ", "reg ", "input ", "output ", "module ")))
+        assert after.split("\n")[:last + 1] == lines[:last + 1]
+    spread = logic_element_spread(text, "", "uart", 2)
+    assert spread["min"] <= spread["mean"] <= spread["max"] and len(spread["counts"]) == 2
+    assert spread["min"] > 0

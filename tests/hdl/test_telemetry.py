@@ -108,8 +108,8 @@ def test_framer_fetch_equals_payload():
     """The attitude framer as the core builds it (``fetch``: the result's quaternion, angles
     and bias read through a port during the copy, a cycle after asked; ``borrow``: the sample's
     sensor fields through a synchronous port read every cycle, a word ahead) sends the frames
-    the payload holds, when the ports give the payload's words; the words it asks for are
-    those."""
+    the payload holds, when the ports give the payload's words (and 0 between reads, as the
+    engine's and the sample store's do); the words it asks for are those."""
     rng = random.Random(2)
     size = data.Layout.cast(AttitudeFrame).size
     frames = [unpack(AttitudeFrame, rng.getrandbits(size)) for _ in range(3)]
@@ -147,7 +147,7 @@ def test_framer_fetch_equals_payload():
                 word = ctx.get(dut.i_stream.payload.as_value()) >> (offset + 32 * index)
                 ctx.set(dut.fetch_data, word & 0xFFFF_FFFF)
             else:
-                ctx.set(dut.fetch_data, rng.getrandbits(32))    # anything between reads
+                ctx.set(dut.fetch_data, 0)      # 0 between reads (the engine reads ZERO)
 
     async def consumer(ctx):
         ctx.set(dut.o_stream.ready, 1)
