@@ -196,12 +196,17 @@ class TelemetryFramer(wiring.Component):
                          self.o_stream.valid.eq(sending), ram.r_en.eq(sent),
                          ram.r_addr.eq(ahead[2:]),
                          self.idle.eq(~sending & (copy_index == 0))]
-            payload_byte = ram.r_data.word_select((index - 5)[:2], 8)
+            payload_byte = Mux((index >= 5) & (index < crc_index),
+                               ram.r_data.word_select((index - 5)[:2], 8), 0)
         else:
             m.d.comb += [self.o_stream.valid.eq(self.i_stream.valid),
                          self.i_stream.ready.eq(last), self.idle.eq(index == 0)]
-            # straight from the payload: the stream keeps it still until ``ready``
-            payload_byte = payload_bytes[index - 5]
+            # straight from the payload: the stream keeps it still until ``ready``; each byte
+            # an AND with its index's decode, OR-ed (a LUT4 takes two bytes' bits and their
+            # decodes: no subtraction of the index, no tree of choices on its bits)
+            payload_byte = 0
+            for i in range(n):
+                payload_byte = payload_byte | Mux(index == 5 + i, payload_bytes[i], 0)
 
         # ``seq`` is taken a byte early, so the seq byte holds still while it waits for
         # ``ready`` whatever the input does (the arbiter's changes only between frames anyway)
@@ -209,24 +214,13 @@ class TelemetryFramer(wiring.Component):
         with m.If(sent & (index == 2)):
             m.d.sync += seq.eq(self.seq)
 
+        # the frame's bytes, each an AND with its place's decode, OR-ed (the places are
+        # distinct; ``payload_byte`` is 0 outside the payload's, from 5 to the CRC's)
         byte = Signal(8)
-        with m.If(index == 0):
-            m.d.comb += byte.eq(SYNC[0])
-        with m.Elif(index == 1):
-            m.d.comb += byte.eq(SYNC[1])
-        with m.Elif(index == 2):
-            m.d.comb += byte.eq(ftype)
-        with m.Elif(index == 3):
-            m.d.comb += byte.eq(seq)
-        with m.Elif(index == 4):
-            m.d.comb += byte.eq(length)
-        with m.Elif(index == crc_index):
-            m.d.comb += byte.eq(crc.crc[8:])
-        with m.Elif(end):
-            m.d.comb += byte.eq(crc.crc[:8])
-        with m.Else():
-            m.d.comb += byte.eq(payload_byte)
-
+        m.d.comb += byte.eq(Mux(index == 0, SYNC[0], 0) | Mux(index == 1, SYNC[1], 0) |
+                            Mux(index == 2, ftype, 0) | Mux(index == 3, seq, 0) |
+                            Mux(index == 4, length, 0) | Mux(index == crc_index, crc.crc[8:], 0) |
+                            Mux(end, crc.crc[:8], 0) | payload_byte)
         m.d.comb += [
             self.o_stream.payload.data.eq(byte),
             self.o_stream.payload.last.eq(end),
