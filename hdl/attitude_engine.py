@@ -31,6 +31,8 @@ them).
 """
 
 import math
+import operator
+from functools import reduce
 from types import SimpleNamespace
 
 from amaranth import *
@@ -377,10 +379,22 @@ class AttitudeEngine(wiring.Component):
         m.d.sync += [wr_en.eq(w_en), wr_addr.eq(w_addr), wr_data.eq(w_data)]
         m.d.comb += [rf.w_en.eq(w_en), rf.w_addr.eq(w_addr), rf.w_data.eq(w_data)]
         # the MAC's write-back is the address and data when no other writer chooses them
-        # (ungated: whatever they are without ``w_en``, nothing reads them then)
-        m.d.comb += [w_addr.eq(mac.wb_addr), w_other.eq(mac.wb_data)]
+        # (ungated: whatever they are without ``w_en``, nothing reads them then). The other
+        # writers' words each an AND with its select (``w_from``, set where that writer
+        # writes: never two in one cycle), OR-ed: the selects are decided once for all the
+        # bits, not in a chain of choices per bit
+        w_from = {name: Signal(name=f"w_from_{name}")
+                  for name in ("host", "divider", "mag_sin", "angle_cos", "load")}
+        load_word = Signal(signed(32))          # the loader's (``_control``)
+        words = {"host": host.w_data, "divider": u.divider.quotient,
+                 "mag_sin": u.cordic.mag_sin, "angle_cos": u.cordic.angle_cos,
+                 "load": load_word}
+        m.d.comb += [w_addr.eq(mac.wb_addr),
+                     w_other.eq(reduce(operator.or_, (
+                         Mux(w_from[name], word, 0) for name, word in words.items()),
+                         Mux(Cat(*w_from.values()).any(), 0, mac.wb_data)))]
         with m.If(host.w_en):
-            m.d.comb += [w_en.eq(1), w_addr.eq(host.w_addr), w_other.eq(host.w_data)]
+            m.d.comb += [w_en.eq(1), w_addr.eq(host.w_addr), w_from["host"].eq(1)]
         # the result is snooped from the register writes (no copy at the end of an update)
         fields = [*(out.quat[i] for i in range(4)), *(out.angles[i] for i in range(3)),
                   *(out.bias[i] for i in range(3))]
@@ -427,15 +441,16 @@ class AttitudeEngine(wiring.Component):
             m.d.sync += flag_sat.eq(1)
 
         (p.w_en, p.w_addr, p.w_data, p.w_other, p.w_sat_other, p.alu_w, p.x_wd,
-         p.hit_a, p.hit_b, p.o_a, p.o_b) = (
-            w_en, w_addr, w_data, w_other, w_sat_other, alu_w, x_wd, hit_a, hit_b, o_a, o_b)
+         p.hit_a, p.hit_b, p.o_a, p.o_b, p.w_from, p.load_word) = (
+            w_en, w_addr, w_data, w_other, w_sat_other, alu_w, x_wd, hit_a, hit_b, o_a, o_b,
+            w_from, load_word)
 
     def _execute(self, m, u, p):
         """The execute stage for ``x`` (an FSM state body)."""
-        (advance, xvalid, mac, o, w_en, w_addr, w_other, w_sat_other, x, ovalid, x_sub,
+        (advance, xvalid, mac, o, w_en, w_addr, w_sat_other, x, ovalid, x_sub,
          rom, rvalid, fetch_pc, flush, x_wd, alu_w, phase, cond, divider, cordic,
          flags_set) = (
-            p.advance, p.xvalid, u.mac, p.o, p.w_en, p.w_addr, p.w_other, p.w_sat_other, p.x,
+            p.advance, p.xvalid, u.mac, p.o, p.w_en, p.w_addr, p.w_sat_other, p.x,
             p.ovalid, p.x_sub, u.rom, p.rvalid, p.fetch_pc, p.flush, p.x_wd, p.alu_w,
             p.phase, p.cond, u.divider, u.cordic, p.flags_set)
         m.d.comb += advance.eq(1)                       # overridden below by stalls
@@ -478,7 +493,7 @@ class AttitudeEngine(wiring.Component):
                     with m.Else():
                         m.d.sync += phase.eq(0)
                         m.d.comb += [w_en.eq(1), w_addr.eq(x.d), x_wd.eq(1),
-                                     w_other.eq(divider.quotient),
+                                     p.w_from["divider"].eq(1),
                                      w_sat_other.eq(divider.saturated)]
                 with m.Case(Op.VEC, Op.ROT):
                     # the CORDIC's ``mag_sin`` into d + 1 first (VEC's magnitude, ROT's sin),
@@ -497,13 +512,13 @@ class AttitudeEngine(wiring.Component):
                         m.d.comb += advance.eq(0)
                         with m.If(~cordic.busy):
                             m.d.comb += [w_en.eq(1), w_addr.eq(x.d + 1),
-                                         w_other.eq(cordic.mag_sin),
+                                         p.w_from["mag_sin"].eq(1),
                                          w_sat_other.eq(cordic.saturated)]
                             m.d.sync += phase.eq(2)
                     with m.Else():
                         m.d.sync += phase.eq(0)
                         m.d.comb += [w_en.eq(1), w_addr.eq(x.d), x_wd.eq(1),
-                                     w_other.eq(cordic.angle_cos)]
+                                     p.w_from["angle_cos"].eq(1)]
                 with m.Case(Op.BR):
                     with m.If(cond ^ x.inv):
                         m.d.comb += flush.eq(1)
@@ -562,9 +577,9 @@ class AttitudeEngine(wiring.Component):
         """The engine's states: IDLE (a result offered, the host's port open), LOAD (the
         sample into the register file), RUN (the program, ``_execute``)."""
         (result_valid, host, first, init_pending, fetch_pc, rvalid, ovalid, xvalid, phase, w_en,
-         w_addr, w_other, running_init, flags_set, flag_sat, mag_valid, out, x) = (
+         w_addr, running_init, flags_set, flag_sat, mag_valid, out, x) = (
             p.result_valid, u.host, p.first, p.init_pending, p.fetch_pc, p.rvalid, p.ovalid,
-            p.xvalid, p.phase, p.w_en, p.w_addr, p.w_other, p.running_init, p.flags_set,
+            p.xvalid, p.phase, p.w_en, p.w_addr, p.running_init, p.flags_set,
             p.flag_sat, p.mag_valid, p.out, p.x)
         def start(entry):
             m.d.sync += [fetch_pc.eq((entry - 1) % ROM_DEPTH), rvalid.eq(0), ovalid.eq(0),
@@ -575,6 +590,7 @@ class AttitudeEngine(wiring.Component):
         taking = Signal()                   # IDLE takes a sample now
         in_load = Signal()
         load_data = self._load_data(m, load_index, taking, in_load)
+        m.d.comb += p.load_word.eq(load_data.as_signed())
 
         with m.If(self.results.valid & self.results.ready):
             m.d.sync += result_valid.eq(0)
@@ -614,7 +630,7 @@ class AttitudeEngine(wiring.Component):
                     m.d.comb += host.open.eq(1)
             with m.State("LOAD"):
                 m.d.comb += [self.busy.eq(1), w_en.eq(1), w_addr.eq(LOAD_BASE | load_index),
-                             w_other.eq(load_data.as_signed()), in_load.eq(1)]
+                             p.w_from["load"].eq(1), in_load.eq(1)]
                 m.d.sync += load_index.eq(load_index + 1)
                 with m.If(load_index == len(LOAD_ORDER) - 1):
                     m.d.comb += self.samples.ready.eq(1)
