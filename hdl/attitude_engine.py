@@ -48,7 +48,7 @@ from .filter_registry import FILTER_CODES
 from .attitude_program import build_program
 from .host_port import HostPort
 from .multiply_accumulate import MultiplyAccumulate
-from .cordic import CORDIC
+from .cordic import CORDIC, cordic_word
 from .divider import Divider
 from .memories import MicrocodeROM, RegisterFile
 from .multiplier import Multiplier
@@ -387,12 +387,14 @@ class AttitudeEngine(wiring.Component):
                   for name in ("host", "divider", "mag_sin", "angle_cos", "load")}
         load_word = Signal(signed(32))          # the loader's (``_control``)
         words = {"host": host.w_data, "divider": u.divider.quotient,
-                 "mag_sin": u.cordic.mag_sin, "angle_cos": u.cordic.angle_cos,
                  "load": load_word}
+        # the CORDIC's two results, its registers chosen with the mode in the same AND-OR
+        # (``cordic_word``): it has no output multiplexer of its own
         m.d.comb += [w_addr.eq(mac.wb_addr),
                      w_other.eq(reduce(operator.or_, (
                          Mux(w_from[name], word, 0) for name, word in words.items()),
-                         Mux(Cat(*w_from.values()).any(), 0, mac.wb_data)))]
+                         Mux(Cat(*w_from.values()).any(), 0, mac.wb_data)) |
+                         cordic_word(u.cordic, w_from["mag_sin"], w_from["angle_cos"]))]
         with m.If(host.w_en):
             m.d.comb += [w_en.eq(1), w_addr.eq(host.w_addr), w_from["host"].eq(1)]
         # the result is snooped from the register writes (no copy at the end of an update)

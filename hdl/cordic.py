@@ -8,7 +8,25 @@ from .numeric_contract import ATAN_TABLE, CORDIC_SHORT_ITERATIONS, INV_GAIN_Q30
 from .multiplier import BLACKBOX_NAME
 
 
-__all__ = ["CORDIC"]
+__all__ = ["CORDIC", "cordic_word"]
+
+
+def cordic_word(cordic, first, second):
+    """A result of ``cordic`` (its outputs, a Value): with ``first``, ``mag_sin`` (vectoring:
+    the magnitude √(x² + y²)·K saturated to 32 bits; rotation: sin in Q1.30), with ``second``,
+    ``angle_cos`` (vectoring: the angle, BAM32, atan2(y, x), (0, 0) giving 0; rotation: cos in
+    Q1.30); 0 with neither (never both). An AND of each of the CORDIC's registers with its
+    select, OR-ed: a user choosing among other words as well (the engine's write data) folds
+    this choice into its own, and the CORDIC has no output multiplexer. In vectoring x is
+    never negative: over 2^(n-1) - 1 when a bit from n - 1 up is set (``saturated``), and the
+    limit is then x with its low bits forced to ones: no comparator."""
+    first, second = Value.cast(first), Value.cast(second)
+    n, rot = len(cordic.x_out), cordic.rotating
+    top = cordic.x_out[n - 1] & rot             # the magnitude's sign bit is 0
+    return (Mux(first & rot, cordic.y_out.as_unsigned(), 0) |
+            Mux((first & ~rot) | (second & rot), Cat(cordic.x_out[:n - 1], top), 0) |
+            Mux(second & ~rot, cordic.z_out.as_unsigned(), 0) |
+            Mux(first & cordic.saturated, C((1 << (n - 1)) - 1, n), 0))[:n].as_signed()
 
 class CORDIC(wiring.Component):
     """Iterative CORDIC: vectoring (atan2 and magnitude) and rotation (cos and sin), BAM32 angles.
@@ -28,15 +46,14 @@ class CORDIC(wiring.Component):
             before ``done``): the results are valid whenever it is low and an operation was
             started since reset. A user that goes on with other work after ``start`` (the
             engine's background VEC and ROT) waits for it to fall rather than for ``done``.
-        ``mag_sin`` (out, signed 32): vectoring, the magnitude √(x² + y²)·K saturated to 32
-            bits (``saturated`` set if it was clamped); rotation, sin in Q1.30.
-        ``angle_cos`` (out, signed 32): vectoring, the angle (BAM32, atan2(y, x); (0, 0) gives
-            0); rotation, cos in Q1.30.
-        ``saturated`` (out): vectoring's magnitude was clamped; 0 after a rotation.
-        Each result port holds both modes' results (the mode chooses, inside), so that a user
-        writing them one after the other, as the engine does (``mag_sin`` into d + 1, then
-        ``angle_cos`` into d), has one source and one address a write rather than a
-        multiplexer of four, and writes the same register last in both modes.
+        ``x_out``, ``y_out``, ``z_out`` (out, signed 32): the registers x, y (their low 32
+            bits) and z: vectoring, x the magnitude √(x² + y²)·K before its clamp and z the
+            angle; rotation, x cos and y sin. ``rotating`` (out): the last operation was a
+            rotation. ``saturated`` (out): vectoring's magnitude is beyond 32 bits (clamped);
+            0 after a rotation. ``cordic_word`` forms the results from them: ``mag_sin``
+            (the magnitude, or sin) and ``angle_cos`` (the angle, or cos), which the engine
+            writes one after the other (``mag_sin`` into d + 1, then ``angle_cos`` into d: the
+            same register last in both modes).
     Parameters (the datapath's by default; the formal check, ``tests/formal/test_cordic.py``, proves
     the same logic at a reduced width): ``width`` (32: inputs, results and the angle's BAM bits),
     ``atan_table`` (one entry per iteration, BAM of ``width`` bits), ``inv_gain`` (1/K in
@@ -72,8 +89,8 @@ class CORDIC(wiring.Component):
             "x_in": In(signed(n)), "y_in": In(signed(n)), "angle_in": In(signed(n)),
             "done": Out(1),
             "busy": Out(1),
-            "mag_sin": Out(signed(n)),      # vectoring: |(x, y)|·K, saturated; rotation: sin
-            "angle_cos": Out(signed(n)),    # vectoring: atan2(y, x); rotation: cos
+            "x_out": Out(signed(n)), "y_out": Out(signed(n)), "z_out": Out(signed(n)),
+            "rotating": Out(1),
             "saturated": Out(1),
         })
 
@@ -184,14 +201,12 @@ class CORDIC(wiring.Component):
                 m.next = "IDLE"
 
         # In vectoring x is never negative: it starts at |x_in| (or -x_in - 1) and each
-        # iteration adds |y| >> i. So it is over 2^(n-1) - 1 when a bit from n - 1 up is set,
-        # and the limit is x with its low bits forced to ones: no comparator, no multiplexer.
-        # In rotation x and y are cos and sin (Q1.30: they fit 32 bits), passed on whole
-        over = x[n - 1:].any() & ~rotate
-        magnitude = Cat(x[:n - 1] | over.replicate(n - 1), C(0, 1))
+        # iteration adds |y| >> i. So it is over 2^(n-1) - 1 when a bit from n - 1 up is set
+        # (``cordic_word`` then forces its low bits to ones). In rotation x and y are cos and
+        # sin (Q1.30: they fit 32 bits), passed on whole
         m.d.comb += [
-            self.mag_sin.eq(Mux(rotate, y[:n], magnitude)),
-            self.angle_cos.eq(Mux(rotate, x[:n], z)),
-            self.saturated.eq(over),
+            self.x_out.eq(x[:n]), self.y_out.eq(y[:n]), self.z_out.eq(z),
+            self.rotating.eq(rotate),
+            self.saturated.eq(x[n - 1:].any() & ~rotate),
         ]
         return m
