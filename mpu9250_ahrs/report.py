@@ -20,6 +20,10 @@ gateware has no option for it) and counts them from their sizes:
   MAX10 LE holds one LUT and one register). Yosys 0.23 maps adders without the LE's carry chain,
   so this is pessimistic; ``logic_elements_carry_chain`` is the same design through
   ``synth_ice40`` (LUT4 + carry chain + register: the same LE structure) for comparison.
+- ``logic_elements_spread`` (``report --spread K``): ``logic_elements`` of K equivalent
+  netlists (``reordered``: the same Verilog, its assignments in other orders), mean, least and
+  most. Yosys and ABC map equivalent netlists to counts about 1.5 % apart, so one count is one
+  draw; a change smaller than that is judged by the means.
 - ``logic_levels``: the longest path in LUTs between registers, memories and multipliers
   (``ltp``), a stand-in for Fmax, which needs Quartus. The multiplier's own delay is not in it.
 """
