@@ -123,10 +123,11 @@ class PWMOutputs(wiring.Component):
         if self.motor_min >= 1 << PERIOD_BITS:
             raise ValueError(f"a {MOTOR_MAX_HZ} Hz motor period at {clk_freq / 1e6:g} MHz "
                              f"does not fit {PERIOD_BITS} bits")
-        # the registers whose reset value is not 0 (the copy's words for them)
-        self.at_reset = {shadow_index(PWM_REGS[name]): value for name, value in (
-            ("PWM_WATCHDOG_MS", WATCHDOG_MS_AT_RESET), ("PWM_SERVO_PERIOD", SERVO_PERIOD_US[1]),
-            ("PWM_MOTOR_PERIOD", self.motor_min))}
+        # the registers whose reset value is not 0, by name: their inits, and what they read
+        # back until written after a reset (the read-back's block RAM keeps its words)
+        self.at_reset = {"PWM_WATCHDOG_MS": WATCHDOG_MS_AT_RESET,
+                         "PWM_SERVO_PERIOD": SERVO_PERIOD_US[1],
+                         "PWM_MOTOR_PERIOD": self.motor_min}
         self.shadow = FrameRAM(16, PERIOD_BITS)
         super().__init__({
             "bus": In(BoardBusSignature()),
@@ -148,11 +149,11 @@ class PWMOutputs(wiring.Component):
         bus = self.bus
         enable = Signal(n)
         mode = Signal(n)
-        watchdog_ms = Signal(16, init=WATCHDOG_MS_AT_RESET)
-        watchdog_on = Signal(init=WATCHDOG_MS_AT_RESET != 0)     # ``watchdog_ms`` is not 0
+        watchdog_ms = Signal(16, init=self.at_reset["PWM_WATCHDOG_MS"])
+        watchdog_on = Signal(init=watchdog_ms.init != 0)         # ``watchdog_ms`` is not 0
         # the two groups: 0 servo (µs), 1 motor (cycles)
-        period = [Signal(PERIOD_BITS, init=SERVO_PERIOD_US[1], name="servo_period"),
-                  Signal(PERIOD_BITS, init=self.motor_min, name="motor_period")]
+        period = [Signal(PERIOD_BITS, init=self.at_reset["PWM_SERVO_PERIOD"], name="servo_period"),
+                  Signal(PERIOD_BITS, init=self.at_reset["PWM_MOTOR_PERIOD"], name="motor_period")]
         high = [Signal(PERIOD_BITS, name=f"high{k}") for k in range(n)]
         # a high time other than 0 given in the channel's present unit and period. A mode or
         # period change clears this bit rather than the high time (the register then reads 0
@@ -177,17 +178,14 @@ class PWMOutputs(wiring.Component):
         # read (the bus holds the address): each source of the read-back an AND with its own
         # registered select, OR-ed (the RAM's word, a reset value, the small registers), not a
         # multiplexer on the address in front of the RAM's output
-        places = sorted(self.at_reset)
-        written = Signal(len(places))
+        kept = list(self.at_reset)              # the registers whose reset value is not 0
+        written = Signal(len(kept))
         m.d.comb += [shadow.r_en.eq(1), shadow.r_addr.eq(index), shadow.w_addr.eq(index),
                      shadow.w_data.eq(low)]
         addressed = {name: bus.addr == a for name, a in PWM_REGS.items()}
-        # the registers with a reset value other than 0, in ``places``' order
-        kept = sorted((name for name in PWM_REGS if shadow_index(PWM_REGS[name]) in places),
-                      key=lambda name: shadow_index(PWM_REGS[name]))
         is_high = (bus.addr >> 2) == (PWM_REGS["PWM_HIGH0"] >> 2)
         from_ram = Signal()                     # the RAM's word: written since, or a high time
-        at_reset = Signal(len(places))          # a reset value: ``places[j]``'s
+        at_reset = Signal(len(kept))            # a reset value: ``kept[j]``'s
         read_enable, read_mode, read_status = Signal(), Signal(), Signal()
         m.d.sync += [
             from_ram.eq((is_high & given.bit_select(bus.addr[:2], 1)) |
@@ -197,8 +195,8 @@ class PWMOutputs(wiring.Component):
             read_status.eq(addressed["PWM_STATUS"]),
         ]
         read_back = shadow.r_data & from_ram.replicate(PERIOD_BITS)
-        for j, place in enumerate(places):
-            read_back = read_back | Mux(at_reset[j], self.at_reset[place], 0)
+        for j, name in enumerate(kept):
+            read_back = read_back | Mux(at_reset[j], self.at_reset[name], 0)
         read_back = (read_back | Mux(read_enable, enable, 0) | Mux(read_mode, mode, 0) |
                      Mux(read_status, Cat(self.tripped, C(0, 3), enable), 0))
         m.d.comb += bus.r_data.eq(read_back)
