@@ -39,10 +39,11 @@ COMMANDS = {
 }
 MAX_COMMAND_PAYLOAD = max(n for _, n in COMMANDS.values())
 # The commands whose payload is one or two bytes, a value: kept where a write's value is
-# (``CommandDecoder``'s ``payload``, from byte 2), so that a reply's or an engine write's
-# value comes from the same bits in every command
+# (``CommandDecoder``'s ``payload``, from byte ``VALUE_AT``, after a write's address), so that
+# a reply's or an engine write's value comes from the same bits in every command
 SHORT = ("filter", "rate", "raw")
-assert all(COMMANDS[name][1] <= 2 for name in SHORT)
+VALUE_AT = 2
+assert all(VALUE_AT + COMMANDS[name][1] <= MAX_COMMAND_PAYLOAD for name in SHORT)
 # the command's value in a reply, masked: a write's (echo), or a short payload's
 ECHOED = {"echo": (1 << 32) - 1, "byte": 0xFF, "half": 0xFFFF, "bit": 1}
 # the input FIFO: a whole frame kept (13 bytes at most) and room for the bytes that arrive
@@ -189,14 +190,15 @@ class CommandDecoder(wiring.Component):
         seq = Signal(8, reset_less=True)
         length = Signal(8, reset_less=True)
         count = Signal(range(MAX_COMMAND_PAYLOAD + 1))
-        # The payload's bytes in the order they come, but a short payload's (``SHORT``: one
-        # or two bytes) from byte 2 on, where a write's value begins: the reply and an engine
-        # write take their value from those bits in every command, never from the first two
+        # The payload's bytes in the order they come, but a short payload's (``SHORT``) from
+        # byte ``VALUE_AT`` on, where a write's value begins: the reply and an engine write
+        # take their value from those bits in every command
         payload = Signal(8 * MAX_COMMAND_PAYLOAD, reset_less=True)
-        place = Signal(range(8), reset_less=True)           # the next byte's in ``payload``
+        # the next byte's place in ``payload``
+        place = Signal(range(VALUE_AT + MAX_COMMAND_PAYLOAD), reset_less=True)
         gap = Signal(range(self.timeout_ticks + 1))          # ticks without a byte
-        addr = payload[:16]
-        value = payload[16:48]
+        addr = payload[:8 * VALUE_AT]
+        value = payload[8 * VALUE_AT:8 * VALUE_AT + 32]
         space, low = addr[8:], addr[:8]
         reply, fields, load_header, result = self._reply(m, ctype, seq, addr, value,
                                                          counters.r_data)
@@ -446,7 +448,7 @@ class CommandDecoder(wiring.Component):
             # the bytes its length brings, checked in EXECUTE; a bad one's reply is all zeros
             short = Const(sum(1 << COMMANDS[name][0] for name in SHORT), 256).bit_select(
                 ctype, 1)
-            m.d.sync += [length.eq(byte), count.eq(0), place.eq(Mux(short, 2, 0))]
+            m.d.sync += [length.eq(byte), count.eq(0), place.eq(Mux(short, VALUE_AT, 0))]
             with m.If(too_long):
                 count_up("malformed")
                 m.d.comb += fifo.rewind.eq(1)           # search the rest for a header
