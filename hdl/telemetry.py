@@ -140,7 +140,6 @@ class TelemetryFramer(wiring.Component):
 
         value = self.i_stream.payload.as_value()
         bits = Cat(value, C(0, 8 * n - len(value)))
-        payload_bytes = Array(bits[8 * i:8 * i + 8] for i in range(n))
         sent = self.o_stream.valid & self.o_stream.ready
         # the frame's length and type: this one's, or (short) the short type's
         length = Signal(8, init=n)
@@ -206,7 +205,7 @@ class TelemetryFramer(wiring.Component):
             # decodes: no subtraction of the index, no tree of choices on its bits)
             payload_byte = 0
             for i in range(n):
-                payload_byte = payload_byte | Mux(index == 5 + i, payload_bytes[i], 0)
+                payload_byte = payload_byte | Mux(index == 5 + i, bits[8 * i:8 * i + 8], 0)
 
         # ``seq`` is taken a byte early, so the seq byte holds still while it waits for
         # ``ready`` whatever the input does (the arbiter's changes only between frames anyway)
