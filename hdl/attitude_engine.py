@@ -23,11 +23,11 @@ A result is visible to the next instruction without stalls (forwarded into the o
 registers); multi-cycle operations (MUL 3, or 1 when the next is a MUL, which the assembler
 keeps from reading its result: ``attitude_isa``; DIV 34, VEC 19, ROT 18 cycles) hold the
 pipeline, except a VEC, ROT or DIV started in the background (``attitude_isa``: its collect
-waits for its unit); a taken branch on a register (A_ZERO, A_NEG) costs two bubbles (decided in execute, the ROM
-reads its target at once), one on a condition fixed for the run (ALWAYS, MAG_INVALID, FIRST,
-FILTER) none: it is decided as it leaves the ROM (from the word's ``jump`` field, which any
-instruction may carry: the assembler folds most such branches into the instruction before
-them).
+waits for its unit); a taken branch on a register (A_ZERO, A_NEG) costs two bubbles (decided in
+execute, the ROM reads its target at once), one on a condition fixed for the run (ALWAYS,
+MAG_INVALID, FIRST, FILTER) none: it is decided as it leaves the ROM (from the word's ``jump``
+field, which any instruction may carry: the assembler folds most such branches into the
+instruction before them).
 """
 
 import math
@@ -73,10 +73,11 @@ PEEKED = (*(f"QOUT{i}" for i in range(4)), *(f"THETA{i}" for i in range(3)),
 # An upper bound of the cycles of one update (sample taken to result out), whatever the filter
 # and input: the longest measured are the first updates after a reset
 # (``test_longest_updates_within_the_bound``: the Kalman filter's with Euler-angle rates and
-# every measurement taken, the flagship's and Madgwick's; ``report`` prints each filter's). It was set when the Kalman filter's divisions held the pipeline and its
-# Euler-rate updates were the longest; kept, so the rates it allows are those the design was
-# checked at. The rate checks of ``build`` and ``report`` rely on it; tests check it on whole
-# recordings, resets and the Euler-rate option.
+# every measurement taken, the flagship's and Madgwick's; ``report`` prints each filter's). It
+# was set when the Kalman filter's divisions held the pipeline and its Euler-rate updates were
+# the longest; kept, so the rates it allows are those the design was checked at. The rate checks
+# of ``build`` and ``report`` rely on it; tests check it on whole recordings, resets and the
+# Euler-rate option.
 WORST_UPDATE_CYCLES = 720
 
 

@@ -1,6 +1,7 @@
 """The attitude engine's program: the reset program, then per sample the calibration, the
-zero tests, the dispatch on the selected filter and the filters' routines (``hdl/filters/``, one module each, in
-the registry's order: ``hdl/filter_registry.py``), and the per-axis filters' angles-out tail.
+zero tests, the dispatch on the selected filter and the filters' routines (``hdl/filters/``,
+one module each, in the registry's order: ``hdl/filter_registry.py``), and the per-axis
+filters' angles-out tail.
 
 The microcode computes exactly ``reference.engine_model.EngineModel`` (formats in
 ``reference/FIXED_POINT.md``); it is written from those formulas, step by step, and the tests

@@ -6,8 +6,8 @@ A filter module has ``emit(asm, r)`` (its routine: from the calibrated sample â€
 zero tests' ACC_OK and MAG_OK, made before the dispatch â€” to QOUT, THETA and BIAS, ending in
 END or a branch to the ``angles_out`` tail), ``CONFIG_REGISTERS`` (its run-time registers,
 placed from 0x70 in the registry's order: ``hdl/register_map.py``) and ``REGISTERS`` (its own
-state and working registers, allocated after the shared ones). Adding a filter: its module here, its name in the
-registry, its integer step (a module of ``reference/``, called from
+state and working registers, allocated after the shared ones). Adding a filter: its module
+here, its name in the registry, its integer step (a module of ``reference/``, called from
 ``reference/engine_model.py``) and, if it has run-time registers, their configuration in
 ``numeric_contract`` (``filter_registers`` gives every filter's defaults).
 """

@@ -7,8 +7,7 @@ from ..attitude_isa import Q14, Q24, Q30, Cond
 
 
 __all__ = ["init", "calibrate", "zero_tests", "background_divisions", "tilt", "heading",
-           "step_n", "euler_rates",
-           "matrix_angles", "euler_quat", "angles_out"]
+           "step_n", "euler_rates", "matrix_angles", "euler_quat", "angles_out"]
 
 
 def init(asm, r):
