@@ -262,7 +262,7 @@ class PWMOutputs(wiring.Component):
         # in microsecond ticks, so a restart lands within a microsecond of the command
         ms_us = Signal(range(1000), init=999)
         ms_tick = us_tick & (ms_us == 0)
-        left = Signal(16, init=WATCHDOG_MS_AT_RESET)
+        left = Signal(16, init=r.watchdog_ms.init)
         with m.If(us_tick):
             m.d.sync += ms_us.eq(Mux(ms_us == 0, 999, ms_us - 1))
         with m.If(r.restart):
@@ -286,10 +286,8 @@ class PWMOutputs(wiring.Component):
         # every channel disabled (PWM_ENABLE is 0 at reset) they are reloaded each cycle
         count = [Signal(PERIOD_BITS, name="servo_count", reset_less=True),
                  Signal(PERIOD_BITS, name="motor_count", reset_less=True)]
-        active = [Signal(PERIOD_BITS, init=SERVO_PERIOD_US[1], name="servo_active_period",
-                         reset_less=True),
-                  Signal(PERIOD_BITS, init=self.motor_min, name="motor_active_period",
-                         reset_less=True)]
+        active = [Signal(PERIOD_BITS, init=period[g].init, name=f"{group}_active_period",
+                         reset_less=True) for g, group in enumerate(("servo", "motor"))]
         idle = [Signal(name="servo_idle", reset_less=True),
                 Signal(name="motor_idle", reset_less=True)]
         wrap = [Signal(name="servo_wrap"), Signal(name="motor_wrap")]
