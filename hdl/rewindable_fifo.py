@@ -75,18 +75,16 @@ class RewindableFIFO(wiring.Component):
         m.d.comb += [self.r_stream.valid.eq(valid),
                      self.r_stream.payload.eq(Mux(bypass, bypass_data, ram.r_data))]
         take = self.r_stream.valid & self.r_stream.ready
-        # ``valid`` is registered, from the pointers' next values (read', keep', write'): a byte
-        # at read' is waiting when read' - keep' < write' - keep'. ``read`` lies between
-        # ``keep`` and ``write``, so this is read' != write'; written as distances it says so
+        # a byte at ``read`` is waiting when read - keep < write - keep. ``read`` lies between
+        # ``keep`` and ``write``, so this is read != write; written as distances it says so
         # to an induction proof, which starts anywhere (the inequality would offer a byte from
-        # states no reset reaches, and take it back). The pointers' sums were once speculated
-        # for each case, so that the reader's late take and rewind only chose among them
-        # (about 30 LUTs more): the routed Fmax now has margin for the longer path (report
-        # --timing found it critical in one seed of four, 13.5 ns against the 20.8 of 48 MHz)
+        # states no reset reaches, and take it back). Made from the pointers' registers, not
+        # registered from their next values (the same signal, cycle for cycle: the pointers'
+        # multiplexers in front of two subtractions cost about 20 LUTs more)
+        m.d.comb += valid.eq((read - keep)[:bits] < (write - keep)[:bits])
         read_1, keep_1 = (read + 1)[:bits], (keep + 1)[:bits]
         read_next = Signal(bits)
         keep_next = Signal(bits)
-        valid_next = Signal()
         m.d.comb += [read_next.eq(Mux(take, read_1, read)), keep_next.eq(keep)]
         with m.If(self.rewind):
             m.d.comb += [read_next.eq(keep_1), keep_next.eq(keep_1)]
@@ -94,9 +92,7 @@ class RewindableFIFO(wiring.Component):
             m.d.comb += keep_next.eq(read)
         with m.Elif(self.release):
             m.d.comb += keep_next.eq(read_next)
-        write_next = (write + put)[:bits]
-        m.d.comb += valid_next.eq((read_next - keep_next)[:bits] < (write_next - keep_next)[:bits])
-        m.d.sync += [read.eq(read_next), keep.eq(keep_next), valid.eq(valid_next)]
+        m.d.sync += [read.eq(read_next), keep.eq(keep_next)]
         # the RAM reads the old word at an address written in the same cycle: the byte written
         # there is taken from a register instead
         waddr = write[:bits - 1]
