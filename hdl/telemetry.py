@@ -3,6 +3,8 @@ a reply to a command) into a frame of the link layer (``hdl/frame_types.py`` has
 the layouts, ``hdl/FRAMES.md`` the reasons).
 """
 
+import operator
+from functools import reduce
 from types import SimpleNamespace
 
 from amaranth import *
@@ -131,7 +133,7 @@ class TelemetryFramer(wiring.Component):
     def elaborate(self, platform):
         m = Module()
         n = self.length
-        index = Signal(range(n + 7))
+        index = Signal(range(n + 7))        # the byte being sent (unbuffered: ``place``)
         if self.shared_crc:
             crc = SimpleNamespace(data=self.crc_data, start=self.crc_start,
                                   valid=self.crc_valid, crc=self.crc_value)
@@ -155,6 +157,9 @@ class TelemetryFramer(wiring.Component):
                 m.d.sync += end.eq(index == crc_index)
         else:
             crc_index, end = C(n + 5, 8), index == n + 6
+        at = self._places(m, index, sent)
+        if not self.buffered:
+            end = at(n + 6)
         last = sent & end
 
         if self.buffered:
@@ -162,6 +167,7 @@ class TelemetryFramer(wiring.Component):
             sending = Signal()
             words = self.words
             copy_index = Signal(range(words))
+            copy_oh = Signal(words, init=1)
             wide = Cat(value, C(0, 32 * words - len(value)))
             payload_words = [wide[32 * i:32 * i + 32] for i in range(words)]
             fetched = C(0, 32)
@@ -170,20 +176,24 @@ class TelemetryFramer(wiring.Component):
             if self.borrow is not None:
                 payload_words, borrowed = self._borrowed(m, payload_words, copy_index, sending)
                 fetched = fetched | borrowed
-            # copy: the payload's words into the RAM, one per cycle, through one multiplexer
-            # (the address and data ungated: ``w_en`` says when)
+            # copy: the payload's words into the RAM, one per cycle, each an AND with its bit
+            # of ``copy_oh`` (the copy's word, one-hot beside ``copy_index``, the RAM's
+            # address), OR-ed: no decoder of the index in front of the data (the address and
+            # data ungated: ``w_en`` says when)
             m.d.comb += [ram.w_addr.eq(copy_index),
-                         ram.w_data.eq(Array(payload_words)[copy_index] | fetched)]
+                         ram.w_data.eq(reduce(operator.or_, (
+                             Mux(copy_oh[i], word, 0)
+                             for i, word in enumerate(payload_words)), fetched))]
             with m.If(self.i_stream.valid & ~sending):
                 m.d.comb += ram.w_en.eq(1)
-                m.d.sync += copy_index.eq(copy_index + 1)
+                m.d.sync += [copy_index.eq(copy_index + 1), copy_oh.eq(copy_oh.rotate_left(1))]
                 if self.short_type is not None:
-                    with m.If(copy_index == 0):
+                    with m.If(copy_oh[0]):
                         m.d.sync += [length.eq(Mux(self.short, self.short_length, n)),
                                      crc_index.eq(Mux(self.short, self.short_length + 5, n + 5)),
                                      ftype.eq(Mux(self.short, self.short_type,
                                                   self.frame_type))]
-                with m.If(copy_index == words - 1):
+                with m.If(copy_oh[words - 1]):
                     m.d.comb += self.i_stream.ready.eq(1)
                     m.d.sync += [copy_index.eq(0), sending.eq(1)]
             with m.If(last):
@@ -194,42 +204,57 @@ class TelemetryFramer(wiring.Component):
             m.d.comb += [ahead.eq(index - 4),
                          self.o_stream.valid.eq(sending), ram.r_en.eq(sent),
                          ram.r_addr.eq(ahead[2:]),
-                         self.idle.eq(~sending & (copy_index == 0))]
+                         self.idle.eq(~sending & copy_oh[0])]
             payload_byte = Mux((index >= 5) & (index < crc_index),
                                ram.r_data.word_select((index - 5)[:2], 8), 0)
         else:
             m.d.comb += [self.o_stream.valid.eq(self.i_stream.valid),
-                         self.i_stream.ready.eq(last), self.idle.eq(index == 0)]
+                         self.i_stream.ready.eq(last), self.idle.eq(at(0))]
             # straight from the payload: the stream keeps it still until ``ready``; each byte
             # an AND with its index's decode, OR-ed (a LUT4 takes two bytes' bits and their
             # decodes: no subtraction of the index, no tree of choices on its bits)
             payload_byte = 0
             for i in range(n):
-                payload_byte = payload_byte | Mux(index == 5 + i, bits[8 * i:8 * i + 8], 0)
+                payload_byte = payload_byte | Mux(at(5 + i), bits[8 * i:8 * i + 8], 0)
 
         # ``seq`` is taken a byte early, so the seq byte holds still while it waits for
         # ``ready`` whatever the input does (the arbiter's changes only between frames anyway)
         seq = Signal(8)
-        with m.If(sent & (index == 2)):
+        with m.If(sent & at(2)):
             m.d.sync += seq.eq(self.seq)
 
         # the frame's bytes, each an AND with its place's decode, OR-ed (the places are
         # distinct; ``payload_byte`` is 0 outside the payload's, from 5 to the CRC's)
         byte = Signal(8)
-        m.d.comb += byte.eq(Mux(index == 0, SYNC[0], 0) | Mux(index == 1, SYNC[1], 0) |
-                            Mux(index == 2, ftype, 0) | Mux(index == 3, seq, 0) |
-                            Mux(index == 4, length, 0) | Mux(index == crc_index, crc.crc[8:], 0) |
+        crc_high = (index == crc_index) if self.buffered else at(n + 5)
+        m.d.comb += byte.eq(Mux(at(0), SYNC[0], 0) | Mux(at(1), SYNC[1], 0) |
+                            Mux(at(2), ftype, 0) | Mux(at(3), seq, 0) |
+                            Mux(at(4), length, 0) | Mux(crc_high, crc.crc[8:], 0) |
                             Mux(end, crc.crc[:8], 0) | payload_byte)
         m.d.comb += [
             self.o_stream.payload.data.eq(byte),
             self.o_stream.payload.last.eq(end),
             crc.data.eq(byte),
-            crc.start.eq(sent & (index == 0)),
-            crc.valid.eq(sent & (index >= 2) & (index < crc_index)),
+            crc.start.eq(sent & at(0)),
+            crc.valid.eq(sent & ((index >= 2) & (index < crc_index) if self.buffered
+                                 else Cat(at(k) for k in range(2, n + 5)).any())),
         ]
-        with m.If(sent):
-            m.d.sync += index.eq(Mux(end, 0, index + 1))
+        if self.buffered:
+            with m.If(sent):
+                m.d.sync += index.eq(Mux(end, 0, index + 1))
         return m
+
+    def _places(self, m, index, sent):
+        """``at(k)``, 1 while the byte at place ``k`` of the frame is offered (returned):
+        buffered, ``index == k``; unbuffered, where every place is a constant, a bit of
+        ``place``, the places one-hot (rotated as a byte is sent), so that each byte's decode
+        is a register."""
+        if self.buffered:
+            return lambda k: index == k
+        place = Signal(self.length + 7, init=1)
+        with m.If(sent):
+            m.d.sync += place.eq(place.rotate_left(1))
+        return lambda k: place[k]
 
     def _fetched(self, m, payload_words, copy_index, sending):
         """The copy with ``fetch``: the payload's words with the fetched bits left out (zero:
