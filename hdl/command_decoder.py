@@ -189,13 +189,14 @@ class CommandDecoder(wiring.Component):
         ctype = Signal(8, reset_less=True)
         seq = Signal(8, reset_less=True)
         length = Signal(8, reset_less=True)
-        count = Signal(range(MAX_COMMAND_PAYLOAD + 1))
+        left = Signal(range(MAX_COMMAND_PAYLOAD + 1), reset_less=True)    # payload bytes to come
         # The payload's bytes in the order they come, but a short payload's (``SHORT``) from
         # byte ``VALUE_AT`` on, where a write's value begins: the reply and an engine write
         # take their value from those bits in every command
         payload = Signal(8 * MAX_COMMAND_PAYLOAD, reset_less=True)
-        # the next byte's place in ``payload``
-        place = Signal(range(VALUE_AT + MAX_COMMAND_PAYLOAD), reset_less=True)
+        # the next byte's place in ``payload``, one-hot (a register bit is each byte's
+        # enable: no decoder of a count)
+        place = Signal(MAX_COMMAND_PAYLOAD, reset_less=True)
         gap = Signal(range(self.timeout_ticks + 1))          # ticks without a byte
         addr = payload[:8 * VALUE_AT]
         value = payload[8 * VALUE_AT:8 * VALUE_AT + 32]
@@ -241,7 +242,7 @@ class CommandDecoder(wiring.Component):
                 src=src, fifo=fifo, crc=crc, take=take, byte=byte, looked=looked,
                 is_sync0=is_sync0, is_sync1=is_sync1, too_long=too_long, empty=empty,
                 crc_ok=crc_ok, high_ok=high_ok, timed_out=timed_out, ctype=ctype, seq=seq,
-                length=length, count=count, place=place, payload=payload, count_up=count_up))
+                length=length, left=left, place=place, payload=payload, count_up=count_up))
 
             with m.State("EXECUTE"):
                 self._execute(m, SimpleNamespace(
@@ -394,10 +395,10 @@ class CommandDecoder(wiring.Component):
         """The parsing states of the decoder's FSM, HUNT to CRC_LOW (EXECUTE follows a frame
         that passed its CRC). ``c``: the parser's registers, the FIFO's head and helpers."""
         (src, fifo, crc, take, byte, looked, is_sync0, is_sync1, too_long, empty, crc_ok,
-         high_ok, timed_out, ctype, seq, length, count, place, payload, count_up) = (
+         high_ok, timed_out, ctype, seq, length, left, place, payload, count_up) = (
             c.src, c.fifo, c.crc, c.take, c.byte, c.looked, c.is_sync0, c.is_sync1,
             c.too_long, c.empty, c.crc_ok, c.high_ok, c.timed_out, c.ctype, c.seq, c.length,
-            c.count, c.place, c.payload, c.count_up)
+            c.left, c.place, c.payload, c.count_up)
         with m.State("HUNT"):
             m.d.comb += src.ready.eq(looked)
             with m.If(take):
@@ -448,7 +449,8 @@ class CommandDecoder(wiring.Component):
             # the bytes its length brings, checked in EXECUTE; a bad one's reply is all zeros
             short = Const(sum(1 << COMMANDS[name][0] for name in SHORT), 256).bit_select(
                 ctype, 1)
-            m.d.sync += [length.eq(byte), count.eq(0), place.eq(Mux(short, VALUE_AT, 0))]
+            m.d.sync += [length.eq(byte), left.eq(byte),
+                         place.eq(Mux(short, 1 << VALUE_AT, 1))]
             with m.If(too_long):
                 count_up("malformed")
                 m.d.comb += fifo.rewind.eq(1)           # search the rest for a header
@@ -458,9 +460,11 @@ class CommandDecoder(wiring.Component):
             with m.Else():
                 m.next = "PAYLOAD"
         with receiving("PAYLOAD"):
-            m.d.sync += [payload.word_select(place, 8).eq(byte), count.eq(count + 1),
-                         place.eq(place + 1)]
-            with m.If(count + 1 == length):
+            for k in range(MAX_COMMAND_PAYLOAD):
+                with m.If(place[k]):
+                    m.d.sync += payload[8 * k:8 * k + 8].eq(byte)
+            m.d.sync += [left.eq(left - 1), place.eq(place << 1)]
+            with m.If(left == 1):
                 m.next = "CRC_HIGH"
         with receiving("CRC_HIGH", checked=False):
             m.d.sync += high_ok.eq(byte == crc.crc[8:])
