@@ -21,6 +21,8 @@ The rules it applies (``hdl/FAULTS.md`` has what each catches):
   The sample itself is real and is passed on (flagged).
 """
 
+import operator
+from functools import reduce
 from types import SimpleNamespace
 
 from amaranth import *
@@ -235,21 +237,32 @@ class SampleReader(wiring.Component):
         tail = len(writes)
         writes += [(w, lanes, C(0, 32)) for w, lanes in FIELD_LANES]
         assert len(writes) == OFFER_WRITES
-        n.after = after = Signal(range(len(writes) + 1))     # the next of them, from 1
+        # the writes after an offer, one-hot (``n.after``'s bit k: write k now), so that each
+        # write's address, lanes and word are chosen by a bit of a register, an AND-OR, not
+        # by a decoder of a count in front of every bit of the data
+        n.after = after = Signal(len(writes))
         n.zero_field = zero_field = Signal()
-        # a byte's write is the address and data unless an offer's write chooses them (not
-        # gated by its own condition: ``w_en`` says when)
-        m.d.comb += [store.w_addr.eq(Cat(word, written)), store.w_data.eq(rx.payload.replicate(4))]
-        with m.If(after != 0):
-            with m.Switch(after):
-                for step, (w, lanes, value) in enumerate(writes, 1):
-                    with m.Case(step):
-                        m.d.comb += [store.w_en.eq(lanes), store.w_data.eq(value),
-                                     store.w_addr.eq(Cat(C(w, len(word)), self.sample_slot))]
-            done = (after == len(writes)) | ((after == tail) & ~zero_field)
-            m.d.sync += after.eq(Mux(done, 0, after + 1))
-        with m.Elif(rx.valid & (n.rx_index < SAMPLE_BYTES) & placed):
-            m.d.comb += store.w_en.eq(1 << lane)
+        # a byte's write is the address and data unless an offer's write chooses them (the
+        # byte is gated by ``after`` being 0: an offer's writes and the bytes never meet, but
+        # the receiver's payload holds its last byte)
+        busy = after.any()
+        m.d.comb += [
+            store.w_addr.eq(Cat(reduce(operator.or_, (Mux(after[k], w, 0)
+                                                      for k, (w, _, _) in enumerate(writes)),
+                                       Mux(busy, 0, word)),
+                                Mux(busy, self.sample_slot, written))),
+            store.w_data.eq(reduce(operator.or_, (Mux(after[k], value, 0)
+                                                  for k, (_, _, value) in enumerate(writes)),
+                                   Mux(busy, 0, rx.payload.replicate(4)))),
+            store.w_en.eq(reduce(operator.or_, (Mux(after[k], lanes, 0)
+                                                for k, (_, lanes, _) in enumerate(writes)),
+                                 Mux(rx.valid & (n.rx_index < SAMPLE_BYTES) & placed & ~busy,
+                                     1 << lane, 0))),
+        ]
+        # the next write, or none after the last (after the payload's words if the field
+        # needs no zeros)
+        m.d.sync += after.eq(Cat(C(0, 1), after[:-1]) &
+                             Mux(zero_field, C(-1, len(writes)), C((1 << tail) - 1, len(writes))))
 
     def _burst_checks(self, m, n):
         """The checks that look at every byte, made as the bytes come in (one comparator and
