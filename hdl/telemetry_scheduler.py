@@ -38,9 +38,9 @@ class TelemetryScheduler(wiring.Component):
             present result came from and the driver status latched with it; they hold while
             the result is valid (the engine takes no new sample before its result is taken).
         ``divider`` (in, 16): frame every ``divider``-th result (0 is taken as 1).
-        ``cfg_refused`` (in, 16): the engine's count of refused host writes, framed as it is
-            when the frame is offered (it may change while the frame waits: the frame keeps
-            the value it was offered with).
+        ``cfg_refused`` (in, 16): the engine's count of refused host writes, framed as it was
+            in the cycle before the frame is offered (it may change while the frame waits: the
+            frame keeps that value).
         ``framer_idle`` (in): the framer would copy a frame at once. A due result that finds
             it busy (still sending the last frame) as it comes is not framed, and counted.
             (Only this scheduler gives the framer frames: idle as a result comes, it is still
@@ -78,15 +78,10 @@ class TelemetryScheduler(wiring.Component):
         busy = Signal()
         counted = Signal()
         framing = Signal()
-        offering = Signal()                  # the frame is offered and not yet taken
         m.d.comb += self.frames.valid.eq(self.results.valid & counted & framing)
         done = self.frames.valid & self.frames.ready
         take_now = self.results.valid & counted & ~framing
         m.d.comb += self.results.ready.eq(take_now | done)
-        with m.If(self.frames.valid & ~self.frames.ready):
-            m.d.sync += offering.eq(1)
-        with m.If(done):
-            m.d.sync += offering.eq(0)
 
         # the counters rotating through one adder: the head is added to and goes to the back
         rotating = [c.filtered, c.lost, c.not_sent]
@@ -107,9 +102,11 @@ class TelemetryScheduler(wiring.Component):
             m.d.sync += [counted.eq(0),
                          phase.eq(Mux(phase + 1 >= self.divider, 0, phase + 1))]
 
-        # the count as offered, frozen while the frame waits to be copied (``offering``)
-        refused = Signal(16, reset_less=True)   # loaded each cycle while not offering
-        with m.If(~offering):
+        # the count as it was in the cycle before the frame was offered, held while it is: a
+        # register loaded in every other cycle (not a choice between it and the input, a LUT
+        # a bit)
+        refused = Signal(16, reset_less=True)
+        with m.If(~self.frames.valid):
             m.d.sync += refused.eq(self.cfg_refused)
 
         p = self.frames.payload
@@ -117,6 +114,6 @@ class TelemetryScheduler(wiring.Component):
         m.d.comb += [*(p.attitude[name].eq(result[name]) for name, _ in FramedAttitude),
                      p.sample.eq(self.sample),
                      p.status.eq(self.status),
-                     p.cfg_refused.eq(Mux(offering, refused, self.cfg_refused)),
+                     p.cfg_refused.eq(refused),
                      p.counters.eq(c)]
         return m
