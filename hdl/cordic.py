@@ -5,6 +5,7 @@ from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
 from .numeric_contract import ATAN_TABLE, CORDIC_SHORT_ITERATIONS, INV_GAIN_Q30
+from .memories import FrameRAM
 from .multiplier import BLACKBOX_NAME
 
 
@@ -62,7 +63,8 @@ class CORDIC(wiring.Component):
     ``short_iterations`` + 1) in vectoring, a cycle less in rotation (its first iteration,
     from y = 0, is made with the start); throughput one operation per that many cycles.
     Internal width 34 bits: a 32-bit vector's length times K (1.647) is below 2³³, so any
-    32-bit input converges without overflow. Two 18 × 18 multipliers shift y by i, a third
+    32-bit input converges without overflow. The arctangents are a ROM in a ``FrameRAM``
+    (``atan_rom``: one M9K, not a LUT a bit; ``report`` counts it). Two 18 × 18 multipliers shift y by i, a third
     x's high bits (``blackbox``: ``report`` makes them empty blocks, as the engine's
     multiplier's).
     """
@@ -82,6 +84,9 @@ class CORDIC(wiring.Component):
         if not self.low_bits <= 17 or self.low_bits >= n + 2:
             raise ValueError(f"CORDIC: {len(self.atan_table)} iterations at width {width} do not "
                              f"fit the shift's 18 x 18 multipliers")
+        # the arctangents in a block RAM's ROM (one M9K) rather than in logic (a LUT a bit)
+        self.atan_rom = FrameRAM(len(self.atan_table), n,
+                                 init=[v & ((1 << n) - 1) for v in self.atan_table])
         super().__init__({
             "start": In(1),
             "mode": In(1),                  # 0: vectoring, 1: rotation
@@ -93,6 +98,15 @@ class CORDIC(wiring.Component):
             "rotating": Out(1),
             "saturated": Out(1),
         })
+
+    def _arctangent(self, m, i):
+        """The arctangent of the iteration under way (returned, from ``atan_rom``), and the
+        read's address (returned, for the FSM to drive): it is read the cycle before, at the
+        start the first iteration's i, in RUN the next one's."""
+        m.submodules.atan_rom = atan_rom = self.atan_rom
+        atan_next = Signal.like(i)
+        m.d.comb += [atan_rom.r_en.eq(1), atan_rom.r_addr.eq(atan_next)]
+        return atan_rom.r_data.as_signed(), atan_next
 
     def elaborate(self, platform):
         m = Module()
@@ -109,7 +123,7 @@ class CORDIC(wiring.Component):
         rotate = Signal(reset_less=True)
         last = Signal(range(iterations), reset_less=True)     # the final iteration's i
 
-        atan = Array(Const(v, signed(n)) for v in self.atan_table)
+        atan_i, atan_next = self._arctangent(m, i)
         whole_sum, short_sum = (sum(self.atan_table[:k])
                                 for k in (iterations, self.short_iterations))
         # σ = +1: x −= σ·(y >> i) … written out for both directions
@@ -147,6 +161,8 @@ class CORDIC(wiring.Component):
 
         with m.FSM():
             with m.State("IDLE"):
+                # a rotation starts at i = 1 (below), a vectoring at 0
+                m.d.comb += atan_next.eq(self.mode)
                 with m.If(self.start):
                     m.d.sync += [rotate.eq(self.mode),
                                  last.eq(Mux(self.short, self.short_iterations - 1,
@@ -191,8 +207,9 @@ class CORDIC(wiring.Component):
                 m.d.sync += [
                     x.eq(x + Mux(up, ys, ~ys) + ~up),
                     y.eq(y + Mux(up, ~xs, xs) + up),
-                    z.eq(z + Mux(up, atan[i], ~atan[i]) + ~up),
+                    z.eq(z + Mux(up, atan_i, ~atan_i) + ~up),
                 ]
+                m.d.comb += atan_next.eq(i + 1)
                 m.d.sync += [i.eq(i + 1), c.eq(c >> 1)]
                 with m.If(i == last):
                     m.next = "DONE"

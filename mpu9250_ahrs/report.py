@@ -12,8 +12,8 @@ gateware has no option for it) and counts them from their sizes:
 - ``memory_bits``: the register file (twice: one copy per read port, as Quartus builds a RAM
   with two read addresses), the microcode ROM and (whole design) the other ``FrameRAM``s: the
   telemetry framer's frame buffer, the sample store, the sequencer's program, the command
-  decoder's FIFO and counters, the PWM block's read-back, the self-test's sums and table.
-  Small constant tables Yosys turns into ROMs (the CORDIC's arctangents) stay in logic here:
+  decoder's FIFO and counters, the PWM block's read-back, the self-test's sums and table, the
+  CORDIC's arctangents. Small constant tables Yosys turns into ROMs stay in logic here:
   ``rom_bits_in_logic``. ``m9k_blocks``: each memory in the M9K mode that takes the fewest
   (``hdl.memories.m9k_blocks``; the register file twice), an estimate of Quartus' packing.
 - ``logic_elements``: ``fiftyfivenm_lcell_comb`` cells, or registers where those are more (a
@@ -152,6 +152,7 @@ def synthesize(top, name, engine, rams=(), others=(), *, blocks=False, ports=Non
     (``logic_element_spread``)."""
     from .hdl.memories import m9k_blocks
     from .hdl.multiplier import BLACKBOX_NAME
+    rams = [*rams, engine.cordic.atan_rom]        # the CORDIC's arctangents: a ROM
     hard_blocks_as_blackboxes(engine, rams, others)
     with tempfile.TemporaryDirectory() as tmp:
         text, stubs = verilog.convert(top, name=name, ports=ports), _stubs(engine, rams)
