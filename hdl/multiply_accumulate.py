@@ -93,11 +93,18 @@ class MultiplyAccumulate(wiring.Component):
         wb_fits = Signal(reset_less=True)
         slice_next = Signal(signed(32))
         wb_slice = Signal(signed(32), reset_less=True)
+        # the tops are nested (a smaller shift's holds a larger one's): their all-zeros and
+        # all-ones tests are built from the largest shift's down, each from the one before
+        zeros, ones, below = {}, {}, len(acc_next)
+        for s in sorted(MUL_SHIFTS, reverse=True):
+            part = acc_next[s + 31:below]
+            zeros[s] = (part == 0) & zeros.get(below - 31, C(1))
+            ones[s] = part.all() & ones.get(below - 31, C(1))
+            below = s + 31
         with m.Switch(shift):
             for code, s in enumerate(MUL_SHIFTS):
                 with m.Case(code):
-                    top = acc_next[s + 31:]
-                    m.d.comb += [fits.eq((top == 0) | (top == (1 << len(top)) - 1)),
+                    m.d.comb += [fits.eq(zeros[s] | ones[s]),
                                  slice_next.eq(acc_next[s:s + 32])]
         limit = Mux(acc[-1], C(-(1 << 31), signed(32)), C((1 << 31) - 1, signed(32)))
         m.d.comb += [self.wb_data.eq(Mux(wb_fits, wb_slice, limit)),
