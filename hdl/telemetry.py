@@ -157,7 +157,7 @@ class TelemetryFramer(wiring.Component):
                 m.d.sync += end.eq(index == crc_index)
         else:
             crc_index, end = C(n + 5, 8), index == n + 6
-        at = self._places(m, index, sent)
+        at = self._places(m, index, sent, end)
         if not self.buffered:
             end = at(n + 6)
         last = sent & end
@@ -244,13 +244,18 @@ class TelemetryFramer(wiring.Component):
                 m.d.sync += index.eq(Mux(end, 0, index + 1))
         return m
 
-    def _places(self, m, index, sent):
+    def _places(self, m, index, sent, end):
         """``at(k)``, 1 while the byte at place ``k`` of the frame is offered (returned):
-        buffered, ``index == k``; unbuffered, where every place is a constant, a bit of
+        buffered, for the header's five a bit of ``head`` (one-hot, back to 0 after ``end``,
+        the last byte), else ``index == k``; unbuffered, where every place is a constant, a bit of
         ``place``, the places one-hot (rotated as a byte is sent), so that each byte's decode
         is a register."""
         if self.buffered:
-            return lambda k: index == k
+            # the header's five places one-hot (0 in the payload and the CRC)
+            head = Signal(5, init=1)
+            with m.If(sent):
+                m.d.sync += head.eq(Mux(end, 1, head << 1))
+            return lambda k: head[k] if k < 5 else index == k
         place = Signal(self.length + 7, init=1)
         with m.If(sent):
             m.d.sync += place.eq(place.rotate_left(1))
