@@ -139,6 +139,9 @@ class CommandDecoder(wiring.Component):
             ``COMMAND_STATS`` are words 0-4), its ``ram`` for ``report`` and for tests
             (``ram.data[k]``).
         ``frames_sent``, ``who_am_i``, ``self_test`` (in): read back as board registers.
+        ``frames_stable`` (in, 1 unless driven): ``frames_sent`` holds the count (the frame
+            arbiter's ``frames_stable``): a read of FRAMES_SENT waits in EXECUTE until it does
+            (24 cycles at most, after every 256th frame).
     Latency: a board command's reply is offered two cycles after its last (CRC) byte is
     taken; an engine write or read waits in addition until the engine takes it (at once while
     it is idle, ``WORST_UPDATE_CYCLES`` at most) and, for a read, its word (one cycle).
@@ -165,6 +168,7 @@ class CommandDecoder(wiring.Component):
             "rx_framing_error": In(1),
             "rx_overrun": In(1),
             "frames_sent": In(32),
+            "frames_stable": In(1, init=1),
             "early_sample": In(1),
             "who_am_i": In(8),
             "self_test": In(SelfTestStatus),
@@ -528,7 +532,11 @@ class CommandDecoder(wiring.Component):
                 with m.Switch(low):
                     for a, signal in board_regs.items():
                         with m.Case(a):
-                            answer(RESULTS["ok"], value_=signal)
+                            if signal == "frames_sent":
+                                with m.If(self.frames_stable):
+                                    answer(RESULTS["ok"], value_=signal)
+                            else:
+                                answer(RESULTS["ok"], value_=signal)
                     with m.Default():
                         answer(RESULTS["bad_address"], value_=0)
             with m.Elif(space == SPACES["pwm"]):

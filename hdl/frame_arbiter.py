@@ -23,7 +23,12 @@ class FrameArbiter(wiring.Component):
         ``seq`` (out, 8): the sequence number of the frame being sent, or of the next one;
             it goes up by one after each frame's last byte (mod 256). Framers read it when
             they send their seq byte, which is after they were granted the link.
-        ``frames`` (out, 32): frames sent since reset (wrapping).
+        ``frames`` (out, 32): frames sent since reset (wrapping), while ``frames_stable``.
+            Its low 8 bits (``seq``) are a counter; the high 24 go up by one bit-serially in
+            the 24 cycles after the low ones wrap (a bit a cycle through one adder bit: a
+            status count read now and then needs no 24-bit incrementer), and read nothing
+            meaningful meanwhile: ``frames_stable`` (out) is low then. A frame is 7 bytes at
+            the least, so the low bits wrap again long after.
     Latency: none; a grant is decided combinationally in a cycle with no frame in progress
     and held from the cycle its first byte is offered until that frame's last byte is taken:
     a higher-priority frame arriving while a first byte waits for the UART does not replace
@@ -36,6 +41,7 @@ class FrameArbiter(wiring.Component):
             "o_stream": Out(stream.Signature(8)),
             "seq": Out(8),
             "frames": Out(32),
+            "frames_stable": Out(1),
         })
 
     @property
@@ -63,11 +69,21 @@ class FrameArbiter(wiring.Component):
                                  port.ready.eq(self.o_stream.ready)]
         sent = self.o_stream.valid & self.o_stream.ready
         # the sequence number is the count of frames sent, mod 256: one counter, not two
-        m.d.comb += self.seq.eq(self.frames[:8])
+        low, high = Signal(8), Signal(24)
+        carry = Signal()                        # the serial increment's carry
+        steps = Signal(range(len(high) + 1))    # the increment's bits still to go
+        m.d.comb += [self.seq.eq(low), self.frames.eq(Cat(low, high)),
+                     self.frames_stable.eq(steps == 0)]
+        with m.If(steps != 0):
+            # ``high`` turns once, low bit first, each bit plus the carry on its way in
+            m.d.sync += [high.eq(Cat(high[1:], high[0] ^ carry)), carry.eq(high[0] & carry),
+                         steps.eq(steps - 1)]
         with m.If(sent):
             m.d.sync += [busy.eq(~last), held.eq(grant)]
             with m.If(last):
-                m.d.sync += self.frames.eq(self.frames + 1)
+                m.d.sync += low.eq(low + 1)
+                with m.If(low.all()):
+                    m.d.sync += [steps.eq(len(high)), carry.eq(1)]
         with m.Elif(self.o_stream.valid):
             # a first byte waits: the choice is made
             m.d.sync += [busy.eq(1), held.eq(grant)]

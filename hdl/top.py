@@ -340,6 +340,7 @@ class AHRSCore(wiring.Component):
         m.d.comb += [decoder.tick.eq(fe.tick), decoder.rx_framing_error.eq(rx.framing_error),
                      decoder.rx_overrun.eq(rx.overrun),
                      decoder.frames_sent.eq(arbiter.frames),
+                     decoder.frames_stable.eq(arbiter.frames_stable),
                      decoder.early_sample.eq(fe.early_sample),
                      decoder.who_am_i.eq(fe.who_am_i), decoder.self_test.eq(fe.self_test),
                      self.raw_mode.eq(decoder.raw_mode),

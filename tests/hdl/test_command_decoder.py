@@ -359,3 +359,42 @@ def test_board_registers_read_their_sources():
     assert got == {name: (RESULTS["ok"], value) for name, value in (
         ("VERSION", VERSION), ("REGMAP_VERSION", REGMAP_VERSION), ("FRAMES_SENT", 0x89ABCDEF),
         ("RATE_ERRORS", 37), ("WHO_AM_I", 0x71), ("SELF_TEST", status), ("RAW_MODE", 0))}
+
+
+def test_frames_sent_read_waits_for_a_stable_count():
+    """A FRAMES_SENT read while the frame arbiter's count is not stable (its serial increment,
+    ``frames_stable`` low) is answered once it is, with the count then; other reads are not
+    held."""
+    h = Harness()
+    dec = h.decoder
+    sim = Simulator(h)
+    sim.add_clock(1e-6)
+    check_stream_rules(sim, dec.replies, "replies")
+    replies = []
+
+    async def tb(ctx):
+        ctx.set(dec.replies.ready, 1)
+        ctx.set(dec.frames_stable, 0)
+        ctx.set(dec.frames_sent, 0x1234)               # not the count yet
+        for seq, name in enumerate(("FRAMES_SENT", "WHO_AM_I")):
+            for byte in encode_command("read", seq, addr=BOARD_REGS[name], space="board"):
+                ctx.set(dec.i_stream.valid, 1)
+                ctx.set(dec.i_stream.payload, byte)
+                await ctx.tick().until(dec.i_stream.ready)
+            ctx.set(dec.i_stream.valid, 0)
+        for _ in range(100):
+            await ctx.tick()
+            if ctx.get(dec.replies.valid):
+                replies.append(to_python(ctx.get(dec.replies.payload)))
+        assert replies == []                             # the read waits, and the one after it
+        ctx.set(dec.frames_sent, 0x5678)
+        ctx.set(dec.frames_stable, 1)
+        for _ in range(100):
+            if ctx.get(dec.replies.valid):
+                replies.append(to_python(ctx.get(dec.replies.payload)))
+            await ctx.tick()
+    sim.add_testbench(tb)
+    sim.run()
+    assert [(r["cmd_seq"], r["result"]) for r in replies] == [(0, RESULTS["ok"]),
+                                                              (1, RESULTS["ok"])]
+    assert replies[0]["value"] == 0x5678

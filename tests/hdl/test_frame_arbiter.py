@@ -72,3 +72,36 @@ def test_frames_whole_replies_first_sequence_numbered():
     # once), and no two sensor frames run back to back while a reply waits
     assert got[0][0] == 0x81
 
+
+
+def test_frames_counted_past_the_sequence_numbers():
+    """``frames`` counts every frame: its low 8 bits (``seq``) at once, its high bits (a
+    serial increment after each 256th frame) whenever ``frames_stable`` says they hold the
+    count; they do again within 24 cycles. Frames of 7 bytes (the shortest), back to back."""
+    dut = FrameArbiter(1)
+    sim = Simulator(dut)
+    sim.add_clock(1e-6)
+    n_frames, length = 600, 7
+    seen = {"stable": 0, "unstable_run": 0, "longest_unstable": 0}
+
+    async def tb(ctx):
+        ctx.set(dut.o_stream.ready, 1)
+        ctx.set(dut.i0.valid, 1)
+        sent = 0
+        for k in range(n_frames * length):
+            ctx.set(dut.i0.payload.last, k % length == length - 1)
+            await ctx.tick()
+            sent += k % length == length - 1
+            assert ctx.get(dut.seq) == sent % 256
+            if ctx.get(dut.frames_stable):
+                assert ctx.get(dut.frames) == sent
+                seen["stable"] += 1
+                seen["unstable_run"] = 0
+            else:
+                seen["unstable_run"] += 1
+                seen["longest_unstable"] = max(seen["longest_unstable"], seen["unstable_run"])
+
+    sim.add_testbench(tb)
+    sim.run()
+    assert seen["longest_unstable"] == 24
+    assert seen["stable"] > n_frames * length - 3 * 24
