@@ -143,8 +143,9 @@ class CommandDecoder(wiring.Component):
             arbiter's ``frames_stable``): a read of FRAMES_SENT waits in EXECUTE until it does
             (24 cycles at most, after every 256th frame).
     Latency: a board command's reply is offered two cycles after its last (CRC) byte is
-    taken; an engine write or read waits in addition until the engine takes it (at once while
-    it is idle, ``WORST_UPDATE_CYCLES`` at most) and, for a read, its word (one cycle).
+    taken (a FRAMES_SENT read: then, or once ``frames_stable`` rises); an engine write or read
+    waits in addition until the engine takes it (at once while it is idle,
+    ``WORST_UPDATE_CYCLES`` at most) and, for a read, its word (one cycle).
     Throughput: a byte every two cycles while parsing (each is looked at, then taken); a
     command then takes a few cycles, or until
     the engine is idle (``WORST_UPDATE_CYCLES`` at most), and its reply's time on the link.
