@@ -49,9 +49,12 @@ def test_report_keys_and_sanity(figures):
     from amaranth.lib import data
     from mpu9250_ahrs.hdl.attitude_isa import REG_COUNT, Instr
     from mpu9250_ahrs.hdl.attitude_program import build_program
+    from mpu9250_ahrs.hdl.numeric_contract import ATAN_TABLE
     rom_bits = len(build_program()[0]) * data.Layout.cast(Instr).size
-    # the register file twice (one copy per read port) and the microcode ROM
-    assert figures["datapath"]["memory_bits"] == 2 * REG_COUNT * 32 + rom_bits
+    # the register file twice (one copy per read port), the microcode ROM and the CORDIC's
+    # arctangents
+    assert figures["datapath"]["memory_bits"] == \
+        2 * REG_COUNT * 32 + rom_bits + len(ATAN_TABLE) * 32
     cycles = figures["cycles_per_update"]
     from mpu9250_ahrs.hdl.attitude_engine import WORST_UPDATE_CYCLES
     from mpu9250_ahrs.hdl.filter_registry import FILTER_NAMES
