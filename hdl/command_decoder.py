@@ -140,10 +140,10 @@ class CommandDecoder(wiring.Component):
             (``ram.data[k]``).
         ``frames_sent``, ``who_am_i``, ``self_test`` (in): read back as board registers.
         ``frames_stable`` (in, 1 unless driven): ``frames_sent`` holds the count (the frame
-            arbiter's ``frames_stable``): a read of FRAMES_SENT waits in EXECUTE until it does
-            (24 cycles at most, after every 256th frame).
+            arbiter's ``frames_stable``): a command waits in EXECUTE until it does (24 cycles
+            at most, after every 256th frame), so that a read of FRAMES_SENT gets the count.
     Latency: a board command's reply is offered two cycles after its last (CRC) byte is
-    taken (a FRAMES_SENT read: then, or once ``frames_stable`` rises); an engine write or read
+    taken (or once ``frames_stable`` rises, if it is low then); an engine write or read
     waits in addition until the engine takes it (at once while it is idle,
     ``WORST_UPDATE_CYCLES`` at most) and, for a read, its word (one cycle).
     Throughput: a byte every two cycles while parsing (each is looked at, then taken); a
@@ -250,10 +250,13 @@ class CommandDecoder(wiring.Component):
                 length=length, left=left, place=place, payload=payload, count_up=count_up))
 
             with m.State("EXECUTE"):
-                self._execute(m, SimpleNamespace(
-                    ctype=ctype, length=length, space=space, low=low,
-                    value=value, fields=fields, writable=writable, board_regs=board_regs,
-                    answer=answer, count_up=count_up))
+                # while the frame count is not stable (``frames_stable``), every command
+                # waits here: one condition, not one on FRAMES_SENT's read alone
+                with m.If(self.frames_stable):
+                    self._execute(m, SimpleNamespace(
+                        ctype=ctype, length=length, space=space, low=low,
+                        value=value, fields=fields, writable=writable, board_regs=board_regs,
+                        answer=answer, count_up=count_up))
 
             with m.State("ENGINE_WRITE"):
                 m.d.comb += self.cfg.valid.eq(1)
@@ -533,11 +536,7 @@ class CommandDecoder(wiring.Component):
                 with m.Switch(low):
                     for a, signal in board_regs.items():
                         with m.Case(a):
-                            if signal == "frames_sent":
-                                with m.If(self.frames_stable):
-                                    answer(RESULTS["ok"], value_=signal)
-                            else:
-                                answer(RESULTS["ok"], value_=signal)
+                            answer(RESULTS["ok"], value_=signal)
                     with m.Default():
                         answer(RESULTS["bad_address"], value_=0)
             with m.Elif(space == SPACES["pwm"]):

@@ -363,8 +363,8 @@ def test_board_registers_read_their_sources():
 
 def test_frames_sent_read_waits_for_a_stable_count():
     """A FRAMES_SENT read while the frame arbiter's count is not stable (its serial increment,
-    ``frames_stable`` low) is answered once it is, with the count then; other reads are not
-    held."""
+    ``frames_stable`` low) is answered once it is, with the count then; the command after it
+    follows."""
     h = Harness()
     dec = h.decoder
     sim = Simulator(h)
