@@ -160,7 +160,8 @@ class SampleReader(wiring.Component):
             (it changes only as a sample is offered, and holds while it is valid).
 
     Latency: a sample is valid two cycles after its last byte. Throughput: one sample per
-    data-ready edge, as fast as the bus reads them.
+    data-ready edge, as fast as the bus reads them (a read starts ten cycles after the last
+    check at the soonest: the sample count's update, ``_counts``).
     """
 
     def __init__(self, *, wiring="spi", int_active_low=False, int_latched=True, magnetometer=True,
@@ -521,7 +522,7 @@ class SampleReader(wiring.Component):
                                    fsm.ongoing("READ_MAG"))
             with m.State("IDLE"):
                 m.d.sync += [rx_index.eq(0), n.data_ones.eq(1), n.gyro_moved.eq(0)]
-                with m.If(offered | (self.enable & int_pending)):
+                with m.If(offered | (self.enable & int_pending & ~n.counting_busy)):
                     command(0, R.INT_STATUS, SAMPLE_BYTES if spi else MPU_BYTES)
                     with m.If(port.cmd.ready):
                         m.d.sync += [int_pending.eq(int_edge), mag_read_failed.eq(0)]
@@ -607,11 +608,20 @@ class SampleReader(wiring.Component):
 
     def _counts(self, m, n):
         """The samples read (returned: 32 bits, wrapping): a check (``n.counting`` set) is
-        counted in the cycle after it."""
+        counted in the eight cycles after it, a nibble a cycle: the count turns once through
+        a 4-bit adder (not a 32-bit incrementer) while ``n.counting_busy``, and the next read
+        is not started meanwhile (the count is read at a check, which a read precedes)."""
         head = Signal(32)                       # the count of samples read
         n.counting = Signal()
+        carry = Signal()
+        steps = Signal(range(len(head) // 4 + 1))     # the nibbles still to go
+        n.counting_busy = n.counting | (steps != 0)
+        with m.If(steps != 0):
+            nibble = head[:4] + carry
+            m.d.sync += [head.eq(Cat(head[4:], nibble[:4])), carry.eq(nibble[4]),
+                         steps.eq(steps - 1)]
         with m.If(n.counting):
-            m.d.sync += [head.eq(head + 1), n.counting.eq(0)]
+            m.d.sync += [steps.eq(len(head) // 4), carry.eq(1), n.counting.eq(0)]
         return head
 
     def _emit(self, m, sample, buf, counter, overrun, dropped, skipped, resumed, prev_field,

@@ -196,3 +196,45 @@ def test_tick_is_about_a_64th_of_a_period_at_most_max():
     assert tick_cycles(48_000) == 750                      # 1 kHz at 48 MHz
     assert tick_cycles(48_000_000 // 4) == MAX_TICK_CYCLES == 1024
     assert tick_cycles(10) == 1
+
+
+def test_reads_failing_back_to_back_are_each_counted():
+    """I2C: reads of the MPU9250 that fail on the bus are checked (and counted) one after the
+    other, each retried at once while INT is still high; the sample that finally comes counts
+    them all (its ``counter`` is the checks before it), however close together they came (the
+    count's update, a nibble a cycle, holds the next read back until it is done)."""
+    dut = SampleReader(wiring="i2c", int_latched=False, period_cycles=PERIOD,
+                       first_timeout_cycles=4 * PERIOD, timeout_cycles=4 * PERIOD,
+                       mag_timeout_periods=3)
+    good = burst(0)
+    failing = BAD_BURST_LIMIT - 1           # one more would ask for a restart
+    queue = [None] * failing + [good[:MPU_BYTES], good[MPU_BYTES:]]
+    model = RegisterPortModel(dut.port, lambda device, reg, length: queue.pop(0))
+    samples, starts = [], []
+
+    async def testbench(ctx):
+        ctx.set(dut.enable, 1)
+        ctx.set(dut.mag_ok, 1)
+        ctx.set(dut.samples.ready, 1)
+        ctx.set(dut.start, 1)
+        await model.cycle(ctx)
+        ctx.set(dut.start, 0)
+        ctx.set(dut.int_pin, 1)
+        for c in range(PERIOD):
+            reads = len(model.reads)
+            await model.cycle(ctx)
+            if len(model.reads) > reads:
+                starts.append(c)
+            if ctx.get(dut.samples.valid):
+                samples.append(ctx.get(dut.samples.payload))
+    sim = Simulator(dut)
+    sim.add_clock(1e-6)
+    check_stream_rules(sim, dut.samples, "samples")
+    sim.add_testbench(testbench)
+    sim.run()
+    assert len(samples) == 1 and samples[0].counter == failing
+    assert samples[0].flags.mag_new and list(samples[0].mag) == [100, -200, 300]
+    # the failed reads came as fast as the count lets them: ten cycles from a check to the
+    # next read, two more for the read to fail
+    gaps = [b - a for a, b in zip(starts, starts[1:failing + 1])]
+    assert len(starts) == failing + 2 and gaps == [12] * failing, starts
