@@ -64,9 +64,9 @@ class CORDIC(wiring.Component):
     from y = 0, is made with the start); throughput one operation per that many cycles.
     Internal width 34 bits: a 32-bit vector's length times K (1.647) is below 2³³, so any
     32-bit input converges without overflow. The arctangents are a ROM in a ``FrameRAM``
-    (``atan_rom``: one M9K, not a LUT a bit; ``report`` counts it). Two 18 × 18 multipliers shift y by i, a third
-    x's high bits (``blackbox``: ``report`` makes them empty blocks, as the engine's
-    multiplier's).
+    (``atan_rom``: one M9K, not a LUT a bit; ``report`` counts it). Two 18 × 18 multipliers
+    shift y by i, a third x's high bits (``blackbox``: ``report`` makes them empty blocks, as
+    the engine's multiplier's).
     """
     blackbox = False        # ``report``: the shift's multipliers as empty 18 x 18 blocks
 

@@ -31,10 +31,11 @@ class TelemetryScheduler(wiring.Component):
     bit, and no 32-bit adder).
 
     Members
-        ``results`` (in, stream of ``Attitude``): a result is counted in the three cycles
-            after it is valid; one that is not framed is then taken; one that is framed is
-            taken when the framer has copied it (``TelemetryFramer(buffered=True)``: 22
-            cycles for an attitude frame), never later.
+        ``results`` (in, stream of ``Attitude``): a result is counted in the
+            ``COUNT_CYCLES`` cycles after it is valid; one that is not framed is then taken;
+            one that is framed is taken when the framer has copied it
+            (``TelemetryFramer(buffered=True)``: 22 cycles for an attitude frame), never
+            later.
         ``sample`` (in, ``Sample``) and ``status`` (in, ``DriverStatus``): the sample the
             present result came from and the driver status latched with it; they hold while
             the result is valid (the engine takes no new sample before its result is taken).
