@@ -608,9 +608,10 @@ class SampleReader(wiring.Component):
 
     def _counts(self, m, n):
         """The samples read (returned: 32 bits, wrapping): a check (``n.counting`` set) is
-        counted in the eight cycles after it, a nibble a cycle: the count turns once through
-        a 4-bit adder (not a 32-bit incrementer) while ``n.counting_busy``, and the next read
-        is not started meanwhile (the count is read at a check, which a read precedes)."""
+        counted in the nine cycles after it, a nibble a cycle in the last eight: the count
+        turns once through a 4-bit adder (not a 32-bit incrementer) while
+        ``n.counting_busy``, and the next read is not started meanwhile (the count is read at
+        a check, which a read precedes)."""
         head = Signal(32)                       # the count of samples read
         n.counting = Signal()
         carry = Signal()
