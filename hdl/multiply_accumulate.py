@@ -95,11 +95,12 @@ class MultiplyAccumulate(wiring.Component):
         wb_slice = Signal(signed(32), reset_less=True)
         # the tops are nested (a smaller shift's holds a larger one's): their all-zeros and
         # all-ones tests are built from the largest shift's down, each from the one before
-        zeros, ones, below = {}, {}, len(acc_next)
+        zeros, ones = {}, {}
+        zero_above, one_above, below = C(1), C(1), len(acc_next)
         for s in sorted(MUL_SHIFTS, reverse=True):
             part = acc_next[s + 31:below]
-            zeros[s] = (part == 0) & zeros.get(below - 31, C(1))
-            ones[s] = part.all() & ones.get(below - 31, C(1))
+            zero_above = zeros[s] = (part == 0) & zero_above
+            one_above = ones[s] = part.all() & one_above
             below = s + 31
         with m.Switch(shift):
             for code, s in enumerate(MUL_SHIFTS):

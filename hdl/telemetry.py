@@ -156,9 +156,11 @@ class TelemetryFramer(wiring.Component):
             with m.If(sent):
                 m.d.sync += end.eq(index == crc_index)
         else:
-            crc_index, end = C(n + 5, 8), index == n + 6
+            crc_index = C(n + 5, 8)
+            # unbuffered, the last place's bit (``_places``), made below
+            end = (index == n + 6) if self.buffered else None
         at = self._places(m, index, sent, end)
-        if not self.buffered:
+        if end is None:
             end = at(n + 6)
         last = sent & end
 

@@ -82,6 +82,12 @@ def _count(stat_text, cell):
     return int(found.group(1)) if found else 0
 
 
+def _logic_elements(stat_text):
+    """``logic_elements`` of a ``synth_intel`` ``stat``: LUTs, or registers where those are
+    more (a MAX10 LE holds one of each)."""
+    return max(_count(stat_text, "fiftyfivenm_lcell_comb"), _count(stat_text, "dffeas"))
+
+
 def reordered(verilog_text, seed):
     """The same netlist written otherwise: in each module, the single-line ``assign``
     statements after its last declaration, in an order drawn from ``seed`` (0: as they are).
@@ -132,8 +138,7 @@ def logic_element_spread(verilog_text, stubs, name, draws, first=None):
                 f.write(stubs)
             _yosys(f"read_verilog stubs.v; read_verilog design.v; synth_intel -family max10 "
                    f"-top {name} -nobram; tee -q -o intel.txt stat", tmp)
-            intel = open(os.path.join(tmp, "intel.txt")).read()
-        return max(_count(intel, "fiftyfivenm_lcell_comb"), _count(intel, "dffeas"))
+            return _logic_elements(open(os.path.join(tmp, "intel.txt")).read())
 
     known = [] if first is None else [first]
     with concurrent.futures.ThreadPoolExecutor(2) as pool:
@@ -189,12 +194,11 @@ def synthesize(top, name, engine, rams=(), others=(), *, blocks=False, ports=Non
             multipliers += math.ceil(a / 18) * math.ceil(b / 18)
         elif cell["type"] == "$mem_v2":
             rom_bits += int(p["SIZE"], 2) * int(p["WIDTH"], 2)
-    luts = _count(intel, "fiftyfivenm_lcell_comb")
     ffs = _count(intel, "dffeas")
     ice_ffs = sum(int(n) for n in re.findall(r"^\s+SB_DFF\w*\s+(\d+)\s*$", ice40, re.M))
     levels = re.search(r"length=(\d+)", ltp)
     figures = {
-        "logic_elements": max(luts, ffs),
+        "logic_elements": _logic_elements(intel),
         "logic_elements_carry_chain": max(_count(ice40, "SB_LUT4"), ice_ffs),
         "registers": ffs,
         "memory_bits": engine.regfile.bits + engine.rom.bits + sum(r.bits for r in rams),
