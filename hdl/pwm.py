@@ -151,9 +151,18 @@ class PWMOutputs(wiring.Component):
         mode = Signal(n)
         watchdog_ms = Signal(16, init=self.at_reset["PWM_WATCHDOG_MS"])
         watchdog_on = Signal(init=watchdog_ms.init != 0)         # ``watchdog_ms`` is not 0
-        # the two groups: 0 servo (µs), 1 motor (cycles)
-        period = [Signal(PERIOD_BITS, init=self.at_reset["PWM_SERVO_PERIOD"], name="servo_period"),
-                  Signal(PERIOD_BITS, init=self.at_reset["PWM_MOTOR_PERIOD"], name="motor_period")]
+        # the two groups: 0 servo (µs), 1 motor (cycles). Each period is held complemented
+        # (``~P``): it is where the group's count starts (``_outputs``), and a high time is
+        # held added to it (below)
+        mask = (1 << PERIOD_BITS) - 1
+        period = [Signal(PERIOD_BITS, init=~self.at_reset["PWM_SERVO_PERIOD"] & mask,
+                         name="servo_period_n"),
+                  Signal(PERIOD_BITS, init=~self.at_reset["PWM_MOTOR_PERIOD"] & mask,
+                         name="motor_period_n")]
+        # each channel's high time ``h`` held as ``h + ~P`` (mod 2**16), ``P`` its group's
+        # period when ``h`` was written: the group's count where the pulse ends. A period or
+        # mode written since drops ``given`` (below), so a high time in use always holds the
+        # period in use
         high = [Signal(PERIOD_BITS, name=f"high{k}") for k in range(n)]
         # a high time other than 0 given in the channel's present unit and period. A mode or
         # period change clears this bit rather than the high time (the register then reads 0
@@ -164,9 +173,11 @@ class PWMOutputs(wiring.Component):
         value = bus.w_data
         small = value[PERIOD_BITS:] == 0
         low = value[:PERIOD_BITS]
-        # a high time fits its channel's group period: one comparator for all channels (the
-        # addressed channel's mode picks the period)
-        high_fits = small & (low <= Mux(mode.bit_select(bus.addr[:2], 1), period[1], period[0]))
+        # a high time fits its channel's group period: one adder for all channels (the
+        # addressed channel's mode picks the period), ``h + ~P``: what the channel holds, and
+        # ``h <= P`` exactly when it does not carry
+        ends = low + Mux(mode.bit_select(bus.addr[:2], 1), period[1], period[0])
+        high_fits = small & ~ends[PERIOD_BITS]
         # the 16-bit registers' read-back: a copy of each accepted write in a block RAM (a
         # multiplexer of the six would cost about a LUT per bit per register), read a cycle
         # after the address; a high time masked by ``given``
@@ -232,10 +243,10 @@ class PWMOutputs(wiring.Component):
                     m.d.sync += [watchdog_ms.eq(low), watchdog_on.eq(nonzero), restart.eq(1)]
                 for g, name in enumerate(("PWM_SERVO_PERIOD", "PWM_MOTOR_PERIOD")):
                     with m.Case(PWM_REGS[name]):
-                        m.d.sync += period[g].eq(low)
+                        m.d.sync += period[g].eq(~low)
                 for k in range(n):
                     with m.Case(PWM_REGS[f"PWM_HIGH{k}"]):
-                        m.d.sync += high[k].eq(low)
+                        m.d.sync += high[k].eq(ends[:PERIOD_BITS])
         # ``given``: a high time written sets a channel's bit (if not 0); a write drops it where
         # the high time no longer means what it did: a mode change (the high time was in the
         # other unit), or its group's period written (it was a duty of the old period; a
@@ -278,16 +289,15 @@ class PWMOutputs(wiring.Component):
         n = PWM_CHANNELS
         enable, mode, period, high, given = r.enable, r.mode, r.period, r.high, r.given
 
-        # the two time bases: a counter each, its period taken at each wrap. The counter stays
-        # below its active period (it starts at 0 at a wrap), so the wrap is an equality, not
-        # a magnitude comparison; while no channel runs on it, ``idle`` makes the next tick a
-        # wrap (a channel enabled starts there).
+        # the two time bases: a counter each, from the group's ``~P`` (its period register,
+        # taken at each wrap) up to ``2**16 - 2``: ``P`` ticks, and the wrap an equality with
+        # a constant, not a comparison with the period in use. While no channel runs on it,
+        # ``idle`` makes the next tick a wrap (a channel enabled starts there).
         # The time bases and each channel's active high time and state need no reset: with
         # every channel disabled (PWM_ENABLE is 0 at reset) they are reloaded each cycle
+        last = (1 << PERIOD_BITS) - 1               # the step at a wrap
         count = [Signal(PERIOD_BITS, name="servo_count", reset_less=True),
                  Signal(PERIOD_BITS, name="motor_count", reset_less=True)]
-        active = [Signal(PERIOD_BITS, init=period[g].init, name=f"{group}_active_period",
-                         reset_less=True) for g, group in enumerate(("servo", "motor"))]
         idle = [Signal(name="servo_idle", reset_less=True),
                 Signal(name="motor_idle", reset_less=True)]
         wrap = [Signal(name="servo_wrap"), Signal(name="motor_wrap")]
@@ -296,23 +306,24 @@ class PWMOutputs(wiring.Component):
         in_use = [(enable & ~mode) != 0, (enable & mode) != 0]
         for g in range(2):
             m.d.comb += [step[g].eq(count[g] + 1),
-                         wrap[g].eq(tick[g] & (idle[g] | (step[g] == active[g])))]
+                         wrap[g].eq(tick[g] & (idle[g] | (step[g] == last)))]
             with m.If(~in_use[g]):
-                # no channel runs on it: the new period at once, and a wrap at the next tick
-                m.d.sync += [idle[g].eq(1), active[g].eq(period[g])]
+                # no channel runs on it: a wrap at the next tick
+                m.d.sync += idle[g].eq(1)
             with m.Elif(wrap[g]):
-                m.d.sync += [count[g].eq(0), active[g].eq(period[g]), idle[g].eq(0)]
+                m.d.sync += [count[g].eq(period[g]), idle[g].eq(0)]
             with m.Elif(tick[g]):
                 m.d.sync += count[g].eq(step[g])
 
         for k in range(n):
             active_high = Signal(PERIOD_BITS, name=f"active_high{k}", reset_less=True)
-            # ``count < active_high`` of the channel's group while it runs, kept as a bit: the
-            # count starts at 0 at the wrap and goes up by one a tick, so it is set at the
-            # wrap (if a high time was given: ``given``, never for 0) and cleared when the
-            # count reaches the high time (equality; a high time equal to the period is never
-            # reached: high all period). 0 while the channel is disabled and until its group's
-            # next wrap, so an enabled channel starts at a wrap: its first pulse is a whole one
+            # ``count < active_high`` of the channel's group while it runs (``h + ~P``, where
+            # ``h`` ticks after the wrap end), kept as a bit: the count starts at ``~P`` at
+            # the wrap and goes up by one a tick, so it is set at the wrap (if a high time was
+            # given: ``given``, never for 0) and cleared when the count reaches the high time
+            # (equality; a high time equal to the period is reached only at the wrap: high all
+            # period). 0 while the channel is disabled and until its group's next wrap, so an
+            # enabled channel starts at a wrap: its first pulse is a whole one
             below = Signal(name=f"below{k}", reset_less=True)
             group_wrap = Mux(mode[k], wrap[1], wrap[0])
             # one comparison with the group's count chosen first (a LUT a bit holds the
