@@ -19,15 +19,18 @@ saturates in separate cycles (``hdl/multiply_accumulate.py``). The write is not 
 first: that stage, and a held copy of each operand for a write it delayed past the operands'
 read, cost registers and LUTs (``report``) for Fmax margin that the CORDIC's path, the routed
 critical one, does not leave (``report --timing``).
-A result is visible to the next instruction without stalls (forwarded into the operand
-registers); multi-cycle operations (MUL 3, or 1 when the next is a MUL, which the assembler
-keeps from reading its result: ``attitude_isa``; DIV 34, VEC 19, ROT 18 cycles) hold the
-pipeline, except a VEC, ROT or DIV started in the background (``attitude_isa``: its collect
-waits for its unit); a taken branch on a register (A_ZERO, A_NEG) costs two bubbles (decided in
-execute, the ROM reads its target at once), one on a condition fixed for the run (ALWAYS,
-MAG_INVALID, FIRST, FILTER) none: it is decided as it leaves the ROM (from the word's ``jump``
-field, which any instruction may carry: the assembler folds most such branches into the
-instruction before them).
+A result is visible to the next instruction without stalls as its ``a`` operand (forwarded
+into the operand register); as ``b`` it is read from the register file, so the assembler keeps
+an instruction from reading as ``b`` the register written as it goes on (it swaps an ADD's or
+MUL's operands, else puts a NOP before it: ``attitude_isa``); multi-cycle operations (MUL 3,
+or 1 when the next is a MUL, which the assembler keeps from reading its result:
+``attitude_isa``; DIV 34, VEC 19, ROT 18 cycles) hold the pipeline, except a VEC, ROT or
+DIV started in the background (``attitude_isa``: its collect waits for its unit); a taken
+branch on a register (A_ZERO, A_NEG) costs two bubbles (decided in execute, the ROM reads its
+target at once), one on a condition fixed for the run (ALWAYS, MAG_INVALID, FIRST, FILTER)
+none: it is decided as it leaves the ROM (from the word's ``jump`` field, which any
+instruction may carry: the assembler folds most such branches into the instruction before
+them).
 """
 
 import math
@@ -356,8 +359,8 @@ class AttitudeEngine(wiring.Component):
 
     def _write_port(self, m, u, p):
         """The register file's write port (loader, host or the execute stage), the result
-        snooped from it, and the forwarding of a write into ``o``'s operands (``p.o_a``,
-        ``p.o_b``) with the facts it and the MUL's stall test use."""
+        snooped from it, and ``o``'s operands (``p.o_a``, with the forwarding of a write into
+        it, and ``p.o_b``)."""
         (mac, o, rinstr, alu, host, flag_sat, advance, rf, out, x) = (
             u.mac, p.o, p.rinstr, u.alu, u.host, p.flag_sat, p.advance, u.rf, p.out, p.x)
         # -- the write port: loader, host, or the execute stage (MAC write-back, then ALU,
@@ -402,7 +405,7 @@ class AttitudeEngine(wiring.Component):
         fields = [*(out.quat[i] for i in range(4)), *(out.angles[i] for i in range(3)),
                   *(out.bias[i] for i in range(3))]
         snooped = list(zip(fields, PEEKED))
-        # Whether this cycle's write is to ``o``'s operand: ``w_en & (w_addr == o.a)``, made
+        # Whether this cycle's write is to ``o``'s ``a``: ``w_en & (w_addr == o.a)``, made
         # from registered facts (does ``o`` read what ``x`` writes, what the MAC writes back),
         # kept with the registers they compare, so that no address comparison is between the
         # write-back's multiplexers and the operands' forwarding (that path limited the routed
@@ -413,25 +416,23 @@ class AttitudeEngine(wiring.Component):
         # those are not read there.
         x_wd = Signal()
         wb_next_d = Mux(mac.pending, mac.wb_next_addr, mac.wb_addr)   # the MAC's d next cycle
-        facts = {}
-        for port in ("a", "b"):
-            own = getattr(o, port)
-            incoming = getattr(rinstr, port)
-            eq_x = Signal(reset_less=True, init=1, name=f"eq_xd_{port}")
-            eq_wb = Signal(reset_less=True, init=1, name=f"eq_wb_{port}")
-            m.d.sync += [
-                eq_x.eq(Mux(advance, o.d == incoming, eq_x)),
-                eq_wb.eq(Mux(advance, wb_next_d == incoming, wb_next_d == own)),
-            ]
-            facts[port] = (x_wd & eq_x) | (~x_wd & mac.wb_en & eq_wb)
-        hit_a, hit_b = facts["a"], facts["b"]
-        # the operands of ``o``, as they are now: this cycle's write forwarded from the write
-        # data (the ALU's result or another's: an ALU instruction writes ``x.d`` whatever else
-        # is pending, so ``hit`` is then its write), else the register file's read of the cycle
-        # before (which saw every write up to then: the ports read ``o``'s operands again each
-        # cycle it waits)
+        eq_x = Signal(reset_less=True, init=1, name="eq_xd_a")
+        eq_wb = Signal(reset_less=True, init=1, name="eq_wb_a")
+        m.d.sync += [
+            eq_x.eq(Mux(advance, o.d == rinstr.a, eq_x)),
+            eq_wb.eq(Mux(advance, wb_next_d == rinstr.a, wb_next_d == o.a)),
+        ]
+        hit_a = (x_wd & eq_x) | (~x_wd & mac.wb_en & eq_wb)
+        # the operands of ``o``, as they are now: ``a``, this cycle's write forwarded from the
+        # write data (the ALU's result or another's: an ALU instruction writes ``x.d`` whatever
+        # else is pending, so ``hit_a`` is then its write), else the register file's read of the
+        # cycle before (which saw every write up to then: the ports read ``o``'s operands again
+        # each cycle it waits). ``b`` is not forwarded (its 32-bit choice and facts cost about
+        # 30 LUTs, ``report``; the assembler's NOPs a few cycles an update): no program reads as
+        # ``b`` the register written as it goes on (``Assembler.resolve`` swaps an ADD's or
+        # MUL's operands, else puts a NOP before it)
         o_a = Mux(hit_a, w_data, rf.ra_data)
-        o_b = Mux(hit_b, w_data, rf.rb_data)
+        o_b = rf.rb_data
         # snooped from the registered write (a cycle after the execute stage's): the ALU's and
         # the write multiplexer's paths end at ``wr_data``, not at the result's 320 flip-flops
         # as well. The last write of an update is at the latest in the cycle before END
@@ -444,8 +445,8 @@ class AttitudeEngine(wiring.Component):
             m.d.sync += flag_sat.eq(1)
 
         (p.w_en, p.w_addr, p.w_data, p.w_other, p.w_sat_other, p.alu_w, p.x_wd,
-         p.hit_a, p.hit_b, p.o_a, p.o_b, p.w_from, p.load_word) = (
-            w_en, w_addr, w_data, w_other, w_sat_other, alu_w, x_wd, hit_a, hit_b, o_a, o_b,
+         p.hit_a, p.o_a, p.o_b, p.w_from, p.load_word) = (
+            w_en, w_addr, w_data, w_other, w_sat_other, alu_w, x_wd, hit_a, o_a, o_b,
             w_from, load_word)
 
     def _execute(self, m, u, p):

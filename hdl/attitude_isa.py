@@ -59,8 +59,15 @@ its word leaves the ROM, and the assembler folds it into the instruction before 
 (``Instruction.then``) unless that one is a branch or END or a label names the branch: then it
 costs no cycle at all.
 
+Operand b: the engine forwards a result into the next instruction's operand a only (a
+forwarding of b cost about 30 LUTs, ``report``). An instruction that reads as b the register
+written as it goes on to execute (the d of the instruction just before it, or, for a MUL after
+two MULs, the write-back of the MUL three before it) would read the old value: the assembler
+(``Assembler.resolve``) swaps an ADD's or MUL's operands where that clears it, and otherwise
+puts a NOP before it (a few cycles an update).
+
 The assembler (``Assembler``) gives registers names, resolves labels and checks ranges. The
-engine has no hazards but the background units': a result is visible to the very next
+engine has no other hazards but the background units': a result is visible to the very next
 instruction, and the assembler checks the rules above for a unit started in the background.
 """
 
@@ -383,13 +390,38 @@ class Assembler:
                         i += t <= i
             i += 1
 
+    def _separate_b_reads(self):
+        """No instruction reads as ``b`` the register written as it goes on to execute
+        (``_landing``; the engine forwards ``a`` only: the module docstring). An ADD's or
+        MUL's operands are swapped where that clears it (``a`` is forwarded); otherwise a NOP
+        goes before it (after the word before it, or at a folded jump's target: every path to
+        it takes the NOP). Labels after it move down."""
+        code = self.code
+        while True:
+            before = _predecessors(code, self.labels.get)
+            for t, ins in enumerate(code):
+                landing = _landing(code, before, t)
+                if ins.b not in landing or ins.b not in _b_read(ins):
+                    continue
+                if ins.op in (Op.ADD, Op.MUL) and ins.a not in landing:
+                    code[t] = replace(ins, a=ins.b, b=ins.a)
+                else:
+                    code.insert(t, Instruction(Op.NOP))
+                    self.labels = {k: v + 1 if v > t else v for k, v in self.labels.items()}
+                break
+            else:
+                return
+
     def resolve(self):
         """Instructions with label targets replaced by addresses, the branches on fixed
         conditions folded where they can be (``_fold``), NOPs between MULs where one reads the
-        result of the one just before (``_separate_muls``; ``labels`` then gives the addresses
-        of the final program), and the background units' and MULs' rules checked."""
+        result of the one just before (``_separate_muls``) and before a read of operand b the
+        engine would make too early (``_separate_b_reads``; ``labels`` then gives the
+        addresses of the final program), and the background units', MULs' and b's rules
+        checked."""
         self._fold()
         self._separate_muls()
+        self._separate_b_reads()
 
         def address(label):
             if label not in self.labels:
@@ -408,6 +440,7 @@ class Assembler:
             raise ValueError(f"program of {len(out)} instructions exceeds the ROM ({ROM_DEPTH})")
         _check_background(out, set(self.labels.values()))
         _check_mul_chains(out)
+        _check_b_reads(out)
         return out
 
 
@@ -429,6 +462,50 @@ def _successors(code, i, address=None):
         if cond == Cond.ALWAYS:
             return after
     return after + [i + 1] if i + 1 < len(code) else after
+
+
+def _b_read(ins):
+    """The register an instruction reads through the engine's ``b`` port (a tuple: empty when
+    it reads none)."""
+    reads = _reads_writes(ins)[0]
+    return (ins.b,) if len(reads) == 2 else ()
+
+
+def _predecessors(code, address=None):
+    """For each word, the words that may run just before it (``_successors`` reversed)."""
+    before = [set() for _ in code]
+    for i in range(len(code)):
+        for t in _successors(code, i, address):
+            before[t].add(i)
+    return before
+
+
+def _landing(code, before, t):
+    """The registers written as instruction ``t`` goes on to execute, on any path to it: the
+    ``d`` of the instruction just before it (a VEC's or ROT's d + 1 is written a cycle before,
+    while ``t`` waits and reads its operands again; a MUL that writes back waits for its
+    write-back unless a MUL follows), or, for a MUL after a MUL (which goes on at once), the
+    write-back of the MUL three before it when the two between are MULs (its write-back comes
+    two cycles after its issue)."""
+    out = set()
+    for i in before[t]:
+        if code[t].op != Op.MUL or code[i].op != Op.MUL:
+            out.update(ins.d for ins in [code[i]] if _reads_writes(ins)[1])
+            continue
+        for j in before[i]:
+            if code[j].op != Op.MUL:
+                continue
+            out.update(code[k].d for k in before[j] if code[k].op == Op.MUL and code[k].wb)
+    return out
+
+
+def _check_b_reads(code):
+    """``_separate_b_reads``' rule, checked on the final program."""
+    before = _predecessors(code)
+    for t, ins in enumerate(code):
+        if _landing(code, before, t) & set(_b_read(ins)):
+            raise ValueError(f"instruction {t} reads as b the register written as it goes on "
+                             f"to execute: the engine does not forward b")
 
 
 def _check_mul_chains(code):

@@ -373,6 +373,60 @@ def test_euler_rates_follow_a_coning_motion_better():
     assert abs(out[False][1]) > 10
 
 
+def _b_read_program():
+    """A program whose instructions read as ``b`` the register written as they go on (the
+    engine forwards ``a`` only): an ADD (its operands swapped), a SUB, a DIV and a VEC (a NOP
+    before each), the square of a MUL's result three MULs on (a NOP, and the chain of MULs
+    broken), and an ADD that reads it as both (a NOP). The results are written to the
+    result's quaternion, angles and bias words."""
+    from mpu9250_ahrs.hdl.attitude_isa import Q14, Assembler
+    asm, r = Assembler(), REGS
+    g0, g1, g2 = r["GRAW0"], r["GRAW1"], r["GRAW2"]
+    q = [r[f"QOUT{k}"] for k in range(4)]
+    th = [r[f"THETA{k}"] for k in range(3)]
+    bias = [r[f"BIAS{k}"] for k in range(3)]
+    asm.label("init")
+    asm.end()
+    asm.label("sample")
+    asm.add(q[0], g0, g1)
+    asm.add(q[1], g2, q[0])                     # swapped
+    asm.sub(q[2], g0, q[1])                     # a NOP before
+    asm.div(q[3], g0, q[2])                     # a NOP before
+    asm.mul(th[0], g0, g1, Q14)
+    asm.mul(th[1], g1, g2, Q14)
+    asm.mul(th[2], g0, g2, Q14)
+    asm.mul(bias[0], th[0], th[0], Q14)         # th[0] lands as it goes on: a NOP before
+    asm.add(bias[1], bias[0], bias[0])          # both operands: a NOP before
+    asm.vec(th[0], g2, bias[1])                 # a NOP before; writes THETA0 and THETA1
+    asm.end()
+    return asm.resolve(), {"init": asm.labels["init"], "sample": asm.labels["sample"]}
+
+
+def test_b_operand_is_not_forwarded():
+    """The engine forwards a result into the next instruction's ``a`` operand only: the
+    assembler swaps an ADD's or MUL's operands, or puts a NOP before an instruction that would
+    read it as ``b`` (``attitude_isa``). The program of ``_b_read_program`` against the
+    instruction model, bit for bit."""
+    from mpu9250_ahrs.hdl.attitude_isa import Op
+    from mpu9250_ahrs.reference.engine_model import EngineModel
+    from mpu9250_ahrs.sim.attitude_isa_model import AttitudeISAModel
+
+    program, entry = _b_read_program()
+    body = [ins.op for ins in program[entry["sample"]:]]
+    assert body.count(Op.NOP) == 5
+    swapped = program[entry["sample"] + 1]
+    assert (swapped.op, swapped.a, swapped.b) == (Op.ADD, REGS["QOUT0"], REGS["GRAW2"])
+    gyro, accel, mag_ak = ([[1200, -3400, 50]], [[0, 0, 8192]], [[10, 20, 30]])
+    run = run_engine(AttitudeEngine(program=(program, entry)), gyro, accel, mag_ak)
+    model = AttitudeISAModel(EngineModel().reg)
+    model.program, model.entry = program, entry
+    model.sample(gyro[0], accel[0], mag_ak[0])
+    quat, angles, bias = model.outputs()
+    assert (run.quat[0].tolist(), run.angles[0].tolist(), run.bias[0].tolist()) == (
+        quat, angles, bias)
+    assert len({*quat, *angles, *bias}) > 6            # results, not zeros
+
+
 # a chain of operations for ``test_background_units``: (op, shadow) with op "vec", "short"
 # (an 8-iteration VEC), "rot" or "div", and the instructions between a background start and
 # its collect: that many ADDs, or (op2, n): a blocking operation of the other unit ("vec" or
