@@ -71,6 +71,11 @@ __all__ = ["AttitudeEngine", "PEEKED", "default_filter_config", "default_flagshi
 # quaternion, angles and bias are snooped from
 PEEKED = (*(f"QOUT{i}" for i in range(4)), *(f"THETA{i}" for i in range(3)),
           *(f"BIAS{i}" for i in range(3)))
+# the register map puts them in that order from a multiple of 16: a word's address is its
+# index with the base's high bits above it, no table
+PEEK_BASE = REGS[PEEKED[0]]
+assert PEEK_BASE % 16 == 0 and len(PEEKED) <= 16
+assert [REGS[name] for name in PEEKED] == list(range(PEEK_BASE, PEEK_BASE + len(PEEKED)))
 
 
 # An upper bound of the cycles of one update (sample taken to result out), whatever the filter
@@ -326,7 +331,7 @@ class AttitudeEngine(wiring.Component):
             rom.addr.eq(p.fetch_addr), rom.en.eq(advance),
             rf.ra_addr.eq(Mux(host.r_en, host.r_addr, Mux(advance, rinstr.a, p.o.a))),
             rf.rb_addr.eq(Mux(self.peek_en,
-                              Array(C(REGS[name], REG_BITS) for name in PEEKED)[self.peek_index],
+                              Cat(self.peek_index, C(PEEK_BASE >> 4, REG_BITS - 4)),
                               Mux(self.busy, Mux(advance, rinstr.b, p.o.b), REGS["ZERO"]))),
             # the ports read every cycle: the instruction fetched at an advance, else ``o``'s
             # operands again (so a write while ``o`` waits reaches it through the register

@@ -120,19 +120,20 @@ def _allocate():
     # left by 14 in place), and STEP_N: the filter's per-period rotation coefficient (RATE or
     # K_RAD) times that
     names += ["NPER"]
+    names += ["STEP_N", "ACC_OK", "MAG_OK"]
+    # the result's words (``PEEKED``, the framer reads them by index), from 0x30: a word's
+    # address is its index with 0b0011 above it (no table of addresses in the engine)
+    names += ["QOUT0", "QOUT1", "QOUT2", "QOUT3"]           # the result quaternion
     names += [f"THETA{i}" for i in range(3)] + [f"BIAS{i}" for i in range(3)]
-    names += ["STEP_N"]
     names += [f"P{i}_{e}" for i in range(3) for e in ("00", "01", "10", "11")]
     names += [f"PREV{i}" for i in range(3)]
     # calibrated body-axis sensor values
     names += [f"G{i}" for i in range(3)] + [f"A{i}" for i in range(3)] + [f"M{i}" for i in range(3)]
     # MEAS3 takes the magnitude the heading's vectoring CORDIC writes beside MEAS2
     names += [f"PRED{i}" for i in range(3)] + [f"MEAS{i}" for i in range(4)]
-    names += ["ACC_OK", "MAG_OK"]
     names += ["CR", "SR", "CP", "SP", "CY", "SY"]             # CORDIC result pairs (d, d+1)
     # constants (reset values; no program writes them): MUL by them with shift 14 shifts left
     names += [f"T{i}" for i in range(12)]
-    names += ["QOUT0", "QOUT1", "QOUT2", "QOUT3"]           # the result quaternion
     names += list(CONSTANTS)
     names += state_registers()
     regs = dict(CONFIG_REGS)
