@@ -532,7 +532,8 @@ class AttitudeEngine(wiring.Component):
                     with m.If(cond ^ x.inv):
                         m.d.comb += flush.eq(1)
                 with m.Case(Op.SETF):
-                    m.d.sync += flags_set.bit_select(x.sh, 1).eq(1)
+                    # ``d`` is the flag one-hot (``Assembler.setf``): no decoder of ``sh``
+                    m.d.sync += flags_set.eq(flags_set | x.d[:len(Flag)])
         with m.If(advance):
             m.d.sync += [
                 x.eq(o), xvalid.eq(ovalid & ~flush),

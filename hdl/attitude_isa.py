@@ -23,7 +23,7 @@ ROT   CORDIC rotation of the angle in a: d = cos, d+1 = sin (Q1.30)  18
 BR    if condition (``cond``, inverted by ``inv``): go to target   1, or 3 when taken
                                                                    on A_ZERO / A_NEG; 0
                                                                    folded (below)
-SETF  set result flag ``sh`` (``Flag``)                          1
+SETF  set result flag ``sh`` (``Flag``; ``d`` holds 1 << sh)       1
 END   the sample is done: results out                              1
 ====  ===========================================================  ======================
 
@@ -353,7 +353,8 @@ class Assembler:
         self._emit(Instruction(Op.BR, a=a, sh=code, cond=cond, inv=inv, target=target))
 
     def setf(self, flag):
-        self._emit(Instruction(Op.SETF, sh=flag))
+        # the flag's bit in ``d`` too: the engine ORs ``d`` into the flags (no decoder of sh)
+        self._emit(Instruction(Op.SETF, sh=flag, d=1 << flag))
 
     def end(self):
         self._emit(Instruction(Op.END))
