@@ -170,8 +170,11 @@ class CORDIC(wiring.Component):
                     m.next = "RUN"
                     with m.If(self.mode):
                         a = self.angle_in
-                        # beyond ±90°: turn by 180° (wrapping add of 2³¹), start from (±1/K, 0)
-                        beyond = (a > (1 << (n - 2))) | (a < -(1 << (n - 2)))
+                        # beyond ±90°: turn by 180° (wrapping add of 2³¹), start from (±1/K, 0).
+                        # a > 2^(n−2): the top bits 01 and the rest not all 0; a < −2^(n−2):
+                        # the top bits 10 (from the bits, not two comparators)
+                        beyond = ((~a[n - 1] & a[n - 2] & a[:n - 2].any()) |
+                                  (a[n - 1] & ~a[n - 2]))
                         z0 = Cat(a[:n - 1], a[n - 1] ^ beyond).as_signed()
                         x0 = Mux(beyond, -self.inv_gain, self.inv_gain)
                         # The first iteration is made here: from y = 0 it is x1 = x0,
