@@ -303,11 +303,19 @@ class TelemetryFramer(wiring.Component):
         offset, bits = self.borrow
         first, n = offset // 32, (bits + 31) // 32
         copying = self.i_stream.valid & ~sending
-        # the next cycle's copy word; outside the borrowed words index n, a word of zeros, so
-        # that the port's word needs no gate here (a LUT a bit in the copy's multiplexer)
-        ahead = copy_index + copying
-        m.d.comb += self.borrow_index.eq(Mux((ahead >= first) & (ahead < first + n),
-                                             ahead - first, n))
+
+        def index_of(k):
+            # the port's index for copy word k; outside the borrowed words index n, a word of
+            # zeros, so that the port's word needs no gate here (a LUT a bit in the copy's
+            # multiplexer)
+            return Mux((k >= first) & (k < first + n), k - first, n)
+        # the next cycle's copy word is ``copy_index`` + ``copying``: the index for each case
+        # from the register, and the choice last, so that only it follows ``copying`` (the
+        # producer's valid) into the port's address, not the adder and comparisons (that
+        # path, into the sample store's address, was the routed critical one on some seeds,
+        # report --timing)
+        m.d.comb += self.borrow_index.eq(Mux(copying, index_of(copy_index + 1),
+                                             index_of(copy_index)))
         words = []
         for i, word in enumerate(payload_words):
             low, high = max(offset, 32 * i), min(offset + bits, 32 * i + 32)
