@@ -420,7 +420,9 @@ class AttitudeEngine(wiring.Component):
         # the register file: no fact for d + 1. Outside RUN only ``xa``/``xb`` see them, and
         # those are not read there.
         x_wd = Signal()
-        wb_next_d = Mux(mac.pending, mac.wb_next_addr, mac.wb_addr)   # the MAC's d next cycle
+        # the MAC's d next cycle: the pending MUL's (``eq_wb`` matters only in a cycle after
+        # one with a MUL pending: the MAC writes back only then)
+        wb_next_d = mac.wb_next_addr
         eq_x = Signal(reset_less=True, init=1, name="eq_xd_a")
         eq_wb = Signal(reset_less=True, init=1, name="eq_wb_a")
         m.d.sync += [
