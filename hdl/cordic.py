@@ -29,6 +29,15 @@ def cordic_word(cordic, first, second):
             Mux(second & ~rot, cordic.z_out.as_unsigned(), 0) |
             Mux(first & cordic.saturated, C((1 << (n - 1)) - 1, n), 0))[:n].as_signed()
 
+
+def _beyond_right_angle(a):
+    """Whether a BAM angle ``a`` (signed, n bits) is beyond ±90°: a > 2^(n−2) (its top bits 01
+    and the rest not all 0) or a < −2^(n−2) (its top bits 10), from the bits rather than two
+    comparators."""
+    n = len(a)
+    return (~a[n - 1] & a[n - 2] & a[:n - 2].any()) | (a[n - 1] & ~a[n - 2])
+
+
 class CORDIC(wiring.Component):
     """Iterative CORDIC: vectoring (atan2 and magnitude) and rotation (cos and sin), BAM32 angles.
 
@@ -170,11 +179,8 @@ class CORDIC(wiring.Component):
                     m.next = "RUN"
                     with m.If(self.mode):
                         a = self.angle_in
-                        # beyond ±90°: turn by 180° (wrapping add of 2³¹), start from (±1/K, 0).
-                        # a > 2^(n−2): the top bits 01 and the rest not all 0; a < −2^(n−2):
-                        # the top bits 10 (from the bits, not two comparators)
-                        beyond = ((~a[n - 1] & a[n - 2] & a[:n - 2].any()) |
-                                  (a[n - 1] & ~a[n - 2]))
+                        # beyond ±90°: turn by 180° (wrapping add of 2³¹), start from (±1/K, 0)
+                        beyond = _beyond_right_angle(a)
                         z0 = Cat(a[:n - 1], a[n - 1] ^ beyond).as_signed()
                         x0 = Mux(beyond, -self.inv_gain, self.inv_gain)
                         # The first iteration is made here: from y = 0 it is x1 = x0,

@@ -373,6 +373,22 @@ def test_euler_rates_follow_a_coning_motion_better():
     assert abs(out[False][1]) > 10
 
 
+def _against_the_model(program, entry):
+    """One sample through ``program`` on the engine and on the instruction model: (the
+    engine's run, the model's (quaternion, angles, bias)), asserted equal, bit for bit."""
+    from mpu9250_ahrs.reference.engine_model import EngineModel
+    from mpu9250_ahrs.sim.attitude_isa_model import AttitudeISAModel
+
+    gyro, accel, mag_ak = ([[1200, -3400, 50]], [[0, 0, 8192]], [[10, 20, 30]])
+    run = run_engine(AttitudeEngine(program=(program, entry)), gyro, accel, mag_ak)
+    model = AttitudeISAModel(EngineModel().reg)
+    model.program, model.entry = program, entry
+    model.sample(gyro[0], accel[0], mag_ak[0])
+    outputs = tuple(model.outputs())
+    assert (run.quat[0].tolist(), run.angles[0].tolist(), run.bias[0].tolist()) == outputs
+    return run, outputs
+
+
 def _b_read_program():
     """A program whose instructions read as ``b`` the register written as they go on (the
     engine forwards ``a`` only): an ADD (its operands swapped), a SUB, a DIV and a VEC (a NOP
@@ -408,22 +424,13 @@ def test_b_operand_is_not_forwarded():
     read it as ``b`` (``attitude_isa``). The program of ``_b_read_program`` against the
     instruction model, bit for bit."""
     from mpu9250_ahrs.hdl.attitude_isa import Op
-    from mpu9250_ahrs.reference.engine_model import EngineModel
-    from mpu9250_ahrs.sim.attitude_isa_model import AttitudeISAModel
 
     program, entry = _b_read_program()
     body = [ins.op for ins in program[entry["sample"]:]]
     assert body.count(Op.NOP) == 5
     swapped = program[entry["sample"] + 1]
     assert (swapped.op, swapped.a, swapped.b) == (Op.ADD, REGS["QOUT0"], REGS["GRAW2"])
-    gyro, accel, mag_ak = ([[1200, -3400, 50]], [[0, 0, 8192]], [[10, 20, 30]])
-    run = run_engine(AttitudeEngine(program=(program, entry)), gyro, accel, mag_ak)
-    model = AttitudeISAModel(EngineModel().reg)
-    model.program, model.entry = program, entry
-    model.sample(gyro[0], accel[0], mag_ak[0])
-    quat, angles, bias = model.outputs()
-    assert (run.quat[0].tolist(), run.angles[0].tolist(), run.bias[0].tolist()) == (
-        quat, angles, bias)
+    _, (quat, angles, bias) = _against_the_model(program, entry)
     assert len({*quat, *angles, *bias}) > 6            # results, not zeros
 
 
@@ -480,21 +487,9 @@ def test_background_units():
     collect that comes before its unit is done waits for it (at once, after one instruction,
     after all but one of its cycles), one that comes after does not, and the other unit may
     work meanwhile; each saves the cycles of the work between, up to its unit's wait."""
-    from mpu9250_ahrs.reference.engine_model import EngineModel
-    from mpu9250_ahrs.sim.attitude_isa_model import AttitudeISAModel
-
-    gyro, accel, mag_ak = ([[1200, -3400, 50]], [[0, 0, 8192]], [[10, 20, 30]])
     runs = {}
     for go_on in (False, True):
-        program, entry = _background_program(go_on)
-        runs[go_on] = run = run_engine(AttitudeEngine(program=(program, entry)), gyro, accel,
-                                       mag_ak)
-        model = AttitudeISAModel(EngineModel().reg)
-        model.program, model.entry = program, entry
-        model.sample(gyro[0], accel[0], mag_ak[0])
-        quat, angles, bias = model.outputs()
-        assert (run.quat[0].tolist(), run.angles[0].tolist(), run.bias[0].tolist()) == (
-            quat, angles, bias)
+        runs[go_on], (quat, angles, bias) = _against_the_model(*_background_program(go_on))
     adds = [s if isinstance(s, int) else s[1] for _, s in BACKGROUND_CHAIN]
     assert bias[2] == sum(adds)                                        # INT1 is 1
     shadows = [s if isinstance(s, int) else BLOCKING_CYCLES[s[0]] + s[1]
