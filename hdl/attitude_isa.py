@@ -64,11 +64,13 @@ forwarding of b cost about 30 LUTs, ``report``). An instruction that reads as b 
 written as it goes on to execute (the d of the instruction just before it, or, for a MUL after
 two MULs, the write-back of the MUL three before it) would read the old value: the assembler
 (``Assembler.resolve``) swaps an ADD's or MUL's operands where that clears it, and otherwise
-puts a NOP before it (a few cycles an update).
+puts a NOP before it (about a dozen cycles an update at most: ``report``'s
+``cycles_per_update``).
 
 The assembler (``Assembler``) gives registers names, resolves labels and checks ranges. The
 engine has no other hazards but the background units': a result is visible to the very next
-instruction, and the assembler checks the rules above for a unit started in the background.
+instruction (as its b, under the rule above), and the assembler checks the rules above for a
+unit started in the background.
 """
 
 import enum
@@ -397,21 +399,22 @@ class Assembler:
         MUL's operands are swapped where that clears it (``a`` is forwarded); otherwise a NOP
         goes before it (after the word before it, or at a folded jump's target: every path to
         it takes the NOP). Labels after it move down."""
-        code = self.code
-        while True:
-            before = _predecessors(code, self.labels.get)
-            for t, ins in enumerate(code):
-                landing = _landing(code, before, t)
-                if ins.b not in landing or ins.b not in _b_read(ins):
-                    continue
+        code, t = self.code, 0
+        before = _predecessors(code, self.labels.get)
+        # A NOP writes nothing and ends a chain of MULs, and a swap writes what it wrote: a
+        # change only takes writes away from what follows, so the words before it stay clear
+        # and the search goes on from it
+        while t < len(code):
+            ins = code[t]
+            landing = _landing(code, before, t)
+            if ins.b in landing and ins.b in _b_read(ins):
                 if ins.op in (Op.ADD, Op.MUL) and ins.a not in landing:
                     code[t] = replace(ins, a=ins.b, b=ins.a)
                 else:
                     code.insert(t, Instruction(Op.NOP))
                     self.labels = {k: v + 1 if v > t else v for k, v in self.labels.items()}
-                break
-            else:
-                return
+                    before = _predecessors(code, self.labels.get)
+            t += 1
 
     def resolve(self):
         """Instructions with label targets replaced by addresses, the branches on fixed
