@@ -494,7 +494,8 @@ def _landing(code, before, t):
     out = set()
     for i in before[t]:
         if code[t].op != Op.MUL or code[i].op != Op.MUL:
-            out.update(ins.d for ins in [code[i]] if _reads_writes(ins)[1])
+            if _reads_writes(code[i])[1]:
+                out.add(code[i].d)
             continue
         for j in before[i]:
             if code[j].op != Op.MUL:
