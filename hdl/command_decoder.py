@@ -275,7 +275,11 @@ class CommandDecoder(wiring.Component):
                 with m.If(self.replies.ready):
                     m.next = "HUNT"
 
-        self._counters(m, counters, read=fsm.ongoing("CRC_LOW") & take, low=low)
+        # the counter a board read names is read as the frame's last byte is taken, and again
+        # each cycle the command waits in EXECUTE for ``frames_stable`` (the RAM's read port
+        # goes back to the counting otherwise: its word would be another counter's)
+        self._counters(m, counters, low=low, read=(fsm.ongoing("CRC_LOW") & take) |
+                       (fsm.ongoing("EXECUTE") & ~self.frames_stable))
         # a frame cut off: no byte for ``timeout`` cycles while one is being parsed
         m.d.comb += in_frame.eq(sum(fsm.ongoing(state) for state in parsing[1:]) != 0)
         with m.If(take | ~in_frame):
@@ -370,8 +374,9 @@ class CommandDecoder(wiring.Component):
 
     def _counters(self, m, counters, *, read, low):
         """The receiver's events into the counters, and the read of the counter a board read
-        names (``low``): a board read answers in EXECUTE, so its counter is read as the
-        frame's last byte is taken (``read``; the address is in by then)."""
+        names (``low``): a board read answers in EXECUTE, so its counter is read the cycle
+        before (``read``: as the frame's last byte is taken, when the address is in, and
+        while EXECUTE waits)."""
         m.d.comb += [
             counters.events[counter_word("RX_FRAMING_ERRORS")].eq(self.rx_framing_error),
             counters.events[counter_word("RX_OVERRUNS")].eq(self.rx_overrun),

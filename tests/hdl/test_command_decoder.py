@@ -398,3 +398,45 @@ def test_frames_sent_read_waits_for_a_stable_count():
     assert [(r["cmd_seq"], r["result"]) for r in replies] == [(0, RESULTS["ok"]),
                                                               (1, RESULTS["ok"])]
     assert replies[0]["value"] == 0x5678
+
+
+def test_counter_read_while_the_frame_count_is_not_stable():
+    """A counter's read waits in EXECUTE like every command while ``frames_stable`` is low
+    (24 cycles at most, after every 256th frame): its word is the count once it is answered,
+    not the word the counters' RAM read meanwhile (the lowest pending counter's, or word 0)."""
+    h = Harness()
+    dec = h.decoder
+    sim = Simulator(h)
+    sim.add_clock(1e-6)
+    check_stream_rules(sim, dec.replies, "replies")
+    replies = []
+
+    async def tb(ctx):
+        ctx.set(dec.replies.ready, 1)
+        for _ in range(37):
+            ctx.set(dec.early_sample, 1)
+            await ctx.tick()
+            ctx.set(dec.early_sample, 0)
+            await ctx.tick()
+        ctx.set(dec.frames_stable, 0)
+        for byte in encode_command("read", 3, addr=BOARD_REGS["RATE_ERRORS"], space="board"):
+            ctx.set(dec.i_stream.valid, 1)
+            ctx.set(dec.i_stream.payload, byte)
+            await ctx.tick().until(dec.i_stream.ready)
+        ctx.set(dec.i_stream.valid, 0)
+        for _ in range(30):
+            # a receiver's event meanwhile: the counters count it (the RAM reads its word)
+            ctx.set(dec.rx_overrun, 1)
+            await ctx.tick()
+            ctx.set(dec.rx_overrun, 0)
+            await ctx.tick()
+        assert not ctx.get(dec.replies.valid)
+        ctx.set(dec.frames_stable, 1)
+        for _ in range(20):
+            if ctx.get(dec.replies.valid):
+                replies.append(to_python(ctx.get(dec.replies.payload)))
+            await ctx.tick()
+    sim.add_testbench(tb)
+    sim.run()
+    assert [(r["cmd_seq"], r["result"], r["value"]) for r in replies] == [
+        (3, RESULTS["ok"], 37)]
