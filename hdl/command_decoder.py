@@ -178,7 +178,10 @@ class CommandDecoder(wiring.Component):
 
     def elaborate(self, platform):
         m = Module()
-        m.submodules.crc = crc = CRC(data_width=8).create()
+        # the CRC takes a byte in two halves, high then low (the algorithm reflects nothing:
+        # the same CRC as a byte at once), in the two cycles each byte is parsed in: looked
+        # at, then taken (``_look``). Half the XORs of a byte-wide one
+        m.submodules.crc = crc = CRC(data_width=4).create()
         m.submodules.fifo = fifo = self.fifo
         m.submodules.counters = counters = self.counters
         wiring.connect(m, wiring.flipped(self.i_stream), fifo.w_stream)
@@ -231,7 +234,7 @@ class CommandDecoder(wiring.Component):
                 count_up("refused")
             m.next = "REPLY"
 
-        m.d.comb += [crc.data.eq(byte)]
+        m.d.comb += [crc.data.eq(Mux(looked, byte[:4], byte[4:]))]
         board_regs = self._board_regs()
         # an engine write the engine would refuse is answered "refused" here (the host learns
         # why): an address it may not write, or a CONTROL word with no meaning
@@ -424,16 +427,21 @@ class CommandDecoder(wiring.Component):
                     count_up("discarded")
 
         @contextmanager
-        def receiving(state, *, checked=True):
-            """A parsing state: takes a byte (into the CRC if ``checked``), or gives up
-            on the frame at the time-out."""
+        def receiving(state, *, checked=True, first=False):
+            """A parsing state: takes a byte (into the CRC if ``checked``: its high half as
+            it is looked at, its low half as it is taken; the CRC starts with it if
+            ``first``), or gives up on the frame at the time-out."""
             with m.State(state):
                 with m.If(timed_out):
                     m.d.comb += fifo.release.eq(1)
                     m.next = "HUNT"
                 m.d.comb += src.ready.eq(looked)
                 if checked:
-                    m.d.comb += crc.valid.eq(take)
+                    # a byte looked at in a parsing state is taken the cycle after (or the
+                    # frame times out, and the CRC starts again with the next one)
+                    m.d.comb += crc.valid.eq(src.valid)
+                if first:
+                    m.d.comb += crc.start.eq(~looked)
                 with m.If(take):
                     yield
 
@@ -450,8 +458,7 @@ class CommandDecoder(wiring.Component):
                 with m.Else():
                     count_up("discarded")
                     m.next = "HUNT"
-        with receiving("TYPE"):
-            m.d.comb += crc.start.eq(1)
+        with receiving("TYPE", first=True):
             m.d.sync += ctype.eq(byte)
             m.next = "SEQ"
         with receiving("SEQ"):
