@@ -1,12 +1,15 @@
 """Verilator builds of the package's compiled simulations, cached: the one build path the
 compiled engine (``sim.compiled_engine``) and the compiled designs (``sim.compiled_design``)
-share (the cache, a lock per entry, a temporary folder, the command, the atomic publish).
+share (the cache, a lock per entry, a temporary folder, the command, the atomic publish, and
+Verilator's run-time library built once for all of them: ``_Runtime``).
 """
 
 import contextlib
 import fcntl
 import functools
+import hashlib
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -96,12 +99,66 @@ def verilator_build(folder, output, sources, *, top, what, options=()):
             tmp = Path(tmp)
             for name, text in sources.items():
                 (tmp / name).write_text(text() if callable(text) else text)
-            cmd = ["verilator", "--cc", "--exe", "--build", "-O3", "-Wno-fatal", "-Wno-lint",
-                   "-Wno-style", "--top-module", top, *options, "--Mdir", str(tmp / "obj"),
-                   "-o", output, *sources]
-            result = subprocess.run(cmd, cwd=tmp, capture_output=True, text=True)
-            if result.returncode:
-                raise RuntimeError(f"verilator failed to build the {what}:\n"
-                                   + (result.stderr or result.stdout)[-3000:])
-            publish(tmp / "obj" / output, folder)
+            # Verilator's C++, then g++ through its makefile (what ``--build`` does), with
+            # its run-time library's objects from the cache (``_Runtime``)
+            options = list(options)
+            make_flags = []
+            while "-MAKEFLAGS" in options:
+                at = options.index("-MAKEFLAGS")
+                make_flags += options[at + 1].split()
+                del options[at:at + 2]
+            obj = tmp / "obj"
+            cmd = ["verilator", "--cc", "--exe", "-O3", "-Wno-fatal", "-Wno-lint", "-Wno-style",
+                   "--top-module", top, *options, "--Mdir", str(obj), "-o", output, *sources]
+            make = ["make", "-s", "-C", str(obj), "-f", f"V{top}.mk", *make_flags]
+
+            def run(step):
+                result = subprocess.run(step, cwd=tmp, capture_output=True, text=True)
+                if result.returncode:
+                    raise RuntimeError(f"verilator failed to build the {what}:\n"
+                                       + (result.stderr or result.stdout)[-3000:])
+            run(cmd)
+            runtime = _Runtime(obj, make)
+            run(make)
+            runtime.keep()
+            publish(obj / output, folder)
         return time.perf_counter() - start
+
+
+class _Runtime:
+    """Verilator's run-time library (``verilated.o`` and the like, about 4 s of g++ in every
+    build) is the same in every build that compiles it the same way: its objects are kept in
+    the cache, under a hash of their compile commands (``make -n``: the flags, the paths) and
+    Verilator's version, and copied into a new build's folder before its ``make`` (then
+    newer than their makefile: ``make`` takes them as built). ``keep()`` after a build stores
+    them if the cache had none."""
+
+    # a line of ``make -n`` compiling one of them: its object, from Verilator's include folder
+    LINE = re.compile(r"^.* -c -o (\S+\.o) \S+/include/\S+\.cpp$")
+
+    def __init__(self, obj, make):
+        self.obj = obj
+        dry = subprocess.run([*make, "-n"], capture_output=True, text=True).stdout
+        commands = [line for line in dry.splitlines() if self.LINE.match(line)]
+        self.names = sorted({self.LINE.match(line).group(1) for line in commands})
+        self.commands = commands
+        key = hashlib.sha256("\0".join((verilator_version(), *commands)).encode()).hexdigest()
+        self.folder = cache_root() / f"verilator-runtime-{key[:20]}"
+        self.cached = bool(self.names) and all(
+            (self.folder / name).exists() for name in self.names)
+        if self.cached:
+            for name in self.names:
+                shutil.copy(self.folder / name, obj / name)
+
+    def keep(self):
+        if self.cached or not self.names:
+            return
+        self.folder.parent.mkdir(parents=True, exist_ok=True)
+        built = Path(tempfile.mkdtemp(dir=self.folder.parent))
+        for name in self.names:
+            shutil.copy2(self.obj / name, built / name)
+        (built / "commands").write_text("\n".join(self.commands) + "\n")    # to look at
+        try:
+            os.replace(built, self.folder)
+        except OSError:                 # another build stored them first
+            shutil.rmtree(built, ignore_errors=True)
