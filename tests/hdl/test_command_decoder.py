@@ -361,10 +361,11 @@ def test_board_registers_read_their_sources():
         ("RATE_ERRORS", 37), ("WHO_AM_I", 0x71), ("SELF_TEST", status), ("RAW_MODE", 0))}
 
 
-def test_frames_sent_read_waits_for_a_stable_count():
-    """A FRAMES_SENT read while the frame arbiter's count is not stable (its serial increment,
-    ``frames_stable`` low) is answered once it is, with the count then; the command after it
-    follows."""
+def _answered_once_stable(commands, *, before=None, meanwhile=None, after=None):
+    """The replies of a decoder sent ``commands`` (bytes) while the frame arbiter's count is
+    not stable (``frames_stable`` low, then high): ``before``, ``meanwhile``, ``after``:
+    steps (async, of ``(ctx, decoder)``) before the commands, after them (no reply comes
+    meanwhile) and as the count turns stable."""
     h = Harness()
     dec = h.decoder
     sim = Simulator(h)
@@ -374,20 +375,21 @@ def test_frames_sent_read_waits_for_a_stable_count():
 
     async def tb(ctx):
         ctx.set(dec.replies.ready, 1)
+        if before:
+            await before(ctx, dec)
         ctx.set(dec.frames_stable, 0)
-        ctx.set(dec.frames_sent, 0x1234)               # not the count yet
-        for seq, name in enumerate(("FRAMES_SENT", "WHO_AM_I")):
-            for byte in encode_command("read", seq, addr=BOARD_REGS[name], space="board"):
-                ctx.set(dec.i_stream.valid, 1)
-                ctx.set(dec.i_stream.payload, byte)
-                await ctx.tick().until(dec.i_stream.ready)
-            ctx.set(dec.i_stream.valid, 0)
+        for byte in commands:
+            ctx.set(dec.i_stream.valid, 1)
+            ctx.set(dec.i_stream.payload, byte)
+            await ctx.tick().until(dec.i_stream.ready)
+        ctx.set(dec.i_stream.valid, 0)
+        if meanwhile:
+            await meanwhile(ctx, dec)
         for _ in range(100):
             await ctx.tick()
-            if ctx.get(dec.replies.valid):
-                replies.append(to_python(ctx.get(dec.replies.payload)))
-        assert replies == []                             # the read waits, and the one after it
-        ctx.set(dec.frames_sent, 0x5678)
+            assert not ctx.get(dec.replies.valid)       # the read waits, and the one after it
+        if after:
+            await after(ctx, dec)
         ctx.set(dec.frames_stable, 1)
         for _ in range(100):
             if ctx.get(dec.replies.valid):
@@ -395,6 +397,21 @@ def test_frames_sent_read_waits_for_a_stable_count():
             await ctx.tick()
     sim.add_testbench(tb)
     sim.run()
+    return replies
+
+
+def test_frames_sent_read_waits_for_a_stable_count():
+    """A FRAMES_SENT read while the frame arbiter's count is not stable (its serial increment,
+    ``frames_stable`` low) is answered once it is, with the count then; the command after it
+    follows."""
+    async def before(ctx, dec):
+        ctx.set(dec.frames_sent, 0x1234)               # not the count yet
+
+    async def after(ctx, dec):
+        ctx.set(dec.frames_sent, 0x5678)
+    replies = _answered_once_stable(b"".join(
+        encode_command("read", seq, addr=BOARD_REGS[name], space="board")
+        for seq, name in enumerate(("FRAMES_SENT", "WHO_AM_I"))), before=before, after=after)
     assert [(r["cmd_seq"], r["result"]) for r in replies] == [(0, RESULTS["ok"]),
                                                               (1, RESULTS["ok"])]
     assert replies[0]["value"] == 0x5678
@@ -404,39 +421,21 @@ def test_counter_read_while_the_frame_count_is_not_stable():
     """A counter's read waits in EXECUTE like every command while ``frames_stable`` is low
     (24 cycles at most, after every 256th frame): its word is the count once it is answered,
     not the word the counters' RAM read meanwhile (the lowest pending counter's, or word 0)."""
-    h = Harness()
-    dec = h.decoder
-    sim = Simulator(h)
-    sim.add_clock(1e-6)
-    check_stream_rules(sim, dec.replies, "replies")
-    replies = []
+    async def pulses(ctx, signal, n):
+        for _ in range(n):
+            ctx.set(signal, 1)
+            await ctx.tick()
+            ctx.set(signal, 0)
+            await ctx.tick()
 
-    async def tb(ctx):
-        ctx.set(dec.replies.ready, 1)
-        for _ in range(37):
-            ctx.set(dec.early_sample, 1)
-            await ctx.tick()
-            ctx.set(dec.early_sample, 0)
-            await ctx.tick()
-        ctx.set(dec.frames_stable, 0)
-        for byte in encode_command("read", 3, addr=BOARD_REGS["RATE_ERRORS"], space="board"):
-            ctx.set(dec.i_stream.valid, 1)
-            ctx.set(dec.i_stream.payload, byte)
-            await ctx.tick().until(dec.i_stream.ready)
-        ctx.set(dec.i_stream.valid, 0)
-        for _ in range(30):
-            # a receiver's event meanwhile: the counters count it (the RAM reads its word)
-            ctx.set(dec.rx_overrun, 1)
-            await ctx.tick()
-            ctx.set(dec.rx_overrun, 0)
-            await ctx.tick()
-        assert not ctx.get(dec.replies.valid)
-        ctx.set(dec.frames_stable, 1)
-        for _ in range(20):
-            if ctx.get(dec.replies.valid):
-                replies.append(to_python(ctx.get(dec.replies.payload)))
-            await ctx.tick()
-    sim.add_testbench(tb)
-    sim.run()
+    async def before(ctx, dec):
+        await pulses(ctx, dec.early_sample, 37)
+
+    async def meanwhile(ctx, dec):
+        # a receiver's events: the counters count them (the RAM reads their word)
+        await pulses(ctx, dec.rx_overrun, 30)
+    replies = _answered_once_stable(
+        encode_command("read", 3, addr=BOARD_REGS["RATE_ERRORS"], space="board"),
+        before=before, meanwhile=meanwhile)
     assert [(r["cmd_seq"], r["result"], r["value"]) for r in replies] == [
         (3, RESULTS["ok"], 37)]
