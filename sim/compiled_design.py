@@ -269,7 +269,8 @@ class CompiledDesign:
 
     def _build(self, design):
         if not verilator_available():
-            raise RuntimeError(f"the compiled co-simulation needs verilator and g++; {HINT}")
+            raise RuntimeError(f"the compiled co-simulation needs verilator, g++ and make; "
+                               f"{HINT}")
         top = self.name.replace("-", "_") + "_top"
         cxx = _cxx(top, [(n, self._in_width[n]) for n in self.inputs],
                    [(n, self._out_width[n]) for n in self.outputs], trace=self.trace)
@@ -301,9 +302,9 @@ class CompiledDesign:
         self.build_s = verilator_build(
             folder, "design.so", {f"{top}.v": verilog_text, "api.cpp": cxx}, top=top,
             what=self.name, options=[
-                "-CFLAGS", "-fPIC", "-MAKEFLAGS", BUILD_OPTIMISATION["design"],
-                "-LDFLAGS", "-shared", "--x-assign", "fast", "--x-initial", "fast",
-                "--noassert", *(["--trace"] if self.trace else [])])
+                "-CFLAGS", "-fPIC", "-LDFLAGS", "-shared", "--x-assign", "fast",
+                "--x-initial", "fast", "--noassert", *(["--trace"] if self.trace else [])],
+            make_flags=BUILD_OPTIMISATION["design"])
         if not converted:
             # the design was never elaborated (the cache had it): its blocks would each warn,
             # when collected, that they were "created but never used"

@@ -184,7 +184,8 @@ class CompiledEngine:
         if self.binary is not None:
             return self.binary
         if not verilator_available():
-            raise RuntimeError(f"the compiled engine needs verilator and g++; {HINT}")
+            raise RuntimeError(f"the compiled engine needs verilator, g++ and make; "
+                               f"{HINT}")
         text = self._verilog()
         key = hashlib.sha256("\0".join((text, _DRIVER, verilator_version(),
                                         BUILD_OPTIMISATION["engine"])).encode()
@@ -193,7 +194,7 @@ class CompiledEngine:
         self.build_s = verilator_build(
             folder, "engine_sim", {"engine_harness.v": text, "driver.cpp": _DRIVER},
             top="engine_harness", what="engine",
-            options=["-MAKEFLAGS", BUILD_OPTIMISATION["engine"]])
+            make_flags=BUILD_OPTIMISATION["engine"])
         self.binary = folder / "engine_sim"
         return self.binary
 

@@ -380,8 +380,8 @@ def compiled_wanted(compiled, *, vcd=None, supported=True):
                              "in Amaranth's simulator (simulate --simulator python, or "
                              "compiled=False)")
         if not verilator_available():
-            raise RuntimeError("the compiled co-simulation needs verilator and g++: "
-                               "apt-get install verilator g++")
+            raise RuntimeError("the compiled co-simulation needs verilator, g++ and make: "
+                               "apt-get install verilator g++ make")
         return True
     if compiled is None:
         # auto: the caller takes the compiled path if the build is cached or the run long

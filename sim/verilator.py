@@ -21,7 +21,7 @@ from pathlib import Path
 __all__ = ["HINT", "BUILD_OPTIMISATION", "verilator_available", "verilator_version",
            "cache_root", "build_lock", "publish", "verilator_build"]
 
-HINT = "install it with: apt-get install verilator g++"
+HINT = "install it with: apt-get install verilator g++ make"
 # g++'s optimisation of Verilator's output: the per-cycle code ("fast") as much as its speed
 # needs, the once-run code ("slow": construction, initial values) and Verilator's runtime not
 # at all or little. Measured on the whole core (2 cores): -O1 for the fast code builds in 14 s
@@ -34,7 +34,8 @@ BUILD_OPTIMISATION = {
 
 
 def verilator_available():
-    return shutil.which("verilator") is not None and shutil.which("g++") is not None
+    """Verilator, g++ and make (which runs Verilator's makefile: ``verilator_build``)."""
+    return all(shutil.which(tool) is not None for tool in ("verilator", "g++", "make"))
 
 
 @functools.lru_cache(maxsize=None)
@@ -78,12 +79,13 @@ def publish(built, folder):
             raise
 
 
-def verilator_build(folder, output, sources, *, top, what, options=()):
+def verilator_build(folder, output, sources, *, top, what, options=(), make_flags=""):
     """``folder``/``output`` built by Verilator and g++ unless the cache has it, one process
     at a time (``build_lock``: another waits for the build and takes it). ``sources``: file
     name: its text, or a callable giving it (asked only when a build is needed), in the order
     Verilator takes them; ``top``: the top module; ``options``: Verilator's, beside the
-    common ones. Returns the seconds spent building (0 when the cache had it)."""
+    common ones; ``make_flags``: its makefile's (``BUILD_OPTIMISATION``). Returns the
+    seconds spent building (0 when the cache had it)."""
     target = folder / output
     if target.exists():
         return 0.0
@@ -101,16 +103,10 @@ def verilator_build(folder, output, sources, *, top, what, options=()):
                 (tmp / name).write_text(text() if callable(text) else text)
             # Verilator's C++, then g++ through its makefile (what ``--build`` does), with
             # its run-time library's objects from the cache (``_Runtime``)
-            options = list(options)
-            make_flags = []
-            while "-MAKEFLAGS" in options:
-                at = options.index("-MAKEFLAGS")
-                make_flags += options[at + 1].split()
-                del options[at:at + 2]
             obj = tmp / "obj"
             cmd = ["verilator", "--cc", "--exe", "-O3", "-Wno-fatal", "-Wno-lint", "-Wno-style",
                    "--top-module", top, *options, "--Mdir", str(obj), "-o", output, *sources]
-            make = ["make", "-s", "-C", str(obj), "-f", f"V{top}.mk", *make_flags]
+            make = ["make", "-s", "-C", str(obj), "-f", f"V{top}.mk", *make_flags.split()]
 
             def run(step):
                 result = subprocess.run(step, cwd=tmp, capture_output=True, text=True)
