@@ -32,7 +32,8 @@ from ..host.protocol import to_python
 
 
 __all__ = ["CosimHarness", "PinModels", "attach_models", "attach_mpu9250", "attach_stuck_miso",
-           "SimSetup", "CosimResult", "run_frontend", "CoreRun", "core_harness", "run_core",
+           "SimSetup", "QUICK_CORE_BAUD", "quick_core_setup", "CosimResult", "run_frontend",
+           "CoreRun", "core_harness", "run_core",
            "simulator_name", "gtkw_beside", "sample_matches", "expected_mag", "sample_read_cycles"]
 
 
@@ -308,6 +309,22 @@ class SimSetup:
         if magnetometer:
             kwargs.setdefault("aux_devices", {A.I2C_ADDRESS: self.ak8963()})
         return MPU9250Model(timing=self.model_timing(), **kwargs)
+
+
+# The whole core's quick set-up (``quick_core_setup``) and its UART's baud (a quarter of its
+# clock, so that frames come quickly)
+QUICK_CORE_BAUD = 3_000_000
+
+
+def quick_core_setup():
+    """The whole core's quick set-up: the default configuration (SPI, the magnetometer, 1 kHz)
+    at a 12 MHz clock (a quarter of the board's cycles for the same bring-up and samples),
+    the sample period scaled by 0.4 (a frame at ``QUICK_CORE_BAUD``, 3,680 cycles, fits in
+    one). One set-up for the tests that run the whole core and the fault catalogue's
+    ``host_garbage``, so that they share one compiled build (keyed by the set-up, the core's
+    parameters and the baud); ``tests/sim/test_compiled_board.py`` checks it against
+    Amaranth's simulator on this set-up."""
+    return SimSetup(clk_freq=12e6, odr_scale=0.4)
 
 
 @dataclass

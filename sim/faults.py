@@ -321,7 +321,7 @@ def run_host_garbage(setup, *, n_results=4, baud=None, compiled=None):
     ``baud``: the UART's (default: a quarter of the clock, so that frames come quickly)."""
     from .cosim import run_core, simulator_name
     bad = host_garbage_writes()
-    baud = baud or setup.clk_freq / 4
+    baud = baud or round(setup.clk_freq / 4)   # an integer: the build's cache key has it
     clean = run_core(setup, n_results=n_results, n_frames=1, baud=baud, compiled=compiled)
     dirty = run_core(setup, n_results=n_results, n_frames=1, writes=bad, baud=baud,
                      compiled=compiled)
@@ -502,12 +502,15 @@ def catalogue_setup(wiring, *, odr=200, clk_freq=4e6, fault=None, self_test=None
     front end only: SPI at 2 MHz, I2C at about 300 kHz) and scaled time (SPI: periods × 0.05;
     I2C: × 0.25, whose 1.25 ms still fits its read), so that a fault runs in seconds; the
     AK8963's clock 10 % slow (``SimSetup.ak_clock_error``); the self-tests at bring-up only
-    for the faults they are to find (``Fault.self_test``), or as ``self_test`` says."""
+    for the faults they are to find (``Fault.self_test``), or as ``self_test`` says.
+    ``host_garbage`` runs the whole core: on ``cosim.quick_core_setup``."""
     from ..hdl.mpu9250_driver import MPU9250Config
-    from .cosim import SimSetup
+    from .cosim import SimSetup, quick_core_setup
     config = MPU9250Config.for_odr(odr, wiring=wiring)
-    if fault == "host_garbage":     # the whole core: the UART needs a clock for its baud
-        return SimSetup(clk_freq=12e6, config=config, odr_scale=0.2)
+    if fault == "host_garbage":
+        # the whole core (its UART needs a clock for its baud): the core tests' quick set-up,
+        # whose compiled build they share
+        return quick_core_setup()
     return SimSetup(clk_freq=clk_freq, config=config,
                     odr_scale=0.05 if wiring == "spi" else 0.25, ak_clock_error=0.1,
                     self_test=bool(fault and FAULTS[fault].self_test) if self_test is None

@@ -13,7 +13,7 @@ from mpu9250_ahrs.hdl.top import result_fetch, sample_borrow
 from mpu9250_ahrs.hdl.uart_tx import UARTTransmitter
 from mpu9250_ahrs.reference.engine_model import attitude_fixed
 from mpu9250_ahrs.sim.attitude_bench import EngineRun, first_mismatch
-from mpu9250_ahrs.sim.cosim import SimSetup, sample_matches
+from mpu9250_ahrs.sim.cosim import QUICK_CORE_BAUD, SimSetup, quick_core_setup, sample_matches
 from mpu9250_ahrs.sim.cosim import run_core as cosim_run_core
 from mpu9250_ahrs.sim.streams import check_stream_rules, stream_put
 from mpu9250_ahrs.host.protocol import (FrameDecoder, FrameError, crc16, decode_frames,
@@ -184,11 +184,15 @@ def test_decoder_resynchronises_and_rejects_bad_crc():
         assert [f for piece in pieces for _, _, f in decoder.feed(piece)] == [frame, frame]
 
 
-def run_core(setup, n_frames, *, baud, max_cycles, vcd=None, writes=(), **core_kw):
+def run_core(setup, n_frames, *, baud, max_cycles, vcd=None, writes=(), compiled=None,
+             **core_kw):
     """Model -> core -> UART -> decoder until ``n_frames`` frames came (``sim.cosim.run_core``)
-    and no protocol violation; (core, model, frames, asa)."""
+    and no protocol violation; (core, model, frames, asa). ``compiled``: as ``run_core``'s,
+    but a waveform asked for (``vcd``) is always Amaranth's simulator's."""
+    path = vcd and vcd()
     run = cosim_run_core(setup, n_frames=n_frames, baud=baud, max_cycles=max_cycles,
-                         core_kwargs=core_kw, writes=writes, vcd=vcd and vcd())
+                         core_kwargs=core_kw, writes=writes, vcd=path,
+                         compiled=None if path else compiled)
     assert run.model.violations == []
     return run.core, run.model, run.frames, run.asa
 
@@ -212,8 +216,10 @@ def test_core_end_to_end_over_uart(vcd):
     attitude (quaternion, angles, bias, every flag) the fixed-point reference's for that sample,
     over every sample read, sent or not; the counters add up (the first two samples come closer
     than a frame lasts, so one result is not sent)."""
-    setup = SimSetup(clk_freq=12e6, odr_scale=0.4)      # a frame (3,680 cycles) per period
-    core, model, frames, asa = run_core(setup, 6, baud=3_000_000, max_cycles=120_000, vcd=vcd)
+    # the quick set-up's compiled build where it can run (checked against Amaranth's simulator
+    # by test_core_same_on_both_paths): 0.3 s rather than 12
+    core, model, frames, asa = run_core(quick_core_setup(), 6, baud=QUICK_CORE_BAUD,
+                                        max_cycles=120_000, vcd=vcd, compiled="prefer")
     assert core.telemetry_divider == 1
     n = frames[-1]["sample"]["counter"] + 1
     ref, reads = model_reference(core, model, n, asa, "flagship")
@@ -261,10 +267,10 @@ def test_telemetry_divider_is_a_run_time_register():
     """``TELEMETRY_DIV`` (0xFE) written through ``cfg``: every third result is framed from
     then on (the counters in consecutive frames step by 3)."""
     from mpu9250_ahrs.hdl.register_map import TELEMETRY_DIV_ADDR
-    from mpu9250_ahrs.hdl.mpu9250_driver import MPU9250Config
-    setup = SimSetup(clk_freq=12e6, config=MPU9250Config(magnetometer=False))
-    core, _, frames, _ = run_core(setup, 4, baud=3_000_000, max_cycles=120_000,
-                                  writes=[(TELEMETRY_DIV_ADDR, 3)])
+    # the quick set-up's compiled build where it can run (cosim.quick_core_setup)
+    core, _, frames, _ = run_core(quick_core_setup(), 4, baud=QUICK_CORE_BAUD,
+                                  max_cycles=160_000, writes=[(TELEMETRY_DIV_ADDR, 3)],
+                                  compiled="prefer")
     filtered = [f["counters"]["filtered"] for f in frames]
     assert [b - a for a, b in zip(filtered, filtered[1:])] == [3] * (len(frames) - 1)
     assert all(f["counters"]["not_sent"] == 0 for f in frames)

@@ -40,12 +40,11 @@ def test_build_leaves_them_out(tmp_path, flag, absent, present):
 
 def test_a_core_without_the_command_channel_still_streams_attitude():
     """The engine and the telemetry as in the default build: the same results, framed."""
-    from mpu9250_ahrs.hdl.mpu9250_driver import MPU9250Config
-    from mpu9250_ahrs.sim.cosim import SimSetup, run_core
-    config = MPU9250Config()
-    setup = SimSetup(clk_freq=12e6, config=config, odr_scale=SimSetup.default_odr_scale(config))
-    default = run_core(setup, n_frames=1)
-    bare = run_core(setup, n_frames=1, core_kwargs={"commands": False})
+    from mpu9250_ahrs.sim.cosim import QUICK_CORE_BAUD, quick_core_setup, run_core
+    setup = quick_core_setup()
+    # the default build: the quick set-up's compiled build where it can run
+    default = run_core(setup, n_frames=1, baud=QUICK_CORE_BAUD, compiled="prefer")
+    bare = run_core(setup, n_frames=1, baud=QUICK_CORE_BAUD, core_kwargs={"commands": False})
     n = min(len(default.results), len(bare.results))
     assert n >= 1 and bare.results[:n] == default.results[:n]
     assert len(bare.frames) >= 1 and bare.frames[0] == default.frames[0]

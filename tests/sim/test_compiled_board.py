@@ -6,16 +6,23 @@ import pytest
 
 from mpu9250_ahrs.hdl.mpu9250_driver import MPU9250Config
 from mpu9250_ahrs.sim.compiled_design import verilator_available
-from mpu9250_ahrs.sim.cosim import SimSetup, run_core, run_frontend
+from mpu9250_ahrs.sim.cosim import (QUICK_CORE_BAUD, SimSetup, quick_core_setup, run_core,
+                                    run_frontend)
 
 
 pytestmark = pytest.mark.skipif(not verilator_available(), reason="needs verilator and g++")
 
 
+# In the default run at a 12 MHz clock (a quarter of the cycles for the same bring-up and
+# samples: both paths together 5 to 6 s rather than 10 to 16), at the board's 48 MHz in the
+# slow step
+@pytest.mark.parametrize("clk_freq", [12e6, pytest.param(48e6, marks=pytest.mark.slow)],
+                         ids=["12MHz", "48MHz"])
 @pytest.mark.parametrize("wiring,samples", [("spi", 4), ("i2c", 2)])
-def test_front_end_same_on_both_paths(wiring, samples):
+def test_front_end_same_on_both_paths(wiring, samples, clk_freq):
     config = MPU9250Config(wiring=wiring)
-    setup = SimSetup(config=config, odr_scale=SimSetup.default_odr_scale(config))
+    setup = SimSetup(clk_freq=clk_freq, config=config,
+                     odr_scale=SimSetup.default_odr_scale(config))
     fast = run_frontend(setup, n_samples=samples, compiled=True)
     slow = run_frontend(setup, n_samples=samples, compiled=False)
     assert fast.compiled and not slow.compiled
@@ -29,7 +36,8 @@ def test_front_end_same_on_both_paths(wiring, samples):
 
 
 def test_slow_consumer_same_on_both_paths():
-    """A consumer ready one cycle in seven: the compiled path steps a cycle at a time."""
+    """A consumer ready one cycle in seven: the compiled path steps a cycle at a time. (At
+    48 MHz: its build is the one test_slow_consumer_gets_overrun_flags then takes.)"""
     setup = SimSetup(config=MPU9250Config(magnetometer=False), odr_scale=0.1)
     runs = [run_frontend(setup, n_samples=4, ready=lambda c: c % 7 == 0, compiled=compiled,
                          model=setup.model(magnetometer=False)) for compiled in (True, False)]
@@ -37,10 +45,18 @@ def test_slow_consumer_same_on_both_paths():
         assert getattr(runs[0], name) == getattr(runs[1], name), name
 
 
-def test_core_same_on_both_paths():
-    setup = SimSetup()
-    fast = run_core(setup, n_results=2, n_frames=1, compiled=True)
-    slow = run_core(setup, n_results=2, n_frames=1, compiled=False)
+# The whole core on both paths: in the default run on the quick set-up (``quick_core_setup``:
+# a 12 MHz clock, a quarter of the cycles: Amaranth's simulator's side takes 8 s rather than
+# 27 s), whose build the other core tests and the catalogue's host_garbage then take; at the
+# board's 48 MHz in the slow step
+@pytest.mark.parametrize("clock", ["12MHz", pytest.param("48MHz", marks=pytest.mark.slow)])
+def test_core_same_on_both_paths(clock):
+    if clock == "12MHz":
+        setup, baud = quick_core_setup(), {"baud": QUICK_CORE_BAUD}
+    else:
+        setup, baud = SimSetup(), {}
+    fast = run_core(setup, n_results=2, n_frames=1, compiled=True, **baud)
+    slow = run_core(setup, n_results=2, n_frames=1, compiled=False, **baud)
     assert fast.compiled and not slow.compiled
     for name in ("results", "result_cycles", "int_cycles", "frames", "counters", "status",
                  "samples",
