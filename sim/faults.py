@@ -503,13 +503,13 @@ def catalogue_setup(wiring, *, odr=200, clk_freq=4e6, fault=None, self_test=None
     I2C: × 0.25, whose 1.25 ms still fits its read), so that a fault runs in seconds; the
     AK8963's clock 10 % slow (``SimSetup.ak_clock_error``); the self-tests at bring-up only
     for the faults they are to find (``Fault.self_test``), or as ``self_test`` says.
-    ``host_garbage`` runs the whole core: on ``cosim.quick_core_setup``."""
+    ``host_garbage`` runs the whole core, on ``cosim.quick_core_setup`` (1 kHz, 12 MHz)
+    whatever ``odr`` and ``clk_freq`` say: the core tests' set-up, whose compiled build it
+    shares."""
     from ..hdl.mpu9250_driver import MPU9250Config
     from .cosim import SimSetup, quick_core_setup
     config = MPU9250Config.for_odr(odr, wiring=wiring)
     if fault == "host_garbage":
-        # the whole core (its UART needs a clock for its baud): the core tests' quick set-up,
-        # whose compiled build they share
         return quick_core_setup()
     return SimSetup(clk_freq=clk_freq, config=config,
                     odr_scale=0.05 if wiring == "spi" else 0.25, ak_clock_error=0.1,
