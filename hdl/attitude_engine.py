@@ -52,7 +52,7 @@ from .attitude_program import build_program
 from .host_port import HostPort
 from .multiply_accumulate import MultiplyAccumulate
 from .cordic import CORDIC, cordic_word
-from .divider import Divider
+from .divider import Divider, divider_word
 from .memories import MicrocodeROM, RegisterFile
 from .multiplier import Multiplier
 from .numeric_contract import (INV_GAIN_Q30, CalibrationFixed, FilterRates, FlagshipFixedConfig,
@@ -395,15 +395,16 @@ class AttitudeEngine(wiring.Component):
         w_from = {name: Signal(name=f"w_from_{name}")
                   for name in ("host", "divider", "mag_sin", "angle_cos", "load")}
         load_word = Signal(signed(32))          # the loader's (``_control``)
-        words = {"host": host.w_data, "divider": u.divider.quotient,
-                 "load": load_word}
-        # the CORDIC's two results, its registers chosen with the mode in the same AND-OR
-        # (``cordic_word``): it has no output multiplexer of its own
+        words = {"host": host.w_data, "load": load_word}
+        # the CORDIC's two results, its registers chosen with the mode, and the divider's
+        # quotient, its register or a limit, in the same AND-OR (``cordic_word``,
+        # ``divider_word``): neither has an output multiplexer of its own
         m.d.comb += [w_addr.eq(mac.wb_addr),
                      w_other.eq(reduce(operator.or_, (
                          Mux(w_from[name], word, 0) for name, word in words.items()),
                          Mux(Cat(*w_from.values()).any(), 0, mac.wb_data)) |
-                         cordic_word(u.cordic, w_from["mag_sin"], w_from["angle_cos"]))]
+                         cordic_word(u.cordic, w_from["mag_sin"], w_from["angle_cos"]) |
+                         divider_word(u.divider, w_from["divider"]))]
         with m.If(host.w_en):
             m.d.comb += [w_en.eq(1), w_addr.eq(host.w_addr), w_from["host"].eq(1)]
         # the result is snooped from the register writes (no copy at the end of an update)

@@ -5,9 +5,24 @@ from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
 
-__all__ = ["Divider"]
+__all__ = ["Divider", "divider_word"]
 
 BITS_PER_CYCLE = 1
+
+
+def divider_word(divider, select):
+    """The quotient of ``divider`` (a Value, signed ``width``) with ``select``, else 0: its
+    register (``word``), unless the quotient saturates (2^(w−1) − 1, or −2^(w−1) for a negative
+    numerator) or the denominator is ≤ 0 (0). Each an AND with its own select, OR-ed: a user
+    choosing among other words as well (the engine's write data) folds this choice into its
+    own, and the divider has no output multiplexer (as ``cordic_word``)."""
+    select = Value.cast(select)
+    w = len(divider.word)
+    fits = select & ~divider.den_bad & ~divider.overflow
+    limit = select & divider.overflow                   # ``overflow`` is 0 with ``den_bad``
+    return (Mux(fits, divider.word, 0) |
+            Mux(limit & ~divider.negative, C((1 << (w - 1)) - 1, w), 0) |
+            Mux(limit & divider.negative, C(1 << (w - 1), w), 0))[:w].as_signed()
 
 
 class Divider(wiring.Component):
@@ -27,7 +42,8 @@ class Divider(wiring.Component):
     partial remainder at the numerator's top bits (``|num| >> 8``); if that is already ≥ den the
     first quotient bit (2³¹) is set by the first step anyway, and a set bit 31 means "saturate"
     either way. One register holds the dividend's low bits, shifted out at the top, and the
-    quotient, shifted in at the bottom.
+    quotient, shifted in at the bottom (each bit inverted for a negative numerator as it goes
+    in, so that the register ends with the quotient itself, unless it saturates).
 
     Parameters
         ``width`` (32), ``frac`` (24): q = ⌊num·2^frac / den⌋ on ``width``-bit operands. The
@@ -37,7 +53,11 @@ class Divider(wiring.Component):
     Interface
         ``start`` (in): pulse with ``num``, ``den`` (signed 32) valid; ignored until the cycle after
             ``done``.
-        ``done`` (out): one-cycle pulse; ``quotient`` and ``saturated`` hold until the next start.
+        ``done`` (out): one-cycle pulse; the results hold until the next start.
+        ``word`` (out, ``width``), ``negative``, ``overflow``, ``den_bad`` (out): the results:
+            the quotient register, the numerator's sign, a quotient beyond ``width`` bits (it
+            saturates), a denominator ≤ 0 (the quotient is 0); ``divider_word`` forms the
+            quotient from them. ``saturated`` (out): ``overflow`` or ``den_bad``.
         ``busy`` (out): a division is running (from the cycle after ``start`` to the one before
             ``done``): the results are valid whenever it is low and a division was started
             since reset (the engine's background DIV waits for it to fall).
@@ -51,8 +71,8 @@ class Divider(wiring.Component):
         self.width, self.frac = width, frac
         super().__init__({
             "start": In(1), "num": In(signed(width)), "den": In(signed(width)),
-            "done": Out(1), "busy": Out(1), "quotient": Out(signed(width)),
-            "saturated": Out(1),
+            "done": Out(1), "busy": Out(1), "word": Out(width), "negative": Out(1),
+            "overflow": Out(1), "den_bad": Out(1), "saturated": Out(1),
         })
 
     def elaborate(self, platform):
@@ -74,14 +94,16 @@ class Divider(wiring.Component):
             d = Cat(den, C(0, 2)).as_signed()
             m.d.comb += nxt.eq(trial + Mux(r[w - 1], d, ~d) + ~r[w - 1])
             r = nxt[:w]
-            q = Cat(~nxt[w], q[:w - 1])
+            # each quotient bit goes in inverted for a negative numerator (⌊N/d⌋ = ~⌊~N/d⌋):
+            # the quotient is whole in the register at the end, no inversion of 32 bits after
+            q = Cat(~nxt[w] ^ negative, q[:w - 1])
 
         num = self.num
         inverted = (num ^ num[w - 1].replicate(w))[:w - 1]   # num ≥ 0: num; else ~num ≥ 0
-        overflow = shreg[w - 1]                              # quotient ≥ 2^(w−1)
-        magnitude = Mux(overflow, C((1 << (w - 1)) - 1, w), shreg)
+        overflow = shreg[w - 1] ^ negative                   # ⌊~N/d⌋ or ⌊N/d⌋ ≥ 2^(w−1)
         m.d.comb += [
-            self.quotient.eq(Mux(den_bad, 0, magnitude ^ negative.replicate(w))),
+            self.word.eq(shreg), self.negative.eq(negative),
+            self.overflow.eq(overflow & ~den_bad), self.den_bad.eq(den_bad),
             self.saturated.eq(den_bad | overflow),
         ]
         with m.FSM():
