@@ -7,7 +7,7 @@ Every filter gets the same quantised inputs (MPU9250 ±2000 °/s, ±16 g; AK8963
 one parameter set for all trials. Prints a markdown table of total RMSE (BROAD's metric,
 degrees, over the movement samples) per trial and the mean. The fixed-point rows run the
 bit-exact integer model of the engine (slow in Python: about half a minute per trial each); the
-gateware rows run the engine's Verilog in Verilator (needs verilator and g++) and are checked
+gateware rows run the engine's Verilog in Verilator (needs verilator, g++ and make) and are checked
 bit for bit against the fixed rows.
 Needs the ``bench`` extra for the libraries (``pip install -e ".[bench]"``).
 """

@@ -10,9 +10,9 @@ design rebuilds by itself. ``run`` then replays samples and register writes exac
 ``attitude_bench.run_engine`` does in Amaranth's simulator (the same handshakes and cycle
 counts) and returns an ``EngineRun``.
 
-Cache folder: ``$MPU9250_AHRS_CACHE`` or ``~/.cache/mpu9250-ahrs``. Needs ``verilator`` and a
-C++ compiler (Debian: ``apt-get install verilator g++``); without them ``run`` raises
-``RuntimeError`` with that hint.
+Cache folder: ``$MPU9250_AHRS_CACHE`` or ``~/.cache/mpu9250-ahrs``. Needs ``verilator``, a
+C++ compiler and ``make`` (Debian: ``apt-get install verilator g++ make``); without them
+``run`` raises ``RuntimeError`` with that hint.
 
 Stimulus (little-endian int32): asa0..2, N, then per sample: the number of register writes W,
 W × (address, value), gyro xyz, accel xyz, mag xyz (AK8963 axes), counter, mag_valid, overrun.

@@ -389,6 +389,7 @@ def compiled_wanted(compiled, *, vcd=None, supported=True):
     True, False or None (still auto). A VCD on the compiled path needs a build of its own
     (Verilator's ``--trace``): auto leaves waveforms to Amaranth's simulator."""
     from .compiled_design import verilator_available
+    from .verilator import HINT
     if compiled == "prefer":
         return bool(supported and verilator_available())
     if compiled:
@@ -397,8 +398,7 @@ def compiled_wanted(compiled, *, vcd=None, supported=True):
                              "in Amaranth's simulator (simulate --simulator python, or "
                              "compiled=False)")
         if not verilator_available():
-            raise RuntimeError("the compiled co-simulation needs verilator, g++ and make: "
-                               "apt-get install verilator g++ make")
+            raise RuntimeError(f"the compiled co-simulation needs verilator, g++ and make; {HINT}")
         return True
     if compiled is None:
         # auto: the caller takes the compiled path if the build is cached or the run long

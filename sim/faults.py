@@ -508,9 +508,9 @@ def catalogue_setup(wiring, *, odr=200, clk_freq=4e6, fault=None, self_test=None
     shares."""
     from ..hdl.mpu9250_driver import MPU9250Config
     from .cosim import SimSetup, quick_core_setup
-    config = MPU9250Config.for_odr(odr, wiring=wiring)
     if fault == "host_garbage":
         return quick_core_setup()
+    config = MPU9250Config.for_odr(odr, wiring=wiring)
     return SimSetup(clk_freq=clk_freq, config=config,
                     odr_scale=0.05 if wiring == "spi" else 0.25, ak_clock_error=0.1,
                     self_test=bool(fault and FAULTS[fault].self_test) if self_test is None

@@ -4,6 +4,7 @@ trace as the models saw it), on both wirings and for the whole core."""
 
 import pytest
 
+from mpu9250_ahrs.hdl.defaults import DEFAULT_BAUD
 from mpu9250_ahrs.hdl.mpu9250_driver import MPU9250Config
 from mpu9250_ahrs.sim.compiled_design import verilator_available
 from mpu9250_ahrs.sim.cosim import (QUICK_CORE_BAUD, SimSetup, quick_core_setup, run_core,
@@ -51,12 +52,10 @@ def test_slow_consumer_same_on_both_paths():
 # board's 48 MHz in the slow step
 @pytest.mark.parametrize("clock", ["12MHz", pytest.param("48MHz", marks=pytest.mark.slow)])
 def test_core_same_on_both_paths(clock):
-    if clock == "12MHz":
-        setup, baud = quick_core_setup(), {"baud": QUICK_CORE_BAUD}
-    else:
-        setup, baud = SimSetup(), {}
-    fast = run_core(setup, n_results=2, n_frames=1, compiled=True, **baud)
-    slow = run_core(setup, n_results=2, n_frames=1, compiled=False, **baud)
+    setup, baud = ((quick_core_setup(), QUICK_CORE_BAUD) if clock == "12MHz"
+                   else (SimSetup(), DEFAULT_BAUD))
+    fast = run_core(setup, n_results=2, n_frames=1, compiled=True, baud=baud)
+    slow = run_core(setup, n_results=2, n_frames=1, compiled=False, baud=baud)
     assert fast.compiled and not slow.compiled
     for name in ("results", "result_cycles", "int_cycles", "frames", "counters", "status",
                  "samples",
