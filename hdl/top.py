@@ -108,12 +108,15 @@ def version_word(**build):
     return (VERSION[0] << 24) | (VERSION[1] << 16) | CRC(data_width=8).compute(text)
 
 
-def telemetry_divider_for(config, baud, divider=None):
+def telemetry_divider_for(config, baud, divider=None, *, rate=None):
     """``divider`` checked (1..65535), or when None the smallest divider of the sample rate at
-    which attitude frames (10 bits a byte on the UART) fit the link: 1 sends every result."""
+    which attitude frames (10 bits a byte on the UART) fit the link: 1 sends every result.
+    ``rate``: the samples' rate (Hz) if not ``config``'s (a co-simulation's shortened sample
+    period)."""
     if divider is None:
         frame_s = 10 * frame_bytes(AttitudeFrame) / baud
-        divider = max(1, math.ceil(frame_s * config.output_data_rate - 1e-9))
+        rate = config.output_data_rate if rate is None else rate
+        divider = max(1, math.ceil(frame_s * rate - 1e-9))
     if not 1 <= divider < 1 << 16:
         raise ValueError(f"telemetry divider {divider} is not 1..65535")
     return divider

@@ -168,11 +168,12 @@ def frontend_design(harness, dut, *, spi, key, cached_only=False, trace=False):
                           key=key, cached_only=cached_only, trace=trace)
 
 
-def core_design(harness, core, *, key, cached_only=False, trace=False):
-    """The compiled ``AHRSCore`` in its harness (``frontend_design``'s rules)."""
+def core_design(harness, core, *, key, spi=True, cached_only=False, trace=False):
+    """The compiled ``AHRSCore`` in its harness (``frontend_design``'s rules); ``spi``: its
+    sensor pins are SPI's (else I2C lines)."""
     results = core.engine.results
     inputs, outputs = board_ports(
-        harness, spi=True,
+        harness, spi=spi,
         extra_inputs={"cfg_valid": core.cfg.valid, "cfg_payload": core.cfg.payload},
         extra_outputs={"r_valid": results.valid, "imu_int": core.imu_int,
                        "s_valid": core.engine.samples.valid,
@@ -223,14 +224,14 @@ def frontend_loop(design, models, observe, max_cycles, *, spi, ready=None):
 
 
 def core_loop(design, core, models, *, divisor, received, record, more_wanted, max_cycles,
-              writes=(), progress=None, offered=None):
+              writes=(), progress=None, offered=None, spi=True):
     """``run_core``'s testbench on the compiled path: every engine result passed to
     ``record(payload_bits, cycle, int_cycle)`` as it is first seen valid, with the cycle of
     the INT edge before it; every sample offered to the engine to ``offered(payload_bits)``
     (it holds until taken); the UART's bytes appended to ``received``; ``more_wanted()``
     asked at the testbench's wake-ups (a result, an INT edge). Returns the end cycle;
-    ``design``: ``core_design``'s."""
-    pins = _Models(design, models, True)
+    ``design``: ``core_design``'s (``spi`` as there)."""
+    pins = _Models(design, models, spi)
     uart = UARTReader(design, "uart_tx", divisor, received)
     cycle = 0
     layout = core.cfg.payload.shape()

@@ -263,6 +263,13 @@ class SimSetup:
     def sample_period_s(self):
         return self.odr_scale / self.config.output_data_rate
 
+    def telemetry_divider(self, baud):
+        """The telemetry divider a build would have if the sample period were this set-up's
+        (``telemetry_divider_for`` at ``1 / sample_period_s``): a build's default fits the
+        real period, and a shortened one would leave most results no time on the UART."""
+        from ..hdl.top import telemetry_divider_for
+        return telemetry_divider_for(self.config, baud, rate=1 / self.sample_period_s)
+
     def driver_timing(self):
         return DriverTiming(time_scale=self.delay_scale, mag_power_down_s=self.mag_power_down_s,
                             sample_period_s=self.sample_period_s,
@@ -422,6 +429,20 @@ def _auto_build(compiled, max_cycles, make):
         return None
 
 
+def primary_bus(setup, model, *, injector=None, bus_kw=None):
+    """I2C wiring: the ``I2CBusModel`` of the board's bus, ``model`` (an ``MPU9250Model``, or
+    None: nothing answers) at ``setup``'s address with what its bypass exposes; nobody while
+    ``injector`` (a fault) has the MPU9250 absent. ``bus_kw``: ``I2CBusModel``'s other
+    arguments (clock stretching, a stuck bus)."""
+    address = setup.config.i2c_address
+
+    def lookup(a):
+        if model is None or (injector is not None and injector.mpu_absent):
+            return None
+        return model.primary_bus_device(a, address)
+    return I2CBusModel(lookup, **(bus_kw or {}))
+
+
 def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cycles=None,
                  until=None, vcd=None, ready=None, bus_kw=None, injector=None, stop=None,
                  progress=None, compiled=None):
@@ -458,12 +479,7 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
     else:
         harness = CosimHarness(dut, i2c=dut.pins, int_pin=dut.int_pin,
                                early_sample=dut.early_sample)
-        address = setup.config.i2c_address
-        def lookup(a):
-            if model is None or (injector is not None and injector.mpu_absent):
-                return None
-            return model.primary_bus_device(a, address)
-        bus = I2CBusModel(lookup, **(bus_kw or {}))
+        bus = primary_bus(setup, model, injector=injector, bus_kw=bus_kw)
     if injector is not None:
         injector.mpu, injector.bus = model, bus
     harness.monitor(dut.samples, "samples")
@@ -615,8 +631,8 @@ def sample_read_cycles(result, setup):
 class CoreRun:
     """What ``run_core`` saw: every engine result (``Attitude`` dicts, in order), the cycle of
     each, the data-ready (INT) edge before each, the frames the UART carried (decoded), the
-    core's counters and driver status at the end, the model and the core, and every sample
-    offered to the engine (``Sample`` dicts, in order)."""
+    core's counters and driver status at the end, the model and the core, every sample
+    offered to the engine (``Sample`` dicts, in order) and, I2C wiring, the bus model."""
     results: List[dict]
     result_cycles: List[int]
     int_cycles: List[int]
@@ -630,6 +646,7 @@ class CoreRun:
     core: Optional[Elaboratable] = None
     compiled: bool = False                  # the compiled path ran
     samples: List[dict] = field(default_factory=list)   # the engine's inputs (``Sample``s)
+    bus: Optional[I2CBusModel] = None                       # I2C wiring
 
     def latencies_us(self, clk_freq):
         """Data-ready edge (INT at the pin) to the result leaving the engine, per result."""
@@ -644,7 +661,9 @@ def core_harness(setup, *, baud=DEFAULT_BAUD, core_kwargs=None):
     from .compiled_board import core_key
     core = AHRSCore(clk_freq=setup.clk_freq, config=setup.config, timing=setup.driver_timing(),
                     baud=baud, **(core_kwargs or {}))
-    harness = CosimHarness(core, spi=core.imu, int_pin=core.imu_int)
+    spi = setup.config.wiring == "spi"
+    harness = CosimHarness(core, spi=core.imu if spi else None, i2c=None if spi else core.imu,
+                           int_pin=core.imu_int)
     harness.monitor(core.engine.results, "results")
     harness.monitor(core.arbiter.o_stream, "frame bytes")
     key = core_key("core", clk_freq=setup.clk_freq, config=setup.config,
@@ -657,9 +676,10 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
              compiled=None, until=None):
     """The whole ``AHRSCore`` (driver, engine, telemetry) against the models until the engine
     has produced ``n_results`` results and the UART has carried ``n_frames`` frames (either
-    may be None). Each result is recorded as it leaves the engine (the telemetry scheduler
-    takes every one) with the cycle of the INT edge that announced its sample, so
-    ``CoreRun.latencies_us`` is the data-ready-to-attitude latency. ``writes``: (address,
+    may be None). The wiring follows ``setup.config.wiring`` (I2C: the models on an
+    ``I2CBusModel``, ``CoreRun.bus``). Each result is recorded as it leaves the engine (the
+    telemetry scheduler takes every one) with the cycle of the INT edge that announced its
+    sample, so ``CoreRun.latencies_us`` is the data-ready-to-attitude latency. ``writes``: (address,
     value) register writes through the ``cfg`` port at the start. ``progress``: a bar told
     of each result and the cycle reached (``run_frontend``). ``compiled``: as
     ``run_frontend``'s (``CoreRun.compiled`` says which path ran). ``until()``: asked at each
@@ -672,6 +692,7 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
     setup = setup or SimSetup()
     core, harness, key = core_harness(setup, baud=baud, core_kwargs=core_kwargs)
     model = model or setup.model(magnetometer=setup.config.magnetometer)
+    bus = None if setup.config.wiring == "spi" else primary_bus(setup, model)
     if max_cycles is None:
         period = setup.sample_period_s * setup.clk_freq
         frame_s = 10 * core.framer.frame_bytes / baud * core.telemetry_divider
@@ -681,16 +702,17 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
     compiled = compiled_wanted(compiled, vcd=vcd)
     from .compiled_board import core_design
     design = _auto_build(compiled, max_cycles, lambda cached_only: core_design(
-        harness, core, cached_only=cached_only, trace=bool(vcd), key=key))
+        harness, core, spi=bus is None, cached_only=cached_only, trace=bool(vcd), key=key))
     compiled = design is not None
     if compiled and vcd:
         from .compiled_board import TRACES
-        design.trace_to(vcd, setup.clk_freq, gtkw_beside(vcd), TRACES["spi"] + TRACES["core"])
+        design.trace_to(vcd, setup.clk_freq, gtkw_beside(vcd),
+                        TRACES["spi" if bus is None else "i2c"] + TRACES["core"])
     received = bytearray()
     if not compiled:
         sim = Simulator(harness)
         sim.add_clock(1 / setup.clk_freq)
-        attach_mpu9250(sim, model, harness, setup.clk_freq)
+        attach_models(sim, harness, setup.clk_freq, mpu=model, bus=bus)
         attach_uart_receiver(sim, core.uart_tx, core.uart.divisor, received)
     out = {"results": [], "cycles": [], "ints": [], "frames": [], "end": None, "samples": []}
     results = core.engine.results
@@ -761,8 +783,10 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
             out["results"].append(unpack(results.payload.shape(), bits))
             out["cycles"].append(cycle)
             out["ints"].append(int_cycle)
-        end = core_loop(design, core, PinModels(setup.clk_freq, mpu=model, spi=True),
-                        divisor=core.uart.divisor, received=received, record=record,
+        end = core_loop(design, core, PinModels(setup.clk_freq, mpu=model, bus=bus,
+                                                spi=bus is None),
+                        spi=bus is None, divisor=core.uart.divisor, received=received,
+                        record=record,
                         more_wanted=more_wanted, max_cycles=max_cycles, writes=writes,
                         progress=progress, offered=lambda bits: out["samples"].append(
                             unpack(offered.payload.shape(), bits)))
@@ -773,16 +797,17 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
         if vcd:
             design.close()                  # the VCD complete
     elif vcd:
+        pins = ([core.imu.cs_n, core.imu.sclk, core.imu.cipo] if bus is None else
+                [harness.scl, harness.sda])
         with sim.write_vcd(str(vcd), gtkw_beside(vcd),
-                           traces=[core.imu.cs_n, core.imu.sclk, core.imu.cipo, core.imu_int,
-                                   results.valid, core.uart_tx]):
+                           traces=[*pins, core.imu_int, results.valid, core.uart_tx]):
             sim.run()
     else:
         sim.run()
     if vcd:
-        open_on_first_transaction(vcd, model, None)
+        open_on_first_transaction(vcd, model, bus)
     wall = time.perf_counter() - start
     more_wanted()                       # the bytes that came after the last look
     cycles, counters, status, asa = out["end"]
     return CoreRun(out["results"], out["cycles"], out["ints"], out["frames"], counters, status,
-                   cycles, wall, model, asa, core, compiled, out["samples"])
+                   cycles, wall, model, asa, core, compiled, out["samples"], bus)

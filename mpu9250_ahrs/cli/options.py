@@ -130,7 +130,8 @@ def _add_sensor_options(p):
                         "EULER_RATES) instead of the published body rates")
     p.add_argument("--telemetry-divider", type=_count, default=None, metavar="N",
                    help="frame every N-th result (default: the smallest N the baud rate "
-                        "carries); every sample is filtered either way")
+                        "carries; simulate: at its shortened sample period); every sample is "
+                        "filtered either way")
     p.add_argument("--int-pulse", action="store_true",
                    help="50 µs INT pulses instead of a latched INT")
     p.add_argument("--wiring", choices=("spi", "i2c"), default="spi",

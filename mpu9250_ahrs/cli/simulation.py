@@ -100,7 +100,7 @@ def cmd_simulate(args):
         return 0
     config = _config(args)
     clk_freq = _clock(args)
-    budget = check_rates(config, clk_freq, args)
+    check_rates(config, clk_freq, args)
     odr_scale = args.odr_scale if args.odr_scale is not None else \
         SimSetup.default_odr_scale(config)
     # the self-tests as built (the fault tests choose their own: ``catalogue_setup``)
@@ -115,9 +115,14 @@ def cmd_simulate(args):
                "odr_hz": config.output_data_rate, "dlpf_cfg": config.dlpf_cfg,
                "smplrt_div": config.smplrt_div}
     if args.attitude:
+        # without --telemetry-divider, the divider the frames fit at the simulated (shortened)
+        # sample period, as the build's fits the real one
+        core_options = {"filter": args.filter,
+                        "telemetry_divider": setup.telemetry_divider(args.baud),
+                        **_core_options(args)}
         with progress.bar(args.samples, "simulate (whole core)", "result") as shown:
             run = run_core(setup, n_results=args.samples, model=model, baud=args.baud,
-                           core_kwargs={"filter": args.filter, **_core_options(args)},
+                           core_kwargs=core_options,
                            vcd=args.vcd, progress=shown, compiled=compiled)
         for r in run.results:
             print(json.dumps(attitude_json(r, args.filter)))
@@ -128,7 +133,7 @@ def cmd_simulate(args):
             "saturated_results": sum(r["flags"]["saturated"] for r in run.results),
             "results_not_sent": run.counters["not_sent"],
             "frames_received": len(run.frames),
-            "telemetry_divider": budget["telemetry_divider"],
+            "telemetry_divider": core_options["telemetry_divider"],
             "latency_us": {"drdy_to_attitude": round(max(latency), 2) if latency else None},
             "cycles": run.cycles, "wall_s": round(run.wall_s, 3),
             "cycles_per_s": round(run.cycles / run.wall_s) if run.wall_s else None,

@@ -46,22 +46,34 @@ def test_slow_consumer_same_on_both_paths():
         assert getattr(runs[0], name) == getattr(runs[1], name), name
 
 
+def _i2c_core_setup():
+    config = MPU9250Config(wiring="i2c")
+    return SimSetup(clk_freq=12e6, config=config, odr_scale=SimSetup.default_odr_scale(config))
+
+
 # The whole core on both paths: in the default run on the quick set-up (``quick_core_setup``:
 # a 12 MHz clock, a quarter of the cycles: Amaranth's simulator's side takes 8 s rather than
 # 27 s), whose build the other core tests and the catalogue's host_garbage then take; at the
-# board's 48 MHz in the slow step
-@pytest.mark.parametrize("clock", ["12MHz", pytest.param("48MHz", marks=pytest.mark.slow)])
+# board's 48 MHz, and with the I2C wiring at 12 MHz (a build of its own, 14 s), in the slow
+# step
+@pytest.mark.parametrize("clock", ["12MHz", pytest.param("48MHz", marks=pytest.mark.slow),
+                                   pytest.param("i2c-12MHz", marks=pytest.mark.slow)])
 def test_core_same_on_both_paths(clock):
-    setup, baud = ((quick_core_setup(), QUICK_CORE_BAUD) if clock == "12MHz"
-                   else (SimSetup(), DEFAULT_BAUD))
+    setup, baud = {"12MHz": lambda: (quick_core_setup(), QUICK_CORE_BAUD),
+                   "48MHz": lambda: (SimSetup(), DEFAULT_BAUD),
+                   "i2c-12MHz": lambda: (_i2c_core_setup(), QUICK_CORE_BAUD)}[clock]()
     fast = run_core(setup, n_results=2, n_frames=1, compiled=True, baud=baud)
     slow = run_core(setup, n_results=2, n_frames=1, compiled=False, baud=baud)
     assert fast.compiled and not slow.compiled
+    assert len(fast.results) >= 2 and len(fast.frames) >= 1
     for name in ("results", "result_cycles", "int_cycles", "frames", "counters", "status",
                  "samples",
                  "asa", "cycles"):
         assert getattr(fast, name) == getattr(slow, name), name
     assert fast.model.transactions == slow.model.transactions
+    if setup.config.wiring == "i2c":
+        assert fast.bus.log and fast.bus.log == slow.bus.log
+        assert fast.bus.frames == slow.bus.frames
 
 
 def test_compiled_refuses_what_it_cannot_run():
