@@ -300,10 +300,14 @@ def drdy_to_attitude_us(clk_freq, config, results=21):
     None; ``without_mag_correction``: the most over the others; ``drdy_to_attitude``: the
     worst of all. Real bus and engine timing; only the waits of bring-up and the sample
     period are compressed, which the latency does not depend on."""
+    from .hdl.defaults import DEFAULT_BAUD
     from .sim.cosim import SimSetup, run_core
     setup = SimSetup(clk_freq=clk_freq, config=config,
                      odr_scale=SimSetup.default_odr_scale(config))
-    run = run_core(setup, n_results=results + 1, compiled=None)   # compiled when it can be
+    # the telemetry divider for the shortened sample period, as ``simulate`` has it: the same
+    # core, so one compiled build serves both
+    run = run_core(setup, n_results=results + 1, compiled=None,   # compiled when it can be
+                   core_kwargs={"telemetry_divider": setup.telemetry_divider(DEFAULT_BAUD)})
     pairs = list(zip(run.latencies_us(clk_freq), run.results))[1:]
 
     def most(mag):
