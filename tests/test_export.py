@@ -157,6 +157,27 @@ def test_simulate_i2c_wiring(capsys):
                                     else "python (Amaranth)")
 
 
+class _Stop(Exception):
+    pass
+
+
+@pytest.mark.parametrize("option,left_out", [("--no-pwm", {"pwm": False}),
+                                             ("--no-commands", {"commands": False})])
+def test_simulate_leaves_out_what_build_does(option, left_out, monkeypatch):
+    """``simulate --attitude`` takes ``build``'s --no-pwm and --no-commands: the core it
+    simulates is the one built (such cores run in tests/hdl/test_top_options.py)."""
+    from mpu9250_ahrs.sim import cosim
+    seen = {}
+
+    def run_core(setup, **kwargs):
+        seen.update(kwargs["core_kwargs"])
+        raise _Stop
+    monkeypatch.setattr(cosim, "run_core", run_core)
+    with pytest.raises(_Stop):
+        main(["simulate", "--samples", "1", "--attitude", "--no-self-test", option])
+    assert {k: seen.get(k) for k in left_out} == left_out
+
+
 def test_help_lists_verbs(capsys):
     with pytest.raises(SystemExit):
         main(["--help"])

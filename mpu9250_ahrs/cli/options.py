@@ -146,14 +146,15 @@ def _add_sensor_options(p):
                         "0.3 s; the board register SELF_TEST then stays 0)")
 
 
-def _add_left_out_options(p):
-    """What a user who needs the room can leave out of a build (``build``, ``report``)."""
+def _add_left_out_options(p, *, which=""):
+    """What a user who needs the room can leave out of a build (``build``, ``report``, and
+    ``simulate``'s whole core: ``which`` says so in the help)."""
     p.add_argument("--no-pwm", action="store_true",
-                   help="leave the four PWM outputs out (the command channel then answers "
-                        "bad_address for the PWM registers)")
+                   help=f"leave the four PWM outputs out{which} (the command channel then "
+                        f"answers bad_address for the PWM registers)")
     p.add_argument("--no-commands", action="store_true",
-                   help="leave the command channel (UART receiver, decoder, replies) out, and "
-                        "with it the PWM outputs: telemetry only, the filters as built")
+                   help=f"leave the command channel (UART receiver, decoder, replies) out{which}, "
+                        f"and with it the PWM outputs: telemetry only, the filters as built")
 
 
 def _clock(args):

@@ -7,8 +7,8 @@ import sys
 import time
 
 from ..hdl.filter_registry import FILTER_NAMES, FLOAT_FILTERS
-from .options import (_add_full_scale_options, _add_sensor_options, _clock, _config, _count,
-                      _core_options, _number, _positive, check_rates)
+from .options import (_add_full_scale_options, _add_left_out_options, _add_sensor_options,
+                      _clock, _config, _count, _core_options, _number, _positive, check_rates)
 
 
 __all__ = ["add_simulate", "add_replay", "cmd_simulate", "cmd_replay", "attitude_json",
@@ -52,6 +52,7 @@ def add_simulate(sub, quiet):
                         "every signal), python: Amaranth's simulator, auto (default): compiled "
                         "when it can be; the summary's 'simulator' says which ran")
     _add_sensor_options(p)
+    _add_left_out_options(p, which=" of the core --attitude simulates")
     p.set_defaults(func=cmd_simulate)
 
 
