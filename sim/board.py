@@ -270,7 +270,7 @@ class SimulatedBoard:
         from .compiled_design import NEVER
         from .cosim import PinModels
         core, master = self.core, self._master
-        inputs, outputs = board_ports(harness, spi=True,
+        inputs, outputs = board_ports(harness,
                                       extra_inputs={"uart_rx": core.uart_rx},
                                       extra_outputs={"uart_tx": core.uart_tx})
         design = CompiledDesign(harness, inputs, outputs, name="board", key=self._key)
@@ -279,7 +279,7 @@ class SimulatedBoard:
 
         def run():
             sent = []
-            pins = _Models(design, PinModels(self.setup.clk_freq, mpu=self.model), True)
+            pins = _Models(design, PinModels(self.setup.clk_freq, mpu=self.model))
             uart = UARTReader(design, "uart_tx", divisor, sent)
             mask = design.mask("pin_a", "pin_b", "uart_tx")
             design.set("uart_rx", 1)

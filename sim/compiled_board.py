@@ -23,14 +23,14 @@ from .compiled_design import NEVER, CompiledDesign, verilator_available
 __all__ = ["frontend_loop", "core_loop", "board_ports", "verilator_available"]
 
 
-def board_ports(harness, *, spi, extra_inputs=None, extra_outputs=None):
+def board_ports(harness, *, extra_inputs=None, extra_outputs=None):
     """The ports of a ``CosimHarness`` for the compiled path: the models' levels and
-    ``extra_inputs`` in; the watched pins first (so they can be watched), then
-    ``extra_outputs`` and the stream monitors' flags out."""
+    ``extra_inputs`` in; the watched pins first (its SPI pins, or else its I2C lines, so
+    they can be watched), then ``extra_outputs`` and the stream monitors' flags out."""
     inputs = {"cipo_model": harness.cipo_model, "int_model": harness.int_model,
               "scl_model_low": harness.scl_model_low, "sda_model_low": harness.sda_model_low}
     inputs.update(extra_inputs or {})
-    if spi:
+    if harness.spi is not None:
         outputs = {"pin_a": harness.spi.cs_n, "pin_b": harness.spi.sclk,
                    "copi": harness.spi.copi}
     else:
@@ -76,8 +76,8 @@ def check_monitors(design, harness):
 class _Models:
     """``PinModels`` on a compiled design: call ``poll(cycle)`` at every return of ``run``."""
 
-    def __init__(self, design, models, spi):
-        self.design, self.models, self.spi = design, models, spi
+    def __init__(self, design, models):
+        self.design, self.models, self.spi = design, models, models.spi
         self.pins = None
         self.wake = 0
         self._apply(models.initial())
@@ -155,25 +155,25 @@ TRACES = {
 }
 
 
-def frontend_design(harness, dut, *, spi, key, cached_only=False, trace=False):
+def frontend_design(harness, dut, *, key, cached_only=False, trace=False):
     """The compiled ``SensorFrontEnd`` in its harness (``CompiledDesign``; ``NotBuilt`` with
     ``cached_only`` when the cache does not have it; ``trace``: a build that writes VCDs)."""
     inputs, outputs = board_ports(
-        harness, spi=spi, extra_inputs={"samples_ready": dut.samples.ready},
+        harness, extra_inputs={"samples_ready": dut.samples.ready},
         extra_outputs={"samples_valid": dut.samples.valid, "status": dut.status,
                        "samples_payload": dut.samples.payload, "asa": dut.asa,
                        "rate_errors": harness.rate_errors, "who_am_i": dut.who_am_i,
                        "self_test": dut.self_test})
-    return CompiledDesign(harness, inputs, outputs, name="frontend-" + ("spi" if spi else "i2c"),
+    wiring = "spi" if harness.spi is not None else "i2c"
+    return CompiledDesign(harness, inputs, outputs, name="frontend-" + wiring,
                           key=key, cached_only=cached_only, trace=trace)
 
 
-def core_design(harness, core, *, key, spi=True, cached_only=False, trace=False):
-    """The compiled ``AHRSCore`` in its harness (``frontend_design``'s rules); ``spi``: its
-    sensor pins are SPI's (else I2C lines)."""
+def core_design(harness, core, *, key, cached_only=False, trace=False):
+    """The compiled ``AHRSCore`` in its harness (``frontend_design``'s rules)."""
     results = core.engine.results
     inputs, outputs = board_ports(
-        harness, spi=spi,
+        harness,
         extra_inputs={"cfg_valid": core.cfg.valid, "cfg_payload": core.cfg.payload},
         extra_outputs={"r_valid": results.valid, "imu_int": core.imu_int,
                        "s_valid": core.engine.samples.valid,
@@ -185,13 +185,13 @@ def core_design(harness, core, *, key, spi=True, cached_only=False, trace=False)
                           cached_only=cached_only, trace=trace)
 
 
-def frontend_loop(design, models, observe, max_cycles, *, spi, ready=None):
+def frontend_loop(design, models, observe, max_cycles, *, ready=None):
     """``run_frontend``'s testbench on the compiled path (``design``: ``frontend_design``'s):
     ``observe(cycle, taken, payload_bits, status_bits)`` at every change of the sample
     stream's valid or of the status (it raises to end the run). ``ready(cycle)``: the
     consumer's ready per cycle (a slow consumer: the loop then steps a cycle at a time, and
     observes each transfer); None: always ready."""
-    pins = _Models(design, models, spi)
+    pins = _Models(design, models)
     if ready is not None:
         last = None
         cycle = 0
@@ -224,14 +224,14 @@ def frontend_loop(design, models, observe, max_cycles, *, spi, ready=None):
 
 
 def core_loop(design, core, models, *, divisor, received, record, more_wanted, max_cycles,
-              writes=(), progress=None, offered=None, spi=True):
+              writes=(), progress=None, offered=None):
     """``run_core``'s testbench on the compiled path: every engine result passed to
     ``record(payload_bits, cycle, int_cycle)`` as it is first seen valid, with the cycle of
     the INT edge before it; every sample offered to the engine to ``offered(payload_bits)``
     (it holds until taken); the UART's bytes appended to ``received``; ``more_wanted()``
     asked at the testbench's wake-ups (a result, an INT edge). Returns the end cycle;
-    ``design``: ``core_design``'s (``spi`` as there)."""
-    pins = _Models(design, models, spi)
+    ``design``: ``core_design``'s."""
+    pins = _Models(design, models)
     uart = UARTReader(design, "uart_tx", divisor, received)
     cycle = 0
     layout = core.cfg.payload.shape()

@@ -485,7 +485,7 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
     harness.monitor(dut.samples, "samples")
     from .compiled_board import frontend_design
     design = _auto_build(compiled, max_cycles, lambda cached_only: frontend_design(
-        harness, dut, spi=bus is None, cached_only=cached_only, trace=bool(vcd),
+        harness, dut, cached_only=cached_only, trace=bool(vcd),
         key=("frontend", setup.clk_freq, setup.config, setup.driver_timing())))
     compiled = design is not None
     if compiled and vcd:
@@ -574,7 +574,7 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
             frontend_loop(design, models,
                           lambda c, v, p, st: observe(c, v, data.Const(payload_layout, p),
                                                       data.Const(status_layout, st)),
-                          max_cycles, spi=bus is None, ready=ready)
+                          max_cycles, ready=ready)
         except Done:
             from ..host.protocol import unpack
             out["asa"] = unpack(dut.asa.shape(), design.get("asa"))
@@ -679,8 +679,8 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
     may be None). The wiring follows ``setup.config.wiring`` (I2C: the models on an
     ``I2CBusModel``, ``CoreRun.bus``). Each result is recorded as it leaves the engine (the
     telemetry scheduler takes every one) with the cycle of the INT edge that announced its
-    sample, so ``CoreRun.latencies_us`` is the data-ready-to-attitude latency. ``writes``: (address,
-    value) register writes through the ``cfg`` port at the start. ``progress``: a bar told
+    sample, so ``CoreRun.latencies_us`` is the data-ready-to-attitude latency. ``writes``:
+    (address, value) register writes through the ``cfg`` port at the start. ``progress``: a bar told
     of each result and the cycle reached (``run_frontend``). ``compiled``: as
     ``run_frontend``'s (``CoreRun.compiled`` says which path ran). ``until()``: asked at each
     result and data-ready edge; True ends the run (instead of, or before, the counts)."""
@@ -702,7 +702,7 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
     compiled = compiled_wanted(compiled, vcd=vcd)
     from .compiled_board import core_design
     design = _auto_build(compiled, max_cycles, lambda cached_only: core_design(
-        harness, core, spi=bus is None, cached_only=cached_only, trace=bool(vcd), key=key))
+        harness, core, cached_only=cached_only, trace=bool(vcd), key=key))
     compiled = design is not None
     if compiled and vcd:
         from .compiled_board import TRACES
@@ -785,8 +785,7 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
             out["ints"].append(int_cycle)
         end = core_loop(design, core, PinModels(setup.clk_freq, mpu=model, bus=bus,
                                                 spi=bus is None),
-                        spi=bus is None, divisor=core.uart.divisor, received=received,
-                        record=record,
+                        divisor=core.uart.divisor, received=received, record=record,
                         more_wanted=more_wanted, max_cycles=max_cycles, writes=writes,
                         progress=progress, offered=lambda bits: out["samples"].append(
                             unpack(offered.payload.shape(), bits)))
