@@ -303,7 +303,7 @@ def drdy_to_attitude_us(clk_freq, config, results=21):
     from .hdl.defaults import DEFAULT_BAUD
     from .sim.cosim import SimSetup, run_core
     setup = SimSetup(clk_freq=clk_freq, config=config,
-                     odr_scale=SimSetup.default_odr_scale(config))
+                     odr_scale=SimSetup.default_odr_scale(config, clk_freq))
     # the telemetry divider for the shortened sample period, as ``simulate`` has it: the same
     # core, so one compiled build serves both
     run = run_core(setup, n_results=results + 1, compiled=None,   # compiled when it can be

@@ -253,11 +253,19 @@ class SimSetup:
             self.config = replace(self.config, self_test_samples=self.self_test_samples)
 
     @staticmethod
-    def default_odr_scale(config):
-        """The sample-period scale ``simulate`` and ``report`` use for ``config``: 0.2 with SPI
-        up to 1 kHz; 1 (real time) with I2C, whose 400 kHz bus needs ~0.66 ms per nine-axis
-        read, and at rates above 1 kHz, whose periods are short already."""
-        return 0.2 if config.wiring == "spi" and config.output_data_rate <= 1000 else 1.0
+    def default_odr_scale(config, clk_freq=SYSTEM_CLOCK_HZ):
+        """The sample-period scale ``simulate`` and ``report`` use for ``config`` at
+        ``clk_freq``: 0.2 where the shortened period still gives the design twice the cycles
+        a sample needs (``rate_budget``: its read, or the engine's update), else 1 (real
+        time). So 0.2 with SPI up to 1 kHz at the board's clock; 1 with I2C at 1 kHz (its
+        400 kHz bus takes ~0.7 ms per nine-axis read), at 8 kHz (its period is short
+        already), and at a clock too slow for the shortened period (a period shorter than
+        the read would lose samples the design keeps at the real rate)."""
+        from ..hdl.top import rate_budget
+        scale = 0.2
+        period_cycles = scale * clk_freq / config.output_data_rate
+        fits = period_cycles >= 2 * rate_budget(config, clk_freq)["cycles_per_sample"]
+        return scale if fits else 1.0
 
     @property
     def sample_period_s(self):

@@ -161,6 +161,34 @@ class _Stop(Exception):
     pass
 
 
+@pytest.mark.parametrize("wiring,clk_freq,smplrt_div,scale", [
+    ("spi", 48e6, 0, 0.2), ("spi", 12e6, 0, 0.2), ("i2c", 48e6, 0, 1.0), ("i2c", 48e6, 9, 0.2),
+    ("spi", 1e6, 0, 1.0), ("spi", 1e6, 9, 0.2)])
+def test_simulated_period_is_shortened_only_where_the_design_keeps_up(
+        wiring, clk_freq, smplrt_div, scale, monkeypatch):
+    """``simulate`` shortens the sample period (0.2) only where the shortened period still
+    holds twice the cycles a sample needs; else it runs in real time: at 1 MHz a sample's
+    read (772 us) is longer than a fifth of 1 ms, and the shortened period lost 9 samples in
+    14 that the design reads at the real rate."""
+    from mpu9250_ahrs.hdl.mpu9250_driver import MPU9250Config
+    from mpu9250_ahrs.hdl.top import rate_budget
+    from mpu9250_ahrs.sim import cosim
+    config = MPU9250Config(wiring=wiring, smplrt_div=smplrt_div)
+    assert cosim.SimSetup.default_odr_scale(config, clk_freq) == scale
+    period = 0.2 * clk_freq / config.output_data_rate
+    assert (period >= 2 * rate_budget(config, clk_freq)["cycles_per_sample"]) == (scale == 0.2)
+    seen = {}
+
+    def run_frontend(setup, **kwargs):
+        seen["scale"] = setup.odr_scale
+        raise _Stop
+    monkeypatch.setattr(cosim, "run_frontend", run_frontend)
+    with pytest.raises(_Stop):
+        main(["simulate", "--samples", "1", "--clk-freq", str(clk_freq), "--wiring", wiring,
+              "--smplrt-div", str(smplrt_div), "--baud", "9600"])
+    assert seen["scale"] == scale
+
+
 @pytest.mark.parametrize("option,left_out", [("--no-pwm", {"pwm": False}),
                                              ("--no-commands", {"commands": False})])
 def test_simulate_leaves_out_what_build_does(option, left_out, monkeypatch):

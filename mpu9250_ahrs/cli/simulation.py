@@ -29,7 +29,8 @@ def add_simulate(sub, quiet):
     p.add_argument("--delay-scale", type=_positive, default=1e-3,
                    help="scale of start-up and reset delays (default 1e-3)")
     p.add_argument("--odr-scale", type=_positive, default=None,
-                   help="scale of the sample period (default 0.2 with SPI up to 1 kHz, else 1)")
+                   help="scale of the sample period (default 0.2 where the shortened period holds "
+                        "twice a sample's cycles, as with SPI up to 1 kHz at 48 MHz; else 1)")
     p.add_argument("--quiet-summary", action="store_true", help="summary to stderr")
     p.add_argument("--pose", default=None, metavar="ROLL,PITCH,YAW",
                    help="the models read a board held still at this attitude (degrees, with "
@@ -103,7 +104,7 @@ def cmd_simulate(args):
     clk_freq = _clock(args)
     check_rates(config, clk_freq, args)
     odr_scale = args.odr_scale if args.odr_scale is not None else \
-        SimSetup.default_odr_scale(config)
+        SimSetup.default_odr_scale(config, clk_freq)
     # the self-tests as built (the fault tests choose their own: ``catalogue_setup``)
     setup = SimSetup(clk_freq=clk_freq, config=config, delay_scale=args.delay_scale,
                      odr_scale=odr_scale, self_test=config.self_test)

@@ -23,7 +23,7 @@ pytestmark = pytest.mark.skipif(not verilator_available(), reason="needs verilat
 def test_front_end_same_on_both_paths(wiring, samples, clk_freq):
     config = MPU9250Config(wiring=wiring)
     setup = SimSetup(clk_freq=clk_freq, config=config,
-                     odr_scale=SimSetup.default_odr_scale(config))
+                     odr_scale=SimSetup.default_odr_scale(config, clk_freq))
     fast = run_frontend(setup, n_samples=samples, compiled=True)
     slow = run_frontend(setup, n_samples=samples, compiled=False)
     assert fast.compiled and not slow.compiled
@@ -48,7 +48,8 @@ def test_slow_consumer_same_on_both_paths():
 
 def _i2c_core_setup():
     config = MPU9250Config(wiring="i2c")
-    return SimSetup(clk_freq=12e6, config=config, odr_scale=SimSetup.default_odr_scale(config))
+    return SimSetup(clk_freq=12e6, config=config,
+                    odr_scale=SimSetup.default_odr_scale(config, 12e6))
 
 
 # The whole core on both paths: in the default run on the quick set-up (``quick_core_setup``:
