@@ -1,11 +1,13 @@
 """The host verbs, for a board on a serial port or the simulated one: ``monitor``, ``config``,
 ``calibrate``, ``board`` (the simulated board kept running) and ``plot``."""
 
+import argparse
 import json
 import sys
 import time
 
 from ..hdl.defaults import DEFAULT_BAUD
+from ..hdl.filter_registry import FILTER_NAMES
 from .options import _add_full_scale_options, _count, _positive
 
 
@@ -44,8 +46,8 @@ def add_host_verbs(sub, quiet):
                                    "register's unit; the tool converts).")
     _add_port_options(p)
     p.add_argument("action", choices=("get", "set", "filter", "reset", "rate", "list"),
-                   help="get NAME, set NAME VALUE, filter NAME (kalman, complementary, "
-                        "flagship), reset (the filter's state), rate HZ (telemetry), list")
+                   help=f"get NAME, set NAME VALUE, filter NAME ({', '.join(FILTER_NAMES)}), "
+                        "reset (the filter's state), rate HZ (telemetry), list")
     p.add_argument("args", nargs="*", metavar="ARG", help="the action's arguments")
     p.set_defaults(func=cmd_config)
 
@@ -154,6 +156,13 @@ def cmd_config(args):
     if len(args.args) != expected:
         raise ValueError(f"config {args.action} takes {expected} argument(s), not "
                          f"{len(args.args)}")
+    rate = None
+    if args.action == "rate":
+        # checked before the board is opened (a simulated one is started for nothing else)
+        try:
+            rate = _positive(args.args[0])
+        except argparse.ArgumentTypeError as e:
+            raise ValueError(f"config rate: {e}") from None
     if args.action == "list":
         for reg in REGISTERS.values():
             print(f"{reg.name:16} {reg.space:6} 0x{reg.addr:02X} {reg.format:6} "
@@ -170,7 +179,7 @@ def cmd_config(args):
         elif args.action == "reset":
             result = c.reset_filter(link)
         else:
-            result = c.set_rate(link, _positive(args.args[0]))
+            result = c.set_rate(link, rate)
     print(json.dumps(result))
     return 0
 

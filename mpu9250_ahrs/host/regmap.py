@@ -107,7 +107,11 @@ def to_word(reg, value):
     out of the register's range (``value_range``) is refused with the range."""
     if isinstance(value, str):
         text = value.strip()
-        value = int(text, 0) if reg.format == "int" else float(text)
+        try:
+            value = int(text, 0) if reg.format == "int" else float(text)
+        except ValueError:
+            raise ValueError(f"{reg.name}: {text!r} is not "
+                             f"{'an integer' if reg.format == 'int' else 'a number'}") from None
     if not math.isfinite(value):
         raise ValueError(f"{reg.name}: {value} is not a finite number")
     if reg.format == "int":

@@ -17,6 +17,9 @@ from mpu9250_ahrs.host.regmap import REGISTERS, from_word, lookup, to_word, valu
     ("A_ACC", "1.5", "out of range 0 .. 1"),
     ("GYRO_OFF0", str(2 ** 31), "out of range"),
     ("GATE_DIP", "nan", "not a finite number"),
+    # (Python's "invalid literal for int() with base 0" before)
+    ("PWM_HIGH0", "abc", "PWM_HIGH0: 'abc' is not an integer"),
+    ("R", "1,5", "R: '1,5' is not a number"),
 ])
 def test_out_of_range_values_are_refused_with_the_range(name, value, message):
     with pytest.raises(ValueError, match=message.replace("(", r"\(").replace(".", r"\.")
