@@ -35,6 +35,8 @@ class RewindableFIFO(wiring.Component):
             (kept or waiting).
         ``r_stream`` (out, byte stream): the byte at ``read``, held while not taken.
         ``mark``, ``release``, ``rewind`` (in): above.
+        ``invariant()``: what holds between the pointers in every reachable state (a
+            ``Value``, for the formal checks).
     Latency: a byte written is offered the next cycle (the memory's read is registered, at
     the pointer the reader will have; a byte written there in the same cycle comes through a
     bypass register); a rewind's first byte likewise. The bytes are in a ``FrameRAM`` (one
@@ -45,19 +47,31 @@ class RewindableFIFO(wiring.Component):
             raise ValueError(f"depth {depth} is not a power of two")
         self.depth = depth
         self.ram = FrameRAM(depth, 8)
+        bits = depth.bit_length()               # one wrap bit above the address
+        # the pointers, made here so that ``invariant`` can name them
+        self._write = Signal(bits, name="write")
+        self._read = Signal(bits, name="read")
+        self._keep = Signal(bits, name="keep")
         super().__init__({
             "w_stream": In(stream.Signature(8)),
             "r_stream": Out(stream.Signature(8)),
             "mark": In(1), "release": In(1), "rewind": In(1),
         })
 
+    def invariant(self):
+        """What holds in every state a reset reaches (a ``Value``): ``read`` lies between
+        ``keep`` and ``write`` (as distances from ``keep``). The byte offered is then the one
+        at ``read`` exactly when ``read != write`` (``elaborate``). It holds whatever the
+        reader says, a rewind with nothing kept included. The formal checks assert it, so that
+        k-induction, which starts anywhere, starts only where it holds."""
+        bits = len(self._write)
+        return (self._read - self._keep)[:bits] <= (self._write - self._keep)[:bits]
+
     def elaborate(self, platform):
         m = Module()
         bits = self.depth.bit_length()           # one wrap bit above the address
         m.submodules.ram = ram = self.ram
-        write = Signal(bits)
-        read = Signal(bits)
-        keep = Signal(bits)
+        write, read, keep = self._write, self._read, self._keep
 
         stored = Signal(bits)
         m.d.comb += stored.eq(write - keep)
@@ -75,13 +89,11 @@ class RewindableFIFO(wiring.Component):
         m.d.comb += [self.r_stream.valid.eq(valid),
                      self.r_stream.payload.eq(Mux(bypass, bypass_data, ram.r_data))]
         take = self.r_stream.valid & self.r_stream.ready
-        # a byte at ``read`` is waiting when read - keep < write - keep. ``read`` lies between
-        # ``keep`` and ``write``, so this is read != write; written as distances it says so
-        # to an induction proof, which starts anywhere (the inequality would offer a byte from
-        # states no reset reaches, and take it back). Made from the pointers' registers, not
-        # registered from their next values (the same signal, cycle for cycle: the pointers'
-        # multiplexers in front of two subtractions cost about 20 LUTs more)
-        m.d.comb += valid.eq((read - keep)[:bits] < (write - keep)[:bits])
+        # a byte at ``read`` is waiting when read - keep < write - keep: as ``read`` lies
+        # between ``keep`` and ``write`` (``invariant``), when read != write. The equality
+        # is 3 LUTs where the distances' two subtractions and comparison were about 20; the
+        # formal checks prove the invariant, so their induction needs no more
+        m.d.comb += valid.eq(read != write)
         read_1, keep_1 = (read + 1)[:bits], (keep + 1)[:bits]
         read_next = Signal(bits)
         keep_next = Signal(bits)

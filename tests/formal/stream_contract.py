@@ -77,6 +77,21 @@ def _walk(m, obj, signature, flipped, prefix, streams):
             m.d.comb += value.eq(AnySeq(Shape.cast(member.shape).width))
 
 
+def _invariants(obj, seen=None):
+    """``(name, value)`` for ``obj`` and each component it holds (its attributes, walked down)
+    that states an ``invariant()``: what holds in every state a reset reaches."""
+    seen = set() if seen is None else seen
+    if id(obj) in seen:
+        return []
+    seen.add(id(obj))
+    found = [(type(obj).__name__, obj.invariant())] if callable(getattr(obj, "invariant", None)) \
+        else []
+    for value in vars(obj).values():
+        if isinstance(value, wiring.Component):
+            found += _invariants(value, seen)
+    return found
+
+
 def contract_harness(component, held=None, assume=None):
     """A harness for ``component`` alone: every input port free (``AnySeq``), every input stream
     from any producer that keeps the rules, every output stream's rules asserted against any
@@ -89,7 +104,12 @@ def contract_harness(component, held=None, assume=None):
 
     ``assume`` (a function of the component, giving a value) states what its documentation
     asks of its user in every cycle, assumed: e.g. a FIFO's rewind only while no offered byte
-    waits."""
+    waits.
+
+    A component that states an ``invariant()`` of its internal state (one it holds, or it,
+    walked down its attributes) has it asserted as well: proven with the rules, it keeps the
+    induction to the states a reset reaches, where the block may rely on it (the
+    ``RewindableFIFO`` offers a byte while ``read != write``)."""
     m = harness_module()
     m.submodules.dut = component
     streams = []
@@ -104,6 +124,8 @@ def contract_harness(component, held=None, assume=None):
             m.d.comb += Assume(value == was_value, f"{port}_held")
     if assume is not None:
         m.d.comb += Assume(assume(component), "documented_use")
+    for k, (name, value) in enumerate(_invariants(component)):
+        m.d.comb += Assert(value, f"{name}_invariant_{k}")
     for path, s, inward in streams:
         name = path.replace(".", "_")
         if inward:

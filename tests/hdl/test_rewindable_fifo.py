@@ -47,6 +47,7 @@ def test_against_model(seed):
     check_stream_rules(sim, dut.w_stream, "w_stream")
     check_stream_rules(sim, dut.r_stream, "r_stream")
     log = {"taken": 0, "rewinds": 0}
+    invariant = dut.invariant()
 
     async def tb(ctx):
         nxt = 0
@@ -71,6 +72,7 @@ def test_against_model(seed):
             ctx.set(dut.rewind, rewind)
             w_ready = ctx.get(dut.w_stream.ready)
             assert w_ready == model.room()
+            assert ctx.get(invariant)           # (the formal checks prove it)
             valid = ctx.get(dut.r_stream.valid)
             # the model offers what it has waiting; the FIFO offers it a cycle after it came
             assert valid == bool(model.waiting)
