@@ -102,13 +102,19 @@ def bring_up_program(config, power_up_cycles, reset_cycles, mag_wait_cycles, sel
 
     if config.magnetometer:
         mag = []
+        # SLV4_CTRL also holds I2C_MST_DLY, the pacing of SLV0's reads above 1 kHz (written at
+        # the end of this part): every SLV4 transfer keeps it. A set-up again while streaming
+        # (a magnetometer lost, reset or stale) that cleared it had SLV0's eight bytes read at
+        # every sample tick, longer than an 8 kHz period at 400 kHz: each SLV4 transfer then
+        # waited past its poll's time-out, and the magnetometer never came back
+        slv4_ctrl = R.I2C_SLV_EN | (config.aux_every - 1 if spi else 0)
 
         def mag_write(reg, value):
             if spi:
                 mag.extend([Step(Op.WRITE, reg=R.I2C_SLV4_ADDR, value=A.I2C_ADDRESS),
                             Step(Op.WRITE, reg=R.I2C_SLV4_REG, value=reg),
                             Step(Op.WRITE, reg=R.I2C_SLV4_DO, value=value),
-                            Step(Op.WRITE, reg=R.I2C_SLV4_CTRL, value=R.I2C_SLV_EN),
+                            Step(Op.WRITE, reg=R.I2C_SLV4_CTRL, value=slv4_ctrl),
                             Step(Op.POLL, reg=R.I2C_MST_STATUS, value=R.I2C_MST_STATUS_SLV4_DONE,
                                  mask=R.I2C_MST_STATUS_SLV4_NACK, fail=Fail.MAG)])
             else:
@@ -125,7 +131,7 @@ def bring_up_program(config, power_up_cycles, reset_cycles, mag_wait_cycles, sel
                 mag.extend([Step(Op.WRITE, reg=R.I2C_SLV4_ADDR,
                                  value=R.I2C_SLV_RNW | A.I2C_ADDRESS),
                             Step(Op.WRITE, reg=R.I2C_SLV4_REG, value=reg),
-                            Step(Op.WRITE, reg=R.I2C_SLV4_CTRL, value=R.I2C_SLV_EN),
+                            Step(Op.WRITE, reg=R.I2C_SLV4_CTRL, value=slv4_ctrl),
                             Step(Op.POLL, reg=R.I2C_MST_STATUS, value=R.I2C_MST_STATUS_SLV4_DONE,
                                  mask=R.I2C_MST_STATUS_SLV4_NACK, fail=Fail.MAG),
                             Step(op, reg=R.I2C_SLV4_DI, fail=Fail.MAG, **kw)])

@@ -25,7 +25,8 @@ one well-known drivers use:
     PWR_MGMT_2, CONFIG, SMPLRT_DIV, GYRO_CONFIG, ACCEL_CONFIG, ACCEL_CONFIG2;
     magnetometer through the MPU9250's I2C master: USER_CTRL |= I2C_MST_EN, I2C_MST_CTRL =
     WAIT_FOR_ES | 400 kHz; each AK8963 access is a single SLV4 transfer (SLV4_ADDR/REG/DO/CTRL,
-    then poll I2C_MST_STATUS for SLV4_DONE, failing on SLV4_NACK or a time-out): check WIA =
+    CTRL keeping I2C_MST_DLY, SLV0's pacing above 1 kHz; then poll I2C_MST_STATUS for
+    SLV4_DONE, failing on SLV4_NACK or a time-out): check WIA =
     0x48, CNTL2 = SRST, CNTL1 = fuse ROM, read ASAX/Y/Z, CNTL1 = power-down, wait 100 µs,
     with the self-test ASTC = SELF, CNTL1 = 0x18 (self-test, 16-bit), SLV0 reads HXL..ST2,
     wait 9 ms and two sample periods, read them (EXT_SENS_DATA), judge, ASTC = 0, wait 100 µs;

@@ -59,6 +59,7 @@ class FaultInjector:
     injected_at: Optional[float] = None
     removed_at: Optional[float] = None
     saved: dict = field(default_factory=dict)
+    start_at: Optional[float] = None    # ``Fault.before_next``: when it starts
 
     @property
     def ak(self):
@@ -69,6 +70,8 @@ class FaultInjector:
     def next_event(self):
         if self.injected_at is None and self.at == 0:
             return 0.0
+        if self.injected_at is None and self.start_at is not None:
+            return self.start_at
         if self.injected_at is not None and self.removed_at is None and \
                 self.duration is not None:
             return self.injected_at + self.duration * self.period_s
@@ -83,8 +86,19 @@ class FaultInjector:
         if self.injected_at is None:
             # mid-run faults start between two transfers: a line that breaks during a burst
             # can pass one partly garbage sample (hdl/FAULTS.md, "Limits")
-            if self.at == 0 or (len(self.mpu.sample_reads) >= self.at and
-                                self._between_transfers()):
+            due = self.at == 0 or (len(self.mpu.sample_reads) >= self.at and
+                                   self._between_transfers())
+            if due and self.fault.before_next is not None:
+                if self.start_at is None:
+                    # the model's next sample, one period on if it is made now (this wake
+                    # may be its conversion, before the model has run up to it)
+                    upcoming = self.mpu._next_sample
+                    if upcoming is not None and upcoming <= t + 1e-12:
+                        upcoming += self.mpu.sample_period
+                    self.start_at = t if upcoming is None else \
+                        upcoming - self.fault.before_next * self.period_s
+                due = t + 1e-12 >= self.start_at
+            if due:
                 self.injected_at = t
                 self.saved["ak"] = self.mpu.aux_devices.get(A.I2C_ADDRESS)
                 self.fault.inject(self, t)
@@ -113,6 +127,13 @@ class Fault:
     recovers: str = "stream"
     stall: bool = False             # the consumer stops taking samples (sensor overrun)
     self_test: bool = False         # needs the self-tests at bring-up (``catalogue_setup``)
+    # a glitch between two samples starts this many sample periods before the next one is
+    # made (with the bus idle), rather than as soon as the fault may start: that moment can
+    # be a data-ready edge (the pulse then hides in it), or mid-read (the reads of a slow
+    # set-up fill most of a period). None: as soon as it may start
+    before_next: Optional[float] = None
+    # the fault makes the part sample faster than configured: none is left at 8 kHz
+    faster: bool = False
 
     @property
     def removable(self):
@@ -284,11 +305,12 @@ FAULTS = {f.name: f for f in [
           flags=("overrun",), stall=True),
     Fault("rate_change", "SMPLRT_DIV (at 1 kHz: CONFIG's DLPF_CFG) loses its value under the "
           "driver (a register glitch): the part samples 5 or 8 times faster", _rate_glitch,
-          duration=None, flags=("rate_error",)),
+          duration=None, flags=("rate_error",), faster=True),
     Fault("data_bit_flip", "the data line flips the top bit of one gyro word in one burst",
           _gyro_bit_flip, duration=None, flags=("bad_burst",), recovers="remains"),
     Fault("spurious_int", "one spurious INT pulse between two samples (no new sample)",
-          _int_high, _int_free, duration=0.02, flags=("bad_burst",), recovers="remains"),
+          _int_high, _int_free, duration=0.02, flags=("bad_burst",), recovers="remains",
+          before_next=0.1),
     Fault("self_test_gyro", "the gyro's Y axis makes no self-test response (a damaged axis)",
           _gyro_y_dead, duration=None, at_power_up=True, flags=("self_test_fail",),
           recovers="remains", self_test=True),
@@ -364,21 +386,33 @@ def run_fault(name, setup=None, *, at=20, duration=None, after=None, max_cycles=
         return run_host_garbage(setup, compiled=compiled)
     if at < 1 and not fault.at_power_up:
         raise ValueError("--fault-at must be at least 1 (samples read before the fault)")
+    if fault.faster and setup.config.output_data_rate >= 8000:
+        raise ValueError(f"fault {name} makes the part sample faster than configured: at "
+                         f"{setup.config.output_data_rate:g} Hz it samples at its fastest "
+                         f"already (choose --odr 1000/n)")
     after = 12 if after is None else after
-    duration = fault.duration if duration is None else duration
     period = setup.sample_period_s
     clk = setup.clk_freq
+    timing = setup.driver_timing()
+    mag_limit = timing.mag_timeout_periods(setup.config)
+    if duration is None:
+        duration = fault.duration
+        if fault.recovers == "mag" and not fault.at_power_up and duration is not None:
+            # a magnetometer fault lasts twice the driver's magnetometer time-out at least:
+            # the catalogue's periods are short beside the AK8963's 10 ms at high rates (60
+            # periods at 8 kHz are 7.5 ms: no field was due, nothing to find)
+            duration = max(duration, 2 * mag_limit)
     model = setup.model(magnetometer=setup.config.magnetometer)
     inj = FaultInjector(fault, 0 if fault.at_power_up else at, duration, period, mpu=model,
                         mpu_address=setup.config.i2c_address)
-    timing = setup.driver_timing()
     power_up, reset, _ = timing.cycles(clk, setup.config)
     if fault.at_power_up:
         # three bring-up attempts' worth before the fault goes (a magnetometer fault: one,
-        # and its own duration after it)
-        attempts = (power_up + reset) / clk / period
+        # and its own duration after it), the self-tests included: their waits follow the
+        # sample period's scale, so at 8 kHz in real time they are about 170 periods beside
+        # the waits' 1.6, and a fault gone before them was found by nothing
+        attempts = (power_up + reset + setup.self_test_cycles()) / clk / period
         inj.duration = attempts + duration if fault.recovers == "mag" else 3 * attempts
-    mag_limit = timing.mag_timeout_periods(setup.config)
     if name == "clock_stretch_timeout":
         from ..hdl.i2c_controller import I2CTiming
         inj.saved["stretch_s"] = 2 * I2CTiming.for_clock(clk).timeout / clk

@@ -1,11 +1,12 @@
 """BringUpSequencer against a register-port model: the program's commands in order, what a
 failed check does, a restart asked for, and the magnetometer's part run again."""
 
+import pytest
 from amaranth.sim import Simulator
 
 from mpu9250_ahrs.hdl import ak8963_regs as A
 from mpu9250_ahrs.hdl import mpu9250_regs as R
-from mpu9250_ahrs.hdl.bring_up_sequencer import (BringUpSequencer, SelfTestWaits,
+from mpu9250_ahrs.hdl.bring_up_sequencer import (BringUpSequencer, Op, SelfTestWaits,
                                                  bring_up_program)
 from mpu9250_ahrs.hdl.mpu9250_driver import MPU9250Config
 from mpu9250_ahrs.sim.streams import check_stream_rules
@@ -155,3 +156,16 @@ def test_waits_counted_in_ticks_last_their_cycles():
     exact = streaming_after(1)
     for phase in range(4):
         assert exact <= streaming_after(4, phase) <= exact + 2 * 4
+
+
+@pytest.mark.parametrize("odr", [1000, 8000])
+def test_magnetometer_transfers_keep_slv0_pacing(odr):
+    """Every SLV4 transfer writes SLV4_CTRL with I2C_MST_DLY, the pacing of SLV0's reads above
+    1 kHz (every ``aux_every``-th sample). At 8 kHz a set-up again while streaming cleared it:
+    SLV0's reads then ran at every sample, each SLV4 transfer outlasted its poll, and a
+    magnetometer lost, reset or stale never came back (``tests/sim/test_faults.py``)."""
+    config = MPU9250Config.for_odr(odr)
+    program = bring_up_program(config, 3, 3, 2, SelfTestWaits(settle=3, interval=2, mag=2))
+    ctrl = [s.value for s in program if s.op == Op.WRITE and s.reg == R.I2C_SLV4_CTRL]
+    assert len(ctrl) > 5
+    assert all(v & R.I2C_SLV4_MST_DLY == config.aux_every - 1 for v in ctrl)
