@@ -4,7 +4,8 @@ A ``Fault`` says what goes wrong (``inject``) and, for a fault that can go away,
 (``remove``), in terms of the simulated parts: the MPU9250 model, the AK8963 model, the I2C bus
 model and two pin overrides (CIPO and INT) that ``sim.cosim.attach_models`` applies. A
 ``FaultInjector`` switches a fault on once the design has read ``at`` samples (``at`` = 0: at
-power-up), and off ``duration`` sample periods later.
+power-up), and off ``duration`` sample periods later (by default the fault's; a magnetometer
+fault's at least twice the driver's magnetometer time-out, whatever the rate).
 
 ``run_fault`` co-simulates the sensor front end (both wirings) with one fault and measures what
 the catalogue promises:
@@ -42,8 +43,9 @@ SAMPLE_FLAGS = ("overrun", "mag_overflow", "mag_dor", "resumed")
 
 @dataclass
 class FaultInjector:
-    """Switches ``fault`` on at the ``at``-th sample the design reads (0: at time 0) and off
-    ``duration`` sample periods later (None: never). ``cipo`` / ``int_level`` (None or a level)
+    """Switches ``fault`` on at the ``at``-th sample the design reads (0: at time 0; a fault
+    with ``before_next``, that much before the next sample) and off ``duration`` sample
+    periods later (None: never). ``cipo`` / ``int_level`` (None or a level)
     override the pins; ``mpu_absent`` hides the MPU9250 (SPI: it sees no pin changes; I2C: it
     does not acknowledge)."""
     fault: "Fault"
