@@ -70,6 +70,7 @@ from amaranth import *
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out, connect, flipped
 
+from . import ak8963_regs as A
 from . import mpu9250_regs as R
 from .bring_up_sequencer import (BringUpSequencer, Fail, Op, SelfTestWaits, Step,
                                  bring_up_program)
@@ -171,6 +172,11 @@ class MPU9250Config:
         ]
 
 
+# The I2C master's read of the AK8963 at each sample (SPI wiring), in bit times: START, the
+# address and register bytes, a repeated START, the address again, ST1..ST2, STOP
+AK8963_READ_BITS = 1 + 9 + 9 + 1 + 9 + 9 * A.SAMPLE_BYTES + 1
+
+
 @dataclass(frozen=True)
 class DriverTiming:
     """Real-time waits of the driver, converted to cycles at elaboration.
@@ -202,6 +208,18 @@ class DriverTiming:
 
     def period_cycles(self, clk_freq, config):
         return cycles(self.period_s(config), clk_freq, minimum=2)
+
+    def drdy_jitter_cycles(self, clk_freq, config):
+        """How much sooner than one period after the last a data-ready edge may come from a
+        part that keeps its rate (``SampleReader``'s allowance before ``rate_error``): with
+        WAIT_FOR_ES (SPI wiring with the magnetometer, up to 1 kHz) the edge waits for the I2C
+        master's read of the AK8963, ``AK8963_READ_BITS`` at 400 kHz (0.26 ms: a quarter of a
+        1 kHz period), which ends at once when the AK8963 does not answer. Scaled as the
+        period is (a simulation compresses the I2C master's transfers alike). 0 otherwise."""
+        if config.wiring != "spi" or not config.magnetometer or config.aux_every != 1:
+            return 0
+        scale = self.period_s(config) * config.output_data_rate
+        return cycles(AK8963_READ_BITS / 400e3 * scale, clk_freq)
 
     def int_timeout(self, config):
         """The data-ready time-out before the first sample, in seconds."""
@@ -296,6 +314,7 @@ class MPU9250Driver(wiring.Component):
             wiring=cfg.wiring, int_active_low=cfg.int_active_low, int_latched=cfg.int_latched,
             gyro_jump=gyro_jump_limit(cfg.gyro_fs_dps),
             magnetometer=cfg.magnetometer, period_cycles=self.period_cycles,
+            drdy_jitter_cycles=self.timing.drdy_jitter_cycles(self.clk_freq, cfg),
             first_timeout_cycles=self.timeout_cycles, timeout_cycles=self.stream_timeout_cycles,
             mag_timeout_periods=self.mag_timeout_periods)
         m.submodules.arbiter = arbiter = RegisterPortArbiter()

@@ -14,9 +14,10 @@ The rules it applies (``hdl/FAULTS.md`` has what each catches):
   they are measured from the edge of the last burst that held a sample, so a burst without
   RAW_RDY (a spurious INT pulse, or a line stuck low) moves nothing and samples lost meanwhile
   show in the next interval;
-- a data-ready interval shorter than ``EARLY_FRACTION`` (7/8) of the period whose burst holds a
-  new sample means the sensor runs faster than configured (SMPLRT_DIV or CONFIG changed under the
-  driver: a glitch, a brown-out of that register): ``rate_error`` is set and the reader asks
+- a data-ready interval shorter than ``EARLY_FRACTION`` (7/8) of the period (less the edge's
+  allowed jitter, ``drdy_jitter_cycles``) whose burst holds a new sample means the sensor runs
+  faster than configured (SMPLRT_DIV or CONFIG changed under the driver: a glitch, a brown-out
+  of that register): ``rate_error`` is set and the reader asks
   for the configuration to be written again (``reconfigure``, a pulse the board counts).
   The sample itself is real and is passed on (flagged).
 """
@@ -58,6 +59,8 @@ BAD_BURST_LIMIT = 4
 # n -> m < n: (m + 1)/(n + 1) of the period, at most 7/8 for n <= 7, or CONFIG's DLPF off:
 # 1/8) is caught, and with a latched INT a rate too fast for the read shows as edges one
 # read apart (read time < 7/8 of the period: ``rate_budget``'s bound is the period itself).
+# Less the edge's own jitter where it has one (``SampleReader``'s ``drdy_jitter_cycles``: with
+# WAIT_FOR_ES, data-ready waits for the magnetometer's read, which a NACK cuts short).
 EARLY_FRACTION = (7, 8)
 
 
@@ -129,6 +132,10 @@ class SampleReader(wiring.Component):
             after streaming starts; ``timeout_cycles`` after each sample (each counted in
             ticks, ``tick_cycles``: it lasts its cycles to two ticks more).
         ``mag_timeout_periods``: sample periods without a new field before it is stale.
+        ``drdy_jitter_cycles`` (0): how much sooner a data-ready edge may come from a part that
+            keeps its rate: an interval is early under ``EARLY_FRACTION`` of the period less
+            this, but never under half a period (``DriverTiming.drdy_jitter_cycles``: with
+            WAIT_FOR_ES, the I2C master's read of the AK8963, which ends at once on a NACK).
     Members
         ``port`` (a register port's client side): the reader's commands.
         ``int_pin`` (in): INT, raw (synchronised here).
@@ -166,8 +173,9 @@ class SampleReader(wiring.Component):
 
     def __init__(self, *, wiring="spi", int_active_low=False, int_latched=True, magnetometer=True,
                  gyro_jump=None, period_cycles, first_timeout_cycles, timeout_cycles,
-                 mag_timeout_periods):
+                 mag_timeout_periods, drdy_jitter_cycles=0):
         self.wiring = wiring
+        self.drdy_jitter_cycles = drdy_jitter_cycles
         self.int_active_low = int_active_low
         self.int_latched = int_latched
         self.gyro_jump = gyro_jump
@@ -356,7 +364,10 @@ class SampleReader(wiring.Component):
         deferred_base = (Signal.like(phase), Signal.like(periods))   # ``since_sample`` then
         dropped = Signal(4)                     # read but not passed on (consumer busy, checks)
         num, den = EARLY_FRACTION
-        early_phase = steps * (2 * num - den) // (2 * den)      # t < f*P with periods == 1
+        # t < f*P - J with periods == 1 (at least half a period: then periods == 0 only), J
+        # the data-ready edge's allowed jitter (``drdy_jitter_cycles``) in the clocks' ticks
+        jitter_ticks = -(-self.drdy_jitter_cycles // tick_len)
+        early_phase = max(0, steps * (2 * num - den) // (2 * den) - jitter_ticks)
         reading = Signal()                      # a burst in flight, before its check
 
         def restart_clock(clock):
