@@ -134,8 +134,9 @@ class SampleReader(wiring.Component):
         ``mag_timeout_periods``: sample periods without a new field before it is stale.
         ``drdy_jitter_cycles`` (0): how much sooner a data-ready edge may come from a part that
             keeps its rate: an interval is early under ``EARLY_FRACTION`` of the period less
-            this, but never under half a period (``DriverTiming.drdy_jitter_cycles``: with
-            WAIT_FOR_ES, the I2C master's read of the AK8963, which ends at once on a NACK).
+            this (rounded up to 4 ticks of its clocks: a sixteenth of a period at most), but
+            never under half a period (``DriverTiming.drdy_jitter_cycles``: with WAIT_FOR_ES,
+            the I2C master's read of the AK8963, which ends at once on a NACK).
     Members
         ``port`` (a register port's client side): the reader's commands.
         ``int_pin`` (in): INT, raw (synchronised here).
@@ -365,9 +366,13 @@ class SampleReader(wiring.Component):
         dropped = Signal(4)                     # read but not passed on (consumer busy, checks)
         num, den = EARLY_FRACTION
         # t < f*P - J with periods == 1 (at least half a period: then periods == 0 only), J
-        # the data-ready edge's allowed jitter (``drdy_jitter_cycles``) in the clocks' ticks
+        # the data-ready edge's allowed jitter (``drdy_jitter_cycles``) in the clocks' ticks;
+        # with a jitter, rounded down to a multiple of 4 ticks (a sixteenth of a period more
+        # allowance at most), so that the comparison leaves out the phase's two low bits
         jitter_ticks = -(-self.drdy_jitter_cycles // tick_len)
-        early_phase = max(0, steps * (2 * num - den) // (2 * den) - jitter_ticks)
+        early_phase = steps * (2 * num - den) // (2 * den)
+        if jitter_ticks:
+            early_phase = max(0, early_phase - jitter_ticks) // 4 * 4
         reading = Signal()                      # a burst in flight, before its check
 
         def restart_clock(clock):
