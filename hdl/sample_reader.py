@@ -17,9 +17,9 @@ The rules it applies (``hdl/FAULTS.md`` has what each catches):
 - a data-ready interval shorter than ``EARLY_FRACTION`` (7/8) of the period (less the edge's
   allowed jitter, ``drdy_jitter_cycles``) whose burst holds a new sample means the sensor runs
   faster than configured (SMPLRT_DIV or CONFIG changed under the driver: a glitch, a brown-out
-  of that register): ``rate_error`` is set and the reader asks
-  for the configuration to be written again (``reconfigure``, a pulse the board counts).
-  The sample itself is real and is passed on (flagged).
+  of that register): ``rate_error`` is set and the reader asks for the configuration to be
+  written again (``reconfigure``, a pulse the board counts). The sample itself is real and is
+  passed on (flagged).
 """
 
 import operator
