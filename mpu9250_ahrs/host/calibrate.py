@@ -108,6 +108,14 @@ def calibrate(link, *, operator=human_operator, amounts=Amounts(), accel_fs_g=16
             if g.std(0).max() > a.still_counts:
                 raise BoardError(f"pose {axis}: the board moved; hold it still")
             mean = acc.mean(0)
+            # at rest the accelerometer reads 1 g, whatever the pose: far from it, the full
+            # scale given is not the board's (a pose error would only mislead)
+            norm = np.linalg.norm(mean)
+            if not 0.5 < norm / lsb_g < 2:
+                fits = min((2, 4, 8, 16), key=lambda fs: abs(np.log(norm * fs / 32768)))
+                raise BoardError(f"pose {axis}: the accelerometer reads {norm / lsb_g:.2f} g at "
+                                 f"rest, not 1 g: the board's full scale looks like ±{fits} g, "
+                                 f"not the ±{accel_fs_g:g} g given (--accel-fs)")
             i = "xyz".index(axis[1])
             sign = 1 if axis[0] == "+" else -1
             if abs(sign * mean[i] / lsb_g - 1) > a.pose_tolerance or \

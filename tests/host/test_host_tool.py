@@ -143,6 +143,15 @@ def test_calibrate_recovers_the_offsets_the_model_was_given(board, capsys, tmp_p
     assert rc == 0, err
 
 
+def test_calibrate_names_a_full_scale_that_is_not_the_boards(board, capsys, tmp_path):
+    """The board reads ±16 g; told ±2 g, the tool said the z axis "was not pointing up" (a
+    reading of 0.14 g): now it says which full scale the readings look like."""
+    rc, out, err = run_cli(capsys, "calibrate", board.port, "--quick", "--accel-fs", 2,
+                           "--out", tmp_path / "cal.json")
+    assert rc == 2 and "full scale looks like ±16 g, not the ±2 g given" in err, err
+    assert not (tmp_path / "cal.json").exists()
+
+
 # -- errors a user meets --------------------------------------------------------------------
 
 class FakeBoard:
