@@ -95,11 +95,12 @@ class PinModels:
     ``scl_model_low``, ``sda_model_low``: the ``CosimHarness`` signal names) and at which cycle
     they next want to run with no pin change. Shared by Amaranth's simulator
     (``attach_models``) and the compiled path (``sim.compiled_board``), so both play the
-    models alike. ``spi``: the design has SPI pins (else I2C lines, needing ``bus``)."""
+    models alike. ``bus``: the ``I2CBusModel`` of a design with I2C lines; None: it has SPI
+    pins (``spi``)."""
 
-    def __init__(self, clk_freq, *, mpu, bus=None, injector=None, spi=True):
+    def __init__(self, clk_freq, *, mpu, bus=None, injector=None):
         self.clk_freq = clk_freq
-        self.mpu, self.bus, self.injector, self.spi = mpu, bus, injector, spi
+        self.mpu, self.bus, self.injector, self.spi = mpu, bus, injector, bus is None
         self.cs_prev, self.sclk_prev = 1, 1
         self.driven = {}
 
@@ -183,7 +184,7 @@ def attach_models(sim, harness, clk_freq, *, mpu, bus=None, injector=None):
         sampled += [spi.copi]
     if bus is not None:
         watched += [harness.scl, harness.sda]
-    models = PinModels(clk_freq, mpu=mpu, bus=bus, injector=injector, spi=spi is not None)
+    models = PinModels(clk_freq, mpu=mpu, bus=bus, injector=injector)
 
     async def process(ctx):
         wake_prev = NEVER
@@ -253,7 +254,7 @@ class SimSetup:
             self.config = replace(self.config, self_test_samples=self.self_test_samples)
 
     @staticmethod
-    def default_odr_scale(config, clk_freq=SYSTEM_CLOCK_HZ):
+    def default_odr_scale(config, clk_freq):
         """The sample-period scale ``simulate`` and ``report`` use for ``config`` at
         ``clk_freq``: 0.2 where the shortened period still gives the design twice the cycles
         a sample needs (``rate_budget``: its read, or the engine's update), else 1 (real
@@ -574,8 +575,7 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
     if compiled:
         from amaranth.lib import data
         from .compiled_board import check_monitors, frontend_loop
-        models = PinModels(setup.clk_freq, mpu=model, bus=bus, injector=injector,
-                           spi=bus is None)
+        models = PinModels(setup.clk_freq, mpu=model, bus=bus, injector=injector)
         payload_layout = data.Layout.cast(dut.samples.payload.shape())
         status_layout = data.Layout.cast(dut.status.shape())
         try:
@@ -791,8 +791,7 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
             out["results"].append(unpack(results.payload.shape(), bits))
             out["cycles"].append(cycle)
             out["ints"].append(int_cycle)
-        end = core_loop(design, core, PinModels(setup.clk_freq, mpu=model, bus=bus,
-                                                spi=bus is None),
+        end = core_loop(design, core, PinModels(setup.clk_freq, mpu=model, bus=bus),
                         divisor=core.uart.divisor, received=received, record=record,
                         more_wanted=more_wanted, max_cycles=max_cycles, writes=writes,
                         progress=progress, offered=lambda bits: out["samples"].append(

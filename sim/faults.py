@@ -92,11 +92,9 @@ class FaultInjector:
                                    self._between_transfers())
             if due and self.fault.before_next is not None:
                 if self.start_at is None:
-                    # the model's next sample, one period on if it is made now (this wake
-                    # may be its conversion, before the model has run up to it)
-                    upcoming = self.mpu._next_sample
-                    if upcoming is not None and upcoming <= t + 1e-12:
-                        upcoming += self.mpu.sample_period
+                    # (this wake may be the next sample's conversion, which the model has not
+                    # run up to yet: it counts as made)
+                    upcoming = self.mpu.next_sample_after(t)
                     self.start_at = t if upcoming is None else \
                         upcoming - self.fault.before_next * self.period_s
                 due = t + 1e-12 >= self.start_at

@@ -195,6 +195,14 @@ class MPU9250Model:
             self._update_next_event()
         self.now = t
 
+    def next_sample_after(self, t):
+        """When the part makes its next sample after ``t`` (None: it is not sampling). ``t``
+        may be ahead of the model's own time: a sample due by then is counted as made."""
+        upcoming = self._next_sample
+        while upcoming is not None and upcoming <= t + _EPS:
+            upcoming += self.sample_period
+        return upcoming
+
     def _update_next_event(self):
         aux = self._aux_done[0] if self._aux_done else None
         events = [e for e in (self._busy_until, self._pulse_end, self._next_sample, aux)
