@@ -1,7 +1,6 @@
 """The host verbs, for a board on a serial port or the simulated one: ``monitor``, ``config``,
 ``calibrate``, ``board`` (the simulated board kept running) and ``plot``."""
 
-import argparse
 import json
 import sys
 import time
@@ -156,13 +155,8 @@ def cmd_config(args):
     if len(args.args) != expected:
         raise ValueError(f"config {args.action} takes {expected} argument(s), not "
                          f"{len(args.args)}")
-    rate = None
-    if args.action == "rate":
-        # checked before the board is opened (a simulated one is started for nothing else)
-        try:
-            rate = _positive(args.args[0])
-        except argparse.ArgumentTypeError as e:
-            raise ValueError(f"config rate: {e}") from None
+    # checked before the board is opened (a simulated one is started for nothing else)
+    rate = _positive(args.args[0]) if args.action == "rate" else None
     if args.action == "list":
         for reg in REGISTERS.values():
             print(f"{reg.name:16} {reg.space:6} 0x{reg.addr:02X} {reg.format:6} "

@@ -14,20 +14,25 @@ def _int(text):
     return int(text, 0)
 
 
+class BadNumber(argparse.ArgumentTypeError, ValueError):
+    """A number ``_number``'s types refuse: argparse's usage error on the command line, and a
+    ``ValueError`` (one error line from ``main``) where a verb parses an argument itself."""
+
+
 def _number(kind, *, low=None, above=None, integer=False):
     """An argparse type: a finite number (an integer if ``integer``) at least ``low`` or
-    greater than ``above``; anything else is one clear usage error."""
+    greater than ``above``; anything else is one clear usage error (``BadNumber``)."""
     def parse(text):
         try:
             value = int(text, 0) if integer else float(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"{text!r} is not {kind}") from None
+            raise BadNumber(f"{text!r} is not {kind}") from None
         if value != value or value in (float("inf"), float("-inf")):
-            raise argparse.ArgumentTypeError(f"{text!r} is not a finite number")
+            raise BadNumber(f"{text!r} is not a finite number")
         if low is not None and value < low:
-            raise argparse.ArgumentTypeError(f"{text} is less than {low}")
+            raise BadNumber(f"{text} is less than {low}")
         if above is not None and value <= above:
-            raise argparse.ArgumentTypeError(f"{text} must be more than {above}")
+            raise BadNumber(f"{text} must be more than {above}")
         return value
     parse.__name__ = kind
     return parse

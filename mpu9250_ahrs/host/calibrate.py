@@ -20,6 +20,7 @@ import numpy as np
 
 from ..hdl.register_map import REGS
 from ..hdl.frame_types import SENSOR
+from ..hdl.mpu9250_regs import ACCEL_FS_G
 from ..reference.calibration import accel_six_pose, gyro_bias, mag_ellipsoid
 from ..reference.fixed_point import CalibrationFixed, calibration_registers
 from .link import BoardError
@@ -112,7 +113,7 @@ def calibrate(link, *, operator=human_operator, amounts=Amounts(), accel_fs_g=16
             # scale given is not the board's (a pose error would only mislead)
             norm = np.linalg.norm(mean)
             if not 0.5 < norm / lsb_g < 2:
-                fits = min((2, 4, 8, 16), key=lambda fs: abs(np.log(norm * fs / 32768)))
+                fits = min(ACCEL_FS_G, key=lambda fs: abs(np.log(norm * fs / 32768)))
                 raise BoardError(f"pose {axis}: the accelerometer reads {norm / lsb_g:.2f} g at "
                                  f"rest, not 1 g: the board's full scale looks like ±{fits} g, "
                                  f"not the ±{accel_fs_g:g} g given (--accel-fs)")
