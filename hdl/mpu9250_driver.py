@@ -219,7 +219,9 @@ class DriverTiming:
         if config.wiring != "spi" or not config.magnetometer or config.aux_every != 1:
             return 0
         scale = self.period_s(config) * config.output_data_rate
-        return cycles(AK8963_READ_BITS / 400e3 * scale, clk_freq)
+        # the I2C master's clock as bring-up sets it (I2C_MST_CTRL's I2C_MST_CLK_400KHZ)
+        hz = R.I2C_MST_CLK_KHZ[R.I2C_MST_CLK_400KHZ] * 1e3
+        return cycles(AK8963_READ_BITS / hz * scale, clk_freq)
 
     def int_timeout(self, config):
         """The data-ready time-out before the first sample, in seconds."""
