@@ -216,7 +216,9 @@ class BringUpSequencer(wiring.Component):
 
     Parameters
         ``program``: the steps; those marked ``mag`` are the magnetometer's part, which runs
-            again from its first step when the magnetometer is lost. ``accepted_who_am_i``: the
+            again from its first step when the magnetometer is lost, and then goes to the
+            STREAM step (the last), past the interrupt's set-up: an MPU9250 reset meanwhile
+            leaves INT off, for the reader's time-out to find. ``accepted_who_am_i``: the
             WHO_AM_I values that pass. ``poll_cycles``: how long a POLL step may take.
             ``tick_cycles`` (1): the waits and the poll time-out are counted in ticks
             (``tick``, a pulse every ``tick_cycles`` cycles: the sample reader's prescaler in
@@ -306,6 +308,8 @@ class BringUpSequencer(wiring.Component):
         program = self.program
         mark = next((i for i, s in enumerate(program) if s.op == Op.MARK), None)
         skip_mag = 0 if mark is None else mark + 1
+        stream = len(program) - 1
+        assert program[stream].op == Op.STREAM, "a program ends with its STREAM step"
         mag_start = next((i for i, s in enumerate(program) if s.mag), None)
         config_start = max(i + 1 for i, s in enumerate(program)
                            if s.check == "who_am_i" or s.self_test)
@@ -327,22 +331,8 @@ class BringUpSequencer(wiring.Component):
         def goto(index):
             m.d.sync += pc.eq(index)
 
-        # -- the register port: every read here is one byte, kept as ``last`` -------------------
         port = self.port
-        last = Signal(8)
-        m.d.comb += [port.rx.ready.eq(1), port.rsp.ready.eq(1)]
-        with m.If(port.rx.valid):
-            m.d.sync += last.eq(port.rx.payload)
-
-        # the command is the step's word, whichever state offers it (a payload chosen per
-        # state would cost a LUT a bit)
-        p = port.cmd.payload
-        m.d.comb += [p.device.eq(step.device), p.reg.eq(step.reg),
-                     p.write.eq(step.op == Op.WRITE), p.data.eq(step.value),
-                     p.length.eq(step.length), p.fast.eq(step.fast)]
-
-        def command():
-            m.d.comb += port.cmd.valid.eq(1)
+        last, command = self._port(m, step)
 
         # TEST: the read's bytes to the self-test, counted from the step's index
         # a TEST's reads after its first (the word's ``more``: its repeat less one, no
@@ -381,13 +371,24 @@ class BringUpSequencer(wiring.Component):
                 m.d.sync += backoff.eq(backoff + 1)
             m.next = "LOAD0"
 
+        # where the magnetometer's part ends (done, or failed): at bring-up the interrupt's
+        # set-up after it; in a set-up again while streaming the STREAM step, past it. The
+        # MPU9250 still has INT_ENABLE then, unless it was reset (a brown-out), and a reset
+        # part must stay silent, to be found by the reader's INT time-out and brought up
+        # whole: enabled again here, it came back at its reset rate and full scales (I2C
+        # wiring below about 133 Hz, where the AK8963 is missed before the INT time-out)
+        after_mag = Mux(self.mag_setup, stream, skip_mag)
+
+        def mag_done():
+            goto(after_mag)
+            m.next = "LOAD0"
+
         def fail(absent):
             """The current step failed: ``absent`` = no acknowledge / time-out, else a bad value."""
             with m.If(step.fail == Fail.MAG):
-                goto(skip_mag)
+                mag_done()
                 m.d.sync += [self.mag_absent.eq(absent),
                              self.mag_wia_error.eq(~absent)]
-                m.next = "LOAD0"
             with m.Else():
                 with m.If(absent):
                     m.d.sync += [self.no_response.eq(1), self.whoami_error.eq(0)]
@@ -415,8 +416,28 @@ class BringUpSequencer(wiring.Component):
                 timer=timer, next_step=next_step, reconfiguring=reconfiguring, backoff=backoff,
                 repeats=repeats, reads=reads, offset=offset, restart_pending=restart_pending,
                 goto=goto, config_start=config_start, fail=fail, last=last, test=test, port=port,
-                mag_start=mag_start, offered=offered))
+                mag_start=mag_start, offered=offered, mag_done=mag_done))
         return m
+
+    def _port(self, m, step):
+        """The register port: ``last`` (every read here is one byte, kept) and ``command()``,
+        which offers the step's command (returned)."""
+        port = self.port
+        last = Signal(8)
+        m.d.comb += [port.rx.ready.eq(1), port.rsp.ready.eq(1)]
+        with m.If(port.rx.valid):
+            m.d.sync += last.eq(port.rx.payload)
+
+        # the command is the step's word, whichever state offers it (a payload chosen per
+        # state would cost a LUT a bit)
+        p = port.cmd.payload
+        m.d.comb += [p.device.eq(step.device), p.reg.eq(step.reg),
+                     p.write.eq(step.op == Op.WRITE), p.data.eq(step.value),
+                     p.length.eq(step.length), p.fast.eq(step.fast)]
+
+        def command():
+            m.d.comb += port.cmd.valid.eq(1)
+        return last, command
 
     def _states(self, m, c):
         """The sequencer's states: a step loaded from the program ROM and fetched, then
@@ -439,7 +460,7 @@ class BringUpSequencer(wiring.Component):
                 restart()
             with m.Else():
                 self._fetch(m, step, command, timer, next_step, reconfiguring, backoff, repeats,
-                            reads)
+                            reads, c.mag_done)
         with m.State("WAIT"):
             # the count of ``repeats`` passes of ``wait + 1`` ticks and ``timer``: a pass
             # ends with the tick that finds the timer at 0
@@ -528,8 +549,8 @@ class BringUpSequencer(wiring.Component):
                 m.next = "LOAD0"
 
     def _fetch(self, m, step, command, timer, next_step, reconfiguring, backoff, repeats,
-               reads):
-        """FETCH: start the step at ``pc``."""
+               reads, mag_done):
+        """FETCH: start the step at ``pc`` (``mag_done``: MARK's way on, ``elaborate``)."""
         port = self.port
         with m.Switch(step.op):
             with m.Case(Op.WAIT):
@@ -557,7 +578,7 @@ class BringUpSequencer(wiring.Component):
             with m.Case(Op.MARK):
                 m.d.sync += [self.mag_ok.eq(1), self.mag_absent.eq(0),
                              self.mag_wia_error.eq(0)]
-                next_step()
+                mag_done()
             with m.Case(Op.STREAM):
                 with m.If(~self.streaming):
                     m.d.comb += self.started.eq(1)

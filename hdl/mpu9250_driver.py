@@ -48,7 +48,9 @@ sample that came too early (the part runs faster than configured) has the config
 written again, without a restart. A magnetometer
 failure (NACK, wrong WIA, SLV4 time-out) sets its flag and skips the rest of the magnetometer
 set-up: accel/gyro samples flow on with ``mag_valid`` = 0. While streaming, a magnetometer that
-gives no new field for ``mag_timeout_s`` is flagged stale and set up again between samples.
+gives no new field for ``mag_timeout_s`` is flagged stale and set up again between samples
+(that set-up leaves the interrupt's alone: an MPU9250 reset meanwhile stays silent, for the INT
+time-out to find).
 
 Streaming: on each rising edge of the active INT level, read INT_STATUS through GYRO_ZOUT_L and
 the eight AK8963 bytes (ST1..ST2): one fast SPI burst of 23 bytes from INT_STATUS (SPI wiring:

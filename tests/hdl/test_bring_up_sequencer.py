@@ -101,8 +101,9 @@ def test_program_restart_and_magnetometer_again():
     assert seen["writes"] == expected_writes(config)
     assert seen["status"] == (1, 0x71, 0, [0x80, 0x81, 0x82])
     assert seen["during"] == (0, 1, 1)
-    # the magnetometer's part, then the INT set-up again (the same values)
-    assert seen["again"] == mag_part + expected_writes(config)[-2:]
+    # the magnetometer's part alone: the INT set-up after it is bring-up's (an MPU9250 reset
+    # meanwhile leaves INT off, for the reader's time-out to find)
+    assert seen["again"] == mag_part
     assert seen["after"] == (1, 1, 0)
     assert seen["restarting"] == (0, 1)
     assert seen["pulses"] == (1, 1)

@@ -200,3 +200,16 @@ def test_magnetometer_loss_raises_no_rate_alarm():
                                           odr_scale=SimSetup.default_odr_scale(config, 12e6)))
     assert "rate_error" not in r["flags"] and r["recovered"], r
     assert set(FAULTS["ak8963_lost"].flags) & set(r["flags"]), r
+
+
+def test_mpu_reset_is_found_by_the_int_timeout_at_a_low_rate():
+    """I2C wiring at 100 Hz: after a reset the AK8963 (its bypass cleared) is missed before
+    the INT time-out, and its set-up again used to end with the interrupt's set-up: the reset
+    part came back at its reset rate and full scales, caught only as a rate error. A set-up
+    again while streaming now leaves INT alone: the reset is found by the INT time-out and
+    the part brought up whole (``BringUpSequencer``)."""
+    setup = catalogue_setup("i2c", odr=100, fault="mpu_reset")
+    r = run_fault("mpu_reset", setup, at=AT, after=AFTER)
+    assert r["stale_valid_samples"] == 0, r
+    assert "int_timeout" in r["flags"] and "rate_error" not in r["flags"], r
+    assert r["detected_after_samples"] <= bound("mpu_reset", setup) and r["recovered"], r
