@@ -28,6 +28,7 @@ from typing import Callable, Optional, Tuple
 
 from ..hdl import ak8963_regs as A
 from ..hdl import mpu9250_regs as R
+from ..hdl.sample_reader import GYRO_JUMP_DPS, gyro_jump_limit
 
 
 __all__ = ["Fault", "FAULTS", "FaultInjector", "run_fault", "fault_names", "ERROR_FLAGS",
@@ -134,6 +135,15 @@ class Fault:
     before_next: Optional[float] = None
     # the fault makes the part sample faster than configured: none is left at 8 kHz
     faster: bool = False
+    # the AK8963's fault (besides those whose recovery is "mag"): needs the magnetometer
+    mag: bool = False
+    # found by the reader's gyro jump check, which is off at ±500 °/s and less
+    # (``gyro_jump_limit``)
+    gyro_jump: bool = False
+
+    @property
+    def needs_magnetometer(self):
+        return self.mag or self.recovers == "mag"
 
     @property
     def removable(self):
@@ -307,7 +317,8 @@ FAULTS = {f.name: f for f in [
           "driver (a register glitch): the part samples 5 or 8 times faster", _rate_glitch,
           duration=None, flags=("rate_error",), faster=True),
     Fault("data_bit_flip", "the data line flips the top bit of one gyro word in one burst",
-          _gyro_bit_flip, duration=None, flags=("bad_burst",), recovers="remains"),
+          _gyro_bit_flip, duration=None, flags=("bad_burst",), recovers="remains",
+          gyro_jump=True),
     Fault("spurious_int", "one spurious INT pulse between two samples (no new sample)",
           _int_high, _int_free, duration=0.02, flags=("bad_burst",), recovers="remains",
           before_next=0.1),
@@ -316,7 +327,7 @@ FAULTS = {f.name: f for f in [
           recovers="remains", self_test=True),
     Fault("self_test_mag", "the AK8963's Z axis reads no self-test field (a damaged axis)",
           _mag_z_dead, duration=None, at_power_up=True, flags=("self_test_fail",),
-          recovers="remains", self_test=True),
+          recovers="remains", self_test=True, mag=True),
 ]}
 
 
@@ -380,8 +391,12 @@ def run_fault(name, setup=None, *, at=20, duration=None, after=None, max_cycles=
     if fault.self_test and not setup.config.self_test:
         raise ValueError(f"fault {name} is found by the self-test at bring-up, which this "
                          f"set-up leaves out")
-    if fault.recovers == "mag" and not setup.config.magnetometer:
+    if fault.needs_magnetometer and not setup.config.magnetometer:
         raise ValueError(f"fault {name} needs the magnetometer (leave out --no-mag)")
+    if fault.gyro_jump and gyro_jump_limit(setup.config.gyro_fs_dps) is None:
+        raise ValueError(f"fault {name} is found by the gyro jump check, which is off at "
+                         f"±{setup.config.gyro_fs_dps} °/s (a {GYRO_JUMP_DPS} °/s jump is "
+                         f"beyond the words' range): choose --gyro-fs 1000 or 2000")
     if name == "host_garbage":
         return run_host_garbage(setup, compiled=compiled)
     if at < 1 and not fault.at_power_up:

@@ -186,6 +186,20 @@ def test_rate_change_needs_a_rate_below_8khz():
         run_fault("rate_change", _fast_rate_setup())
 
 
+def test_a_fault_nothing_in_the_set_up_can_find_is_refused():
+    """One clear line, not a failed run or a traceback: a flipped gyro bit where the jump
+    check is off (±500 °/s and less), the AK8963's self-test without a magnetometer."""
+    from dataclasses import replace
+    setup = catalogue_setup("spi", fault="self_test_mag")
+    for fs in (250, 500):
+        low_fs = replace(setup, config=replace(setup.config, gyro_fs_dps=fs))
+        with pytest.raises(ValueError, match=f"gyro jump check, which is off at ±{fs} °/s"):
+            run_fault("data_bit_flip", low_fs)
+    no_mag = replace(setup, config=replace(setup.config, magnetometer=False))
+    with pytest.raises(ValueError, match="self_test_mag needs the magnetometer"):
+        run_fault("self_test_mag", no_mag)
+
+
 def test_magnetometer_loss_raises_no_rate_alarm():
     """With SPI up to 1 kHz (WAIT_FOR_ES) data-ready waits for the I2C master's read of the
     AK8963, which ends at once on a NACK: the first edge after the AK8963 stops answering
