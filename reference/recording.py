@@ -16,7 +16,8 @@ from dataclasses import dataclass
 import numpy as np
 
 
-__all__ = ["Recording", "load_broad", "Scales", "quantise", "to_units", "G"]
+__all__ = ["Recording", "load_broad", "Scales", "quantise", "saturated", "COUNT_LIMITS", "to_units",
+           "G"]
 
 G = 9.81
 
@@ -146,9 +147,24 @@ def _counts(x, scale, lo, hi):
 
 def quantise(gyr, acc, mag, scales=Scales()):
     """Physical -> raw counts (int32 arrays), saturating like the parts do."""
-    return (_counts(gyr, scales.gyro_lsb_per_rad, -32768, 32767),
-            _counts(acc, scales.accel_lsb_per_ms2, -32768, 32767),
-            _counts(mag, 1 / scales.mag_ut_per_lsb, -32760, 32760))
+    return (_counts(gyr, scales.gyro_lsb_per_rad, *COUNT_LIMITS["gyro"]),
+            _counts(acc, scales.accel_lsb_per_ms2, *COUNT_LIMITS["accel"]),
+            _counts(mag, 1 / scales.mag_ut_per_lsb, *COUNT_LIMITS["mag"]))
+
+
+# what ``quantise`` saturates at, as the parts do: the MPU9250's words, the AK8963's range
+COUNT_LIMITS = {"gyro": (-32768, 32767), "accel": (-32768, 32767), "mag": (-32760, 32760)}
+
+
+def saturated(gyr_counts, acc_counts, mag_counts):
+    """Samples with an axis at its sensor's limit (``COUNT_LIMITS``: clipped by ``quantise``,
+    or by the part), by sensor: a full scale too narrow for the motion."""
+    out = {}
+    for name, counts in zip(COUNT_LIMITS, (gyr_counts, acc_counts, mag_counts)):
+        lo, hi = COUNT_LIMITS[name]
+        counts = np.asarray(counts)
+        out[name] = int(np.any((counts <= lo) | (counts >= hi), axis=-1).sum())
+    return out
 
 
 def to_units(gyr_counts, acc_counts, mag_counts, scales=Scales()):

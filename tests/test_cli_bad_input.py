@@ -162,6 +162,21 @@ def test_replay_nan_samples_are_held_and_counted(capsys, tmp_path):
         assert result["inclination_rmse_deg"] < 5
 
 
+def test_replay_counts_samples_at_a_full_scale_limit(capsys, tmp_path):
+    """A full scale too narrow for the motion: the clipped samples are counted per sensor
+    (``samples_at_limit``) and named on stderr, so a poor score has its reason."""
+    n = 60
+    gyr = np.zeros((n, 3))
+    gyr[10:14, 2] = np.radians(300)             # beyond ±250 °/s, within ±500
+    path = broad_file(tmp_path / "fast.hdf5", n=n, imu_gyr=gyr)
+    code, out, err = run(["replay", path, "--gyro-fs", "250"], capsys)
+    assert code == 0, err
+    assert json.loads(out)["samples_at_limit"] == {"gyro": 4, "accel": 0, "mag": 0}
+    assert "4 samples have a gyro axis at the limit of ±250 °/s" in err
+    code, out, err = run(["replay", path, "--gyro-fs", "500"], capsys)
+    assert json.loads(out)["samples_at_limit"]["gyro"] == 0 and "limit" not in err
+
+
 def test_replay_leaves_out_truth_that_is_no_rotation(capsys, tmp_path):
     """Some truth rows not of unit norm: left out of the score, counted and announced."""
     n = 60

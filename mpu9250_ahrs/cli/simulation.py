@@ -251,7 +251,7 @@ def sample_read_time(result, setup):
 def cmd_replay(args):
     import numpy as np
     from ..reference.evaluate import FIXED_FILTERS, run_filter, run_fixed, score
-    from ..reference.recording import Scales, load_broad, quantise, to_units
+    from ..reference.recording import Scales, load_broad, quantise, saturated, to_units
 
     engine = "fixed" if args.fixed else args.engine
     if engine != "float" and args.filter not in FIXED_FILTERS:
@@ -273,6 +273,14 @@ def cmd_replay(args):
     if args.samples is not None:
         counts = tuple(c[:args.samples] for c in counts)
         truth, movement = truth[:args.samples], movement[:args.samples]
+    at_limit = saturated(*counts)
+    fs = {"gyro": f"±{args.gyro_fs} °/s (--gyro-fs)", "accel": f"±{args.accel_fs} g (--accel-fs)",
+          "mag": "the AK8963's range"}
+    for name, n in at_limit.items():
+        if n:
+            print(f"mpu9250-ahrs replay: warning: {n} samples have a {name} axis at the limit "
+                  f"of {fs[name]}: clipped, the motion is beyond that full scale",
+                  file=sys.stderr)
     params = {"beta": args.beta} if args.beta is not None else {}
     units = {"gyro_lsb_per_dps": scales.gyro_lsb_per_dps,
              "accel_lsb_per_ms2": scales.accel_lsb_per_ms2}
@@ -319,7 +327,8 @@ def cmd_replay(args):
     result = {"file": rec.name, "filter": args.filter, "engine": engine,
               "fixed": engine != "float", **score(quat, truth, movement),
               "filter_s": round(elapsed, 3), "samples_total": len(quat),
-              "samples_held": rec.held, "truth_rejected": rec.truth_rejected, **extra}
+              "samples_held": rec.held, "truth_rejected": rec.truth_rejected,
+              "samples_at_limit": at_limit, **extra}
     if args.out:
         np.savetxt(args.out, np.column_stack([t, quat]),
                    delimiter=",", header="t_s,w,x,y,z", comments="", fmt="%.9g")
