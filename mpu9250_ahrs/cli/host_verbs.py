@@ -174,6 +174,8 @@ def cmd_config(args):
             result = c.reset_filter(link)
         else:
             result = c.set_rate(link, rate)
+    if "note" in result:
+        print(f"mpu9250-ahrs config: warning: {result['note']}", file=sys.stderr)
     print(json.dumps(result))
     return 0
 

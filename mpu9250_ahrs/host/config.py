@@ -1,6 +1,7 @@
 """``config``: read and write the board's registers by name, in physical units."""
 
 from ..hdl.filter_registry import FILTER_CODES
+from ..hdl.pwm import MOTOR_MAX_HZ, PWM_CHANNELS, SERVO_PERIOD_US
 from .link import BoardError
 from .regmap import from_word, lookup, to_word
 
@@ -27,13 +28,45 @@ def set_register(link, name, value):
         word = to_word(reg, value)
     except ValueError as e:
         raise BoardError(str(e)) from None
-    link.check(link.command("write", addr=reg.addr, value=word, space=reg.space),
-               f"write {reg.name} = {value}")
+    reply = link.command("write", addr=reg.addr, value=word, space=reg.space)
+    if reply["result_name"] == "refused" and reg.space == "pwm":
+        raise BoardError(f"write {reg.name} = {value}: the board refused it: "
+                         f"{_pwm_refusal(link, reg.name, word)}")
+    link.check(reply, f"write {reg.name} = {value}")
     back = get(link, reg.name)
     if back["word"] != word & 0xFFFFFFFF and reg.name != "CONTROL":
         raise BoardError(f"{reg.name}: wrote 0x{word & 0xFFFFFFFF:08X}, read back "
                          f"0x{back['word']:08X}")
     return back
+
+
+def _pwm_refusal(link, name, word):
+    """Why the PWM block refuses a write of ``word`` to ``name`` (its rules: ``PWMOutputs``),
+    with the registers the rule reads, read now."""
+    def value(reg):
+        return get(link, reg)["value"]
+    channels = f"bits {PWM_CHANNELS - 1}:0, one per channel"
+    if name == "PWM_ENABLE":
+        return f"{word} is not {channels}"
+    if name == "PWM_MODE":
+        if word >> PWM_CHANNELS:
+            return f"{word} is not {channels}"
+        return (f"an enabled channel's mode stays (PWM_ENABLE = {value('PWM_ENABLE')}, "
+                f"PWM_MODE = {value('PWM_MODE')}): disable the channel first")
+    if name == "PWM_WATCHDOG_MS":
+        return "the watchdog is 0 (off) .. 65,535 ms"
+    if name == "PWM_SERVO_PERIOD":
+        return f"the servo period is {SERVO_PERIOD_US[0]:,} .. {SERVO_PERIOD_US[1]:,} µs"
+    if name == "PWM_MOTOR_PERIOD":
+        return (f"the motor period is at least the clock's cycles in 1/{MOTOR_MAX_HZ:,} s, "
+                f"at most 65,535 cycles")
+    if name.startswith("PWM_HIGH"):
+        k = int(name[len("PWM_HIGH"):])
+        motor = value("PWM_MODE") >> k & 1
+        period = "PWM_MOTOR_PERIOD" if motor else "PWM_SERVO_PERIOD"
+        return (f"more than channel {k}'s period ({'motor' if motor else 'servo'} mode: "
+                f"{period} = {value(period):,} {'cycles' if motor else 'µs'})")
+    return "out of its range (PWMOutputs)"
 
 
 def select_filter(link, name):
@@ -63,4 +96,9 @@ def set_rate(link, hz):
     odr = sample_rate(link)
     divider = max(1, min(65535, round(odr / hz)))
     link.check(link.command("rate", value=divider), f"rate {hz}")
-    return {"rate_hz": odr / divider, "divider": divider, "sample_rate_hz": odr}
+    result = {"rate_hz": odr / divider, "divider": divider, "sample_rate_hz": odr}
+    if divider != round(odr / hz):
+        # the divider's range: a frame per sample at the most, per 65,535 at the least
+        result["note"] = (f"{hz:g} Hz is beyond the telemetry's range at {odr:g} samples/s "
+                          f"({odr:g} .. {odr / 65535:.3g} Hz): {odr / divider:.6g} Hz set")
+    return result

@@ -77,7 +77,12 @@ def test_config_set_reads_back_and_refuses_what_it_must(board, capsys):
     assert rc == 0 and abs(json.loads(out)["value"] - 12.5) < 1e-6
     for args, message in [(("set", "ZERO", "1"), "read-only"),
                           (("set", "NOPE", "1"), "no register"),
-                          (("set", "PWM_SERVO_PERIOD", "100"), "refused"),  # 2500..20000
+                          # a PWM refusal says which rule, with the registers it reads
+                          (("set", "PWM_SERVO_PERIOD", "100"), "is 2,500 .. 20,000 µs"),
+                          (("set", "PWM_HIGH0", "30000"),
+                           "more than channel 0's period (servo mode: PWM_SERVO_PERIOD = "
+                           "20,000 µs)"),
+                          (("set", "PWM_ENABLE", "16"), "16 is not bits 3:0"),
                           (("set", "R", "1e12"), "out of range 0 .. 128"),
                           # issue #25: 200 s wrapped to -56 s and its read-back passed
                           (("set", "T", "200"), "out of range 3.125e-05 .. 1 s"),
@@ -93,8 +98,12 @@ def test_config_rate_and_reset(board, capsys):
     assert result["divider"] == 4 and result["sample_rate_hz"] == pytest.approx(200, rel=1e-6)
     filtered = [f["counters"]["filtered"] for f in frames_after(board, 3)]
     assert [b - a for a, b in zip(filtered, filtered[1:])] == [4, 4]
+    # beyond the divider's range: the nearest rate set, and a warning says so
+    rc, out, err = run_cli(capsys, "config", board.port, "rate", "100000")
+    assert rc == 0 and json.loads(out)["divider"] == 1, err
+    assert "warning: 100000 Hz is beyond the telemetry's range" in err
     rc, out, err = run_cli(capsys, "config", board.port, "rate", "200")
-    assert rc == 0
+    assert rc == 0 and "warning" not in err
     rc, out, err = run_cli(capsys, "config", board.port, "reset")
     assert rc == 0 and json.loads(out) == {"reset": True}
 
