@@ -117,6 +117,10 @@ def telemetry_divider_for(config, baud, divider=None, *, rate=None):
         frame_s = 10 * frame_bytes(AttitudeFrame) / baud
         rate = config.output_data_rate if rate is None else rate
         divider = max(1, math.ceil(frame_s * rate - 1e-9))
+        if divider >= 1 << 16:
+            raise ValueError(f"at {baud:g} baud an attitude frame takes {frame_s:.3g} s: one "
+                             f"in {divider} samples, more than the telemetry divider's 65535; "
+                             f"a faster baud")
     if not 1 <= divider < 1 << 16:
         raise ValueError(f"telemetry divider {divider} is not 1..65535")
     return divider

@@ -6,7 +6,11 @@ from amaranth.lib.cdc import FFSynchronizer
 from amaranth.lib.wiring import In, Out
 
 
-__all__ = ["UARTReceiver"]
+__all__ = ["UARTReceiver", "MIN_DIVISOR"]
+
+
+# cycles a bit the receiver needs: three samples of the bit and its edge
+MIN_DIVISOR = 4
 
 
 class UARTReceiver(wiring.Component):
@@ -33,8 +37,9 @@ class UARTReceiver(wiring.Component):
         transmitter up to about 4 % off the baud are received.
     """
     def __init__(self, *, divisor):
-        if divisor < 4:
-            raise ValueError(f"UART receiver needs at least 4 cycles per bit, not {divisor}")
+        if divisor < MIN_DIVISOR:
+            raise ValueError(f"UART receiver needs at least {MIN_DIVISOR} cycles per bit, not "
+                             f"{divisor}")
         self.divisor = divisor
         super().__init__({
             "rx": In(1, init=1),

@@ -30,8 +30,14 @@ class UARTTransmitter(wiring.Component):
 
     @staticmethod
     def divisor_for(clk_freq, baud):
-        """Cycles per bit for ``baud``; an error above 2 % would garble bytes, so it raises."""
+        """Cycles per bit for ``baud``; an error above 2 % would garble bytes, so it raises, as
+        for fewer cycles a bit than the receiver needs (``uart_rx.MIN_DIVISOR``)."""
+        from .uart_rx import MIN_DIVISOR
         divisor = round(clk_freq / baud)
+        if divisor < MIN_DIVISOR:
+            raise ValueError(f"{baud:g} baud from {clk_freq / 1e6:g} MHz is "
+                             f"{clk_freq / baud:.3g} cycles a bit; the UART needs at least "
+                             f"{MIN_DIVISOR}: at most {clk_freq / MIN_DIVISOR:g} baud")
         error = abs(clk_freq / divisor - baud) / baud
         if error > 0.02:
             raise ValueError(f"{baud} baud from {clk_freq / 1e6:g} MHz is off by {error:.1%}")

@@ -317,17 +317,21 @@ def drdy_to_attitude_us(clk_freq, config, results=21):
             "with_mag_correction": most(True), "without_mag_correction": most(False)}
 
 
-def report(*, clk_freq=None, config=None, latency=True, core_options=None, spread=0):
+def report(*, clk_freq=None, config=None, latency=True, core_options=None, spread=0,
+           baud=None):
     """The figures (``report``'s JSON). ``core_options``: ``AHRSCore`` options of the build
-    counted (``commands=False``, ``pwm=False``: what a user may leave out); the datapath,
-    cycles and latency are those of the default build either way. ``spread``: the whole
+    counted (``commands=False``, ``pwm=False``: what a user may leave out; the telemetry
+    divider, the filters' configuration), ``baud`` its UART's (``DEFAULT_BAUD``); the
+    datapath, cycles and latency are those of the default build either way. ``spread``: the whole
     design's ``logic_elements`` also over that many equivalent netlists
     (``design.logic_elements_spread``)."""
     from .hdl.attitude_engine import AttitudeEngine
     from .hdl.clocking import SYSTEM_CLOCK_HZ
     from .hdl.mpu9250_driver import MPU9250Config
+    from .hdl.defaults import DEFAULT_BAUD
     from .hdl.top import AHRSCore, AsyncResetCore, rate_budget
 
+    baud = DEFAULT_BAUD if baud is None else baud
     config = MPU9250Config() if config is None else config
     clk_freq = SYSTEM_CLOCK_HZ if clk_freq is None else clk_freq
     engine = AttitudeEngine()
@@ -337,7 +341,7 @@ def report(*, clk_freq=None, config=None, latency=True, core_options=None, sprea
     datapath = synthesize(engine, "attitude_engine", engine)
     shown.next("synthesis of the whole design: flat, carry chain, per block (Yosys)")
     core_options = dict(core_options or {})
-    core = AHRSCore(clk_freq=clk_freq, config=config, **core_options)
+    core = AHRSCore(clk_freq=clk_freq, config=config, baud=baud, **core_options)
     self_test = core.frontend.driver.self_test_block
     # as a board builds it: the reset asynchronous (``AsyncResetCore`` says why)
     wrapped = AsyncResetCore(core)
@@ -357,7 +361,7 @@ def report(*, clk_freq=None, config=None, latency=True, core_options=None, sprea
     latency_us = drdy_to_attitude_us(clk_freq, config) if latency else {"drdy_to_attitude": None}
     shown.close()
     mhz = clk_freq / 1e6
-    budget = rate_budget(config, clk_freq)
+    budget = rate_budget(config, clk_freq, baud, core_options.get("telemetry_divider"))
     return {
         "build": {"commands": core.commands, "pwm": core.has_pwm},
         "clock_hz": clk_freq,
@@ -379,20 +383,21 @@ def report(*, clk_freq=None, config=None, latency=True, core_options=None, sprea
                 100 * design["multipliers_18x18"] / DEVICE["multipliers_18x18"], 1),
             "memory_bits": round(100 * design["memory_bits"] / DEVICE["memory_bits"], 1),
         },
-        "link": link_figures(config, budget["baud"]),
+        "link": link_figures(config, budget["baud"], budget["telemetry_divider"]),
         "tool": "Yosys 0.23 synth_intel -family max10 (see mpu9250_ahrs/report.py for method)",
     }
 
 
-def link_figures(config, baud):
+def link_figures(config, baud, divider=None):
     """The UART's frames: bytes per frame type, the most frames a second the link carries
-    (10 bits a byte), and the default telemetry divider and frame rate for ``config``."""
+    (10 bits a byte), and the telemetry divider (``divider``, or the default for ``config``)
+    and frame rate."""
     from .hdl.frame_types import FRAME_TYPES
     from .hdl.frame_types import frame_bytes
     from .hdl.top import telemetry_divider_for
     names = {0x01: "sensor", 0x02: "attitude", 0x81: "reply"}
     sizes = {names[t]: frame_bytes(layout) for t, layout in FRAME_TYPES.items()}
-    divider = telemetry_divider_for(config, baud)
+    divider = telemetry_divider_for(config, baud, divider)
     return {"baud": baud, "frame_bytes": sizes,
             "max_frames_per_s": {k: round(baud / 10 / v, 1) for k, v in sizes.items()},
             "telemetry_divider": divider,

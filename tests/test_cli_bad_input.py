@@ -68,6 +68,9 @@ SIMULATE = [
     (["--odr", "100", "--dlpf", "1"], "leave out"),
     (["--dlpf", "9"], "dlpf_cfg"),
     (["--baud", "0"], "less than 1"),
+    # a ZeroDivisionError traceback, and a divider named where the baud was the matter
+    (["--baud", "100000000"], "the UART needs at least 4"),
+    (["--baud", "10"], "a faster baud"),
     (["--telemetry-divider", "0"], "less than 1"),
     (["--i2c-address", "0x50", "--wiring", "i2c"], "i2c_address"),
     (["--who-am-i", "-1"], "less than 0"),
@@ -89,11 +92,13 @@ BUILD = [
     (["--clk-freq", "-4"], "more than 0"),
     (["--clk-freq", "7e6"], "baud"),
     (["--gyro-fs", "300"], "gyro full scale"),
+    (["--baud", "20000000"], "the UART needs at least 4"),
 ]
 
 
+# report counts the build its options make: it refuses what build refuses (--baud was ignored)
 REPORT = [(["--clk-freq", "0"], "more than 0"), (["--accel-fs", "32"], "full scale"),
-          (["--odr", "3"], "1000/n")]
+          (["--odr", "3"], "1000/n"), (["--baud", "100000000"], "the UART needs at least 4")]
 
 
 CASES = [("simulate", a, w) for a, w in SIMULATE] + [("build", a, w) for a, w in BUILD] + \

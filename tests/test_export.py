@@ -64,7 +64,15 @@ def test_build_writes_quartus_project(tmp_path, capsys):
     assert "FAST_OUTPUT_REGISTER ON -to imu_spi_0__clk__io" in qsf
     top = (tmp_path / "top.v").read_text()
     assert "altpll" in top and ".clk0_multiply_by(32'd4)" in top
-    assert "system clock 48 MHz" in capsys.readouterr().out
+    out, err = capsys.readouterr()
+    assert "system clock 48 MHz" in out and "warning" not in err
+
+
+def test_build_above_the_checked_clock_says_where_timing_is_checked(tmp_path, capsys):
+    """--clk-freq 200e6 wrote a project without a word: the core is checked at 48 MHz."""
+    assert main(["build", "--out", str(tmp_path), "--clk-freq", "96e6"]) == 0
+    err = capsys.readouterr().err
+    assert "warning: the core's timing is checked at 48 MHz; at 96 MHz only Quartus's" in err
 
 
 def test_build_without_pll_at_the_oscillator_clock(tmp_path):

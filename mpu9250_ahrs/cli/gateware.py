@@ -2,6 +2,7 @@
 a ULX3S bitstream) and ``report`` (resources, cycles, latency, timing)."""
 
 import json
+import sys
 from pathlib import Path
 
 from .options import (_add_left_out_options, _add_sensor_options, _clock, _config, _count,
@@ -112,7 +113,19 @@ def cmd_build(args):
     print(f"wrote the Quartus project for {platform.device_name} to {out}/ "
           f"(top.qsf, top.sdc, top.v, build_top.sh; system clock {clk_freq / 1e6:g} MHz from "
           f"the {platform.default_clk_frequency / 1e6:g} MHz oscillator); see build/README.md")
+    _warn_untried_clock(clk_freq)
     return 0
+
+
+def _warn_untried_clock(clk_freq):
+    """A clock above the one this project's timing is checked at: say where it is checked."""
+    from ..hdl.clocking import SYSTEM_CLOCK_HZ
+    if clk_freq > SYSTEM_CLOCK_HZ:
+        mhz = f"{clk_freq / 1e6:g}"
+        print(f"mpu9250-ahrs build: warning: the core's timing is checked at "
+              f"{SYSTEM_CLOCK_HZ / 1e6:g} MHz; at {mhz} MHz only Quartus's timing analysis of "
+              f"this project (top.sdc) says whether it closes (the open proxy: report --timing "
+              f"--clk-freq {mhz}e6)", file=sys.stderr)
 
 
 def _build_ulx3s(args, out, clk_freq, config, options):
@@ -136,14 +149,16 @@ def _build_ulx3s(args, out, clk_freq, config, options):
 
 def cmd_report(args):
     from ..report import report
-    options = {k: v for k, v in _core_options(args).items() if k in ("commands", "pwm")}
+    # the build the options make, as build would make it (its checks first: one line)
+    check_rates(_config(args), _clock(args), args)
+    options = _core_options(args)
     result = report(clk_freq=_clock(args), config=_config(args), core_options=options,
-                    spread=args.spread)
+                    spread=args.spread, baud=args.baud)
     if args.timing:
         from ..hdl.top import AHRSCore, core_verilog
         from ..timing import ecp5_timing
         clk = _clock(args)
-        core = AHRSCore(clk_freq=clk, config=_config(args), **options)
+        core = AHRSCore(clk_freq=clk, config=_config(args), baud=args.baud, **options)
         from ..progress import steps
         with steps(["synth"] + [f"seed {k}" for k in range(args.seeds)],
                    "report --timing") as shown:

@@ -88,6 +88,9 @@ def check_rates(config, clk_freq, args, *, out=None):
     """Refuse (ValueError, one line) a sample rate the design cannot filter at ``clk_freq``;
     warn (one line on ``out``) when the telemetry cannot carry every result."""
     from ..hdl.top import rate_budget
+    from ..hdl.uart_tx import UARTTransmitter
+    # a baud the UART cannot make: one line here, not an error inside an elaboration
+    UARTTransmitter.divisor_for(clk_freq, getattr(args, "baud", DEFAULT_BAUD))
     budget = rate_budget(config, clk_freq, getattr(args, "baud", DEFAULT_BAUD),
                          _core_options(args).get("telemetry_divider"))
     if budget["sample_rate_hz"] > budget["max_sample_rate_hz"]:
