@@ -259,7 +259,8 @@ def test_host_verbs_bad_input(capsys, tmp_path):
         # a traceback (argparse's error type, raised outside argparse) before
         (["config", "sim", "rate", "0"], "more than 0"),
         (["config", "sim", "rate", "fast"], "not a number"),
-        (["plot", str(tmp_path / "none.csv"), "--out", str(tmp_path / "p.png")], "no such file"),
+        (["plot", str(tmp_path / "none.csv"), "--out", str(tmp_path / "p.png")],
+         "none.csv: no such file"),        # the path first, not "[Errno 2] ...: '...'"
         (["plot", str(not_a_log), "--out", str(tmp_path / "p.png")], "not a monitor log"),
         (["build", "--calibration", str(tmp_path / "none.json")], "no such file"),
         (["build", "--calibration", str(bad_json)], "not json"),

@@ -98,6 +98,8 @@ def main(argv=None):
         _prepare_outputs(args)
         return args.func(args)
     except (ValueError, OSError, RuntimeError) as e:
+        if isinstance(e, OSError) and e.filename is not None and e.strerror:
+            e = f"{e.filename}: {e.strerror}"     # not "[Errno 2] No such file ...: 'x'"
         print(f"mpu9250-ahrs {args.verb}: error: {e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
