@@ -4,6 +4,8 @@ from amaranth import *
 from amaranth.lib import stream, wiring
 from amaranth.lib.wiring import In, Out
 
+from .uart_rx import MIN_DIVISOR
+
 
 __all__ = ["UARTTransmitter"]
 
@@ -32,7 +34,6 @@ class UARTTransmitter(wiring.Component):
     def divisor_for(clk_freq, baud):
         """Cycles per bit for ``baud``; an error above 2 % would garble bytes, so it raises, as
         for fewer cycles a bit than the receiver needs (``uart_rx.MIN_DIVISOR``)."""
-        from .uart_rx import MIN_DIVISOR
         divisor = round(clk_freq / baud)
         if divisor < MIN_DIVISOR:
             raise ValueError(f"{baud:g} baud from {clk_freq / 1e6:g} MHz is "

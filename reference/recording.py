@@ -141,6 +141,10 @@ class Scales:
         return 32768 / self.accel_fs_g / G                 # 2048 LSB/g at ±16 g
 
 
+# what ``quantise`` saturates at, as the parts do: the MPU9250's words, the AK8963's range
+COUNT_LIMITS = {"gyro": (-32768, 32767), "accel": (-32768, 32767), "mag": (-32760, 32760)}
+
+
 def _counts(x, scale, lo, hi):
     return np.clip(np.round(np.asarray(x, float) * scale), lo, hi).astype(np.int32)
 
@@ -150,10 +154,6 @@ def quantise(gyr, acc, mag, scales=Scales()):
     return (_counts(gyr, scales.gyro_lsb_per_rad, *COUNT_LIMITS["gyro"]),
             _counts(acc, scales.accel_lsb_per_ms2, *COUNT_LIMITS["accel"]),
             _counts(mag, 1 / scales.mag_ut_per_lsb, *COUNT_LIMITS["mag"]))
-
-
-# what ``quantise`` saturates at, as the parts do: the MPU9250's words, the AK8963's range
-COUNT_LIMITS = {"gyro": (-32768, 32767), "accel": (-32768, 32767), "mag": (-32760, 32760)}
 
 
 def saturated(gyr_counts, acc_counts, mag_counts):

@@ -150,15 +150,15 @@ def _build_ulx3s(args, out, clk_freq, config, options):
 def cmd_report(args):
     from ..report import report
     # the build the options make, as build would make it (its checks first: one line)
-    check_rates(_config(args), _clock(args), args)
+    config, clk = _config(args), _clock(args)
+    check_rates(config, clk, args)
     options = _core_options(args)
-    result = report(clk_freq=_clock(args), config=_config(args), core_options=options,
-                    spread=args.spread, baud=args.baud)
+    result = report(clk_freq=clk, config=config, core_options=options, spread=args.spread,
+                    baud=args.baud)
     if args.timing:
         from ..hdl.top import AHRSCore, core_verilog
         from ..timing import ecp5_timing
-        clk = _clock(args)
-        core = AHRSCore(clk_freq=clk, config=_config(args), baud=args.baud, **options)
+        core = AHRSCore(clk_freq=clk, config=config, baud=args.baud, **options)
         from ..progress import steps
         with steps(["synth"] + [f"seed {k}" for k in range(args.seeds)],
                    "report --timing") as shown:

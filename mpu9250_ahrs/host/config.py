@@ -1,7 +1,7 @@
 """``config``: read and write the board's registers by name, in physical units."""
 
 from ..hdl.filter_registry import FILTER_CODES
-from ..hdl.pwm import MOTOR_MAX_HZ, PWM_CHANNELS, SERVO_PERIOD_US
+from ..hdl.pwm import MOTOR_MAX_HZ, PERIOD_BITS, PWM_CHANNELS, SERVO_PERIOD_US
 from .link import BoardError
 from .regmap import from_word, lookup, to_word
 
@@ -46,6 +46,7 @@ def _pwm_refusal(link, name, word):
     def value(reg):
         return get(link, reg)["value"]
     channels = f"bits {PWM_CHANNELS - 1}:0, one per channel"
+    most = f"{(1 << PERIOD_BITS) - 1:,}"               # the 16-bit registers' largest
     if name == "PWM_ENABLE":
         return f"{word} is not {channels}"
     if name == "PWM_MODE":
@@ -54,12 +55,12 @@ def _pwm_refusal(link, name, word):
         return (f"an enabled channel's mode stays (PWM_ENABLE = {value('PWM_ENABLE')}, "
                 f"PWM_MODE = {value('PWM_MODE')}): disable the channel first")
     if name == "PWM_WATCHDOG_MS":
-        return "the watchdog is 0 (off) .. 65,535 ms"
+        return f"the watchdog is 0 (off) .. {most} ms"
     if name == "PWM_SERVO_PERIOD":
         return f"the servo period is {SERVO_PERIOD_US[0]:,} .. {SERVO_PERIOD_US[1]:,} µs"
     if name == "PWM_MOTOR_PERIOD":
         return (f"the motor period is at least the clock's cycles in 1/{MOTOR_MAX_HZ:,} s, "
-                f"at most 65,535 cycles")
+                f"at most {most} cycles")
     if name.startswith("PWM_HIGH"):
         k = int(name[len("PWM_HIGH"):])
         motor = value("PWM_MODE") >> k & 1
@@ -94,10 +95,11 @@ def set_rate(link, hz):
     if not hz > 0:
         raise BoardError(f"rate must be above 0, not {hz}")
     odr = sample_rate(link)
-    divider = max(1, min(65535, round(odr / hz)))
+    wanted = round(odr / hz)
+    divider = max(1, min(65535, wanted))
     link.check(link.command("rate", value=divider), f"rate {hz}")
     result = {"rate_hz": odr / divider, "divider": divider, "sample_rate_hz": odr}
-    if divider != round(odr / hz):
+    if divider != wanted:
         # the divider's range: a frame per sample at the most, per 65,535 at the least
         result["note"] = (f"{hz:g} Hz is beyond the telemetry's range at {odr:g} samples/s "
                           f"({odr:g} .. {odr / 65535:.3g} Hz): {odr / divider:.6g} Hz set")
