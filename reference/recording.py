@@ -63,6 +63,25 @@ TRUTH_NORM_TOLERANCE = 0.01
 _WIDTHS = {"imu_gyr": 3, "imu_acc": 3, "imu_mag": 3, "opt_quat": 4}
 
 
+def _open_hdf5(h5py, path):
+    """The HDF5 file ``path`` open for reading, or a ValueError that says in a few words what
+    is wrong with it (missing, a folder, unreadable, not HDF5) rather than HDF5's own
+    message (a line of 300 characters with a buffer's address)."""
+    import os
+    problem = ("no such file" if not os.path.exists(path) else
+               "a folder, not a file" if os.path.isdir(path) else
+               "no permission to read it" if not os.access(path, os.R_OK) else
+               "not an HDF5 file (no HDF5 signature)" if not h5py.is_hdf5(path) else None)
+    if problem:
+        raise ValueError(f"{path}: cannot be read as HDF5: {problem}")
+    try:
+        return h5py.File(path, "r")
+    except OSError as e:
+        # e.g. a truncated file: HDF5's reason is the part before its details in brackets
+        reason = str(e).split("(", 1)[-1].split(")", 1)[0] if "(" in str(e) else str(e)
+        raise ValueError(f"{path}: cannot be read as HDF5: {reason.strip()[:120]}") from None
+
+
 def load_broad(path):
     """A BROAD-format HDF5 file, checked: the datasets and the ``sampling_rate`` attribute
     there, N × 3 sensor arrays, N × 4 truth and N movement flags with N ≥ 2, a finite
@@ -73,10 +92,7 @@ def load_broad(path):
     refused. Anything else is a ValueError with one line."""
     import h5py
     from pathlib import Path
-    try:
-        f = h5py.File(path, "r")
-    except OSError as e:
-        raise ValueError(f"{path}: cannot be read as HDF5 ({e})") from None
+    f = _open_hdf5(h5py, path)
     with f:
         missing = sorted({"imu_gyr", "imu_acc", "imu_mag", "opt_quat", "movement"} - set(f))
         if "sampling_rate" not in f.attrs:

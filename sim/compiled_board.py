@@ -10,7 +10,8 @@ and frames (``tests/sim/test_compiled_board.py``). ``run_frontend``/``run_core``
 path when Verilator and g++ are there and the build is cached or the run's cycle budget is at
 least ``WORTH_A_BUILD_CYCLES``), "prefer" (this path whenever it can run the job: what
 ``simulate`` and the simulated board use). A stuck CIPO stays with Amaranth's simulator; a
-VCD is written by a build of its own (``trace``), which auto leaves to Amaranth's simulator.
+waveform (VCD or FST, ``sim.waveforms``) is written by a build of its own (``trace``), which
+auto leaves to Amaranth's simulator.
 ``CosimResult.compiled`` / ``CoreRun.compiled`` say which path ran.
 
 Speed (``python -m mpu9250_ahrs.sim.speed``): prints both paths' cycles per second on
@@ -143,21 +144,10 @@ class UARTReader:
 WORTH_A_BUILD_CYCLES = 300_000
 
 
-# What a VCD's GTKWave save file shows (``CompiledDesign.trace_to``): the harness's ports,
-# labelled
-TRACES = {
-    "spi": [("pin_a", "cs_n"), ("pin_b", "sclk"), ("copi", "copi"), ("cipo_model", "cipo"),
-            ("int_model", "int")],
-    "i2c": [("pin_a", "scl"), ("pin_b", "sda"), ("scl_model_low", "scl_model_low"),
-            ("sda_model_low", "sda_model_low"), ("int_model", "int")],
-    "frontend": [("samples_valid", "samples.valid"), ("status", "status")],
-    "core": [("r_valid", "results.valid"), ("uart_tx", "uart_tx")],
-}
-
-
 def frontend_design(harness, dut, *, key, cached_only=False, trace=False):
     """The compiled ``SensorFrontEnd`` in its harness (``CompiledDesign``; ``NotBuilt`` with
-    ``cached_only`` when the cache does not have it; ``trace``: a build that writes VCDs)."""
+    ``cached_only`` when the cache does not have it; ``trace``: a build that writes
+    waveforms, "vcd" or "fst")."""
     inputs, outputs = board_ports(
         harness, extra_inputs={"samples_ready": dut.samples.ready},
         extra_outputs={"samples_valid": dut.samples.valid, "status": dut.status,

@@ -21,6 +21,7 @@ raises ``RuntimeError`` with a hint, and callers fall back to Amaranth's simulat
 import ctypes
 import functools
 import hashlib
+import re
 from pathlib import Path
 
 from amaranth import Module, Signal, Value
@@ -73,24 +74,37 @@ def _words(width):
 
 def _cxx(top, inputs, outputs, trace=False):
     """The C API: sim_new, sim_free, sim_set, sim_get, sim_run (see the module docstring);
-    with ``trace`` also sim_trace (a VCD of every signal, each clock edge dumped)."""
+    with ``trace`` ("vcd" or "fst") also sim_trace and sim_trace_window: a waveform of every
+    signal, dumped at each clock edge of a window of cycles."""
     cls = f"V{top}"
     if trace:
-        trace_include = '#include "verilated_vcd_c.h"\n'
-        trace_member = " VerilatedVcdC *tfp; uint64_t half_ps;"
+        writer = {"vcd": "VerilatedVcdC", "fst": "VerilatedFstC"}[trace]
+        trace_include = f'#include "verilated_{trace}_c.h"\n'
+        trace_member = f" {writer} *tfp; uint64_t half_ps, from, to;"
         trace_init = "    s->tfp = nullptr; s->half_ps = 1;\n    s->ctx->traceEverOn(true);\n"
         trace_close = "if (s->tfp) { s->tfp->close(); delete s->tfp; } "
-        dump = "if (s->tfp) s->tfp->dump((2 * s->cycle + {}) * s->half_ps); "
-        trace_api = f"""// A VCD of every signal from here on, at each clock edge (half_ps: half a period)
-void sim_trace(void *p, const char *path, uint64_t half_ps) {{
+        # dumped only inside the window: the first dump writes every value, so a waveform
+        # that starts late still opens with the whole state
+        dump = ("if (s->tfp && s->cycle >= s->from && s->cycle < s->to) "
+                "s->tfp->dump((2 * s->cycle + {}) * s->half_ps); ")
+        trace_api = f"""// A waveform of every signal into path, at each clock edge (half_ps: half a period)
+// of the cycles from .. to - 1
+void sim_trace(void *p, const char *path, uint64_t half_ps, uint64_t from, uint64_t to) {{
     Sim *s = (Sim *)p;
-    s->tfp = new VerilatedVcdC;
+    s->tfp = new {writer};
     s->half_ps = half_ps;
+    s->from = from; s->to = to;
     s->top->trace(s->tfp, 99);
     s->tfp->set_time_unit("1ps");
     s->tfp->set_time_resolution("1ps");
     s->tfp->open(path);
-    s->tfp->dump(2 * s->cycle * s->half_ps);
+    if (s->cycle >= from && s->cycle < to) s->tfp->dump(2 * s->cycle * s->half_ps);
+}}
+// The window moved (a bound known only once the run reaches it: a sample's cycle)
+void sim_trace_window(void *p, uint64_t from, uint64_t to) {{
+    Sim *s = (Sim *)p;
+    s->from = from; s->to = to;
+    if (s->tfp && s->cycle >= to) s->tfp->flush();
 }}
 """
     else:
@@ -222,15 +236,20 @@ def _mark_used(root):
             todo.extend(obj.values())
 
 
-def _write_gtkw(path, vcd, traces, scope="TOP"):
-    """A GTKWave save file ``path`` that opens the VCD ``vcd`` with ``traces`` laid out:
-    (port name, width, label) each, a port of the design's top (Verilator puts them in scope
-    ``TOP``), shown under its label."""
-    lines = [f'[dumpfile] "{Path(vcd).resolve()}"', f"[treeopen] {scope}.", "@22"]
-    for name, width, label in traces:
-        ref = f"{scope}.{name}" + (f"[{width - 1}:0]" if width > 1 else "")
-        lines.append(f"+{{{label}}} {ref}")
-    Path(path).write_text("\n".join(lines) + "\n")
+# Yosys' Verilog backend declares a register per module to start its ``always @*`` blocks at
+# time 0, named ``\$auto$verilog_backend.cc:2355:dump_module$1``: GTKWave's VCD reader refuses
+# that name ("$VAR parse error"). Renamed with a leading underscore, Verilator leaves it out of
+# its traces (signals starting with ``_`` are not traced without --trace-underscore).
+_GENERATED_NAME = re.compile(r"\\\$auto\$\S*")
+
+
+def readable_names(text):
+    """The Verilog ``text`` with Yosys' generated identifiers (``$auto$...``, escaped, up to
+    the white space that ends them) renamed ``_auto_N``: same design, nothing GTKWave refuses
+    in a trace of it."""
+    names = {}
+    return _GENERATED_NAME.sub(
+        lambda m: names.setdefault(m.group(0), f"_auto_{len(names) + 1}"), text)
 
 
 class CompiledDesign:
@@ -239,12 +258,15 @@ class CompiledDesign:
     identifiers). ``name``: the cache folder's prefix. ``key``: what makes the design (its
     parameters, with a repr that says all of them); given, the cache is looked up without
     converting the design to Verilog (the package's sources are part of the key).
-    ``cached_only``: raise ``NotBuilt`` rather than build."""
+    ``cached_only``: raise ``NotBuilt`` rather than build. ``trace``: a build that writes
+    waveforms (``trace_to``), "vcd" or "fst" (True: "vcd")."""
 
     def __init__(self, design, inputs, outputs, *, name="design", key=None, cached_only=False,
                  trace=False):
         self.cached_only = cached_only
-        self.trace = trace
+        self.trace = "vcd" if trace is True else (trace or False)
+        if self.trace not in (False, "vcd", "fst"):
+            raise ValueError(f"trace: 'vcd', 'fst' or False, not {trace!r}")
         self.name = name
         self.key = key
         self.inputs = {n: Value.cast(v) for n, v in inputs.items()}
@@ -274,15 +296,12 @@ class CompiledDesign:
         top = self.name.replace("-", "_") + "_top"
         cxx = _cxx(top, [(n, self._in_width[n]) for n in self.inputs],
                    [(n, self._out_width[n]) for n in self.outputs], trace=self.trace)
-        def convert():
-            return verilog.convert(_Ports(design, self.inputs, self.outputs), name=top,
-                                   emit_src=False)
         converted = []                  # the design's Verilog, once made
 
         def verilog_text():
             if not converted:
-                converted.append(verilog.convert(_Ports(design, self.inputs, self.outputs),
-                                                 name=top, emit_src=False))
+                converted.append(readable_names(verilog.convert(
+                    _Ports(design, self.inputs, self.outputs), name=top, emit_src=False)))
             return converted[0]
         if self.key is None:
             key = verilog_text()
@@ -303,7 +322,7 @@ class CompiledDesign:
             folder, "design.so", {f"{top}.v": verilog_text, "api.cpp": cxx}, top=top,
             what=self.name, options=[
                 "-CFLAGS", "-fPIC", "-LDFLAGS", "-shared", "--x-assign", "fast",
-                "--x-initial", "fast", "--noassert", *(["--trace"] if self.trace else [])],
+                "--x-initial", "fast", "--noassert", *({"vcd": ["--trace"], "fst": ["--trace-fst"]}.get(self.trace, []))],
             make_flags=BUILD_OPTIMISATION["design"])
         if not converted:
             # the design was never elaborated (the cache had it): its blocks would each warn,
@@ -320,7 +339,8 @@ class CompiledDesign:
         lib.sim_run.argtypes = [ctypes.c_void_p, ctypes.c_uint64, ctypes.c_uint64]
         lib.sim_run.restype = ctypes.c_uint64
         if self.trace:
-            lib.sim_trace.argtypes = [ctypes.c_void_p, ctypes.c_char_p, ctypes.c_uint64]
+            lib.sim_trace.argtypes = [ctypes.c_void_p, ctypes.c_char_p, *[ctypes.c_uint64] * 3]
+            lib.sim_trace_window.argtypes = [ctypes.c_void_p, *[ctypes.c_uint64] * 2]
         return lib
 
     def close(self):
@@ -371,17 +391,25 @@ class CompiledDesign:
             bits |= 1 << k
         return bits
 
-    def trace_to(self, path, clk_freq, gtkw=None, shown=()):
-        """Dump every signal from now on into the VCD file ``path`` (a design built with
-        ``trace``), the clock at ``clk_freq``; the file is complete once the design is closed.
-        Its scope ``TOP`` holds the ports by their names. ``gtkw``: a GTKWave save file to
-        write, with the ports ``shown`` ((name, label) each) laid out."""
+    def trace_to(self, path, clk_freq, start=0, stop=NEVER):
+        """Dump every signal into the waveform file ``path`` (VCD or FST, as built: ``trace``),
+        the clock at ``clk_freq``, at the clock edges of the cycles ``start`` .. ``stop`` - 1
+        (by ``cycle``); the file is complete once the design is closed. The design's own
+        signals are in scope ``TOP.<name>_top.design`` (``scope``), the ports in ``TOP``;
+        time in picoseconds."""
         if not self.trace:
-            raise ValueError("this design was built without trace=True")
-        self._lib.sim_trace(self._handle, str(path).encode(), max(1, round(0.5e12 / clk_freq)))
-        if gtkw is not None:
-            widths = {**self._in_width, **self._out_width}
-            _write_gtkw(gtkw, path, [(name, widths[name], label) for name, label in shown])
+            raise ValueError("this design was built without trace")
+        self._lib.sim_trace(self._handle, str(path).encode(), max(1, round(0.5e12 / clk_freq)),
+                            int(start), int(stop))
+
+    def trace_window(self, start, stop=NEVER):
+        """Move the traced cycles to ``start`` .. ``stop`` - 1 (a bound met during the run)."""
+        self._lib.sim_trace_window(self._handle, int(start), int(stop))
+
+    @property
+    def scope(self):
+        """The waveform's scope of the design's own signals (``trace_to``)."""
+        return f"TOP.{self.name.replace('-', '_')}_top.design"
 
     def run(self, until, mask=0):
         """Clock edges until a watched output (``mask``) changes at one, or the edge count is

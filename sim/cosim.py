@@ -27,7 +27,7 @@ from .ak8963_model import AK8963Model, AK8963Timing
 from .sources import counting_field, counting_source
 from .compiled_design import NEVER
 from .streams import Monitored
-from .waveforms import gtkw_beside, open_on_first_transaction
+from .waveforms import RunTrace, gtkw_beside
 from ..host.protocol import to_python
 
 
@@ -390,6 +390,15 @@ def expected_mag(ak_bytes, mag_ok=True, previous=None):
                  "mag_new": int(new), "mag_dor": int(new and bool(st1 & A.ST1_DOR))}
 
 
+def status_fields(status):
+    """The fields of a status port (a ``View`` of a struct): (name, width) each, as a
+    waveform's save file shows them."""
+    from amaranth import Shape
+    from amaranth.lib import data
+    return [(name, Shape.cast(field.shape).width)
+            for name, field in data.Layout.cast(status.shape())]
+
+
 def simulator_name(compiled):
     """Which simulator ran, as summaries say it."""
     return "compiled (Verilator)" if compiled else "python (Amaranth)"
@@ -465,7 +474,8 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
     ``I2CBusModel`` arguments (clock stretching, a stuck bus).
 
     ``ready(cycle)`` gives the consumer's ready per cycle (default: always ready).
-    ``vcd``: path of a VCD file to write; a GTKWave save file is written beside it.
+    ``vcd``: the waveform to write (a path, ``.vcd`` or ``.fst``, or a ``sim.waveforms.Waveform``
+    with a window); a GTKWave save file is written beside it.
     ``progress``: a bar (``mpu9250_ahrs.progress``: ``update``, ``set_postfix_str``) told of
     each sample and the cycle reached.
     ``compiled``: run the design compiled (``compiled_wanted``; ``CosimResult.compiled``
@@ -474,6 +484,8 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
     setup = setup or SimSetup()
     compiled = compiled_wanted(compiled, vcd=vcd, supported=stuck_miso is None)
     dut = setup.frontend()
+    trace = vcd and RunTrace(vcd, setup.clk_freq, "frontend", setup.config.wiring,
+                             status_fields(dut.status))
     if model is None and stuck_miso is None:
         model = setup.model()
     if max_cycles is None:
@@ -494,13 +506,11 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
     harness.monitor(dut.samples, "samples")
     from .compiled_board import frontend_design
     design = _auto_build(compiled, max_cycles, lambda cached_only: frontend_design(
-        harness, dut, cached_only=cached_only, trace=bool(vcd),
+        harness, dut, cached_only=cached_only, trace=trace and trace.wave.format,
         key=("frontend", setup.clk_freq, setup.config, setup.driver_timing())))
     compiled = design is not None
-    if compiled and vcd:
-        from .compiled_board import TRACES
-        design.trace_to(vcd, setup.clk_freq, gtkw_beside(vcd),
-                        TRACES["spi" if bus is None else "i2c"] + TRACES["frontend"])
+    if compiled and trace:
+        trace.start_compiled(design)
     sim = None
     if not compiled:
         sim = Simulator(harness)
@@ -529,6 +539,8 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
         if taken:
             out["samples"].append(to_python(payload))
             out["sample_cycles"].append(cycle)
+            if trace:
+                trace.at_sample(len(out["samples"]), cycle)
         if progress is not None:
             progress.set_postfix_str(f"cycle {cycle:,}", refresh=False)
             progress.update(1 if taken else 0)
@@ -590,22 +602,20 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
             out["who_am_i"] = design.get("who_am_i")
             out["self_test"] = unpack(dut.self_test.shape(), design.get("self_test"))
             check_monitors(design, harness)
-        if vcd:
-            design.close()                  # the VCD complete
-    elif vcd:
-        gtkw = gtkw_beside(vcd)
+        if trace:
+            design.close()                  # the waveform complete
+    elif trace:
         if bus is None:
             traces = [dut.pins.cs_n, dut.pins.sclk, dut.pins.copi, dut.pins.cipo]
         else:
             traces = [harness.scl, harness.sda, dut.pins.scl_oe, dut.pins.sda_oe]
-        # the status as a plain value: Amaranth would put a View's rows in a group "view"
-        traces += [dut.int_pin, dut.samples.valid, Value.cast(dut.status)]
-        with sim.write_vcd(str(vcd), gtkw, traces=traces):
+        traces += [dut.int_pin, dut.samples.valid, dut.status]
+        with trace.python_writer(sim, traces):
             sim.run()
     else:
         sim.run()
-    if vcd:
-        open_on_first_transaction(vcd, model, bus)
+    if trace:
+        trace.finish(model, bus, out["cycles"], len(out["samples"]))
     wall = time.perf_counter() - start
     return CosimResult(out["samples"], out["status"], out["cycles"], out["bring_up"], wall,
                        model, bus, out["log"], out["asa"], out["sample_cycles"],
@@ -708,14 +718,14 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
         max_cycles = int(setup.bring_up_budget_cycles() + 40_000 +
                          (samples + 3) * period * 1.5)
     compiled = compiled_wanted(compiled, vcd=vcd)
+    trace = vcd and RunTrace(vcd, setup.clk_freq, "core", setup.config.wiring,
+                             status_fields(core.status))
     from .compiled_board import core_design
     design = _auto_build(compiled, max_cycles, lambda cached_only: core_design(
-        harness, core, cached_only=cached_only, trace=bool(vcd), key=key))
+        harness, core, cached_only=cached_only, trace=trace and trace.wave.format, key=key))
     compiled = design is not None
-    if compiled and vcd:
-        from .compiled_board import TRACES
-        design.trace_to(vcd, setup.clk_freq, gtkw_beside(vcd),
-                        TRACES["spi" if bus is None else "i2c"] + TRACES["core"])
+    if compiled and trace:
+        trace.start_compiled(design)
     received = bytearray()
     if not compiled:
         sim = Simulator(harness)
@@ -762,6 +772,8 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
             if s_valid and not s_prev:
                 # a sample offered to the engine: it holds until taken
                 out["samples"].append(to_python(ctx.get(offered.payload)))
+                if trace:
+                    trace.at_sample(len(out["samples"]), cycle)
             s_prev = s_valid
             if ctx.get(results.valid):
                 # the result as it leaves the engine; recorded once, when it is taken
@@ -791,27 +803,31 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
             out["results"].append(unpack(results.payload.shape(), bits))
             out["cycles"].append(cycle)
             out["ints"].append(int_cycle)
+
+        def offered_sample(bits):
+            out["samples"].append(unpack(offered.payload.shape(), bits))
+            if trace:
+                trace.at_sample(len(out["samples"]), design.cycle)
         end = core_loop(design, core, PinModels(setup.clk_freq, mpu=model, bus=bus),
                         divisor=core.uart.divisor, received=received, record=record,
                         more_wanted=more_wanted, max_cycles=max_cycles, writes=writes,
-                        progress=progress, offered=lambda bits: out["samples"].append(
-                            unpack(offered.payload.shape(), bits)))
+                        progress=progress, offered=offered_sample)
         out["end"] = (end, *(unpack(v.shape(), design.get(name)) for name, v in
                              (("counters", core.counters), ("status", core.status),
                               ("asa", core.asa))))
         check_monitors(design, harness)
-        if vcd:
-            design.close()                  # the VCD complete
-    elif vcd:
-        pins = ([core.imu.cs_n, core.imu.sclk, core.imu.cipo] if bus is None else
-                [harness.scl, harness.sda])
-        with sim.write_vcd(str(vcd), gtkw_beside(vcd),
-                           traces=[*pins, core.imu_int, results.valid, core.uart_tx]):
+        if trace:
+            design.close()                  # the waveform complete
+    elif trace:
+        pins = ([core.imu.cs_n, core.imu.sclk, core.imu.copi, core.imu.cipo] if bus is None
+                else [harness.scl, harness.sda, core.imu.scl_oe, core.imu.sda_oe])
+        with trace.python_writer(sim, [*pins, core.imu_int, results.valid, core.uart_tx,
+                                       core.status]):
             sim.run()
     else:
         sim.run()
-    if vcd:
-        open_on_first_transaction(vcd, model, bus)
+    if trace:
+        trace.finish(model, bus, out["end"][0], len(out["samples"]))
     wall = time.perf_counter() - start
     more_wanted()                       # the bytes that came after the last look
     cycles, counters, status, asa = out["end"]

@@ -80,6 +80,15 @@ SIMULATE = [
     (["--fault", "ak8963_lost", "--attitude"], "leave out"),
     (["--fault", "ak8963_lost", "--fault-at", "0"], "less than 1"),
     (["--odr", "8000", "--wiring", "i2c"], "more than this design filters"),
+    # issue #55: the option named, and the waveform's file and window checked before a run
+    (["--pose", "30,x,2"], "--pose: '30,x,2'"),
+    (["--pose", "30,2"], "--pose"),
+    (["--pose", "30,nan,2", "--attitude"], "--pose"),
+    (["--vcd", "out/sim.txt"], "ends in .vcd or .fst"),
+    (["--trace-from", "3"], "give --vcd"),
+    (["--vcd", "out/x.vcd", "--trace-from", "3q"], "--trace-from: '3q'"),
+    (["--vcd", "out/x.vcd", "--trace-to", "-1ms"], "--trace-to"),
+    (["--vcd", "out/x.fst", "--trace-from", "5", "--trace-to", "4"], "before it starts"),
 ]
 
 
@@ -122,6 +131,8 @@ def _replay_cases(tmp_path):
     return [
         (str(tmp_path / "missing.hdf5"), [], "cannot be read"),
         (str(text), [], "cannot be read"),
+        # issue #55: a folder, in one line naming it (was h5py's 300 characters)
+        (str(tmp_path), [], "a folder, not a file"),
         (broad_file(tmp_path / "shape.hdf5", imu_gyr=np.zeros((n, 2))), [], "shape"),
         (broad_file(tmp_path / "length.hdf5", imu_acc=np.zeros((n - 1, 3))), [], "shape"),
         (broad_file(tmp_path / "empty.hdf5", n=0), [], "at least 2"),

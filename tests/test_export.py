@@ -137,9 +137,19 @@ def test_simulate_command(tmp_path, capsys):
     text = vcd.read_text()
     header = text[:text.index("$enddefinitions")]
     gtkw = (tmp_path / "x.gtkw").read_text()
-    traced = re.findall(r"^(?:\+\{[^}]*\} )?([\w.]+)", gtkw.split("@22", 1)[1], re.M)
-    assert traced and all(re.search(rf"\$var \w+ +\d+ \S+ {re.escape(t.rsplit('.', 1)[1])}"
-                                    rf"(?: \[[\d:]+\])? \$end", header) for t in traced)
+    # each trace of the save file is a variable of the VCD: its name after its scope (a
+    # field's name, 'status.mag_ok', written '\\status.mag_ok' as GTKWave reads it)
+    traced = re.findall(r"^\+\{[^}]*\} [\w.]+\.\\?([\w.]+?)(?:\[[\d:]+\])?$", gtkw, re.M)
+    assert len(traced) > 10 and all(
+        re.search(rf"\$var \w+ +\d+ \S+ {re.escape(t)}(?: \[[\d:]+\])? \$end", header)
+        for t in traced), traced
+    # and GTKWave itself opens it with the save file: no parse error, every trace found
+    from mpu9250_ahrs.sim.waveforms import GTKWAVE_HINT, gtkwave_check
+    require_tool("gtkwave", GTKWAVE_HINT)
+    require_tool("xvfb-run", GTKWAVE_HINT)
+    opened = gtkwave_check(vcd, tmp_path / "x.gtkw")
+    assert opened["errors"] == [] and opened["facs"] > 1000, opened
+    assert {"cs_n", "sclk", "cipo", "streaming", "mag_ok"} <= set(opened["traces"]), opened
     # it opens on the first sensor transaction (chip select low to high) at a readable scale:
     # from [timestart], 2**-zoom time units per 200 pixels of a 1000-pixel wave area
     from mpu9250_ahrs.sim.waveforms import GTKW_WIDTH_PX

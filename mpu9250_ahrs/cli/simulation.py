@@ -3,6 +3,7 @@ faults, waveforms) and ``replay`` (a recording through a filter, the engine or t
 simulated board)."""
 
 import json
+import math
 import sys
 import time
 
@@ -23,7 +24,16 @@ def add_simulate(sub, quiet):
                                    "Amaranth's simulator (--simulator), with real time scaled "
                                    "down (delays and sample period) to save cycles.")
     p.add_argument("--samples", type=_count, default=20, help="samples to read (default 20)")
-    p.add_argument("--vcd", default=None, help="write a VCD (and a GTKWave .gtkw beside it)")
+    p.add_argument("--vcd", default=None, metavar="FILE",
+                   help="write a waveform of every signal and a GTKWave .gtkw beside it: VCD, or "
+                        "FST (GTKWave's compressed format, tens of times smaller) where FILE "
+                        "ends in .fst; for long runs an FST and a window (--trace-from/-to)")
+    p.add_argument("--trace-from", default=None, metavar="WHEN",
+                   help="with --vcd: trace from WHEN on: a count of samples (5: once 5 samples "
+                        "are out, so the read of the 6th is in) or a simulated time with its "
+                        "unit (2ms, 150us, 0.01s); default the start")
+    p.add_argument("--trace-to", default=None, metavar="WHEN",
+                   help="with --vcd: trace until WHEN (as --trace-from); default the end")
     p.add_argument("--who-am-i", type=_number("a byte", low=0, integer=True), default=0x71,
                    help="WHO_AM_I of the modelled part (default 0x71; 0x73 is an MPU9255)")
     p.add_argument("--delay-scale", type=_positive, default=1e-3,
@@ -109,8 +119,9 @@ def cmd_simulate(args):
     setup = SimSetup(clk_freq=clk_freq, config=config, delay_scale=args.delay_scale,
                      odr_scale=odr_scale, self_test=config.self_test)
     compiled = _simulator_choice(args)
+    wave = _waveform(args)
     if args.fault is not None:
-        return _simulate_fault(args, setup, compiled)
+        return _simulate_fault(args, setup, compiled, wave)
     sources = _pose_sources(args.pose, args.samples, config, setup) if args.pose else {}
     model = setup.model(who_am_i=args.who_am_i, magnetometer=not args.no_mag, **sources)
     summary = {"wiring": config.wiring, "clock_hz": clk_freq,
@@ -125,7 +136,7 @@ def cmd_simulate(args):
         with progress.bar(args.samples, "simulate (whole core)", "result") as shown:
             run = run_core(setup, n_results=args.samples, model=model, baud=args.baud,
                            core_kwargs=core_options,
-                           vcd=args.vcd, progress=shown, compiled=compiled)
+                           vcd=wave, progress=shown, compiled=compiled)
         for r in run.results:
             print(json.dumps(attitude_json(r, args.filter)))
         latency = run.latencies_us(clk_freq)
@@ -145,7 +156,7 @@ def cmd_simulate(args):
                       for v in who.violations]
     else:
         with progress.bar(args.samples, "simulate (sensor front end)", "sample") as shown:
-            result = run_frontend(setup, n_samples=args.samples, model=model, vcd=args.vcd,
+            result = run_frontend(setup, n_samples=args.samples, model=model, vcd=wave,
                                   progress=shown, compiled=compiled)
         for s in result.samples:
             print(json.dumps({"counter": s["counter"], "accel": s["accel"], "temp": s["temp"],
@@ -169,10 +180,24 @@ def cmd_simulate(args):
                     "time_scale": {"delays": setup.delay_scale,
                                    "sample_period": setup.odr_scale}})
     print(json.dumps(summary), file=sys.stderr if args.quiet_summary else sys.stdout)
-    if args.vcd:
-        from ..sim.waveforms import gtkw_beside
-        print(f"wrote {args.vcd} and {gtkw_beside(args.vcd)}")
+    if wave:
+        print(f"wrote {wave.path} and {wave.gtkw}")
     return 1 if violations else 0
+
+
+def _waveform(args):
+    """``--vcd``, ``--trace-from`` and ``--trace-to`` as a ``sim.waveforms.Waveform`` (None
+    without --vcd); one error line for a bad value or a window without a file."""
+    from ..sim.waveforms import Waveform, parse_bound
+    bounds = [None if text is None else parse_bound(text, option)
+              for text, option in ((args.trace_from, "--trace-from"),
+                                   (args.trace_to, "--trace-to"))]
+    if args.vcd is None:
+        if any(bounds):
+            raise ValueError("--trace-from and --trace-to choose a window of the waveform: "
+                             "give --vcd FILE too")
+        return None
+    return Waveform(args.vcd, *bounds)
 
 
 def _simulator_choice(args):
@@ -191,7 +216,7 @@ def _simulator_choice(args):
     return "prefer"
 
 
-def _simulate_fault(args, setup, compiled=None):
+def _simulate_fault(args, setup, compiled=None, wave=None):
     """``simulate --fault NAME``: the front end with one fault of the catalogue."""
     from .. import progress
     from ..sim.faults import run_fault
@@ -199,7 +224,7 @@ def _simulate_fault(args, setup, compiled=None):
         raise ValueError("--fault runs the sensor front end with its test pattern: leave out "
                          "--attitude and --pose")
     with progress.bar(None, f"simulate --fault {args.fault}", "sample") as shown:
-        summary = run_fault(args.fault, setup, at=args.fault_at, vcd=args.vcd, progress=shown,
+        summary = run_fault(args.fault, setup, at=args.fault_at, vcd=wave, progress=shown,
                             compiled=compiled)
     summary["time_scale"] = {"delays": setup.delay_scale, "sample_period": setup.odr_scale}
     print(json.dumps(summary), file=sys.stderr if args.quiet_summary else sys.stdout)
@@ -226,9 +251,13 @@ def _pose_sources(pose, samples, config, setup):
     from ..hdl import ak8963_regs as A
     from ..sim.motion import SensorModel, accel_gyro_source, mag_source, static
     from ..reference.recording import Scales
-    euler = [float(v) for v in pose.split(",")]
-    if len(euler) != 3:
-        raise ValueError("--pose takes roll,pitch,yaw in degrees, e.g. 30,-10,45")
+    try:
+        euler = [float(v) for v in pose.split(",")]
+    except ValueError:
+        euler = []
+    if len(euler) != 3 or not all(math.isfinite(v) for v in euler):
+        raise ValueError(f"--pose: {pose!r} is not roll,pitch,yaw in degrees (three numbers, "
+                         f"e.g. 30,-10,45)")
     rate = config.output_data_rate
     traj = static(euler, (samples + 10) / rate, rate=rate)
     gc, ac, mc = SensorModel(seed=0).counts(
