@@ -88,7 +88,7 @@ def load_broad(path):
     positive rate, each dataset's shape before its data is read. NaN or infinite sensor values
     are held (``Recording.held`` counts them; ``replay`` says so). Truth rows whose norm is
     not 1 within ``TRUTH_NORM_TOLERANCE`` are set unknown (``Recording.truth_rejected``
-    counts them; ``replay`` says so); a file whose known truth is all of that kind is
+    counts them; ``replay`` says so), the others normalised; a file whose known truth is all of that kind is
     refused. Anything else is a ValueError with one line."""
     import h5py
     from pathlib import Path
@@ -134,6 +134,9 @@ def load_broad(path):
         raise ValueError(f"{path}: opt_quat is not a unit quaternion in any row (norms "
                          f"{norms.min():.3g} .. {norms.max():.3g}): no truth to score against")
     quat[off] = np.nan
+    # the rows kept are rotations stored to a few decimals: scored as the rotations they are
+    kept = known & ~off
+    quat[kept] /= np.linalg.norm(quat[kept], axis=1, keepdims=True)
     return Recording(Path(path).stem, rate, gyr, acc, mag, quat, movement.reshape(-1), held,
                      int(off.sum()))
 

@@ -57,3 +57,16 @@ def test_error_metric_splits_heading_and_inclination():
 
 def test_mag_axis_mapping():
     assert mag_to_body([1, 2, 3]).tolist() == [2, 1, -3]
+
+
+def test_error_metric_is_of_rotations_whatever_the_norm():
+    """A quaternion a little off unit norm (truth stored rounded, an estimate in fixed point)
+    scores as the rotation it is: near zero error too, where |e_w| was clipped at 1."""
+    rng = np.random.default_rng(1)
+    q = euler_to_quat(rng.uniform(-180, 180, (200, 3)))
+    small = euler_to_quat(rng.normal(0, 0.5, (200, 3)))             # errors of about 1°
+    est = quat_mul(small, q)
+    exact = np.degrees(orientation_errors(est, q))
+    for scale in (1 - 1e-2, 1 - 1e-3, 1 - 1e-4, 1 + 1e-4, 1 + 1e-3, 1 + 1e-2):
+        assert np.degrees(orientation_errors(est, q * scale)) == pytest.approx(exact, abs=1e-6)
+        assert np.degrees(orientation_errors(est * scale, q)) == pytest.approx(exact, abs=1e-6)
