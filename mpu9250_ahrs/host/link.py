@@ -15,7 +15,7 @@ import time
 from ..hdl.command_decoder import REGMAP_VERSION
 from ..hdl.frame_types import REPLY
 from ..hdl.defaults import DEFAULT_BAUD
-from .protocol import FrameDecoder, encode_command, reply_of
+from .protocol import FrameDecoder, answers, encode_command, reply_of
 
 
 __all__ = ["BoardError", "Link", "open_link", "SIM_BOARDS"]
@@ -122,7 +122,10 @@ class Link:
         """Send command ``name`` (``protocol.encode_command``'s arguments) and return its
         reply (``Reply`` fields plus ``result_name``). A reply that does not come within
         ``timeout`` (default: half the link's) is asked for again, ``retries`` times (a
-        command repeated is harmless: every command sets, none toggles)."""
+        command repeated is harmless: every command sets, none toggles). A reply is this
+        command's when its sequence number, its command and (a read's, a write's) address are
+        this command's (``answers``): a CRC-good reply to another command with the same
+        sequence number is not read as the value asked for."""
         timeout = self.timeout / 2 if timeout is None else timeout
         for _ in range(retries):
             self.seq = (self.seq + 1) % 256
@@ -136,7 +139,7 @@ class Link:
             while self.clock() - start < timeout:
                 got = self._read()
                 for k, (ftype, seq, fields) in enumerate(got):
-                    if ftype == REPLY and fields["cmd_seq"] == self.seq:
+                    if ftype == REPLY and answers(fields, name, self.seq, **kwargs):
                         self.backlog += got[:k] + got[k + 1:]
                         return reply_of(fields)
                 self.backlog += got

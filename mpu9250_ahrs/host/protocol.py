@@ -15,7 +15,7 @@ from ..hdl.frame_types import CRC, HEADER_BYTES, SYNC, payload_bytes
 
 
 __all__ = ["FrameError", "unpack", "to_python", "crc16", "encode_frame", "encode_command",
-           "decode_frames", "FrameDecoder", "LinkStats", "RESULT_NAMES", "reply_of",
+           "decode_frames", "FrameDecoder", "LinkStats", "RESULT_NAMES", "answers", "reply_of",
            "corrupted_share"]
 
 
@@ -157,6 +157,18 @@ class FrameDecoder:
         frames, used = _scan(self._buf, False, self.stats, self._state)
         del self._buf[:used]
         return frames
+
+
+def answers(fields, name, seq, *, addr=None, space="engine", **_):
+    """Whether a reply's ``fields`` answer the command ``name`` sent with ``seq`` (and, for a
+    read or write, ``addr`` in ``space``): its sequence number, its command code and, unless
+    the board found the command malformed (its reply's address 0), the address it names."""
+    code, _n = COMMANDS[name]
+    if fields["cmd_seq"] != seq or fields["command"] != code:
+        return False
+    if name in ("write", "read") and fields["result"] != RESULTS["bad_command"]:
+        return fields["addr"] == (SPACES[space] << 8) | addr
+    return True
 
 
 def reply_of(fields):

@@ -129,3 +129,43 @@ def test_commands_encoded(name, kwargs, payload):
     assert frame[5:-2] == payload
     assert crc16(frame[2:-2]) == int.from_bytes(frame[-2:], "big")
     assert decode_frames(frame) == []                       # not a frame the board sends
+
+
+def test_a_reply_to_another_command_with_the_same_seq_is_not_taken():
+    """Issue #60: ``Link.command`` took the first reply whose sequence number matched; a
+    CRC-good reply to another command (or another address) with that number was read as the
+    value asked for (``config get T`` -> -33.3 s)."""
+    from mpu9250_ahrs.hdl.command_decoder import COMMANDS, RESULTS, SPACES
+    from mpu9250_ahrs.hdl.frame_types import REPLY, Reply
+    from mpu9250_ahrs.host.link import Link
+
+    def reply(command, addr, value, seq=1):
+        fields = {"command": COMMANDS[command][0], "cmd_seq": seq, "result": RESULTS["ok"],
+                  "addr": addr, "value": value}
+        raw = Reply.const(fields).as_value().value
+        return encode_frame(REPLY, 0, raw.to_bytes(9, "little"))
+
+    asked = (SPACES["engine"] << 8) | 5
+
+    class Port:
+        port = "fake"
+
+        def __init__(self):
+            # first a read of another address, then a write's reply to the same address,
+            # both with the command's seq 1; then the right one
+            self.chunks = [reply("read", asked + 1, 111), reply("write", asked, 222),
+                           reply("read", asked, 333)]
+
+        def write(self, data):
+            pass
+
+        def flush(self):
+            pass
+
+        def read(self, n):
+            return self.chunks.pop(0) if self.chunks else b""
+
+    link = Link(Port(), timeout=2.0)
+    got = link.command("read", addr=5)
+    assert got["value"] == 333 and got["addr"] == asked
+    assert [f[2]["value"] for f in link.backlog] == [111, 222]
