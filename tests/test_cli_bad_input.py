@@ -207,6 +207,34 @@ def test_replay_leaves_out_truth_that_is_no_rotation(capsys, tmp_path):
     assert "5 truth quaternions" in err
 
 
+def test_replay_score_is_the_same_for_a_truth_off_unit_norm(capsys, tmp_path):
+    """Trial 02 with its truth scaled by 1 ± 1e-4 … 1e-2 (within the loader's tolerance):
+    the same score to 0.01° (it scored 0.0° at × 1.001 and 11.5° at × 0.995, for 1.33°)."""
+    import h5py
+    from tests.conftest import broad_files
+    trial = [f for f in broad_files() if "/02_" in f]
+    if not trial:
+        pytest.skip("the BROAD recordings are not in ../shared/data/broad/")
+
+    def score(scale):
+        path = tmp_path / f"scaled_{scale}.hdf5"
+        with h5py.File(trial[0], "r") as src, h5py.File(path, "w") as dst:
+            for name in ("imu_gyr", "imu_acc", "imu_mag", "movement"):
+                dst[name] = src[name][()]
+            dst["opt_quat"] = src["opt_quat"][()] * scale
+            dst.attrs["sampling_rate"] = src.attrs["sampling_rate"]
+        code, out, err = run(["replay", str(path)], capsys)
+        assert code == 0, err
+        result = json.loads(out)
+        assert result["truth_rejected"] == 0
+        return [result[k] for k in ("total_rmse_deg", "heading_rmse_deg",
+                                    "inclination_rmse_deg")]
+    exact = score(1.0)
+    assert 1.0 < exact[0] < 1.7
+    for scale in (1 - 0.0099, 1 - 1e-3, 1 - 1e-4, 1 + 1e-4, 1 + 1e-3, 1 + 0.0099):
+        assert score(scale) == pytest.approx(exact, abs=0.01), scale
+
+
 def test_replay_without_scored_samples_prints_null(capsys, tmp_path):
     """No movement sample with a truth: RMSE is JSON null with a reason, not a bare NaN."""
     n = 40
@@ -248,6 +276,18 @@ def test_host_verbs_bad_input(capsys, tmp_path):
     singular.write_text(json.dumps({**cal, "soft_iron": [[1, 0, 0], [0, 1, 0], [0, 0, 0]]}))
     mirrored = tmp_path / "mirrored.json"
     mirrored.write_text(json.dumps({**cal, "soft_iron": [[1, 0, 0], [0, 1, 0], [0, 0, -1]]}))
+    # issue #60: tracebacks (OverflowError), every result saturated, the field zeroed
+    hostile = {}
+    for name, key, value in (
+            ("digits", "gyro_offset", [int("9" * 401), 0, 0]),
+            ("soft_e308", "soft_iron", [[1e308, 0, 0], [0, 1e308, 0], [0, 0, 1e308]]),
+            ("soft_1000", "soft_iron", [[1000, 0, 0], [0, 1000, 0], [0, 0, 1000]]),
+            ("soft_tiny", "soft_iron", [[1e-5, 0, 0], [0, 1e-5, 0], [0, 0, 1e-5]]),
+            ("turn_180", "soft_iron", [[-1, 0, 0], [0, -1, 0], [0, 0, 1]]),
+            ("rotation", "soft_iron", [[0, -1, 0], [1, 0, 0], [0, 0, 1]]),
+            ("hard_big", "hard_iron", [40000, 0, 0])):
+        hostile[name] = tmp_path / f"{name}.json"
+        hostile[name].write_text(json.dumps({**cal, key: value}))
     header = "type,host_time_s,roll_deg,pitch_deg,yaw_deg,sample.gyro.0,sample.gyro.1"
     no_column = tmp_path / "nocol.csv"
     no_column.write_text(header + "\n2,0.1,1,2,3,4,5\n")
@@ -280,6 +320,13 @@ def test_host_verbs_bad_input(capsys, tmp_path):
         (["build", "--calibration", str(strings)], "not numbers"),
         (["build", "--calibration", str(singular)], "singular"),
         (["build", "--calibration", str(mirrored)], "mirrored"),
+        (["build", "--calibration", str(hostile["digits"])], "finite numbers"),
+        (["build", "--calibration", str(hostile["soft_e308"])], "out of range"),
+        (["build", "--calibration", str(hostile["soft_1000"])], "-2 .. 2 (Q2.14)"),
+        (["build", "--calibration", str(hostile["soft_tiny"])], "quantised to Q2.14"),
+        (["build", "--calibration", str(hostile["turn_180"])], "not positive definite"),
+        (["build", "--calibration", str(hostile["rotation"])], "not symmetric"),
+        (["build", "--calibration", str(hostile["hard_big"])], "hard_iron"),
         (["plot", str(no_column), "--out", png], "sample.gyro.2"),
         (["plot", str(extra), "--out", png], "more fields"),
         (["plot", str(empty_h5), "--out", png], "not a monitor log"),

@@ -206,6 +206,32 @@ def _fixed(result):
         soft_iron=np.array(result["soft_iron"], float))
 
 
+def _check_soft_iron(path, soft, how):
+    """A soft-iron correction maps the measured ellipsoid onto a sphere: a symmetric,
+    positive definite matrix (``reference.calibration.mag_ellipsoid``'s), not near singular
+    (it would blow one axis up). A rotation, a mirror or a 180° turn is none. ValueError
+    naming the file; ``how``: what was done to the matrix first, in words."""
+    scale = float(np.max(np.abs(soft)))
+    if scale == 0 or not np.all(np.isfinite(soft)):
+        raise ValueError(f"{path}: 'soft_iron'{how} is all zero: not a soft-iron correction")
+    sign, log_det = np.linalg.slogdet(soft)
+    det = 0.0 if sign == 0 else float(sign * np.exp(min(log_det, 700.0)))
+    if det <= 0:
+        raise ValueError(f"{path}: 'soft_iron'{how} is {'singular' if det == 0 else 'mirrored'} "
+                         f"(determinant {det:.3g}): not a soft-iron correction")
+    if np.max(np.abs(soft - soft.T)) > 1e-3 * scale:
+        raise ValueError(f"{path}: 'soft_iron'{how} is not symmetric (a rotation?): not a "
+                         f"soft-iron correction")
+    eigen = np.linalg.eigvalsh((soft + soft.T) / 2)
+    if eigen.min() <= 0:
+        raise ValueError(f"{path}: 'soft_iron'{how} is not positive definite (eigenvalues "
+                         f"{', '.join(f'{e:.3g}' for e in eigen)}: a turn, 180° about an "
+                         f"axis?): not a soft-iron correction")
+    if eigen.max() / eigen.min() > 100:
+        raise ValueError(f"{path}: 'soft_iron'{how} is near singular (condition number "
+                         f"{eigen.max() / eigen.min():.3g} > 100): not a soft-iron correction")
+
+
 def load_calibration(path):
     """A saved calibration (JSON) -> ``CalibrationFixed``; ValueError with one line if the
     file is not one."""
@@ -233,26 +259,26 @@ def load_calibration(path):
             raise ValueError(f"{path}: '{key}' is not numbers (JSON numbers, not strings)")
         try:
             value = np.array(result[key], float)
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):
+            # OverflowError: an integer too large for a float (400 digits)
             raise ValueError(f"{path}: '{key}' must be {shape} finite numbers") from None
         if value.shape != shape or not np.all(np.isfinite(value)):
             raise ValueError(f"{path}: '{key}' must be {shape} finite numbers")
-    # a soft-iron correction maps the measured ellipsoid onto a sphere: invertible, not a
-    # mirror (det > 0) and not near singular (it would blow one axis up)
-    soft = np.array(result["soft_iron"], float)
-    det = float(np.linalg.det(soft))
-    if det <= 0:
-        raise ValueError(f"{path}: 'soft_iron' is {'singular' if det == 0 else 'mirrored'} "
-                         f"(determinant {det:.3g}): not a soft-iron correction")
-    if np.linalg.cond(soft) > 100:
-        raise ValueError(f"{path}: 'soft_iron' is near singular (condition number "
-                         f"{np.linalg.cond(soft):.3g} > 100): not a soft-iron correction")
+    # the registers' ranges before any rounding: offsets are counts of 16-bit readings, the
+    # scales and the soft-iron matrix Q2.14 (-2 .. 2)
+    for key, limit, what in (("gyro_offset", 2 ** 15, "counts"),
+                             ("accel_offset", 2 ** 15, "counts"),
+                             ("hard_iron", 2 ** 15, "counts"),
+                             ("accel_scale", 2.0, "(Q2.14)"), ("soft_iron", 2.0, "(Q2.14)")):
+        value = np.array(result[key], float)
+        if np.any(np.abs(value) >= limit):
+            raise ValueError(f"{path}: '{key}' has {value.flat[np.argmax(np.abs(value))]:g}: "
+                             f"out of range -{limit:g} .. {limit:g} {what}, its register's")
+    _check_soft_iron(path, np.array(result["soft_iron"], float), "")
     cal = _fixed(result)
     registers = calibration_registers(cal)
-    for name, word in registers.items():
-        limit = 2 ** 31 if name.startswith(("SOFT", "ACC_SCALE")) else 2 ** 15
-        if not -limit <= word < limit:
-            raise ValueError(f"{path}: {name} = {word} is out of range")
+    # quantised to Q2.14 a tiny matrix can become all zeros (the field lost): checked again
+    _check_soft_iron(path, np.reshape(cal.soft_iron, (3, 3)) / 2 ** 14, " quantised to Q2.14")
     for name in ("ACC_SCALE0", "ACC_SCALE1", "ACC_SCALE2"):
         word = registers[name]
         if not 0 < word < 2 ** 15:

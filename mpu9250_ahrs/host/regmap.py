@@ -81,6 +81,9 @@ _RANGES = {
                                "A_MAG_FAST", "A_REF")},
     **{n: (0, None) for n in ("K_REST", "K_REF", "K_FAST", "K_NEW", "REST_GYRO2",
                               "REST_ACC2")},
+    # the calibration's offsets are counts of the 16-bit readings (as build --calibration's)
+    **{f"{n}{i}": (-2 ** 15, 2 ** 15 - 1) for n in ("GYRO_OFF", "ACC_OFF", "HARD")
+       for i in range(3)},
 }
 
 
@@ -114,19 +117,20 @@ def to_word(reg, value):
                              f"{'an integer' if reg.format == 'int' else 'a number'}") from None
     if not math.isfinite(value):
         raise ValueError(f"{reg.name}: {value} is not a finite number")
-    if reg.format == "int":
-        if value != int(value):
-            raise ValueError(f"{reg.name} takes an integer, not {value}")
-        word = int(value)
-    elif reg.format == "BAM32":
-        word = round(value / 360 * 2 ** 32)
-    else:
-        word = round(value * 2 ** _FRACTION[reg.format])
+    if reg.format == "int" and value != int(value):
+        raise ValueError(f"{reg.name} takes an integer, not {value}")
+    # the range first: a value far out (1e308) would overflow the conversion below
     lo, hi = value_range(reg)
     if not lo <= value <= hi:
         unit = f" {reg.unit}" if reg.unit and reg.format != "int" else ""
         raise ValueError(f"{reg.name}: {value:g} is out of range {lo:.6g} .. {hi:.6g}{unit} "
                          f"({reg.format})")
+    if reg.format == "int":
+        word = int(value)
+    elif reg.format == "BAM32":
+        word = round(value / 360 * 2 ** 32)
+    else:
+        word = round(value * 2 ** _FRACTION[reg.format])
     if not -2 ** 31 <= word < 2 ** 32:
         raise ValueError(f"{reg.name}: {value} does not fit its format {reg.format}")
     return word

@@ -16,6 +16,10 @@ from mpu9250_ahrs.host.regmap import REGISTERS, from_word, lookup, to_word, valu
     ("CONTROL", "16", "out of range 0 .. 15"),
     ("A_ACC", "1.5", "out of range 0 .. 1"),
     ("GYRO_OFF0", str(2 ** 31), "out of range"),
+    # issue #60: a traceback (OverflowError), and a count beyond 16 bits accepted
+    ("T", "1e308", "T: 1e+308 is out of range"),
+    ("GYRO_OFF0", "100000", "GYRO_OFF0: 100000 is out of range -32768 .. 32767"),
+    ("HARD2", "-40000", "out of range -32768"),
     ("GATE_DIP", "nan", "not a finite number"),
     # (Python's "invalid literal for int() with base 0" before)
     ("PWM_HIGH0", "abc", "PWM_HIGH0: 'abc' is not an integer"),
