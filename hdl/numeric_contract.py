@@ -208,7 +208,10 @@ class FlagshipParams:
     mag_norm_gate: float = 0.05
     mag_dip_gate: float = 10.0      # degrees
     mag_new_s: float = 20.0
-    rest_gyro: float = math.radians(2.0)   # rad/s
+    rest_gyro: float = math.radians(2.0)   # rad/s, the gyro's deviation from its low-pass
+    # rad/s: at rest the low-passed gyro reads the bias, which may be this large (the MPU9250
+    # allows ±5 °/s an axis, 8.7 °/s on all three); a steady turn faster than it is no rest
+    rest_bias: float = math.radians(10.0)
     rest_acc: float = 0.5           # m/s²
     rest_s: float = 1.5
     tau_rest: float = 3.0
@@ -267,6 +270,7 @@ class FlagshipFixedConfig:
         # rest tests: deviations in Q.6 counts (x / 2¹⁰ of Q16.16), squared and summed with
         # shift 14: thresholds in counts² / 4
         rest_gyro = p.rest_gyro * self.gyro_lsb_per_rad
+        rest_bias = p.rest_bias * self.gyro_lsb_per_rad
         rest_acc = p.rest_acc * self.accel_lsb_per_ms2
         k_rest, k_ref, k_fast, k_new = sample_counts(p, dt)
         regs = {
@@ -281,6 +285,7 @@ class FlagshipFixedConfig:
             "A_REF": gain(p.tau_ref, mag_dt),
             "REST_GYRO2": int(round(rest_gyro ** 2 / 4)),
             "REST_ACC2": int(round(rest_acc ** 2 / 4)),
+            "REST_BIAS2": int(round(rest_bias ** 2 / 4)),
             "GATE_NORM": int(round(p.mag_norm_gate * _Q30)),
             "GATE_DIP": int(round(p.mag_dip_gate / 360 * 2 ** 32)),
             "K_REST": k_rest, "K_REF": k_ref, "K_FAST": k_fast, "K_NEW": k_new,

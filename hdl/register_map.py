@@ -31,8 +31,8 @@ address  name            meaning, format                                        
                          every 10 ms: ``numeric_contract.mag_period``); A_ACC: the  field's)
                          inclination's second-order low-pass, 2·sin(π·f_c·T), f_c =
                          √2/(2π·tau_acc), Q0.30
-0x76-77  REST_GYRO2,     flagship rest thresholds, counts² / 4                      from LSB
-         REST_ACC2
+0x76-77  REST_GYRO2,     flagship rest thresholds, counts² / 4: the gyro's and the    from LSB
+         REST_ACC2       accelerometer's deviations from their low-passes
 0x78     GATE_NORM       flagship field-norm gate, relative, Q0.30; a rejected      0.05
                          field is steady (a new reference) while its norm stays
                          within it of the first one's
@@ -44,7 +44,9 @@ address  name            meaning, format                                        
 0x7F     EULER_RATES     per-axis filters: 0 = body rates (the published form),    0
                          else Euler-angle rates (reference.fixed_point.
                          euler_rates_fixed; right at any attitude but ±90° pitch)
-0x80     BETA_K          Madgwick's gradient step β·T·K²·2³⁰ (K: the CORDIC's      β = 0.1,
+0x80     REST_BIAS2      flagship rest: the low-passed gyro's bound (the largest     10 °/s,
+                         bias learnt at rest), counts² / 4                          from LSB
+0x81     BETA_K          Madgwick's gradient step β·T·K²·2³⁰ (K: the CORDIC's      β = 0.1,
                          gain; ``numeric_contract.MadgwickFixedConfig``)            from dt
 0xFE     TELEMETRY_DIV   (read by ``AHRSCore``, not the engine) frame every n-th     from baud
                          result (1..65535; 0 is taken as 1)

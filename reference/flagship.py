@@ -23,9 +23,11 @@ written from the paper's description, simplified:
   ``mag_norm_gate`` (relative) or ``mag_dip_gate`` (degrees) is rejected; one that stays
   different but steady (its norm within ``mag_norm_gate`` of the first such field's, its dip
   within half ``mag_dip_gate``) for ``mag_new_s`` seconds becomes the new reference.
-- Gyro bias b: at rest (gyro within ``rest_gyro`` of the bias and accelerometer within
-  ``rest_acc`` of its mean for ``rest_s`` seconds) b follows the low-passed gyro (time constant
-  ``tau_rest``). (VQF also estimates the bias in motion; an integral term on the corrections
+- Gyro bias b: at rest (gyro within ``rest_gyro`` of its own low-pass, that low-pass under
+  ``rest_bias``, and accelerometer within ``rest_acc`` of its low-pass, for
+  ``rest_s`` seconds) b follows the low-passed gyro (time constant ``tau_rest``). As VQF's,
+  the test does not compare the gyro with the bias estimate: one that starts at 0 would never
+  see a part whose bias is beyond ``rest_gyro`` at rest. (VQF also estimates the bias in motion; an integral term on the corrections
   tried here made the recordings worse, so motion-time bias estimation is left out for now.)
 There are no Euler angles in it, so it works at any attitude (no gimbal lock at ±90° pitch).
 
@@ -124,9 +126,13 @@ def flagship_filter(gyr, acc, mag, dt, params=FlagshipParams(), *, mag_valid=Non
         for i in range(3):
             gyr_lp[i] += a_det * (g[i] - gyr_lp[i])
             acc_lp[i] += a_det * (a[i] - acc_lp[i])
-        dg = math.sqrt(sum((g[i] - b[i]) ** 2 for i in range(3)))
+        # still: the gyro near its own low-pass (whatever the bias: a part may read up to
+        # ±5 °/s an axis at rest), the low-pass itself no faster than a bias can be
+        # (``rest_bias``), the specific force near its low-pass
+        dg = math.sqrt(sum((g[i] - gyr_lp[i]) ** 2 for i in range(3)))
+        slow = math.sqrt(sum(gyr_lp[i] ** 2 for i in range(3)))
         da = math.sqrt(sum((a[i] - acc_lp[i]) ** 2 for i in range(3)))
-        still = dg < p.rest_gyro and da < p.rest_acc
+        still = dg < p.rest_gyro and slow < p.rest_bias and da < p.rest_acc
         rest_left = max(0, rest_left - 1) if still else k_rest
         gb = [g[i] - b[i] for i in range(3)]
         if rest_left == 0:                  # at rest: the gyro reads its bias

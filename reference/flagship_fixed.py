@@ -146,11 +146,16 @@ class FlagshipFixed:
             self.acc_lp[i] = sat32(self.acc_lp[i] + mul(reg["A_DET"], sat32(
                 a16[i] - self.acc_lp[i], st), 30, st), st)
         u = [sat32(g16[i] - b[i], st) for i in range(3)]         # ω − b, Q16.16
-        dg = [mul(x, FLAGSHIP_CONSTANTS["SHR10"], 30, st) for x in u]            # Q.6 counts
-        da = [mul(sat32(a16[i] - self.acc_lp[i], st), FLAGSHIP_CONSTANTS["SHR10"], 30, st)
-              for i in range(3)]
-        still = (sat32(mac([(d, d) for d in dg], 14, st) - reg["REST_GYRO2"], st) < 0
-                 and sat32(mac([(d, d) for d in da], 14, st) - reg["REST_ACC2"], st) < 0)
+        # still: the gyro near its low-pass, the low-pass itself under rest_bias, the specific
+        # force near its low-pass; every sum formed, as the microcode forms them
+        shr10 = FLAGSHIP_CONSTANTS["SHR10"]
+        dg = [mul(sat32(g16[i] - self.gyr_lp[i], st), shr10, 30, st) for i in range(3)]
+        da = [mul(sat32(a16[i] - self.acc_lp[i], st), shr10, 30, st) for i in range(3)]
+        db = [mul(x, shr10, 30, st) for x in self.gyr_lp]
+        sums = (sat32(mac([(d, d) for d in dg], 14, st) - reg["REST_GYRO2"], st),
+                sat32(mac([(d, d) for d in da], 14, st) - reg["REST_ACC2"], st),
+                sat32(mac([(d, d) for d in db], 14, st) - reg["REST_BIAS2"], st))
+        still = all(x < 0 for x in sums)
         self.rest_left = dec(self.rest_left) if still else reg["K_REST"]
         if self.rest_left == 0:
             flags |= {"at_rest", "bias_updated"}

@@ -23,7 +23,7 @@ __all__ = ["CONFIG_REGISTERS", "REGISTERS", "FLAGSHIP_REGISTERS", "flagship_name
 # Run-time registers (host-visible, from 0x70): ``FlagshipFixedConfig.registers()`` names.
 FLAGSHIP_REGISTERS = ("K_RAD", "A_DET", "A_REST", "A_ACC", "A_MAG", "A_MAG_FAST", "REST_GYRO2",
                       "REST_ACC2", "GATE_NORM", "GATE_DIP", "K_REST", "K_REF", "K_FAST",
-                      "K_NEW", "A_REF")
+                      "K_NEW", "A_REF", "REST_BIAS2")
 
 _VEC3 = ("G16", "A16", "U", "DG", "DA", "V", "AI", "E", "LP", "GLP", "ALP", "BAND")
 _QUAT = ("QG", "QA", "QAG", "QT")
@@ -55,6 +55,8 @@ def _aliases(r):
     for i in range(9):
         r[f"RG{i}"] = r[f"RA{i}"] = r[f"RM{i}"]
     r["QV0"] = r["F_C"]
+    # the rest test's third sum: the deviations' words are free once their sum is formed
+    r["F_SB"] = r["DG0"]
     for i in range(3):
         r[f"QV{i + 1}"] = r[f"V{i}"]
     return r
@@ -164,9 +166,11 @@ def _butterworth_band(asm, r, low, band, inputs, gain):
 
 def _rest_steps(asm, r, temps):
     """The flagship's rest detection, its straight-line part (the input low-passes, the
-    deviations from them and their sums of squares against the thresholds), as four steps
+    deviations from them, the low-passed rate, and their sums of squares against the
+    thresholds), as four steps
     (callables) for the output's CORDIC waits (``_output``); ``temps``: six scratch
-    registers, held across them. The rate error U it uses is ``_rate_error``'s."""
+    registers, held across them (the first three hold the low-passed rate once the
+    low-pass state is summed)."""
     v = lambda name: [r[f"{name}{i}"] for i in range(3)]
     low_pass_products, low_pass_state = _low_pass_steps(
         asm, r, temps, v("GLP") + v("ALP"), v("G16") + v("A16"), "A_DET")
@@ -174,25 +178,34 @@ def _rest_steps(asm, r, temps):
     def low_pass_sums():
         low_pass_state()
         for i in range(3):
+            asm.sub(r[f"DG{i}"], r[f"G16{i}"], r[f"GLP{i}"])
+        for i in range(3):
             asm.sub(r[f"DA{i}"], r[f"A16{i}"], r[f"ALP{i}"])
+
+    # the low-passed rate in Q.6 counts (against REST_BIAS2): in the scratch registers, free
+    # once the low-pass state is summed
+    slow = temps[:3]
 
     def deviations():
         for i in range(3):
-            asm.mul(r[f"DG{i}"], r[f"U{i}"], r["SHR10"], Q30)       # Q.6 counts
+            asm.mul(r[f"DG{i}"], r[f"DG{i}"], r["SHR10"], Q30)      # Q.6 counts
         for i in range(3):
             asm.mul(r[f"DA{i}"], r[f"DA{i}"], r["SHR10"], Q30)
+        for t, i in zip(slow, range(3)):
+            asm.mul(t, r[f"GLP{i}"], r["SHR10"], Q30)
 
     def sums():
         asm.mac(r["F_SG"], [(d, d) for d in v("DG")], Q14)
         asm.mac(r["F_SA"], [(d, d) for d in v("DA")], Q14)
+        asm.mac(r["F_SB"], [(t, t) for t in slow], Q14)
         asm.sub(r["F_SG"], r["F_SG"], r["REST_GYRO2"])
         asm.sub(r["F_SA"], r["F_SA"], r["REST_ACC2"])
+        asm.sub(r["F_SB"], r["F_SB"], r["REST_BIAS2"])
     return low_pass_products, low_pass_sums, deviations, sums
 
 
 def _rate_error(asm, r):
-    """U = ω − b, Q16.16, with the bias of the previous sample: the strapdown's and the rest
-    detection's."""
+    """U = ω − b, Q16.16, with the bias of the previous sample: the strapdown's."""
     for i in range(3):
         asm.sub(r[f"U{i}"], r[f"G16{i}"], r[f"BIAS{i}"])
 
@@ -203,6 +216,7 @@ def _rest_and_bias(asm, r):
     ZERO, INT1 = r["ZERO"], r["INT1"]
     asm.br("f_moving", Cond.A_NEG, a=r["F_SG"], inv=True)
     asm.br("f_moving", Cond.A_NEG, a=r["F_SA"], inv=True)
+    asm.br("f_moving", Cond.A_NEG, a=r["F_SB"], inv=True)
     asm.br("f_rest_checked", Cond.A_ZERO, a=r["REST_LEFT"])
     asm.sub(r["REST_LEFT"], r["REST_LEFT"], INT1)
     asm.br("f_rest_checked")

@@ -40,6 +40,7 @@ _ENGINE_FORMATS = {
     **{n: ("Q0.30", "") for n in ("A_DET", "A_REST", "A_ACC", "A_MAG", "A_MAG_FAST")},
     **{n: ("int", "samples") for n in ("K_REST", "K_REF", "K_FAST", "K_NEW")},
     "REST_GYRO2": ("int", "counts²/4"), "REST_ACC2": ("int", "counts²/4"),
+    "REST_BIAS2": ("int", "counts²/4"),
     "TELEMETRY_DIV": ("int", "results"),
 }
 
@@ -80,7 +81,7 @@ _RANGES = {
     **{n: (0.0, 1.0) for n in ("ONE_MINUS_A", "A_DET", "A_REST", "A_ACC", "A_MAG",
                                "A_MAG_FAST", "A_REF")},
     **{n: (0, None) for n in ("K_REST", "K_REF", "K_FAST", "K_NEW", "REST_GYRO2",
-                              "REST_ACC2")},
+                              "REST_ACC2", "REST_BIAS2")},
     # the calibration's offsets are counts of the 16-bit readings (as build --calibration's)
     **{f"{n}{i}": (-2 ** 15, 2 ** 15 - 1) for n in ("GYRO_OFF", "ACC_OFF", "HARD")
        for i in range(3)},
