@@ -82,14 +82,62 @@ def _open_hdf5(h5py, path):
         raise ValueError(f"{path}: cannot be read as HDF5: {reason.strip()[:120]}") from None
 
 
-def load_broad(path):
+# BROAD's trials are sampled at 286 Hz; the MPU9250 at up to 32 kHz. A rate outside these
+# bounds is a file that is wrong, not a recording (1e-9 Hz scored 100° and broke the JSON)
+RATE_BOUNDS_HZ = (0.1, 100_000.0)
+# a recording's rows are read whole (16 floats a row) and copied a few times: refused where
+# that would not fit in what the machine has free (a 2.6 KB file can declare 90 M sparse rows)
+_BYTES_PER_ROW = 16 * 8 * 6
+
+
+def _rate(path, attribute):
+    """The ``sampling_rate`` attribute as one real rate in ``RATE_BOUNDS_HZ``, or a
+    ValueError naming what it is instead (an array, a complex, a string, out of bounds)."""
+    raw = np.asarray(attribute)
+    if raw.size != 1 or raw.dtype.kind not in "iuf":
+        what = (f"{raw.size} values" if raw.size != 1 else
+                "complex" if raw.dtype.kind == "c" else f"of type {raw.dtype}")
+        raise ValueError(f"{path}: sampling_rate must be one real number of Hz, not {what}")
+    rate = float(raw.reshape(-1)[0])
+    lo, hi = RATE_BOUNDS_HZ
+    if not np.isfinite(rate) or rate <= 0:
+        raise ValueError(f"{path}: sampling_rate {rate:g} is not a positive rate")
+    if not lo <= rate <= hi:
+        raise ValueError(f"{path}: sampling_rate {rate:g} Hz is not a recording's rate "
+                         f"({lo:g} .. {hi:g} Hz)")
+    return rate
+
+
+def _available_bytes():
+    """Memory free for a new allocation (``MemAvailable``), or None where it cannot be read."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return None
+
+
+def _check_size(path, n):
+    need, free = n * _BYTES_PER_ROW, _available_bytes()
+    if free is not None and need > free:
+        raise ValueError(f"{path}: {n:,} samples (about {need / 1e9:.1f} GB to read and "
+                         f"process) do not fit in the {free / 1e9:.1f} GB this machine has "
+                         f"free; read the first N (replay --samples N) or cut the file")
+
+
+def load_broad(path, first=None):
     """A BROAD-format HDF5 file, checked: the datasets and the ``sampling_rate`` attribute
     there, N × 3 sensor arrays, N × 4 truth and N movement flags with N ≥ 2, a finite
-    positive rate, each dataset's shape before its data is read. NaN or infinite sensor values
-    are held (``Recording.held`` counts them; ``replay`` says so). Truth rows whose norm is
-    not 1 within ``TRUTH_NORM_TOLERANCE`` are set unknown (``Recording.truth_rejected``
-    counts them; ``replay`` says so), the others normalised; a file whose known truth is all of that kind is
-    refused. Anything else is a ValueError with one line."""
+    rate within ``RATE_BOUNDS_HZ``, each dataset's shape before its data is read, and that
+    the rows fit in the memory free; ``first``: only the first rows (those alone are read).
+    NaN or infinite sensor values are held (``Recording.held`` counts them; ``replay`` says
+    so). Truth rows whose norm is not 1 within ``TRUTH_NORM_TOLERANCE`` are set unknown
+    (``Recording.truth_rejected`` counts them; ``replay`` says so), the others normalised; a
+    file with no known truth row, or whose known truth is all of that kind, is refused.
+    Anything else is a ValueError with one line."""
     import h5py
     from pathlib import Path
     f = _open_hdf5(h5py, path)
@@ -113,14 +161,15 @@ def load_broad(path):
             if shapes[name] != (n, width):
                 raise ValueError(f"{path}: {name} has shape {shapes[name]}, expected "
                                  f"({n}, {width}) like movement")
+        rate = _rate(path, f.attrs["sampling_rate"])
+        n = n if first is None else min(n, first)
+        _check_size(path, n)
         try:
-            rate = float(np.asarray(f.attrs["sampling_rate"]).reshape(-1)[0])
-            arrays = {k: np.asarray(f[k][()], float) for k in _WIDTHS}
-            movement = np.asarray(f["movement"][()]).astype(bool)
+            # only the rows wanted are read (a slice of a dataset reads no more)
+            arrays = {k: np.asarray(f[k][:n], float) for k in _WIDTHS}
+            movement = np.asarray(f["movement"][:n]).astype(bool)
         except (TypeError, ValueError, IndexError) as e:
             raise ValueError(f"{path}: unreadable BROAD data ({e})") from None
-    if not np.isfinite(rate) or rate <= 0:
-        raise ValueError(f"{path}: sampling_rate {rate:g} is not a positive rate")
     if n < 2:
         raise ValueError(f"{path}: {n} samples; a recording needs at least 2")
     (gyr, acc, mag), held = _hold_bad_rows(arrays["imu_gyr"], arrays["imu_acc"],
@@ -129,7 +178,10 @@ def load_broad(path):
     known = np.all(np.isfinite(quat), axis=1)
     off = known & (np.abs(np.linalg.norm(np.where(known[:, None], quat, 0), axis=1) - 1)
                    > TRUTH_NORM_TOLERANCE)
-    if known.any() and off[known].all():
+    if not known.any():
+        raise ValueError(f"{path}: opt_quat has no known row (all NaN or infinite): no truth "
+                         f"to score against")
+    if off[known].all():
         norms = np.linalg.norm(quat[known], axis=1)
         raise ValueError(f"{path}: opt_quat is not a unit quaternion in any row (norms "
                          f"{norms.min():.3g} .. {norms.max():.3g}): no truth to score against")
@@ -165,7 +217,9 @@ COUNT_LIMITS = {"gyro": (-32768, 32767), "accel": (-32768, 32767), "mag": (-3276
 
 
 def _counts(x, scale, lo, hi):
-    return np.clip(np.round(np.asarray(x, float) * scale), lo, hi).astype(np.int32)
+    # a value beyond any full scale (1e308) overflows to inf and is clipped like the rest
+    with np.errstate(over="ignore"):
+        return np.clip(np.round(np.asarray(x, float) * scale), lo, hi).astype(np.int32)
 
 
 def quantise(gyr, acc, mag, scales=Scales()):

@@ -35,6 +35,34 @@ def broad_file(path, n=50, rate=100.0, **override):
     return str(path)
 
 
+def sparse_broad_file(path, n):
+    """A BROAD file of ``n`` rows declared, none written (a few KB on disk)."""
+    import h5py
+    with h5py.File(path, "w") as f:
+        for name, width in (("imu_gyr", 3), ("imu_acc", 3), ("imu_mag", 3), ("opt_quat", 4)):
+            f.create_dataset(name, shape=(n, width), dtype=float)
+        f.create_dataset("movement", shape=(n,), dtype=bool)
+        f.attrs["sampling_rate"] = 100.0
+    return str(path)
+
+
+def test_build_out_a_file_is_one_line_naming_the_option(capsys, tmp_path):
+    """Issue #60: ``build --out afile`` said "File exists"."""
+    afile = tmp_path / "afile"
+    afile.write_text("")
+    for extra in ([], ["--verilog-only"]):
+        code, out, err = run(["build", "--out", str(afile), *extra], capsys)
+        assert_one_error(code, err, "--out", "is a file; build writes a folder")
+
+
+def test_replay_reads_only_the_samples_asked_for(capsys, tmp_path):
+    """``replay --samples N`` reads the first N rows alone: a file declaring more rows than
+    the machine could hold is replayed in its first part (its truth is 0 here: refused)."""
+    path = sparse_broad_file(tmp_path / "sparse.hdf5", 90_000_000)
+    code, out, err = run(["replay", path, "--samples", "100"], capsys)
+    assert code == 2 and "not a unit quaternion" in err and "fit" not in err
+
+
 def run(argv, capsys):
     try:
         code = main(argv)
@@ -84,6 +112,8 @@ SIMULATE = [
     (["--pose", "30,x,2"], "--pose: '30,x,2'"),
     (["--pose", "30,2"], "--pose"),
     (["--pose", "30,nan,2", "--attitude"], "--pose"),
+    # issue #60: accepted and shown as roll 120, pitch 80 without a word
+    (["--pose", "300,100,45", "--attitude"], "outside roll and yaw ±180°"),
     (["--vcd", "out/sim.txt"], "ends in .vcd or .fst"),
     (["--trace-from", "3"], "give --vcd"),
     (["--vcd", "out/x.vcd", "--trace-from", "3q"], "--trace-from: '3q'"),
@@ -138,6 +168,17 @@ def _replay_cases(tmp_path):
         (broad_file(tmp_path / "empty.hdf5", n=0), [], "at least 2"),
         (broad_file(tmp_path / "rate0.hdf5", sampling_rate=0.0), [], "sampling_rate"),
         (broad_file(tmp_path / "nomag.hdf5", imu_mag=None), [], "missing imu_mag"),
+        # issue #60: a rate no recording has (scored 100°, or JSON's "out of range float"),
+        # a complex or an array rate (used silently), no truth at all (null, exit 0, no line),
+        # five consistent sparse datasets of 90 M rows (a MemoryError traceback after 15 s)
+        (broad_file(tmp_path / "rate_tiny.hdf5", sampling_rate=1e-9), [],
+         "not a recording's rate"),
+        (broad_file(tmp_path / "rate_complex.hdf5", sampling_rate=100 + 1j), [], "complex"),
+        (broad_file(tmp_path / "rate_array.hdf5", sampling_rate=np.array([100.0, 50.0])), [],
+         "one real number"),
+        (broad_file(tmp_path / "truth_nan.hdf5", opt_quat=np.full((n, 4), np.nan)), [],
+         "no known row"),
+        (sparse_broad_file(tmp_path / "sparse.hdf5", 90_000_000), [], "do not fit"),
         (broad_file(tmp_path / "allnan.hdf5", imu_gyr=np.full((n, 3), np.nan)), [],
          "no sample has finite"),
         (broad_file(tmp_path / "ok.hdf5"), ["--gyro-fs", "0"], "gyro full scale"),

@@ -58,6 +58,11 @@ def _prepare_outputs(args):
     its folder made and checked writable before any work starts, so that a long run (a
     calibration turned by hand, a simulation) never ends in a missing folder."""
     names = ["vcd", "csv", "hdf5"] + (["out"] if args.verb != "build" else [])
+    out = getattr(args, "out", None)
+    if args.verb == "build" and out and Path(out).exists() and not Path(out).is_dir():
+        # build writes a folder of files (was "File exists", naming no option)
+        raise ValueError(f"--out {out} is a file; build writes a folder: name a new or an "
+                         f"existing folder")
     for name in names:
         path = getattr(args, name, None)
         if not path:

@@ -258,6 +258,12 @@ def _pose_sources(pose, samples, config, setup):
     if len(euler) != 3 or not all(math.isfinite(v) for v in euler):
         raise ValueError(f"--pose: {pose!r} is not roll,pitch,yaw in degrees (three numbers, "
                          f"e.g. 30,-10,45)")
+    # the results are printed in these ranges: a pose outside them would come back as
+    # another triple of the same attitude (300,100,45 as roll 120, pitch 80) without a word
+    roll, pitch, yaw = euler
+    if not (-180 <= roll <= 180 and -90 <= pitch <= 90 and -180 <= yaw <= 180):
+        raise ValueError(f"--pose: {pose!r} is outside roll and yaw ±180°, pitch ±90° (the "
+                         f"ranges the results are printed in)")
     rate = config.output_data_rate
     traj = static(euler, (samples + 10) / rate, rate=rate)
     gc, ac, mc = SensorModel(seed=0).counts(
@@ -289,7 +295,7 @@ def cmd_replay(args):
     from ..hdl import mpu9250_regs as R
     R.gyro_config(args.gyro_fs)             # the full scales the part has, as simulate checks
     R.accel_config(args.accel_fs)
-    rec = load_broad(args.file)
+    rec = load_broad(args.file, first=args.samples)
     if rec.held:
         print(f"mpu9250-ahrs replay: warning: {rec.held} samples with NaN or infinite sensor "
               f"values were held at the previous sample's values", file=sys.stderr)
