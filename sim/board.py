@@ -10,8 +10,11 @@ sent bit by bit into ``uart_rx``.
 Time is scaled (``board_setup``): a 4 MHz clock, a UART at a quarter of it (four cycles a bit:
 the receiver's minimum), sample periods of ``sample_cycles`` cycles. The pseudo-terminal has no
 baud rate of its own, so the bridge plays one: if the host sets its end to a baud other than
-``baud`` (the board's nominal 921,600), it gets what a UART at that rate would make of the
-board's bytes (garbage, framing errors), and the board gets the same of the host's.
+``baud`` (the board's nominal 921,600; any other, 1,843,200 too), it gets what a UART at that
+rate would make of the board's bytes (garbage, framing errors as 0x00 bytes, as Linux delivers
+them), and the design's receiver gets the host's bytes as the line they make at the host's
+baud (``line_segments``): it finds the wrong bits and the low stop bits itself, and counts
+them (``RX_FRAMING_ERRORS``).
 
 The sensor is held at a pose the caller sets (``set_pose``; ``tumble`` turns the field
 through every direction, as a user turning the board for the magnetometer calibration), with
@@ -35,8 +38,8 @@ from .sources import SensorSample
 from .uart import attach_uart_receiver
 
 
-__all__ = ["SensorErrors", "SimulatedBoard", "board_setup", "garble", "pty_baud",
-           "SIM_CLOCK_HZ"]
+__all__ = ["SensorErrors", "SimulatedBoard", "board_setup", "garble", "line_segments",
+           "pty_baud", "SIM_CLOCK_HZ"]
 
 
 SIM_CLOCK_HZ = 4e6
@@ -104,6 +107,25 @@ def garble(data, ratio):
         out.append(value if ok else 0)
         i = int(mid + 9.5 * step)
     return bytes(out)
+
+
+def line_segments(data, cycles_per_bit):
+    """``data`` sent back to back (8N1) by a UART whose bit lasts ``cycles_per_bit`` cycles of
+    the board (its baud against the board's: ``divisor`` / ratio), as the line the design's
+    receiver sees: (level, cycles) runs, the bit edges rounded to whole cycles from the first
+    one on (no error builds up), at least a cycle each. At another baud than the board's the
+    receiver samples the wrong bits and finds low stop bits itself (``RX_FRAMING_ERRORS``),
+    as it would on a real line."""
+    segments, edge = [], 0
+    bits = [b for byte in data for b in _uart_bits(byte)]
+    for k, level in enumerate(bits):
+        end = max(edge + 1, round((k + 1) * cycles_per_bit))
+        if segments and segments[-1][0] == level:
+            segments[-1] = (level, segments[-1][1] + end - edge)
+        else:
+            segments.append((level, end - edge))
+        edge = end
+    return segments
 
 
 class SimulatedBoard:
@@ -193,8 +215,14 @@ class SimulatedBoard:
 
     # -- the simulation ---------------------------------------------------------------------
     def start(self):
-        """Start the simulation thread; returns once the pseudo-terminal exists."""
+        """Start the simulation thread; returns once the pseudo-terminal exists. A board
+        already started is returned as it is (``with SimulatedBoard().start()`` starts one
+        thread, not two on one model)."""
         from amaranth.sim import Simulator
+        if self._thread is not None:
+            if self._stop.is_set():
+                raise RuntimeError("this simulated board was stopped: make a new one")
+            return self
         master, slave = os.openpty()
         attrs = termios.tcgetattr(slave)
         attrs[0] = attrs[1] = attrs[3] = 0                        # raw: no echo, no mapping
@@ -218,18 +246,17 @@ class SimulatedBoard:
 
         async def bridge(ctx):
             ctx.set(core.uart_rx, 1)
-            pending = bytearray()
             while not self._stop.is_set():
                 await ctx.tick().repeat(poll)
                 self.cycles = ctx.get(harness.cycle)
                 ratio = pty_baud(master) / NOMINAL_BAUD
                 self._flush(sent, ratio)
-                pending += self._from_host(ratio)
-                while pending and not self._stop.is_set():
-                    for bit in _uart_bits(pending.pop(0)):
-                        ctx.set(core.uart_rx, bit)
-                        await ctx.tick().repeat(divisor)
-                    self._flush(sent, ratio)
+                for level, cycles in self._from_host(divisor):
+                    if self._stop.is_set():
+                        break
+                    ctx.set(core.uart_rx, level)
+                    await ctx.tick().repeat(cycles)
+                self._flush(sent, ratio)
         sim.add_testbench(bridge)
         return self._run_in_thread(sim.run)
 
@@ -243,13 +270,15 @@ class SimulatedBoard:
         self._thread.start()
         return self
 
-    def _from_host(self, ratio):
-        """The bytes the host wrote since the last look, as a UART at the board's baud sees
-        them (``ratio``: the host's baud over the board's)."""
+    def _from_host(self, divisor):
+        """The bytes the host wrote since the last look as the line they make at the host's
+        baud (``divisor``: the board's cycles a bit): ``line_segments``, (level, cycles)
+        runs, ending high. The baud is read after the bytes: a host sets it, then writes."""
         try:
-            return garble(os.read(self._master, 4096), 1 / ratio)
+            data = os.read(self._master, 4096)
         except OSError:                              # nothing written
-            return b""
+            return []
+        return line_segments(data, divisor * NOMINAL_BAUD / pty_baud(self._master))
 
     def _flush(self, sent, ratio):
         """The design's bytes so far to the host, as a UART at its baud sees them."""
@@ -283,33 +312,33 @@ class SimulatedBoard:
             uart = UARTReader(design, "uart_tx", divisor, sent)
             mask = design.mask("pin_a", "pin_b", "uart_tx")
             design.set("uart_rx", 1)
-            pending, bits = bytearray(), []
-            cycle, next_poll, next_bit, ratio = 0, poll, NEVER, 1.0
+            line = []                           # the host's line still to play
+            cycle, next_poll, next_edge, ratio = 0, poll, NEVER, 1.0
             while not self._stop.is_set():
                 pins.poll(cycle)
                 uart.poll(cycle)
-                if cycle >= next_bit:
-                    if bits:
-                        design.set("uart_rx", bits.pop(0))
-                        next_bit = cycle + divisor
-                    else:                       # a byte sent
+                if cycle >= next_edge:
+                    if line:
+                        level, cycles = line.pop(0)
+                        design.set("uart_rx", level)
+                        next_edge = cycle + cycles
+                    else:                       # the host's bytes sent
                         self.cycles = cycle
                         self._flush(sent, ratio)
-                        next_bit = NEVER
-                if next_bit == NEVER and cycle >= next_poll:
-                    if not pending:
-                        self.cycles = cycle
-                        ratio = pty_baud(master) / NOMINAL_BAUD
-                        self._flush(sent, ratio)
-                        pending += self._from_host(ratio)
-                    if pending:
-                        bits = _uart_bits(pending.pop(0))
-                        design.set("uart_rx", bits.pop(0))
-                        next_bit = cycle + divisor
+                        next_edge, next_poll = NEVER, cycle
+                if next_edge == NEVER and cycle >= next_poll:
+                    self.cycles = cycle
+                    ratio = pty_baud(master) / NOMINAL_BAUD
+                    self._flush(sent, ratio)
+                    line = self._from_host(divisor)
+                    if line:
+                        level, cycles = line.pop(0)
+                        design.set("uart_rx", level)
+                        next_edge = cycle + cycles
                     else:
                         next_poll = cycle + poll
-                # while a byte goes out, its bits are the bridge's times; else the poll
-                until = next_bit if next_bit != NEVER else next_poll
+                # while the host's line plays, its edges are the bridge's times; else the poll
+                until = next_edge if next_edge != NEVER else next_poll
                 cycle = design.run(min(pins.wake, uart.at, until), mask)
         return self._run_in_thread(run)
 
@@ -348,7 +377,27 @@ _SPEEDS = {getattr(termios, f"B{b}"): b for b in
             1000000, 1152000, 1500000, 2000000) if hasattr(termios, f"B{b}")}
 
 
+# Linux: a speed outside the table is set (pyserial: any baud) with BOTHER and the number in
+# struct termios2's c_ospeed, read with TCGETS2
+_BOTHER = 0o010000
+_TCGETS2 = 0x802C542A
+
+
 def pty_baud(fd):
     """The baud the host set on its end of a pseudo-terminal (``fd``: either end; they share
-    the setting); 921,600 for a speed not in the table."""
-    return _SPEEDS.get(termios.tcgetattr(fd)[5], NOMINAL_BAUD)
+    the setting): a speed of the table, or any other (1,843,200) as its number."""
+    code = termios.tcgetattr(fd)[5]
+    if code in _SPEEDS:
+        return _SPEEDS[code]
+    if code == _BOTHER:
+        import array
+        import fcntl
+        buf = array.array("I", [0] * 11)            # struct termios2: 44 bytes
+        try:
+            fcntl.ioctl(fd, _TCGETS2, buf)
+            if buf[10] > 0:
+                return int(buf[10])                 # c_ospeed
+        except OSError:
+            pass
+    raise RuntimeError(f"the host set a baud the simulated board cannot read (speed code "
+                       f"{code:#o}): set a baud in bits per second")

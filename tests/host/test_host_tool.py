@@ -235,3 +235,52 @@ def test_wrong_baud_and_silent_board(capsys, fake):
     assert "nothing received" in one_line_error(capsys, "monitor", silent.port, "--frames", 1)
     assert "did not answer" in one_line_error(capsys, "config", silent.port, "get", "R",
                                               "--timeout", "0.4")
+
+
+def test_pty_baud_reads_any_baud_the_host_sets():
+    """Issue #60: a baud outside termios' table (1,843,200) read as 921,600, the board's own."""
+    master, slave = os.openpty()
+    try:
+        port = serial.Serial(os.ttyname(slave), 1_843_200)
+        assert pty_baud(master) == 1_843_200
+        port.baudrate = 460_800
+        assert pty_baud(master) == 460_800
+        port.close()
+    finally:
+        os.close(master)
+        os.close(slave)
+
+
+def test_a_host_at_another_baud_reaches_the_receiver_as_framing_errors(board, capsys):
+    """Issue #60: the bridge turned the host's bytes at a wrong baud into bytes (a framing
+    error into 0x00) before the design's receiver, so RX_FRAMING_ERRORS never counted; the
+    line itself now reaches it. At half the board's baud a 0x55's stop bit falls on a low
+    data bit: counted. The board answers at the right baud afterwards."""
+    def framing_errors():
+        rc, out, err = run_cli(capsys, "config", board.port, "get", "RX_FRAMING_ERRORS")
+        assert rc == 0, err
+        return json.loads(out)["value"]
+    before = framing_errors()
+    wrong = serial.Serial(board.port, 460_800)
+    wrong.write(b"\x55" * 8)
+    wrong.flush()
+    # the bytes take 640 cycles; the port stays at 460,800 until well after (the next
+    # command sets the shared pseudo-terminal back to 921,600)
+    board.wait_cycles(60_000)
+    wrong.close()
+    assert framing_errors() >= before + 4
+
+
+def test_a_board_started_twice_runs_one_simulation():
+    """Issue #60: ``with SimulatedBoard().start() as b`` (start() returns the board) ran two
+    simulation threads on one model, which died in the model's 'SCLK too fast' message."""
+    def boards():
+        return {t for t in threading.enumerate() if t.name == "simulated-board" and t.is_alive()}
+    before = boards()
+    with SimulatedBoard().start() as b:
+        assert b.start() is b
+        assert len(boards() - before) == 1
+        b.wait_cycles(20_000)
+    assert b.error is None
+    with pytest.raises(RuntimeError, match="was stopped: make a new one"):
+        b.start()
