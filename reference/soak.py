@@ -19,6 +19,7 @@ import time
 
 import numpy as np
 
+from .entry_point import count, positive, run_main
 from .fixed_point import FilterRates, Status, _KalmanFixed, bam_to_deg
 from .kalman import KalmanParams, kalman_filter
 
@@ -110,8 +111,8 @@ def soak(n, rate, rates=FilterRates(), seed=0):
 def main(argv=None):
     p = argparse.ArgumentParser(prog="python -m mpu9250_ahrs.reference.soak",
                                 description=__doc__.split("\n\n")[0])
-    p.add_argument("--rate", type=float, default=1000.0, help="sample rate, Hz (1000)")
-    p.add_argument("--samples", type=int, default=1_000_000, help="samples (10⁶)")
+    p.add_argument("--rate", type=positive, default=1000.0, help="sample rate, Hz (1000)")
+    p.add_argument("--samples", type=count, default=1_000_000, help="samples (10⁶)")
     p.add_argument("--seed", type=int, default=0, help="the simulated motion's seed (0)")
     args = p.parse_args(argv)
     result = soak(args.samples, args.rate, seed=args.seed)
@@ -120,4 +121,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(run_main("python -m mpu9250_ahrs.reference.soak", main))

@@ -24,6 +24,7 @@ import numpy as np
 from ..hdl.filter_registry import FILTER_NAMES, FLOAT_FILTERS
 from ..reference.recording import Scales, load_broad, quantise, to_units
 from ..reference.compare import external_filters, missing_external_filters
+from ..reference.entry_point import count, run_main
 from ..reference.evaluate import run_filter, run_fixed, score
 from ..reference.kalman import KalmanParams
 
@@ -154,6 +155,11 @@ def figure(path, out_png, filter_name="flagship"):
     fig.savefig(out_png, dpi=110)
 
 
+def _ignore_interrupt():
+    import signal
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(prog="python -m mpu9250_ahrs.sim.benchmark",
                                 description=__doc__.split("\n\n")[0])
@@ -162,7 +168,7 @@ def main(argv=None):
     p.add_argument("--figure", help="PNG of roll/pitch/yaw vs truth for the first file")
     p.add_argument("--no-fixed", action="store_true",
                    help="skip the (slow) fixed-point and gateware rows")
-    p.add_argument("--jobs", type=int, default=1, help="trials run in parallel (1)")
+    p.add_argument("--jobs", type=count, default=1, help="trials run in parallel (1)")
     args = p.parse_args(argv)
     # the files it writes: their folders made, and checked writable, before minutes of work
     for name in ("json", "figure"):
@@ -185,12 +191,20 @@ def main(argv=None):
               f"installed (pip install -e \".[bench]\")", file=sys.stderr)
     try:
         from tqdm import tqdm
-        with ProcessPoolExecutor(args.jobs) as pool:
+        # the workers leave Ctrl-C to this process (each would print its traceback)
+        pool = ProcessPoolExecutor(args.jobs, initializer=_ignore_interrupt)
+        try:
             # progress on stderr, on a terminal only: a trial takes about a minute
             results = dict(tqdm(pool.map(run_trial, args.files,
                                          [not args.no_fixed] * len(args.files)),
                                 total=len(args.files), desc="benchmark", unit="trial",
                                 file=sys.stderr, leave=False, disable=not sys.stderr.isatty()))
+        except KeyboardInterrupt:
+            for process in list(getattr(pool, "_processes", {}).values()):
+                process.terminate()             # a trial takes minutes: not waited for
+            pool.shutdown(wait=False, cancel_futures=True)
+            raise
+        pool.shutdown()
     except (OSError, ValueError) as e:          # a missing or malformed recording: one line
         print(f"benchmark: error: {e}", file=sys.stderr)
         return 2
@@ -206,4 +220,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(run_main("python -m mpu9250_ahrs.sim.benchmark", main))

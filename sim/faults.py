@@ -592,11 +592,20 @@ def catalogue_table(wirings=("spi", "i2c"), *, at=3, after=4, duration=8, out=No
     return rows
 
 
-if __name__ == "__main__":
+def main(argv=None):
+    """``python -m mpu9250_ahrs.sim.faults``: the catalogue as a table."""
     import argparse
-    parser = argparse.ArgumentParser(description="Run the fault catalogue (hdl/FAULTS.md) in "
+    parser = argparse.ArgumentParser(prog="python -m mpu9250_ahrs.sim.faults",
+                                     description="Run the fault catalogue (hdl/FAULTS.md) in "
                                      "co-simulation and print what was measured as a table.")
     parser.add_argument("--wiring", choices=("spi", "i2c"), action="append",
                         help="only this wiring's faults (repeatable; default both)")
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
     catalogue_table(tuple(args.wiring or ("spi", "i2c")))
+    return 0
+
+
+if __name__ == "__main__":
+    import sys
+    from ..reference.entry_point import run_main
+    sys.exit(run_main("python -m mpu9250_ahrs.sim.faults", main))

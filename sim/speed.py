@@ -59,6 +59,18 @@ def speed(samples=20):
     return out
 
 
-if __name__ == "__main__":
+def main(argv=None):
+    """``python -m mpu9250_ahrs.sim.speed``: both paths' speeds as JSON."""
+    import argparse
     import json
+    argparse.ArgumentParser(prog="python -m mpu9250_ahrs.sim.speed",
+                            description="Both simulation paths' cycles per second on the same "
+                                        "runs.").parse_args(argv)
     print(json.dumps(speed(), indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    import sys
+    from ..reference.entry_point import run_main
+    sys.exit(run_main("python -m mpu9250_ahrs.sim.speed", main))

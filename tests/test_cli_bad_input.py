@@ -435,3 +435,50 @@ def test_an_interrupted_verb_says_what_it_kept(monkeypatch, tmp_path, capsys):
     assert cli.main(["report"]) == 130
     assert capsys.readouterr().err.strip() == \
         "mpu9250-ahrs report: interrupted; nothing was written"
+
+
+ENTRY_POINTS = [
+    # issue #60: tracebacks, or exit 0 with "trials": -5
+    (["reference.soak", "--rate", "0"], "--rate: 0 is not a finite number above 0"),
+    (["reference.soak", "--samples", "-1"], "--samples: -1 is less than 1"),
+    (["host.protocol", "abc"], "'abc' is not a whole number"),
+    (["host.protocol", "-5"], "-5 is less than 1"),
+    (["sim.benchmark", "x.hdf5", "--jobs", "0"], "--jobs: 0 is less than 1"),
+    (["sim.faults", "--wiring", "usb"], "invalid choice"),
+]
+
+
+def _entry(args, **kw):
+    import subprocess
+    import sys
+    return subprocess.Popen([sys.executable, "-m", f"mpu9250_ahrs.{args[0]}", *args[1:]],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, **kw)
+
+
+def test_python_m_entry_points_bad_arguments():
+    """The README's ``python -m`` tools hold to the verbs' rules: one error line, no
+    traceback, a non-zero exit."""
+    runs = [(_entry(args), words) for args, words in ENTRY_POINTS]
+    for proc, words in runs:
+        out, err = proc.communicate(timeout=120)
+        assert_one_error(proc.returncode, err, words)
+
+
+def test_python_m_entry_points_ctrl_c_is_one_line():
+    """Ctrl-C in a long ``python -m`` tool: one line, exit 130 (was a 23-40 line traceback;
+    the benchmark's workers each printed theirs too)."""
+    import signal
+    import time
+    from tests.conftest import broad_files
+    long_runs = [["reference.soak", "--samples", "100000000"], ["sim.faults"]]
+    if broad_files():
+        long_runs.append(["sim.benchmark", broad_files()[0], "--jobs", "2"])
+    procs = [_entry(args) for args in long_runs]
+    time.sleep(6)                                   # imported and working
+    for proc in procs:
+        proc.send_signal(signal.SIGINT)
+    for args, proc in zip(long_runs, procs):
+        out, err = proc.communicate(timeout=60)
+        assert proc.returncode == 130, (args, err)
+        assert "Traceback" not in err and err.strip().splitlines()[-1].endswith(
+            "interrupted"), (args, err)

@@ -213,14 +213,22 @@ def corrupted_share(trials=20_000, *, seed=0, flips=(1, 2, 3, 4)):
     return out
 
 
-def main():
+def main(argv=None):
+    import argparse
     import json
-    import sys
-    trials = int(sys.argv[1]) if len(sys.argv) > 1 else 20_000
-    for case, (accepted, n) in corrupted_share(trials).items():
+    from ..reference.entry_point import count
+    p = argparse.ArgumentParser(prog="python -m mpu9250_ahrs.host.protocol",
+                                description="The share of corrupted frames the decoder accepts.")
+    p.add_argument("trials", nargs="?", type=count, default=20_000,
+                   help="frames per case (20000)")
+    args = p.parse_args(argv)
+    for case, (accepted, n) in corrupted_share(args.trials).items():
         print(json.dumps({"case": case, "accepted": accepted, "trials": n,
                           "share": accepted / n}))
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    import sys
+    from ..reference.entry_point import run_main
+    sys.exit(run_main("python -m mpu9250_ahrs.host.protocol", main))
