@@ -482,3 +482,22 @@ def test_python_m_entry_points_ctrl_c_is_one_line():
         assert proc.returncode == 130, (args, err)
         assert "Traceback" not in err and err.strip().splitlines()[-1].endswith(
             "interrupted"), (args, err)
+
+
+def test_plot_of_columns_no_axis_can_draw(capsys, tmp_path):
+    """Issue #60: a 2-D column read "shape (4, 4), expected (4, 4)"; values of ±1e308 ended in
+    matplotlib's "arange: cannot compute length"."""
+    import h5py
+    columns = ["type", "host_time_s", "roll_deg", "pitch_deg", "yaw_deg",
+               *(f"sample.gyro.{i}" for i in range(3))]
+    two_d, huge = tmp_path / "twod.h5", tmp_path / "huge.h5"
+    with h5py.File(two_d, "w") as f:
+        for c in columns:
+            f[c] = np.zeros((4, 4))
+    with h5py.File(huge, "w") as f:
+        for c in columns:
+            f[c] = np.array([-1e308, 1e308, 0.0, 0.0]) if c == "roll_deg" else np.arange(4.0)
+    png = str(tmp_path / "p.png")
+    for path, words in ((two_d, "one-dimensional"), (huge, "column roll_deg spans inf")):
+        code, out, err = run(["plot", str(path), "--out", png], capsys)
+        assert_one_error(code, err, words)

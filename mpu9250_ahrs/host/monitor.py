@@ -146,8 +146,14 @@ def read_log(path, required=("type",)):
                 raise ValueError(f"{path}: not a monitor log (no column "
                                  f"{', '.join(missing or required)})")
             lengths = {name: d.shape for name, d in columns.items()}
+            flat = [name for name, shape in lengths.items() if len(shape) != 1]
+            if flat:
+                # (the first required column's shape was the expected one: a 2-D one read
+                # "shape (4, 4), expected (4, 4)")
+                raise ValueError(f"{path}: column {flat[0]} has shape {lengths[flat[0]]}: a "
+                                 f"log's columns are one-dimensional")
             n = lengths[required[0]]
-            bad = [name for name, shape in lengths.items() if len(shape) != 1 or shape != n]
+            bad = [name for name, shape in lengths.items() if shape != n]
             if bad:
                 raise ValueError(f"{path}: column {bad[0]} has shape {lengths[bad[0]]}, "
                                  f"expected {n} like {required[0]}")

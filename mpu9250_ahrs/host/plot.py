@@ -27,6 +27,15 @@ def plot_log(log_path, out_path):
     t = np.asarray(log["host_time_s"], float)
     if len(t) == 0:
         raise ValueError(f"{log_path}: no frames in the log")
+    for name in ("host_time_s", "roll_deg", "pitch_deg", "yaw_deg",
+                 *(f"sample.gyro.{i}" for i in range(3))):
+        # a span no axis can draw (±1e308: matplotlib's "arange: cannot compute length")
+        values = np.asarray(log[name], float)
+        values = values[np.isfinite(values)]
+        with np.errstate(over="ignore"):
+            span = float(np.ptp(values)) if len(values) else 0.0
+        if not np.isfinite(span) or span > 1e15:
+            raise ValueError(f"{log_path}: column {name} spans {span:g}: not a log's values")
     fig, (ax_att, ax_rate, ax_flags) = plt.subplots(3, 1, sharex=True, figsize=(10, 8))
     for name in ("roll_deg", "pitch_deg", "yaw_deg"):
         ax_att.plot(t, log[name], label=name.split("_")[0])
