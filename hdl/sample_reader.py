@@ -564,7 +564,11 @@ class SampleReader(wiring.Component):
                     with m.Else():
                         m.next = "CHECK"
                         if not spi:                 # the AK8963 is a second read on this bus
-                            with m.If(self.mag_ok):
+                            # only for a burst with a sample (RAW_RDY): a spurious pulse's read
+                            # of it took the AK8963's new field (reading ST2 ends it) into a
+                            # burst dropped, and the next came two AK8963 periods later, past
+                            # the magnetometer's time-out at 200 Hz: a false "lost" (#60)
+                            with m.If(self.mag_ok & buf[0][0]):
                                 m.next = "MAG_CMD"
             with m.State("MAG_CMD"):
                 command(1, A.ST1, A.SAMPLE_BYTES)

@@ -232,3 +232,21 @@ def test_mpu_reset_is_found_by_the_int_timeout_at_a_low_rate():
     assert r["stale_valid_samples"] == 0, r
     assert "int_timeout" in r["flags"] and "rate_error" not in r["flags"], r
     assert r["detected_after_samples"] <= bound("mpu_reset", setup) and r["recovered"], r
+
+
+def test_spurious_int_on_i2c_leaves_the_magnetometers_field():
+    """Issue #60: with I2C wiring the reader read the AK8963 after a spurious pulse's burst
+    too, and reading it takes its new field (ST2 ends it) into a burst that is dropped; the
+    next field came two AK8963 periods later, past the magnetometer time-out at 200 Hz:
+    mag_stale and a set-up again, about 11 periods without a field (here 0.7 T before the
+    16th sample). Now the AK8963 is read only for a burst that holds a sample."""
+    import dataclasses
+    from mpu9250_ahrs.sim import faults
+    faults.FAULTS["spurious_int_07"] = dataclasses.replace(
+        FAULTS["spurious_int"], name="spurious_int_07", before_next=0.7)
+    try:
+        r = run_fault("spurious_int_07", catalogue_setup("i2c", fault="spurious_int"), at=16,
+                      after=30)
+    finally:
+        del faults.FAULTS["spurious_int_07"]
+    assert "bad_burst" in r["flags"] and "mag_stale" not in r["flags"], r
