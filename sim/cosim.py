@@ -359,6 +359,7 @@ class CosimResult:
     who_am_i: Optional[int] = None                          # its who_am_i port at the end
     self_test: dict = field(default_factory=dict)           # its self_test port at the end
     compiled: bool = False                                  # the compiled path ran
+    interrupted: bool = False               # Ctrl-C ended the run: what it had simulated
 
     @property
     def cycles_per_s(self):
@@ -530,6 +531,7 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
     last = {"status": None}
 
     def observe(cycle, taken, payload, status):
+        out["seen"] = cycle                 # the last cycle looked at (an interrupted run's end)
         st = to_python(status)
         if st != last["status"]:
             out["log"].append((cycle, st))
@@ -595,6 +597,9 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
                           lambda c, v, p, st: observe(c, v, data.Const(payload_layout, p),
                                                       data.Const(status_layout, st)),
                           max_cycles, ready=ready)
+        except KeyboardInterrupt:
+            out["interrupted"] = True
+            out["status"], out["cycles"] = last["status"], design.cycle
         except Done:
             from ..host.protocol import unpack
             out["asa"] = unpack(dut.asa.shape(), design.get("asa"))
@@ -611,15 +616,37 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
             traces = [harness.scl, harness.sda, dut.pins.scl_oe, dut.pins.sda_oe]
         traces += [dut.int_pin, dut.samples.valid, dut.status]
         with trace.python_writer(sim, traces):
-            sim.run()
+            out["interrupted"] = _run_interruptible(sim)
     else:
-        sim.run()
+        out["interrupted"] = _run_interruptible(sim)
+    if out.get("interrupted") and not compiled:
+        out["status"], out["cycles"] = last["status"], out.get("seen", 0)
     if trace:
-        trace.finish(model, bus, out["cycles"], len(out["samples"]))
+        _finish_trace(trace, model, bus, out["cycles"], len(out["samples"]),
+                      out.get("interrupted"))
     wall = time.perf_counter() - start
     return CosimResult(out["samples"], out["status"], out["cycles"], out["bring_up"], wall,
                        model, bus, out["log"], out["asa"], out["sample_cycles"],
-                       out["rate_errors"], out["who_am_i"], out["self_test"], compiled)
+                       out["rate_errors"], out["who_am_i"], out["self_test"], compiled,
+                       bool(out.get("interrupted")))
+
+
+def _run_interruptible(sim):
+    """``sim.run()``; True if Ctrl-C ended it (the caller keeps what was simulated)."""
+    try:
+        sim.run()
+    except KeyboardInterrupt:
+        return True
+    return False
+
+
+def _finish_trace(trace, model, bus, end_cycle, samples, interrupted):
+    """``trace.finish``; after Ctrl-C a window the run never reached is no error (no file)."""
+    try:
+        trace.finish(model, bus, end_cycle, samples)
+    except ValueError:
+        if not interrupted:
+            raise
 
 
 def sample_read_cycles(result, setup):
@@ -665,6 +692,7 @@ class CoreRun:
     compiled: bool = False                  # the compiled path ran
     samples: List[dict] = field(default_factory=list)   # the engine's inputs (``Sample``s)
     bus: Optional[I2CBusModel] = None                       # I2C wiring
+    interrupted: bool = False               # Ctrl-C ended the run: what it had simulated
 
     def latencies_us(self, clk_freq):
         """Data-ready edge (INT at the pin) to the result leaving the engine, per result."""
@@ -808,14 +836,18 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
             out["samples"].append(unpack(offered.payload.shape(), bits))
             if trace:
                 trace.at_sample(len(out["samples"]), design.cycle)
-        end = core_loop(design, core, PinModels(setup.clk_freq, mpu=model, bus=bus),
-                        divisor=core.uart.divisor, received=received, record=record,
-                        more_wanted=more_wanted, max_cycles=max_cycles, writes=writes,
-                        progress=progress, offered=offered_sample)
+        try:
+            end = core_loop(design, core, PinModels(setup.clk_freq, mpu=model, bus=bus),
+                            divisor=core.uart.divisor, received=received, record=record,
+                            more_wanted=more_wanted, max_cycles=max_cycles, writes=writes,
+                            progress=progress, offered=offered_sample)
+        except KeyboardInterrupt:
+            out["interrupted"], end = True, design.cycle
         out["end"] = (end, *(unpack(v.shape(), design.get(name)) for name, v in
                              (("counters", core.counters), ("status", core.status),
                               ("asa", core.asa))))
-        check_monitors(design, harness)
+        if not out.get("interrupted"):
+            check_monitors(design, harness)
         if trace:
             design.close()                  # the waveform complete
     elif trace:
@@ -823,13 +855,17 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
                 else [harness.scl, harness.sda, core.imu.scl_oe, core.imu.sda_oe])
         with trace.python_writer(sim, [*pins, core.imu_int, results.valid, core.uart_tx,
                                        core.status]):
-            sim.run()
+            out["interrupted"] = _run_interruptible(sim)
     else:
-        sim.run()
+        out["interrupted"] = _run_interruptible(sim)
+    if out["end"] is None:              # Ctrl-C in Amaranth's simulator: its last result
+        out["end"] = (max(out["cycles"], default=0), {}, {}, [])
     if trace:
-        trace.finish(model, bus, out["end"][0], len(out["samples"]))
+        _finish_trace(trace, model, bus, out["end"][0], len(out["samples"]),
+                      out.get("interrupted"))
     wall = time.perf_counter() - start
     more_wanted()                       # the bytes that came after the last look
     cycles, counters, status, asa = out["end"]
     return CoreRun(out["results"], out["cycles"], out["ints"], out["frames"], counters, status,
-                   cycles, wall, model, asa, core, compiled, out["samples"], bus)
+                   cycles, wall, model, asa, core, compiled, out["samples"], bus,
+                   bool(out.get("interrupted")))

@@ -109,7 +109,7 @@ def verilator_build(folder, output, sources, *, top, what, options=(), make_flag
             make = ["make", "-s", "-C", str(obj), "-f", f"V{top}.mk", *make_flags.split()]
 
             def run(step):
-                result = subprocess.run(step, cwd=tmp, capture_output=True, text=True)
+                result = _run_group(step, cwd=tmp)
                 if result.returncode:
                     raise RuntimeError(f"verilator failed to build the {what}:\n"
                                        + (result.stderr or result.stdout)[-3000:])
@@ -119,6 +119,25 @@ def verilator_build(folder, output, sources, *, top, what, options=(), make_flag
             runtime.keep()
             publish(obj / output, folder)
         return time.perf_counter() - start
+
+
+def _run_group(cmd, cwd):
+    """``subprocess.run(cmd, capture_output, text)`` in a process group of its own, ended
+    whole if this process is interrupted: make's compilers are its children, and Ctrl-C left
+    them compiling (they are not in the terminal's group when a tool started this one)."""
+    import signal
+    proc = subprocess.Popen(cmd, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, start_new_session=True)
+    try:
+        out, err = proc.communicate()
+    except BaseException:
+        try:
+            os.killpg(proc.pid, signal.SIGKILL)
+        except OSError:
+            pass
+        proc.wait()
+        raise
+    return subprocess.CompletedProcess(cmd, proc.returncode, out, err)
 
 
 class _Runtime:

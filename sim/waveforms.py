@@ -81,7 +81,9 @@ class Waveform:
 
 
 def describe(bound):
-    """A window bound as words: '5 samples', '2 ms'."""
+    """A window bound as words: '5 samples', '2 ms' (None: 'the start')."""
+    if bound is None:
+        return "the start"
     kind, value = bound
     return f"{value} samples" if kind == "samples" else f"{value * 1e3:g} ms"
 

@@ -451,7 +451,8 @@ ENTRY_POINTS = [
 def _entry(args, **kw):
     import subprocess
     import sys
-    return subprocess.Popen([sys.executable, "-m", f"mpu9250_ahrs.{args[0]}", *args[1:]],
+    module = "mpu9250_ahrs" + (f".{args[0]}" if args[0] else "")     # "": the verbs
+    return subprocess.Popen([sys.executable, "-m", module, *args[1:]],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, **kw)
 
 
@@ -501,3 +502,26 @@ def test_plot_of_columns_no_axis_can_draw(capsys, tmp_path):
     for path, words in ((two_d, "one-dimensional"), (huge, "column roll_deg spans inf")):
         code, out, err = run(["plot", str(path), "--out", png], capsys)
         assert_one_error(code, err, words)
+
+
+def test_simulate_ctrl_c_keeps_what_was_simulated(tmp_path):
+    """Issue #60: Ctrl-C on a long ``simulate`` kept nothing ("interrupted; nothing was
+    written"; the samples are printed at the end). Now the samples simulated so far, the
+    summary (``interrupted``: true) and the waveform up to there are kept; exit 130."""
+    import signal
+    import time
+    vcd = tmp_path / "cut.vcd"
+    proc = _entry(["", "simulate", "--simulator", "python", "--clk-freq", "4e6", "--baud",
+                   "1000000", "--no-self-test", "--samples", "1000000", "--vcd", str(vcd)])
+    time.sleep(8)                                   # bring-up is 1 s of this simulation
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130 and "Traceback" not in err, err
+    lines = out.strip().splitlines()
+    samples = [json.loads(line) for line in lines if line.startswith('{"counter"')]
+    summary = json.loads(next(line for line in lines if '"interrupted"' in line))
+    # (how many depends on the machine's load: tests/sim/test_compiled_board.py counts them)
+    assert summary["interrupted"] is True and summary["samples"] == len(samples)
+    assert err.strip().splitlines()[-1] == (f"mpu9250-ahrs simulate: interrupted; kept what "
+                                            f"was simulated ({len(samples)} samples)")
+    assert vcd.stat().st_size > 0 and (tmp_path / "cut.gtkw").is_file()

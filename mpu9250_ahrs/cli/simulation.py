@@ -4,6 +4,7 @@ simulated board)."""
 
 import json
 import math
+import os
 import sys
 import time
 
@@ -140,11 +141,12 @@ def cmd_simulate(args):
         for r in run.results:
             print(json.dumps(attitude_json(r, args.filter)))
         latency = run.latencies_us(clk_freq)
+        interrupted = run.interrupted
         summary.update({
-            "samples_filtered": run.counters["filtered"],
-            "samples_lost": run.counters["lost"],
+            "samples_filtered": run.counters.get("filtered"),
+            "samples_lost": run.counters.get("lost"),
             "saturated_results": sum(r["flags"]["saturated"] for r in run.results),
-            "results_not_sent": run.counters["not_sent"],
+            "results_not_sent": run.counters.get("not_sent"),
             "frames_received": len(run.frames),
             "telemetry_divider": core_options["telemetry_divider"],
             "latency_us": {"drdy_to_attitude": round(max(latency), 2) if latency else None},
@@ -162,6 +164,7 @@ def cmd_simulate(args):
             print(json.dumps({"counter": s["counter"], "accel": s["accel"], "temp": s["temp"],
                               "gyro": s["gyro"], "mag": s["mag"], "flags": s["flags"],
                               "skipped": s["skipped"]}))
+        interrupted = result.interrupted
         read = sample_read_time(result, setup)
         violations = [str(v) for who in (model, result.bus, *model.aux_devices.values())
                       if who is not None for v in who.violations]
@@ -179,9 +182,17 @@ def cmd_simulate(args):
     summary.update({"violations": violations,
                     "time_scale": {"delays": setup.delay_scale,
                                    "sample_period": setup.odr_scale}})
+    if interrupted:
+        summary["interrupted"] = True
     print(json.dumps(summary), file=sys.stderr if args.quiet_summary else sys.stdout)
-    if wave:
+    if wave and os.path.exists(wave.path):
         print(f"wrote {wave.path} and {wave.gtkw}")
+    if interrupted:
+        # what was simulated is printed above (and the waveform kept up to there)
+        print(f"mpu9250-ahrs simulate: interrupted; kept what was simulated "
+              f"({summary.get('samples', len(run.results) if args.attitude else 0)} "
+              f"{'results' if args.attitude else 'samples'})", file=sys.stderr)
+        return 130
     return 1 if violations else 0
 
 

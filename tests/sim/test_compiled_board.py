@@ -112,3 +112,17 @@ def test_cache_key_covers_the_microcode():
     from mpu9250_ahrs.sim.compiled_design import _source_files
     names = {name for name, _ in _source_files()}
     assert {"hdl/filters/flagship.py", "hdl/attitude_engine.py", "sim/cosim.py"} <= names
+
+
+@pytest.mark.parametrize("compiled", [True, False], ids=["compiled", "python"])
+def test_an_interrupted_run_keeps_what_it_simulated(compiled):
+    """Issue #60: Ctrl-C (a KeyboardInterrupt, here raised after the 3rd sample) ends the run
+    with what it had: the samples so far, ``interrupted`` set, on both simulators."""
+    def ctrl_c(cycle, status, cycles, samples):
+        if len(samples) >= 3:
+            raise KeyboardInterrupt
+        return False
+    setup = SimSetup(clk_freq=12e6)
+    run = run_frontend(setup, n_samples=50, stop=ctrl_c, compiled=compiled)
+    assert run.interrupted and run.compiled == compiled
+    assert len(run.samples) == 3 and run.cycles >= run.sample_cycles[-1] > 0
