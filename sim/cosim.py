@@ -464,7 +464,7 @@ def primary_bus(setup, model, *, injector=None, bus_kw=None):
 
 def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cycles=None,
                  until=None, vcd=None, ready=None, bus_kw=None, injector=None, stop=None,
-                 progress=None, compiled=None):
+                 progress=None, compiled=None, keep_on_interrupt=False):
     """Simulate until ``n_samples`` samples came out, ``until(status_dict)`` is true,
     ``stop(cycle, status_dict, sample_cycles, samples)`` is true, or ``max_cycles`` (an error
     unless ``until`` was given and is merely never met). ``injector``: a fault
@@ -480,7 +480,8 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
     ``progress``: a bar (``mpu9250_ahrs.progress``: ``update``, ``set_postfix_str``) told of
     each sample and the cycle reached.
     ``compiled``: run the design compiled (``compiled_wanted``; ``CosimResult.compiled``
-    says which path ran).
+    says which path ran). ``keep_on_interrupt``: Ctrl-C (KeyboardInterrupt) during the run
+    returns what was simulated (``CosimResult.interrupted``) rather than raising.
     """
     setup = setup or SimSetup()
     compiled = compiled_wanted(compiled, vcd=vcd, supported=stuck_miso is None)
@@ -598,6 +599,8 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
                                                       data.Const(status_layout, st)),
                           max_cycles, ready=ready)
         except KeyboardInterrupt:
+            if not keep_on_interrupt:
+                raise
             out["interrupted"] = True
             out["status"], out["cycles"] = last["status"], design.cycle
         except Done:
@@ -616,9 +619,9 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
             traces = [harness.scl, harness.sda, dut.pins.scl_oe, dut.pins.sda_oe]
         traces += [dut.int_pin, dut.samples.valid, dut.status]
         with trace.python_writer(sim, traces):
-            out["interrupted"] = _run_interruptible(sim)
+            out["interrupted"] = _run_interruptible(sim, keep_on_interrupt)
     else:
-        out["interrupted"] = _run_interruptible(sim)
+        out["interrupted"] = _run_interruptible(sim, keep_on_interrupt)
     if out.get("interrupted") and not compiled:
         out["status"], out["cycles"] = last["status"], out.get("seen", 0)
     if trace:
@@ -631,11 +634,14 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
                        bool(out.get("interrupted")))
 
 
-def _run_interruptible(sim):
-    """``sim.run()``; True if Ctrl-C ended it (the caller keeps what was simulated)."""
+def _run_interruptible(sim, keep):
+    """``sim.run()``; True if Ctrl-C ended it and ``keep``: the caller keeps what was
+    simulated (without ``keep`` the interrupt goes on up)."""
     try:
         sim.run()
     except KeyboardInterrupt:
+        if not keep:
+            raise
         return True
     return False
 
@@ -719,7 +725,7 @@ def core_harness(setup, *, baud=DEFAULT_BAUD, core_kwargs=None):
 
 def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycles=None,
              baud=DEFAULT_BAUD, core_kwargs=None, writes=(), vcd=None, progress=None,
-             compiled=None, until=None):
+             compiled=None, until=None, keep_on_interrupt=False):
     """The whole ``AHRSCore`` (driver, engine, telemetry) against the models until the engine
     has produced ``n_results`` results and the UART has carried ``n_frames`` frames (either
     may be None). The wiring follows ``setup.config.wiring`` (I2C: the models on an
@@ -729,7 +735,8 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
     (address, value) register writes through the ``cfg`` port at the start. ``progress``: a bar told
     of each result and the cycle reached (``run_frontend``). ``compiled``: as
     ``run_frontend``'s (``CoreRun.compiled`` says which path ran). ``until()``: asked at each
-    result and data-ready edge; True ends the run (instead of, or before, the counts)."""
+    result and data-ready edge; True ends the run (instead of, or before, the counts).
+    ``keep_on_interrupt``: as ``run_frontend``'s (``CoreRun.interrupted``)."""
     from .streams import stream_put
     from ..host.protocol import FrameDecoder
     from .uart import attach_uart_receiver
@@ -842,6 +849,8 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
                             more_wanted=more_wanted, max_cycles=max_cycles, writes=writes,
                             progress=progress, offered=offered_sample)
         except KeyboardInterrupt:
+            if not keep_on_interrupt:
+                raise
             out["interrupted"], end = True, design.cycle
         out["end"] = (end, *(unpack(v.shape(), design.get(name)) for name, v in
                              (("counters", core.counters), ("status", core.status),
@@ -855,9 +864,9 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
                 else [harness.scl, harness.sda, core.imu.scl_oe, core.imu.sda_oe])
         with trace.python_writer(sim, [*pins, core.imu_int, results.valid, core.uart_tx,
                                        core.status]):
-            out["interrupted"] = _run_interruptible(sim)
+            out["interrupted"] = _run_interruptible(sim, keep_on_interrupt)
     else:
-        out["interrupted"] = _run_interruptible(sim)
+        out["interrupted"] = _run_interruptible(sim, keep_on_interrupt)
     if out["end"] is None:              # Ctrl-C in Amaranth's simulator: its last result
         out["end"] = (max(out["cycles"], default=0), {}, {}, [])
     if trace:

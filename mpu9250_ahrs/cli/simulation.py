@@ -137,7 +137,8 @@ def cmd_simulate(args):
         with progress.bar(args.samples, "simulate (whole core)", "result") as shown:
             run = run_core(setup, n_results=args.samples, model=model, baud=args.baud,
                            core_kwargs=core_options,
-                           vcd=wave, progress=shown, compiled=compiled)
+                           vcd=wave, progress=shown, compiled=compiled,
+                           keep_on_interrupt=True)
         for r in run.results:
             print(json.dumps(attitude_json(r, args.filter)))
         latency = run.latencies_us(clk_freq)
@@ -159,7 +160,7 @@ def cmd_simulate(args):
     else:
         with progress.bar(args.samples, "simulate (sensor front end)", "sample") as shown:
             result = run_frontend(setup, n_samples=args.samples, model=model, vcd=wave,
-                                  progress=shown, compiled=compiled)
+                                  progress=shown, compiled=compiled, keep_on_interrupt=True)
         for s in result.samples:
             print(json.dumps({"counter": s["counter"], "accel": s["accel"], "temp": s["temp"],
                               "gyro": s["gyro"], "mag": s["mag"], "flags": s["flags"],

@@ -123,6 +123,28 @@ def test_an_interrupted_run_keeps_what_it_simulated(compiled):
             raise KeyboardInterrupt
         return False
     setup = SimSetup(clk_freq=12e6)
-    run = run_frontend(setup, n_samples=50, stop=ctrl_c, compiled=compiled)
+    run = run_frontend(setup, n_samples=50, stop=ctrl_c, compiled=compiled,
+                       keep_on_interrupt=True)
     assert run.interrupted and run.compiled == compiled
     assert len(run.samples) == 3 and run.cycles >= run.sample_cycles[-1] > 0
+    # a caller that did not ask for it (the fault harness, the tests) gets the interrupt
+    with pytest.raises(KeyboardInterrupt):
+        run_frontend(setup, n_samples=50, stop=ctrl_c, compiled=compiled)
+
+
+@pytest.mark.slow
+def test_a_first_build_says_so_piped_or_not(tmp_path, monkeypatch, capsys):
+    """Issue #60: a design's first Verilator build (seconds to minutes) printed its line only
+    on a terminal: piped or logged, simulate was silent for all of it. Now a line when it
+    starts and one with the time it took, whatever stderr is."""
+    from amaranth import Module, Signal
+    from mpu9250_ahrs.sim.compiled_design import CompiledDesign
+    monkeypatch.setenv("MPU9250_AHRS_CACHE", str(tmp_path))
+    m, a, b = Module(), Signal(4), Signal(4)
+    m.d.sync += b.eq(a + 1)
+    CompiledDesign(m, {"a": a}, {"b": b}, name="tiny").close()
+    err = capsys.readouterr().err.splitlines()
+    assert err[0].startswith("mpu9250-ahrs: compiling the tiny with Verilator")
+    assert err[-1].startswith("mpu9250-ahrs: compiled the tiny in ") and err[-1].endswith(" s")
+    CompiledDesign(m, {"a": a}, {"b": b}, name="tiny").close()         # cached: no word
+    assert capsys.readouterr().err == ""
