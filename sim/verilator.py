@@ -92,10 +92,10 @@ def verilator_build(folder, output, sources, *, top, what, options=(), make_flag
     with build_lock(folder):
         if target.exists():
             return 0.0
-        if sys.stderr.isatty():
-            # a one-time wait worth a word (the build is cached afterwards)
-            print(f"mpu9250-ahrs: compiling the {what} with Verilator (seconds, once: cached "
-                  f"in {folder.parent}) ...", file=sys.stderr, flush=True)
+        # a one-time wait worth a word (the build is cached afterwards), on a terminal or in
+        # a log alike: a piped run was silent for the minutes of a first build
+        print(f"mpu9250-ahrs: compiling the {what} with Verilator (seconds to minutes, once: "
+              f"cached in {folder.parent}) ...", file=sys.stderr, flush=True)
         start = time.perf_counter()
         with tempfile.TemporaryDirectory(dir=folder.parent) as tmp:
             tmp = Path(tmp)
@@ -118,7 +118,9 @@ def verilator_build(folder, output, sources, *, top, what, options=(), make_flag
             run(make)
             runtime.keep()
             publish(obj / output, folder)
-        return time.perf_counter() - start
+        took = time.perf_counter() - start
+        print(f"mpu9250-ahrs: compiled the {what} in {took:.0f} s", file=sys.stderr, flush=True)
+        return took
 
 
 def _run_group(cmd, cwd):
