@@ -27,7 +27,7 @@ from .ak8963_model import AK8963Model, AK8963Timing
 from .sources import counting_field, counting_source
 from .compiled_design import NEVER
 from .streams import Monitored
-from .waveforms import RunTrace, gtkw_beside
+from .waveforms import RunTrace, TraceWindow, gtkw_beside
 from ..host.protocol import to_python
 
 
@@ -622,10 +622,13 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
             out["interrupted"] = _run_interruptible(sim, keep_on_interrupt)
     else:
         out["interrupted"] = _run_interruptible(sim, keep_on_interrupt)
+    traced_to = out["cycles"]
     if out.get("interrupted") and not compiled:
         out["status"], out["cycles"] = last["status"], out.get("seen", 0)
+        # Amaranth's simulator went on past the last cycle looked at: its file is kept
+        traced_to = TraceWindow.NEVER
     if trace:
-        _finish_trace(trace, model, bus, out["cycles"], len(out["samples"]),
+        _finish_trace(trace, model, bus, traced_to, len(out["samples"]),
                       out.get("interrupted"))
     wall = time.perf_counter() - start
     return CosimResult(out["samples"], out["status"], out["cycles"], out["bring_up"], wall,
