@@ -13,7 +13,7 @@ import time
 from dataclasses import dataclass, field, replace
 from typing import List, Optional
 
-from amaranth import Elaboratable, Signal, Value
+from amaranth import Elaboratable, Signal
 from amaranth.sim import Simulator
 
 from ..hdl.clocking import SYSTEM_CLOCK_HZ
