@@ -513,7 +513,13 @@ def test_simulate_ctrl_c_keeps_what_was_simulated(tmp_path):
     vcd = tmp_path / "cut.vcd"
     proc = _entry(["", "simulate", "--simulator", "python", "--clk-freq", "4e6", "--baud",
                    "1000000", "--no-self-test", "--samples", "1000000", "--vcd", str(vcd)])
-    time.sleep(8)                                   # bring-up is 1 s of this simulation
+    # the VCD is opened as the simulation starts: interrupted a moment after (bring-up is
+    # about a second of this simulation; under load fewer samples, or none, are kept)
+    for _ in range(600):
+        if vcd.exists():
+            break
+        time.sleep(0.1)
+    time.sleep(3)
     proc.send_signal(signal.SIGINT)
     out, err = proc.communicate(timeout=120)
     assert proc.returncode == 130 and "Traceback" not in err, err
