@@ -264,14 +264,16 @@ def test_replay_score_is_the_same_for_a_truth_off_unit_norm(capsys, tmp_path):
                 dst[name] = src[name][()]
             dst["opt_quat"] = src["opt_quat"][()] * scale
             dst.attrs["sampling_rate"] = src.attrs["sampling_rate"]
-        code, out, err = run(["replay", str(path)], capsys)
+        # its first 25,000 samples (half of it, 13,551 of them in motion, 1.03° total): the
+        # default run's time
+        code, out, err = run(["replay", str(path), "--samples", "25000"], capsys)
         assert code == 0, err
         result = json.loads(out)
-        assert result["truth_rejected"] == 0
+        assert result["truth_rejected"] == 0 and result["samples"] > 10_000
         return [result[k] for k in ("total_rmse_deg", "heading_rmse_deg",
                                     "inclination_rmse_deg")]
     exact = score(1.0)
-    assert 1.0 < exact[0] < 1.7
+    assert 0.8 < exact[0] < 1.7
     for scale in (1 - 0.0099, 1 - 1e-3, 1 - 1e-4, 1 + 1e-4, 1 + 1e-3, 1 + 0.0099):
         assert score(scale) == pytest.approx(exact, abs=0.01), scale
 
@@ -465,6 +467,7 @@ def test_python_m_entry_points_bad_arguments():
         assert_one_error(proc.returncode, err, words)
 
 
+@pytest.mark.slow
 def test_python_m_entry_points_ctrl_c_is_one_line():
     """Ctrl-C in a long ``python -m`` tool: one line, exit 130 (was a 23-40 line traceback;
     the benchmark's workers each printed theirs too)."""
@@ -504,6 +507,7 @@ def test_plot_of_columns_no_axis_can_draw(capsys, tmp_path):
         assert_one_error(code, err, words)
 
 
+@pytest.mark.slow
 def test_simulate_ctrl_c_keeps_what_was_simulated(tmp_path):
     """Issue #60: Ctrl-C on a long ``simulate`` kept nothing ("interrupted; nothing was
     written"; the samples are printed at the end). Now the samples simulated so far, the

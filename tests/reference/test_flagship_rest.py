@@ -51,13 +51,14 @@ def counts_to_units(gc, ac, mc):
 @pytest.mark.parametrize("bias_dps", [0.0, 1.0, 2.0, 3.0, 4.0, 5.0])
 def test_bias_learnt_still_and_moving(bias_dps):
     """The float filter over the sweep (the fixed one, 20 times slower in Python, at the
-    datasheet's limit below; the gateware over the sweep in the slow step)."""
+    datasheet's limit below, and the gateware over the sweep: both in the slow step)."""
     traj, gc, ac, mc, bias = bias_scenario(bias_dps)
     moving, end = errors(run_filter("flagship", *counts_to_units(gc, ac, mc), 1 / RATE), traj)
     # measured: moving 0.57° (no bias) .. 0.73° (5 °/s), at the end 0.01°
     assert end < 0.1 and moving < 1.0, (bias_dps, moving, end)
 
 
+@pytest.mark.slow
 def test_fixed_learns_the_datasheets_largest_bias():
     """The bit-exact model at 5 °/s on every axis: the same accuracy, and its bias (gyro
     counts, Q16.16) the part's within 0.1 °/s."""
