@@ -61,8 +61,9 @@ BOARD_REGS = {
 }
 # Bumped whenever an address, a format or a meaning in the register map changes (engine,
 # board, PWM); the host tool refuses to configure a board whose map it does not know.
-REGMAP_VERSION = 9     # 7: Madgwick (filter code 3, BETA_K at 0x80); 8: the result words at 0x30-0x39;
-#                        9: the flagship's REST_BIAS2 at 0x80, BETA_K at 0x81
+# 7: Madgwick (filter code 3, BETA_K at 0x80); 8: the result words at 0x30-0x39; 9: the
+# flagship's REST_BIAS2 at 0x80, BETA_K at 0x81
+REGMAP_VERSION = 9
 
 
 # The decoder's counters (16 bits each, saturating, in an ``EventCounters``), in the order of

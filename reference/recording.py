@@ -16,8 +16,8 @@ from dataclasses import dataclass
 import numpy as np
 
 
-__all__ = ["Recording", "load_broad", "Scales", "quantise", "saturated", "COUNT_LIMITS", "to_units",
-           "G"]
+__all__ = ["Recording", "load_broad", "open_hdf5", "Scales", "quantise", "saturated",
+           "COUNT_LIMITS", "to_units", "G"]
 
 G = 9.81
 
@@ -63,11 +63,12 @@ TRUTH_NORM_TOLERANCE = 0.01
 _WIDTHS = {"imu_gyr": 3, "imu_acc": 3, "imu_mag": 3, "opt_quat": 4}
 
 
-def _open_hdf5(h5py, path):
+def open_hdf5(path):
     """The HDF5 file ``path`` open for reading, or a ValueError that says in a few words what
     is wrong with it (missing, a folder, unreadable, not HDF5) rather than HDF5's own
     message (a line of 300 characters with a buffer's address)."""
     import os
+    import h5py
     problem = ("no such file" if not os.path.exists(path) else
                "a folder, not a file" if os.path.isdir(path) else
                "no permission to read it" if not os.access(path, os.R_OK) else
@@ -138,9 +139,8 @@ def load_broad(path, first=None):
     (``Recording.truth_rejected`` counts them; ``replay`` says so), the others normalised; a
     file with no known truth row, or whose known truth is all of that kind, is refused.
     Anything else is a ValueError with one line."""
-    import h5py
     from pathlib import Path
-    f = _open_hdf5(h5py, path)
+    f = open_hdf5(path)
     with f:
         missing = sorted({"imu_gyr", "imu_acc", "imu_mag", "opt_quat", "movement"} - set(f))
         if "sampling_rate" not in f.attrs:

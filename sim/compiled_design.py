@@ -87,8 +87,8 @@ def _cxx(top, inputs, outputs, trace=False):
         # that starts late still opens with the whole state
         dump = ("if (s->tfp && s->cycle >= s->from && s->cycle < s->to) "
                 "s->tfp->dump((2 * s->cycle + {}) * s->half_ps); ")
-        trace_api = f"""// A waveform of every signal into path, at each clock edge (half_ps: half a period)
-// of the cycles from .. to - 1
+        trace_api = f"""// A waveform of every signal into path, at each clock edge (half_ps: half a
+// period) of the cycles from .. to - 1
 void sim_trace(void *p, const char *path, uint64_t half_ps, uint64_t from, uint64_t to) {{
     Sim *s = (Sim *)p;
     s->tfp = new {writer};
@@ -252,6 +252,10 @@ def readable_names(text):
         lambda m: names.setdefault(m.group(0), f"_auto_{len(names) + 1}"), text)
 
 
+# Verilator's options for a build that traces, by the waveform's format
+_TRACE_OPTIONS = {"vcd": ["--trace"], "fst": ["--trace-fst"]}
+
+
 class CompiledDesign:
     """``design`` (an ``Elaboratable`` with a ``sync`` domain) compiled with ports for
     ``inputs`` and ``outputs`` (name: signal or value-castable; names must be Verilog
@@ -322,7 +326,7 @@ class CompiledDesign:
             folder, "design.so", {f"{top}.v": verilog_text, "api.cpp": cxx}, top=top,
             what=self.name, options=[
                 "-CFLAGS", "-fPIC", "-LDFLAGS", "-shared", "--x-assign", "fast",
-                "--x-initial", "fast", "--noassert", *({"vcd": ["--trace"], "fst": ["--trace-fst"]}.get(self.trace, []))],
+                "--x-initial", "fast", "--noassert", *_TRACE_OPTIONS.get(self.trace, [])],
             make_flags=BUILD_OPTIMISATION["design"])
         if not converted:
             # the design was never elaborated (the cache had it): its blocks would each warn,

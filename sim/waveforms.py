@@ -23,10 +23,13 @@ import subprocess
 import tempfile
 from pathlib import Path
 
+from .compiled_design import NEVER
 
-__all__ = ["Waveform", "parse_bound", "gtkw_beside", "GTKW_WIDTH_PX", "write_gtkw",
-           "layout", "first_transaction_window", "crop_vcd", "finish_python_trace",
-           "gtkwave_check", "GTKWAVE_HINT"]
+
+__all__ = ["Waveform", "parse_bound", "describe", "TraceWindow", "RunTrace", "gtkw_beside",
+           "GTKW_WIDTH_PX", "write_gtkw", "layout", "first_transaction_window", "crop_vcd",
+           "finish_python_trace", "python_trace_path", "vcd_timescale_s", "gtkwave_check",
+           "GTKWAVE_HINT"]
 
 GTKWAVE_HINT = "apt-get install gtkwave xvfb"
 FORMATS = {".vcd": "vcd", ".fst": "fst"}
@@ -94,7 +97,7 @@ class TraceWindow:
     called with (start, stop) when a sample bound moves them (the compiled design's
     ``trace_window``)."""
 
-    NEVER = (1 << 40) - 1
+    NEVER = NEVER                               # the compiled design's "no cycle"
 
     def __init__(self, wave, clk_freq, on_change=None):
         self.wave, self.on_change = wave, on_change

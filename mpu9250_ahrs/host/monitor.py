@@ -135,11 +135,8 @@ def read_log(path, required=("type",)):
     required = tuple(required)
     if str(path).endswith((".h5", ".hdf5")):
         import h5py
-        try:
-            f = h5py.File(path, "r")
-        except OSError as e:
-            raise ValueError(f"{path}: cannot be read as HDF5 ({e})") from None
-        with f:
+        from ..reference.recording import open_hdf5
+        with open_hdf5(path) as f:
             columns = {name: f[name] for name in f if isinstance(f[name], h5py.Dataset)}
             missing = [c for c in required if c not in columns]
             if not columns or missing:
