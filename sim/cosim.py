@@ -613,12 +613,7 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
         if trace:
             design.close()                  # the waveform complete
     elif trace:
-        if bus is None:
-            traces = [dut.pins.cs_n, dut.pins.sclk, dut.pins.copi, dut.pins.cipo]
-        else:
-            traces = [harness.scl, harness.sda, dut.pins.scl_oe, dut.pins.sda_oe]
-        traces += [dut.int_pin, dut.samples.valid, dut.status]
-        with trace.python_writer(sim, traces):
+        with trace.python_writer(sim):
             out["interrupted"] = _run_interruptible(sim, keep_on_interrupt)
     else:
         out["interrupted"] = _run_interruptible(sim, keep_on_interrupt)
@@ -863,10 +858,7 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
         if trace:
             design.close()                  # the waveform complete
     elif trace:
-        pins = ([core.imu.cs_n, core.imu.sclk, core.imu.copi, core.imu.cipo] if bus is None
-                else [harness.scl, harness.sda, core.imu.scl_oe, core.imu.sda_oe])
-        with trace.python_writer(sim, [*pins, core.imu_int, results.valid, core.uart_tx,
-                                       core.status]):
+        with trace.python_writer(sim):
             out["interrupted"] = _run_interruptible(sim, keep_on_interrupt)
     else:
         out["interrupted"] = _run_interruptible(sim, keep_on_interrupt)

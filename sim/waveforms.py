@@ -291,7 +291,7 @@ class RunTrace:
     "core") design on ``wiring`` whose status has ``status_fields`` ((name, width) each).
 
     Compiled: ``start_compiled(design)`` before the run (a build with ``trace=format``);
-    Amaranth's simulator: ``python_writer(sim, traces)``, a context around ``sim.run()``.
+    Amaranth's simulator: ``python_writer(sim)``, a context around ``sim.run()``.
     Either way ``at_sample(count, cycle)`` as samples come out (sample bounds), and
     ``finish(model, bus, end_cycle, samples)`` after the run (the compiled design closed
     first): the file cut and converted where it must be, the save file beside it; a window
@@ -309,10 +309,11 @@ class RunTrace:
         self.window.on_change = design.trace_window
         design.trace_to(self.wave.path, self.clk_freq, *self.window.cycles())
 
-    def python_writer(self, sim, traces):
+    def python_writer(self, sim):
+        # Amaranth's writer dumps every signal of the design: the save file names its own
         self.scope = "bench.top"
         self.written = python_trace_path(self.wave)
-        return sim.write_vcd(self.written, traces=traces)
+        return sim.write_vcd(self.written)
 
     def at_sample(self, count, cycle):
         self.window.at_sample(count, cycle)
