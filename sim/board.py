@@ -25,6 +25,7 @@ import os
 import termios
 import threading
 import time
+from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
@@ -312,14 +313,14 @@ class SimulatedBoard:
             uart = UARTReader(design, "uart_tx", divisor, sent)
             mask = design.mask("pin_a", "pin_b", "uart_tx")
             design.set("uart_rx", 1)
-            line = []                           # the host's line still to play
+            line = deque()                      # the host's line still to play
             cycle, next_poll, next_edge, ratio = 0, poll, NEVER, 1.0
             while not self._stop.is_set():
                 pins.poll(cycle)
                 uart.poll(cycle)
                 if cycle >= next_edge:
                     if line:
-                        level, cycles = line.pop(0)
+                        level, cycles = line.popleft()
                         design.set("uart_rx", level)
                         next_edge = cycle + cycles
                     else:                       # the host's bytes sent
@@ -330,9 +331,10 @@ class SimulatedBoard:
                     self.cycles = cycle
                     ratio = pty_baud(master) / NOMINAL_BAUD
                     self._flush(sent, ratio)
-                    line = self._from_host(divisor)
+                    # (a deque: 4 KB from the host are some 40,000 runs, taken from the front)
+                    line = deque(self._from_host(divisor))
                     if line:
-                        level, cycles = line.pop(0)
+                        level, cycles = line.popleft()
                         design.set("uart_rx", level)
                         next_edge = cycle + cycles
                     else:
