@@ -36,7 +36,8 @@ class Op(enum.Enum, shape=3):
     WRITE  = 1      # reg <- value
     CHECK  = 2      # read reg; must be one of the check's values
     STORE  = 3      # read reg into asa[value]
-    POLL   = 4      # read reg until (byte & value) != 0; fails on (byte & mask) or time-out
+    POLL   = 4      # read reg until (byte & value) != 0; fails on (byte & mask) or time-out;
+                    # value 0: one read, whatever its byte (a clear-on-read register cleared)
     MARK   = 5      # status.mag_ok <- 1
     STREAM = 6
     TEST   = 7      # read ``length`` bytes ``repeat`` times (``wait`` apart) to the self-test
@@ -80,9 +81,13 @@ class SelfTestWaits:
     mag: int
 
 
-def bring_up_program(config, power_up_cycles, reset_cycles, mag_wait_cycles, self_test=None):
+def bring_up_program(config, power_up_cycles, reset_cycles, mag_wait_cycles, self_test=None,
+                     aux_idle_cycles=None):
     """The bring-up sequence for ``config.wiring``, as a list of ``Step`` (the driver's ROM).
-    ``self_test`` (``SelfTestWaits``): with ``config.self_test``, the self-tests' waits."""
+    ``self_test`` (``SelfTestWaits``): with ``config.self_test``, the self-tests' waits.
+    ``aux_idle_cycles`` (SPI wiring): the longest cycle of the MPU9250's I2C master (SLV0's
+    read and an SLV4 transfer), which a magnetometer set-up waits out before it clears
+    I2C_MST_STATUS (default ``mag_wait_cycles``)."""
     spi = config.wiring == "spi"
     if config.self_test and self_test is None:
         raise ValueError("bring_up_program needs the self-test's waits (SelfTestWaits)")
@@ -139,10 +144,21 @@ def bring_up_program(config, power_up_cycles, reset_cycles, mag_wait_cycles, sel
                 mag.append(Step(op, device=1, reg=reg, fail=Fail.MAG, **kw))
 
         if spi:
+            # A set-up takes a byte only from a transfer it saw complete. An SLV4 transfer
+            # still enabled from a set-up that timed out (the I2C master stalled) would end
+            # whenever the master runs again and leave SLV4_DONE set: the next set-up's first
+            # poll took that stale DONE, and each of its reads the byte of the transfer
+            # before (ASA (72, 176, 167): WIA, ASAX, ASAY). So a set-up first disables SLV4
+            # (an enabled transfer that waits is dropped), waits out the master's longest
+            # cycle (one that had begun ends) and reads I2C_MST_STATUS (clears on read).
+            # After that every transfer's DONE is read by its own poll
             wait_es = R.I2C_MST_CTRL_WAIT_FOR_ES if config.aux_every == 1 else 0
-            mag += [Step(Op.WRITE, reg=R.USER_CTRL,
+            mag += [Step(Op.WRITE, reg=R.I2C_SLV4_CTRL, value=slv4_ctrl & ~R.I2C_SLV_EN),
+                    Step(Op.WRITE, reg=R.USER_CTRL,
                          value=R.USER_CTRL_I2C_IF_DIS | R.USER_CTRL_I2C_MST_EN),
-                    Step(Op.WRITE, reg=R.I2C_MST_CTRL, value=wait_es | R.I2C_MST_CLK_400KHZ)]
+                    Step(Op.WRITE, reg=R.I2C_MST_CTRL, value=wait_es | R.I2C_MST_CLK_400KHZ),
+                    Step(Op.WAIT, wait=aux_idle_cycles or mag_wait_cycles),
+                    Step(Op.POLL, reg=R.I2C_MST_STATUS, value=0, fail=Fail.MAG)]
         else:
             # the whole INT_PIN_CFG (BYPASS_EN is in it): a re-initialisation runs this while
             # samples stream, and must not switch a latched INT to pulses meanwhile
@@ -251,7 +267,8 @@ class BringUpSequencer(wiring.Component):
         ``tick`` (in, 1 unless driven): the timer's tick (``tick_cycles``).
 
     A step's command goes out in the cycle it is fetched; WRITE, CHECK, STORE and MARK take one
-    command (or none), POLL repeats its read until the bit is set, a NACK or ``poll_cycles``;
+    command (or none), POLL repeats its read until the bit is set, a NACK or ``poll_cycles``
+    (a POLL of value 0 reads once);
     WAIT counts its cycles; TEST reads ``repeat`` times, ``wait`` cycles between a read's end
     and the next. Failures: ``Fail.RESTART`` restarts the program, ``Fail.MAG`` flags
     the magnetometer and jumps past its part (samples flow without it).
@@ -529,7 +546,7 @@ class BringUpSequencer(wiring.Component):
             with m.If(port.rsp.valid):
                 with m.If(port.rsp.payload.error | (last & step.mask).any()):
                     fail(absent=1)
-                with m.Elif((last & step.value).any()):
+                with m.Elif((last & step.value).any() | ~step.value.any()):
                     next_step()
                 with m.Elif(timer == 0):
                     fail(absent=1)

@@ -23,8 +23,9 @@ one well-known drivers use:
     92 Hz; wait 20 ms; N bursts of the 14 sensor bytes 1 ms apart, subtracted; self-test on,
     wait, N bursts added; self-test off; the six factory codes, each axis judged; wait;
     PWR_MGMT_2, CONFIG, SMPLRT_DIV, GYRO_CONFIG, ACCEL_CONFIG, ACCEL_CONFIG2;
-    magnetometer through the MPU9250's I2C master: USER_CTRL |= I2C_MST_EN, I2C_MST_CTRL =
-    WAIT_FOR_ES | 400 kHz; each AK8963 access is a single SLV4 transfer (SLV4_ADDR/REG/DO/CTRL,
+    magnetometer through the MPU9250's I2C master: SLV4 disabled, USER_CTRL |= I2C_MST_EN,
+    I2C_MST_CTRL = WAIT_FOR_ES | 400 kHz, wait the master's longest cycle, read I2C_MST_STATUS
+    (a stale SLV4_DONE cleared: ``aux_idle_cycles``); each AK8963 access is a single SLV4 transfer (SLV4_ADDR/REG/DO/CTRL,
     CTRL keeping I2C_MST_DLY, SLV0's pacing above 1 kHz; then poll I2C_MST_STATUS for
     SLV4_DONE, failing on SLV4_NACK or a time-out): check WIA =
     0x48, CNTL2 = SRST, CNTL1 = fuse ROM, read ASAX/Y/Z, CNTL1 = power-down, wait 100 µs,
@@ -177,6 +178,8 @@ class MPU9250Config:
 # The I2C master's read of the AK8963 at each sample (SPI wiring), in bit times: START, the
 # address and register bytes, a repeated START, the address again, ST1..ST2, STOP
 AK8963_READ_BITS = 1 + 9 + 9 + 1 + 9 + 9 * A.SAMPLE_BYTES + 1
+# an SLV4 transfer: start, address, register, (repeated start, address,) the byte, stop
+SLV4_BITS = 1 + 9 + 9 + 1 + 9 + 9 + 1
 
 
 @dataclass(frozen=True)
@@ -224,6 +227,16 @@ class DriverTiming:
         # the I2C master's clock as bring-up sets it (I2C_MST_CTRL's I2C_MST_CLK_400KHZ)
         hz = R.I2C_MST_CLK_KHZ[R.I2C_MST_CLK_400KHZ] * 1e3
         return cycles(AK8963_READ_BITS / hz * scale, clk_freq)
+
+    def aux_idle_cycles(self, clk_freq, config):
+        """The longest cycle of the MPU9250's I2C master as bring-up sets it (SPI wiring):
+        SLV0's read of the AK8963 and an SLV4 transfer (``SLV4_BITS``) at 400 kHz, scaled as
+        the period is; at least the AK8963's power-down wait. A magnetometer set-up waits it
+        out before it clears I2C_MST_STATUS (``bring_up_program``)."""
+        scale = self.period_s(config) * config.output_data_rate
+        hz = R.I2C_MST_CLK_KHZ[R.I2C_MST_CLK_400KHZ] * 1e3
+        return max(cycles((AK8963_READ_BITS + SLV4_BITS) / hz * scale, clk_freq),
+                   cycles(self.mag_power_down_s, clk_freq))
 
     def int_timeout(self, config):
         """The data-ready time-out before the first sample, in seconds."""
@@ -300,7 +313,8 @@ class MPU9250Driver(wiring.Component):
         self.mag_timeout_periods = timing.mag_timeout_periods(config)
         self.program = bring_up_program(config, self.power_up_cycles, self.reset_cycles,
                                         self.mag_wait_cycles,
-                                        timing.self_test_waits(clk_freq, config))
+                                        timing.self_test_waits(clk_freq, config),
+                                        aux_idle_cycles=timing.aux_idle_cycles(clk_freq, config))
         self.self_test_block = (SelfTest(samples_log2=config.self_test_samples.bit_length() - 1)
                                 if config.self_test else None)
         # made here, not in ``elaborate``, so that ``report`` finds its program ROM

@@ -257,6 +257,14 @@ def _int_free(inj, t):
     inj.int_level = None
 
 
+def _aux_stall(inj, t):
+    inj.mpu.aux_stalled = True
+
+
+def _aux_free(inj, t):
+    inj.mpu.aux_stalled = False
+
+
 def _gyro_y_dead(inj, t):
     # a damaged gyro axis: its self-test makes no response (the part still reads its rate)
     inj.mpu.self_test_gain[4] = 0.0
@@ -290,6 +298,10 @@ FAULTS = {f.name: f for f in [
           _ak_reset, duration=None, flags=("mag_stale",), recovers="mag"),
     Fault("mag_overflow", "a field beyond the AK8963's range (HOFL) for a while",
           _overflow_on, _overflow_off, duration=20, flags=("mag_overflow",), recovers="mag"),
+    Fault("aux_stall", "the MPU9250's auxiliary I2C master stalls mid-run (no transfer runs, "
+          "an enabled SLV4 transfer waits): past the SLV4 poll's time-out of a set-up; "
+          "runs again later", _aux_stall, _aux_free, wirings=("spi",),
+          flags=("mag_stale",), recovers="mag"),
     Fault("cipo_stuck_high", "CIPO stuck high mid-run while INT keeps coming; freed later",
           _set("cipo", 1), _set("cipo", None), wirings=("spi",), flags=("bad_burst",)),
     Fault("cipo_stuck_low", "CIPO stuck low mid-run while INT keeps coming; freed later",
@@ -536,8 +548,15 @@ def summarise(fault, inj, result, setup, after):
     violations = [str(v) for who in (model, result.bus, *model.aux_devices.values(), ak)
                   if who is not None for v in who.violations]
     counters = [s["counter"] for s in result.samples]
+    # the sensitivity the driver holds (SPI: from SLV4 transfers) is the part's fuse ROM's
+    # whenever the magnetometer is up: a wrong one is garbage passed on as valid
+    asa_right = None
+    if ak is not None and status.get("mag_ok"):
+        asa_right = list(result.asa) == list(ak.asa)
+        recovered = recovered and asa_right
     summary.update({
         "detected_after_samples": detected, "flags": flags, "recovered": recovered,
+        "asa_right": asa_right,
         "stale_valid_samples": stale,
         # the sample counter goes on across a restart: it only ever increases
         "counter_increasing": all(b > a for a, b in zip(counters, counters[1:])),

@@ -140,6 +140,10 @@ class MPU9250Model:
         self.transactions = []      # SPI: (t CS fell, t CS rose, first register, bytes, read)
         self.resets = 0
         self.line_flips = {}
+        # the auxiliary I2C master stalls (a device holding the auxiliary bus, a hung
+        # transfer): no slot runs at the sample ticks while it is set, and a transfer that
+        # was enabled (SLV4 too) waits, enabled, for the first tick after it clears
+        self.aux_stalled = False
 
         self.now = 0.0
         self.regs = bytearray(128)
@@ -233,7 +237,8 @@ class MPU9250Model:
     def _convert(self, t):
         sample = self._self_test_response(self.source(len(self.samples), t))
         aux = None
-        if self.regs[R.USER_CTRL] & R.USER_CTRL_I2C_MST_EN and self._aux_done is None:
+        if self.regs[R.USER_CTRL] & R.USER_CTRL_I2C_MST_EN and self._aux_done is None and \
+                not self.aux_stalled:
             aux = self._aux_cycle(t)
         if aux is None:
             self._commit(t, sample)

@@ -40,7 +40,9 @@ def expected_writes(config, *, mag=True):
         (0x1D, config.accel_dlpf_cfg),
     ]
     if mag:
-        writes += [(0x6A, 0x30), (0x24, 0x4D)]               # I2C master on; WAIT_FOR_ES, 400 kHz
+        # SLV4 off (I2C_MST_DLY kept); I2C master on; WAIT_FOR_ES, 400 kHz; then a read of
+        # I2C_MST_STATUS clears a stale SLV4_DONE
+        writes += [(0x34, config.aux_every - 1), (0x6A, 0x30), (0x24, 0x4D)]
         writes += slv4_read(0x00)                             # WIA
         writes += slv4_write(0x0B, 0x01) + slv4_write(0x0A, 0x0F)     # SRST, fuse ROM
         writes += slv4_read(0x10) + slv4_read(0x11) + slv4_read(0x12)  # ASA
