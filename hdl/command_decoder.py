@@ -23,7 +23,7 @@ from .event_counters import EventCounters
 from .rewindable_fifo import RewindableFIFO
 
 
-__all__ = ["COMMANDS", "RESULTS", "SPACES", "BOARD_REGS", "REGMAP_VERSION", "MAX_COMMAND_PAYLOAD",
+__all__ = ["COMMANDS", "RESULTS", "RESULT_INPUT_LOST", "MAX_BURST_COMMANDS", "SPACES", "BOARD_REGS", "REGMAP_VERSION", "MAX_COMMAND_PAYLOAD",
            "COMMAND_STATS", "COUNTED", "COUNTER_WORDS", "counter_word", "CommandDecoder"]
 
 
@@ -46,10 +46,21 @@ VALUE_AT = 2
 assert all(VALUE_AT + COMMANDS[name][1] <= MAX_COMMAND_PAYLOAD for name in SHORT)
 # the command's value in a reply, masked: a write's (echo), or a short payload's
 ECHOED = {"echo": (1 << 32) - 1, "byte": 0xFF, "half": 0xFFFF, "bit": 1}
-# the input FIFO: a whole frame kept (13 bytes at most) and room for the bytes that arrive
-# while a command waits for the engine and its reply is sent (about 17 byte times)
-FIFO_DEPTH = 32
+# The input FIFO: the bytes of the commands that arrive while a reply waits for the link. A
+# reply may wait behind a telemetry frame (92 bytes), and while telemetry fills the link each
+# command's reply may wait behind one: a command (9 to 13 bytes) is then answered every 108
+# byte times at worst. 32 bytes lost the fourth of four commands sent back to back; 1,024
+# (the whole M9K the FIFO had anyway, as 1,024 x 8) hold ``MAX_BURST_COMMANDS`` of the
+# longest whatever the link does, all answered. A byte that finds it full is dropped,
+# counted (RX_OVERRUNS) and said in the next reply (``RESULT_INPUT_LOST``)
+FIFO_DEPTH = 1024
+# the bytes of a command, at most (sync 2, type, seq, length, payload, CRC 2)
+MAX_COMMAND_BYTES = 5 + MAX_COMMAND_PAYLOAD + 2
+MAX_BURST_COMMANDS = FIFO_DEPTH // MAX_COMMAND_BYTES
 RESULTS = {"ok": 0, "refused": 1, "bad_address": 2, "bad_command": 3}
+# OR-ed into a reply's result: bytes from the host were dropped (the input FIFO full) since
+# the last reply was made; commands sent since then may have had no reply (send them again)
+RESULT_INPUT_LOST = 0x80
 # The high byte of a register address: which block it is in.
 SPACES = {"engine": 0x00, "board": 0x01, "pwm": 0x02}
 # The board's own registers (space 0x01): all read-only but RAW_MODE.
@@ -62,8 +73,9 @@ BOARD_REGS = {
 # Bumped whenever an address, a format or a meaning in the register map changes (engine,
 # board, PWM); the host tool refuses to configure a board whose map it does not know.
 # 7: Madgwick (filter code 3, BETA_K at 0x80); 8: the result words at 0x30-0x39; 9: the
-# flagship's REST_BIAS2 at 0x80, BETA_K at 0x81
-REGMAP_VERSION = 9
+# flagship's REST_BIAS2 at 0x80, BETA_K at 0x81; 10: a reply's result bit 7
+# (``RESULT_INPUT_LOST``)
+REGMAP_VERSION = 10
 
 
 # The decoder's counters (16 bits each, saturating, in an ``EventCounters``), in the order of
@@ -322,8 +334,15 @@ class CommandDecoder(wiring.Component):
         addr_const = Signal(16)                 # OR-ed in: a command's own address
         value_const = Signal(32)                # OR-ed in: a constant's value
         result = Signal(8)
+        # a byte from the host dropped (the input FIFO full) since the last reply was made:
+        # the next reply says so (``RESULT_INPUT_LOST``), for a command lost with it had none
+        input_lost = Signal()
         with m.If(load_header):
-            m.d.sync += [reply.command.eq(ctype), reply.cmd_seq.eq(seq), reply.result.eq(result)]
+            m.d.sync += [reply.command.eq(ctype), reply.cmd_seq.eq(seq),
+                         reply.result.eq(result | Mux(input_lost, RESULT_INPUT_LOST, 0)),
+                         input_lost.eq(0)]
+        with m.If(self.rx_overrun):
+            m.d.sync += input_lost.eq(1)
         with m.If(load_fields):
             m.d.sync += [
                 reply.addr.eq(Mux(addr_echo, addr, 0) | addr_const),

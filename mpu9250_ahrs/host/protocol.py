@@ -9,7 +9,8 @@ from dataclasses import dataclass
 
 from amaranth.lib import data
 
-from ..hdl.command_decoder import COMMANDS, MAX_COMMAND_PAYLOAD, RESULTS, SPACES
+from ..hdl.command_decoder import (COMMANDS, MAX_COMMAND_PAYLOAD, RESULT_INPUT_LOST, RESULTS,
+                                   SPACES)
 from ..hdl.frame_types import FRAME_TYPES
 from ..hdl.frame_types import CRC, HEADER_BYTES, SYNC, payload_bytes
 
@@ -166,14 +167,20 @@ def answers(fields, name, seq, *, addr=None, space="engine", **_):
     code, _n = COMMANDS[name]
     if fields["cmd_seq"] != seq or fields["command"] != code:
         return False
-    if name in ("write", "read") and fields["result"] != RESULTS["bad_command"]:
+    if name in ("write", "read") and \
+            fields["result"] & ~RESULT_INPUT_LOST != RESULTS["bad_command"]:
         return fields["addr"] == (SPACES[space] << 8) | addr
     return True
 
 
 def reply_of(fields):
-    """A reply's fields with its result named (``RESULT_NAMES``)."""
-    return {**fields, "result_name": RESULT_NAMES.get(fields["result"], "unknown")}
+    """A reply's fields with its result named (``RESULT_NAMES``, from the result's code) and
+    ``input_lost``: the board dropped bytes from the host before this command (its input
+    FIFO full: ``RESULT_INPUT_LOST``), so commands sent since the last reply may have had
+    none."""
+    code = fields["result"] & ~RESULT_INPUT_LOST
+    return {**fields, "result_name": RESULT_NAMES.get(code, "unknown"),
+            "input_lost": bool(fields["result"] & RESULT_INPUT_LOST)}
 
 
 def corrupted_share(trials=20_000, *, seed=0, flips=(1, 2, 3, 4)):

@@ -13,7 +13,8 @@ from mpu9250_ahrs.hdl.register_map import (CONFIG_REGS, CONTROL_ADDR, CONTROL_KE
                                            HOST_WRITABLE, TELEMETRY_DIV_ADDR)
 from mpu9250_ahrs.hdl.command_decoder import (BOARD_REGS, COMMAND_STATS, COMMANDS, COUNTED,
                                               COUNTER_WORDS, FIFO_DEPTH, REGMAP_VERSION,
-                                              RESULTS, CommandDecoder, counter_word)
+                                              RESULT_INPUT_LOST, RESULTS, CommandDecoder,
+                                              counter_word)
 from mpu9250_ahrs.hdl.driver_status import SelfTestStatus
 from mpu9250_ahrs.hdl.pwm import PWM_REGS, PWMOutputs
 from mpu9250_ahrs.host.protocol import encode_command, encode_frame, to_python
@@ -104,6 +105,14 @@ def run(data, *, gaps=None, busy_cycles=3, inputs=None, pulses=None):
     sim.add_testbench(host)
     sim.run()
     return writes, replies, out["stats"], out["raw"]
+
+
+def test_a_reply_after_dropped_bytes_says_so():
+    """A byte the receiver dropped (the FIFO full: its ``overrun``) is said by the next reply
+    (result bit 7), once: the command it belonged to had none."""
+    _, replies, _, _ = run(encode_command("who", 1) + encode_command("who", 2),
+                           pulses={"rx_overrun": 1})
+    assert [r["result"] for r in replies] == [RESULTS["ok"] | RESULT_INPUT_LOST, RESULTS["ok"]]
 
 
 def test_every_command():
@@ -437,5 +446,15 @@ def test_counter_read_while_the_frame_count_is_not_stable():
     replies = _answered_once_stable(
         encode_command("read", 3, addr=BOARD_REGS["RATE_ERRORS"], space="board"),
         before=before, meanwhile=meanwhile)
+    # (the receiver's overruns meanwhile are bytes dropped: the reply says so, bit 7)
     assert [(r["cmd_seq"], r["result"], r["value"]) for r in replies] == [
-        (3, RESULTS["ok"], 37)]
+        (3, RESULTS["ok"] | RESULT_INPUT_LOST, 37)]
+
+
+def test_frames_md_states_the_burst_bound_the_decoder_has():
+    import pathlib
+    from mpu9250_ahrs.hdl.command_decoder import MAX_BURST_COMMANDS
+    text = (pathlib.Path(__file__).resolve().parents[2] / "hdl" / "FRAMES.md").read_text()
+    assert f"`MAX_BURST_COMMANDS` = {MAX_BURST_COMMANDS} commands" in text
+    assert f"more than {MAX_BURST_COMMANDS} commands sent back to back" in text
+    assert f"({FIFO_DEPTH:,} bytes, `FIFO_DEPTH`)" in text

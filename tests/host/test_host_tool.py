@@ -284,3 +284,47 @@ def test_a_board_started_twice_runs_one_simulation():
     assert b.error is None
     with pytest.raises(RuntimeError, match="was stopped: make a new one"):
         b.start()
+
+
+def _burst(board, link, n, first_seq):
+    """``n`` commands written at once (reads and writes of T, alternately) while telemetry
+    streams; returns {seq: reply fields} of the replies that came."""
+    from mpu9250_ahrs.hdl.frame_types import REPLY
+    from mpu9250_ahrs.host.protocol import encode_command, reply_of
+    seqs = [(first_seq + k) % 256 for k in range(n)]
+    data = b"".join(encode_command("write", s, addr=0x08, value=100 + k) if k % 2 else
+                    encode_command("read", s, addr=0x08) for k, s in enumerate(seqs))
+    link.serial.write(data)
+    link.serial.flush()
+    got, start = {}, board.cycles
+    # a reply every 108 byte times at worst (each behind a telemetry frame), 40 cycles a byte
+    while board.cycles - start < 200_000 + 108 * 40 * n and len(got) < n:
+        for ftype, _seq, fields in link._read():
+            if ftype == REPLY and fields["cmd_seq"] in seqs:
+                got[fields["cmd_seq"]] = reply_of(fields)
+        time.sleep(0.01)
+    return seqs, got
+
+
+def test_commands_sent_back_to_back_are_all_answered_or_the_loss_is_said(board):
+    """#60: four commands written at once while telemetry streams lost the fourth (the
+    decoder's 32-byte FIFO overflowed while a reply waited behind a 92-byte frame). Bursts of
+    four, and one of ``MAX_BURST_COMMANDS``, are answered whole; a longer burst at full line
+    rate cannot be (a reply is longer than a command): the bytes dropped are counted and the
+    reply after them says so (``input_lost``)."""
+    from mpu9250_ahrs.hdl.command_decoder import MAX_BURST_COMMANDS
+    from mpu9250_ahrs.host.config import get
+    with open_link(board.port) as link:
+        overruns = get(link, "RX_OVERRUNS")["value"]
+        seq = 100
+        for _ in range(5):
+            seqs, got = _burst(board, link, 4, seq)
+            seq += 4
+            assert sorted(got) == sorted(seqs)
+            assert all(r["result_name"] == "ok" and not r["input_lost"] for r in got.values())
+        seqs, got = _burst(board, link, MAX_BURST_COMMANDS, seq)
+        seq += MAX_BURST_COMMANDS
+        assert len(got) == MAX_BURST_COMMANDS and get(link, "RX_OVERRUNS")["value"] == overruns
+        seqs, got = _burst(board, link, 2 * MAX_BURST_COMMANDS, seq)
+        assert len(got) < len(seqs) and any(r["input_lost"] for r in got.values())
+        assert get(link, "RX_OVERRUNS")["value"] > overruns
