@@ -1,9 +1,11 @@
 """Progress on stderr for the jobs that take more than a few seconds (``tqdm``).
 
-Shown only when stderr is a terminal and ``--quiet`` was not given (``set_quiet``), so logs,
-pipes and tests see the same output as before. ``bar(total, desc, unit)`` gives a tqdm bar, or
-an object with the same methods that does nothing; ``steps(names, desc)`` a bar over named
-steps (``next(name)`` moves it on). The simulators take any object with ``update(n)`` and
+Bars are shown only when stderr is a terminal and ``--quiet`` was not given (``set_quiet``),
+so logs, pipes and tests see the same output as before. ``bar(total, desc, unit)`` gives a
+tqdm bar, or an object with the same methods that does nothing; ``steps(names, desc)`` a bar
+over named steps (``next(name)`` moves it on) whose elapsed time moves while a step runs, and
+off a terminal (unless quiet) one line on stderr per step and a line a minute within one: the
+synthesis and place-and-route steps it is used for take minutes. The simulators take any object with ``update(n)`` and
 ``set_postfix_str(text)``.
 """
 
@@ -56,17 +58,63 @@ def bar(total=None, desc="", unit="it"):
 
 
 class _Steps:
+    """A job's named steps. On a terminal a bar whose elapsed time moves every second while
+    a step runs (synthesis and place-and-route steps take minutes, and a bar redrawn only
+    when a step ends looked hung); off a terminal (unless quiet) a line on stderr as each step
+    begins, with the time since the job began, and every ``HEARTBEAT_S`` within a step."""
+    HEARTBEAT_S = 60.0
+
     def __init__(self, names, desc):
+        import threading
+        import time
+        self._time = time.monotonic
+        self.names, self.desc = names, desc
         self.bar = bar(len(names), desc, "step")
+        self.lines = not enabled() and not _quiet
         self.started = False
+        self.count = 0
+        self.name = ""
+        self.t0 = self.step_t0 = self._time()
+        self._stop = threading.Event()
+        self._thread = None
+        if not isinstance(self.bar, NullBar) or self.lines:
+            self._thread = threading.Thread(target=self._tick, daemon=True)
+            self._thread.start()
+
+    def _elapsed(self, since):
+        seconds = int(self._time() - since)
+        return f"{seconds // 60}:{seconds % 60:02d}"
+
+    def _tick(self):
+        if not self.lines:
+            while not self._stop.wait(1.0):
+                self.bar.refresh()
+            return
+        while not self._stop.wait(self.HEARTBEAT_S):
+            if self.started:
+                print(f"{self.desc}: {self.name}: still running, "
+                      f"{self._elapsed(self.step_t0)} in this step", file=sys.stderr,
+                      flush=True)
 
     def next(self, name):
         if self.started:
             self.bar.update(1)
         self.started = True
+        self.count += 1
+        self.name = name
+        self.step_t0 = self._time()
         self.bar.set_postfix_str(name)
+        if self.lines:
+            # a job may name sub-steps of its few (the ECP5 build's): no count for those
+            label = f"step {self.count}/{len(self.names)}: " if \
+                self.count <= len(self.names) else ""
+            print(f"{self.desc}: {label}{name} ({self._elapsed(self.t0)} since start)",
+                  file=sys.stderr, flush=True)
 
     def close(self):
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join()
         self.bar.close()
 
     def __enter__(self):

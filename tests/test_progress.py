@@ -65,3 +65,23 @@ def test_a_long_job_shows_progress_on_a_terminal_only():
     assert out.count('"case"') == 5                            # the results, unchanged
     piped = subprocess.run(argv, capture_output=True, text=True)
     assert piped.returncode == 0 and piped.stderr == "" and piped.stdout == out
+
+
+def test_steps_off_a_terminal_say_each_step_on_stderr(capsys):
+    """Off a terminal a job's steps (report's syntheses, the ECP5 place-and-route) are lines
+    on stderr with the time since the job began, so a piped or logged run shows it moves;
+    quiet, nothing."""
+    with progress.steps(["a", "b"], "job") as shown:
+        shown.next("first")
+        shown.next("second")
+        shown.next("a sub-step")
+    assert capsys.readouterr().err.splitlines() == [
+        "job: step 1/2: first (0:00 since start)", "job: step 2/2: second (0:00 since start)",
+        "job: a sub-step (0:00 since start)"]
+    progress.set_quiet(True)
+    try:
+        with progress.steps(["a"], "job") as shown:
+            shown.next("first")
+    finally:
+        progress.set_quiet(False)
+    assert capsys.readouterr().err == ""
