@@ -74,7 +74,7 @@ class _Steps:
         self.started = False
         self.count = 0
         self.name = ""
-        self.t0 = self.step_t0 = self._time()
+        self.t0 = self.step_t0 = self.last_line = self._time()
         self._stop = threading.Event()
         self._thread = None
         if not isinstance(self.bar, NullBar) or self.lines:
@@ -90,8 +90,10 @@ class _Steps:
             while not self._stop.wait(1.0):
                 self.bar.refresh()
             return
-        while not self._stop.wait(self.HEARTBEAT_S):
-            if self.started:
+        # a line once a step or the last line is ``HEARTBEAT_S`` old
+        while not self._stop.wait(min(1.0, self.HEARTBEAT_S)):
+            if self.started and self._time() - self.last_line >= self.HEARTBEAT_S:
+                self.last_line = self._time()
                 print(f"{self.desc}: {self.name}: still running, "
                       f"{self._elapsed(self.step_t0)} in this step", file=sys.stderr,
                       flush=True)
@@ -102,7 +104,7 @@ class _Steps:
         self.started = True
         self.count += 1
         self.name = name
-        self.step_t0 = self._time()
+        self.step_t0 = self.last_line = self._time()
         self.bar.set_postfix_str(name)
         if self.lines:
             # a job may name sub-steps of its few (the ECP5 build's): no count for those
