@@ -1,19 +1,24 @@
-"""Gateware of the MPU9250 attitude and heading reference, one block per module.
+"""Gateware of the MPU9250 attitude and heading reference, one block per module, in wings by
+subsystem. A wing imports only itself and the wings below it, in the data's direction
+(``tests/test_imports.py`` keeps the order):
 
-Sensor side: ``spi_controller``, ``i2c_controller``, ``register_port`` (and its arbiter),
-``bring_up_sequencer``, ``self_test``, ``sample_reader``, ``mpu9250_driver``,
-``sensor_frontend``.
-Attitude engine: ``attitude_engine`` on ``alu``, ``multiplier``, ``multiply_accumulate``,
-``cordic``, ``divider``, ``memories``, ``host_port``; its instruction set ``attitude_isa`` and
-program ``attitude_program``, the filters' microcode ``filters`` (one module each, named in
-``filter_registry``) and the ``register_map``. Link: ``telemetry_scheduler``,
-``telemetry`` (the framer), ``frame_arbiter``, ``uart_tx``, ``uart_rx``, ``command_decoder``
-(its input ``rewindable_fifo``), ``pwm``, ``board_bus``. Top levels and boards: ``top``,
-``platform`` (the MAX10), ``ulx3s`` (the open ECP5 flow), ``clocking``.
-Layouts: ``sample``, ``driver_status``, ``attitude_result``, ``config_write``, ``frame_types``;
-the numeric contract with ``reference/``: ``numeric_contract``; register maps:
-``mpu9250_regs``, ``ak8963_regs``; defaults the command line shares (the baud rate):
-``defaults``.
+- ``board``: top levels and boards (``top``, ``platform`` the MAX10, ``ulx3s`` the open ECP5
+  flow);
+- ``link``: telemetry (``telemetry_scheduler``, ``telemetry`` the framer, ``frame_arbiter``,
+  ``frame_types``), the UART (``uart_tx``, ``uart_rx``), commands (``command_decoder``, its
+  ``rewindable_fifo`` and ``event_counters``), the PWM outputs (``pwm``, ``board_bus``);
+- ``engine``: ``attitude_engine`` on ``alu``, ``multiply_accumulate``, ``cordic``, ``divider``,
+  ``host_port``; its instruction set ``attitude_isa`` and program ``attitude_program``, the
+  filters' microcode ``filters`` (one module each), the ``register_map``, ``config_port_arbiter``
+  and the layouts ``attitude_result``, ``config_write``;
+- ``sensor``: ``spi_controller``, ``i2c_controller``, ``register_port`` (and its arbiter),
+  ``bring_up_sequencer``, ``self_test``, ``sample_reader``, ``sample_store``,
+  ``mpu9250_driver``, ``sensor_frontend`` and the layouts ``sample``, ``driver_status``;
+- ``primitives``: ``memories``, ``multiplier``, ``clocking``;
+- ``contract``: plain data shared with ``reference/`` and the host, no Amaranth: the numeric
+  contract ``numeric_contract``, the register maps ``mpu9250_regs``, ``ak8963_regs``, the
+  filters' names and codes ``filter_registry``, the defaults the command line shares
+  (``defaults``).
 
 Nothing here imports ``sim/`` or ``reference/`` (``tests/test_imports.py``).
 """

@@ -8,7 +8,7 @@ variable (``YOSYS``, ``NEXTPNR_ECP5``, ``ECPPACK``: a native install) is used in
 nextpnr fails the build when the system clock is not met, so a bitstream that exists met
 timing; its report (``top.timing.json``) gives the figures ``ulx3s_build`` returns: the
 achieved Fmax of the system clock, the slack, the critical path's ends and the cells used.
-Out-of-chip timing (the SPI pins' I/O budget) is not analysed by nextpnr: ``hdl/ulx3s.py``
+Out-of-chip timing (the SPI pins' I/O budget) is not analysed by nextpnr: ``hdl/board/ulx3s.py``
 puts the sensor on ordinary GPIO, and the SPI controller's sample point (``IOBudget``) is the
 same as on the MAX10.
 """
@@ -44,7 +44,7 @@ def ulx3s_build(top, out, clk_hz, *, seed=1, progress=None):
     the logs (``top.rpt`` synthesis, ``top.tim`` place and route) and ``top.timing.json``.
     Returns a dict of the timing figures. Raises RuntimeError (one paragraph: the tool's last
     lines) when a tool fails, timing included."""
-    from .hdl.ulx3s import ULX3SPlatform
+    from .hdl.board.ulx3s import ULX3SPlatform
     say = progress or (lambda message: None)
     env = _environment()
     out = Path(out)

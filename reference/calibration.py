@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..hdl import ak8963_regs as A
+from ..hdl.contract import ak8963_regs as A
 from .frames import accel_tilt
 from .kalman import KalmanParams
 

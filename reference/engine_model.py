@@ -11,9 +11,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..hdl.numeric_contract import (CalibrationFixed, KalmanFixedConfig, calibration_of,
-                                    calibration_registers, control_fields, filter_registers)
-from ..hdl.filter_registry import FILTER_NAMES
+from ..hdl.contract.numeric_contract import (CalibrationFixed, KalmanFixedConfig, calibration_of,
+                                             calibration_registers, control_fields,
+                                             filter_registers)
+from ..hdl.contract.filter_registry import FILTER_NAMES
 from .fixed_point import Status, _KalmanFixed, _calibrate_one, _complementary_step
 from .flagship_fixed import FlagshipFixed, euler_quat_fixed
 from .madgwick_fixed import MadgwickFixed
@@ -23,7 +24,7 @@ __all__ = ["FILTERS", "RESULT_FLAGS", "RESULT_FIELDS", "AttitudeFixed", "EngineM
            "attitude_fixed"]
 
 
-# the engine's filters, by select code (the registry, ``hdl/filter_registry.py``)
+# the engine's filters, by select code (the registry, ``hdl/contract/filter_registry.py``)
 FILTERS = FILTER_NAMES
 RESULT_FLAGS = ("acc_used", "mag_used", "mag_disturbed", "mag_new_ref", "at_rest",
                 "bias_updated")

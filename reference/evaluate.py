@@ -6,7 +6,7 @@ bit-exact fixed-point model of the engine's filters (``FIXED_FILTERS``, the regi
 
 import numpy as np
 
-from ..hdl.filter_registry import FILTER_NAMES, FLOAT_FILTERS
+from ..hdl.contract.filter_registry import FILTER_NAMES, FLOAT_FILTERS
 from .complementary import complementary_filter
 from .flagship import FlagshipParams, flagship_filter
 from .frames import orientation_errors
@@ -16,8 +16,8 @@ from .madgwick import madgwick_filter
 
 __all__ = ["FILTERS", "FIXED_FILTERS", "run_filter", "run_fixed", "engine_configs", "score"]
 
-# the registry's (``hdl/filter_registry.py``): the float filters, and the fixed-point ones (the
-# gateware's)
+# the registry's (``hdl/contract/filter_registry.py``): the float filters, and the fixed-point ones
+# (the gateware's)
 FILTERS = FLOAT_FILTERS
 FIXED_FILTERS = FILTER_NAMES
 
@@ -44,7 +44,7 @@ def engine_configs(name, dt, *, gyro_lsb_per_dps=16.4, accel_lsb_per_ms2=2048 / 
     from .complementary import coefficient
     from .fixed_point import KalmanFixedConfig
     from .flagship_fixed import FlagshipFixedConfig
-    from ..hdl.numeric_contract import MadgwickFixedConfig
+    from ..hdl.contract.numeric_contract import MadgwickFixedConfig
     if name not in FIXED_FILTERS:
         raise ValueError(f"no fixed-point model of {name!r} yet; there are: "
                          f"{', '.join(FIXED_FILTERS)}")

@@ -34,8 +34,8 @@ import numpy as np
 
 # the register encodings are the gateware's contract; the CORDIC table below is computed here,
 # independently of the one the gateware holds (a test checks that they agree)
-from ..hdl.numeric_contract import (CalibrationFixed, FilterRates, KalmanFixedConfig,
-                                    calibration_registers)
+from ..hdl.contract.numeric_contract import (CalibrationFixed, FilterRates, KalmanFixedConfig,
+                                             calibration_registers)
 
 
 __all__ = ["CORDIC_ITERATIONS", "CORDIC_SHORT_ITERATIONS", "ATAN_TABLE", "CORDIC_GAIN",
@@ -202,7 +202,8 @@ def cordic_rotate(angle):
     return x, y
 
 
-# -- calibration (``CalibrationFixed``: hdl/numeric_contract.py) ----------------------------------
+# -- calibration (``CalibrationFixed``: hdl/contract/numeric_contract.py)
+# ----------------------------------
 
 def _calibrate_one(g, a, h, asa, cal, st):
     """One sample: raw gyro/accel counts, raw AK8963 counts (AK axes), raw ASA fuse bytes."""
@@ -228,7 +229,8 @@ def calibrate_fixed(gyr_raw, acc_raw, mag_ak_raw, asa=(128, 128, 128), cal=Calib
     return tuple(out)
 
 
-# -- filters (their registers: ``KalmanFixedConfig``, ``FilterRates`` in hdl/numeric_contract.py)
+# -- filters (their registers: ``KalmanFixedConfig``, ``FilterRates`` in
+# hdl/contract/numeric_contract.py)
 
 def tilt_angles(x, y, z, st=None):
     """(roll, pitch) BAM32 of a specific-force vector in any scale: atan2(y, z),

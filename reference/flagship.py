@@ -41,7 +41,7 @@ import math
 
 import numpy as np
 
-from ..hdl.numeric_contract import FlagshipParams, sample_counts, svf_gain
+from ..hdl.contract.numeric_contract import FlagshipParams, sample_counts, svf_gain
 from .frames import filter_inputs
 
 

@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..hdl.numeric_contract import FlagshipFixedConfig
+from ..hdl.contract.numeric_contract import FlagshipFixedConfig
 from .fixed_point import (INV_GAIN_Q30, Status, cordic_rotate, cordic_vector, mac, mul, sat32,
                           step_n, tilt_angles, wrap32)
 

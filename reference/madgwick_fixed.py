@@ -1,6 +1,6 @@
 """Madgwick's gradient-descent filter in integers: ``reference.madgwick`` step by step, in the
 datapath's operations (``reference.fixed_point``), as the attitude engine's microcode
-(``hdl/filters/madgwick.py``) runs it.
+(``hdl/engine/filters/madgwick.py``) runs it.
 
 Formats (FIXED_POINT.md, "Madgwick filter")
     quaternion q (the engine's QOUT), rotation matrix R(q), unit vectors ŝ (accelerometer), m̂
@@ -28,7 +28,7 @@ gradient that the alignment has made all but zero).
 
 from dataclasses import dataclass
 
-from ..hdl.numeric_contract import MADGWICK_UNIT_BOUNDS
+from ..hdl.contract.numeric_contract import MADGWICK_UNIT_BOUNDS
 from .fixed_point import (CORDIC_SHORT_ITERATIONS, INV_GAIN_Q30, _heading, _tilt, cordic_vector,
                           div_q24, mac, mul, sat32, step_n)
 from .flagship_fixed import (FLAGSHIP_CONSTANTS, HALF, ONE, _matrix, _normalise,

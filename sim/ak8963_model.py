@@ -25,7 +25,7 @@ The field source gives ``(hx, hy, hz)`` in 16-bit counts (0.15 µT/LSB) in the A
 
 from dataclasses import dataclass, replace
 
-from ..hdl import ak8963_regs as A
+from ..hdl.contract import ak8963_regs as A
 from .mpu9250_model import Violation, ProtocolError
 
 

@@ -22,7 +22,7 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
-from ..hdl.filter_registry import FILTER_NAMES, FLOAT_FILTERS
+from ..hdl.contract.filter_registry import FILTER_NAMES, FLOAT_FILTERS
 from ..reference.recording import Scales, load_broad, quantise, to_units
 from ..reference.compare import external_filters, missing_external_filters
 from ..reference.entry_point import count, run_main
@@ -43,8 +43,8 @@ VARIANTS = {
 
 def _filter_set():
     """(row name, kind, filter, parameters), one parameter set for all trials, from the
-    registry (``hdl/filter_registry.py``): each float filter (its defaults, its fixed point if
-    the gateware has it, its variants), then the gateware's, the engine's Verilog in Verilator
+    registry (``hdl/contract/filter_registry.py``): each float filter (its defaults, its fixed point
+    if the gateware has it, its variants), then the gateware's, the engine's Verilog in Verilator
     (``sim/compiled_engine.py``; "≠" marks a result that is not bit for bit the fixed row's)."""
     rows = []
     for name in FLOAT_FILTERS:

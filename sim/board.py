@@ -30,9 +30,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..hdl import ak8963_regs as A
-from ..hdl.defaults import DEFAULT_BAUD
-from ..hdl.mpu9250_driver import MPU9250Config
+from ..hdl.contract import ak8963_regs as A
+from ..hdl.contract.defaults import DEFAULT_BAUD
+from ..hdl.sensor.mpu9250_driver import MPU9250Config
 from ..reference.frames import body_to_mag, euler_to_quat, quat_to_matrix
 from .cosim import CosimHarness, SimSetup, attach_mpu9250
 from .sources import SensorSample
@@ -144,7 +144,7 @@ class SimulatedBoard:
     """
     def __init__(self, *, errors=SensorErrors(), sample_cycles=1600, core_kwargs=None, seed=1,
                  setup=None, compiled=None):
-        from ..hdl.top import AHRSCore
+        from ..hdl.board.top import AHRSCore
         from .cosim import compiled_wanted
         # a board runs for as long as it is used: worth a build whenever one can be had
         self.compiled = compiled_wanted("prefer" if compiled is None else compiled)

@@ -28,8 +28,8 @@ from typing import List
 
 import numpy as np
 
-from ..hdl.mpu9250_driver import DriverTiming, MPU9250Config
-from ..hdl.numeric_contract import mag_period
+from ..hdl.sensor.mpu9250_driver import DriverTiming, MPU9250Config
+from ..hdl.contract.numeric_contract import mag_period
 from .ak8963_model import AK8963Model, AK8963Timing
 from .cosim import SimSetup, run_core, sample_matches, simulator_name
 from .sources import SensorSample
@@ -97,16 +97,16 @@ def replay_board(filter, gyr_counts, acc_counts, mag_counts, dt, *, gyro_fs_dps=
     through the co-simulated board, the engine set up for ``filter``: a ``BoardReplay``.
     ``period_cycles`` (the simulated sample period) and ``divider`` (frame every n-th result)
     default to the shortest that work."""
-    from ..hdl.register_map import TELEMETRY_DIV_ADDR
-    from ..hdl.frame_types import AttitudeFrame, frame_bytes
-    from ..hdl.top import rate_budget
+    from ..hdl.engine.register_map import TELEMETRY_DIV_ADDR
+    from ..hdl.link.frame_types import AttitudeFrame, frame_bytes
+    from ..hdl.board.top import rate_budget
     from ..reference.evaluate import engine_configs
     from ..reference.engine_model import attitude_fixed
     from ..reference.flagship_fixed import q30_to_float
     from ..reference.frames import body_to_mag
     from .attitude_bench import EngineRun, first_mismatch
     from .compiled_engine import configuration_writes
-    from ..hdl.uart_tx import UARTTransmitter
+    from ..hdl.link.uart_tx import UARTTransmitter
 
     total = len(gyr_counts) if samples is None else min(samples, len(gyr_counts))
     if total < 1:

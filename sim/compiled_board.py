@@ -47,7 +47,7 @@ def core_key(name, **kwargs):
     """The cache key of an ``AHRSCore`` made with ``kwargs``: those that differ from its
     defaults (a build asked for with its defaults spelt out is the same build)."""
     import inspect
-    from ..hdl.top import AHRSCore
+    from ..hdl.board.top import AHRSCore
     defaults = {k: p.default for k, p in inspect.signature(AHRSCore.__init__).parameters.items()
                 if p.default is not inspect.Parameter.empty}
     return (name, sorted((k, v) for k, v in kwargs.items()

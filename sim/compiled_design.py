@@ -211,7 +211,7 @@ def _sources_hash():
 
 def _source_files():
     """(name, path) of every module of the package's ``hdl`` and ``sim``, sub-packages
-    included: the filters' microcode is in ``hdl/filters/`` (a change there alone once left
+    included: the filters' microcode is in ``hdl/engine/filters/`` (a change there alone once left
     a stale build in the cache)."""
     root = Path(__file__).resolve().parent.parent
     return [(str(path.relative_to(root)), path) for folder in ("hdl", "sim")

@@ -32,8 +32,8 @@ from amaranth.back import verilog
 from amaranth.lib import data, wiring
 from amaranth.lib.wiring import In, Out
 
-from ..hdl.attitude_isa import REG_BITS
-from ..hdl.attitude_result import AttitudeFlags
+from ..hdl.engine.attitude_isa import REG_BITS
+from ..hdl.engine.attitude_result import AttitudeFlags
 from .attitude_bench import EngineRun
 from .verilator import (BUILD_OPTIMISATION, HINT, cache_root, verilator_available,
                         verilator_build, verilator_version)
@@ -246,8 +246,8 @@ def configuration_writes(filter, kalman, flagship, cal=None, *, madgwick=None):
     calibration; Madgwick's matching ``kalman`` when None), then select it with a filter
     reset (so that INIT starts from the new P₀): what a host sends, and what makes one
     compiled build serve every recording."""
-    from ..hdl.numeric_contract import filter_registers
-    from ..hdl.register_map import CONFIG_REGS, CONTROL_ADDR, control_word
+    from ..hdl.contract.numeric_contract import filter_registers
+    from ..hdl.engine.register_map import CONFIG_REGS, CONTROL_ADDR, control_word
     from ..reference.fixed_point import CalibrationFixed, calibration_registers
     regs = {**filter_registers(kalman, flagship, madgwick),
             **calibration_registers(CalibrationFixed() if cal is None else cal)}
@@ -260,7 +260,7 @@ def run_gateware(filter, gyr_counts, acc_counts, mag_counts, dt, *, mag_valid=No
     """A recording (body-axis counts) through the compiled engine, set up for ``filter`` by
     register writes before the first sample: (EngineRun, CompiledEngine, the configurations
     (KalmanFixedConfig, FlagshipFixedConfig, MadgwickFixedConfig))."""
-    from ..hdl.attitude_engine import AttitudeEngine
+    from ..hdl.engine.attitude_engine import AttitudeEngine
     from ..reference.evaluate import engine_configs
     from ..reference.frames import body_to_mag
     kalman, flagship, madgwick = configs = engine_configs(filter, dt, **scales_and_params)
@@ -290,8 +290,8 @@ def speed_benchmark(samples=150, filter="flagship"):
     through Amaranth's simulator and the compiled model: cycles/s of each and their ratio,
     with the results checked equal. A benchmark, not a test: the figures depend on the
     machine."""
-    from ..hdl.attitude_engine import AttitudeEngine
-    from ..hdl.register_map import CONTROL_ADDR, control_word
+    from ..hdl.engine.attitude_engine import AttitudeEngine
+    from ..hdl.engine.register_map import CONTROL_ADDR, control_word
     from ..reference.frames import body_to_mag
     from .attitude_bench import RESULT_FIELDS, run_engine
     from .motion import SensorModel, concat, random_motion, static

@@ -16,13 +16,13 @@ from typing import List, Optional
 from amaranth import Elaboratable, Signal
 from amaranth.sim import Simulator
 
-from ..hdl.clocking import SYSTEM_CLOCK_HZ
-from ..hdl.defaults import DEFAULT_BAUD
-from ..hdl.mpu9250_driver import DriverTiming, MPU9250Config
-from ..hdl.sensor_frontend import SensorFrontEnd
+from ..hdl.primitives.clocking import SYSTEM_CLOCK_HZ
+from ..hdl.contract.defaults import DEFAULT_BAUD
+from ..hdl.sensor.mpu9250_driver import DriverTiming, MPU9250Config
+from ..hdl.sensor.sensor_frontend import SensorFrontEnd
 from .i2c_bus import I2CBusModel
 from .mpu9250_model import MPU9250Model, MPU9250Timing
-from ..hdl import ak8963_regs as A
+from ..hdl.contract import ak8963_regs as A
 from .ak8963_model import AK8963Model, AK8963Timing
 from .sources import counting_field, counting_source
 from .compiled_design import NEVER
@@ -262,7 +262,7 @@ class SimSetup:
         400 kHz bus takes ~0.7 ms per nine-axis read), at 8 kHz (its period is short
         already), and at a clock too slow for the shortened period (a period shorter than
         the read would lose samples the design keeps at the real rate)."""
-        from ..hdl.top import rate_budget
+        from ..hdl.board.top import rate_budget
         scale = 0.2
         period_cycles = scale * clk_freq / config.output_data_rate
         fits = period_cycles >= 2 * rate_budget(config, clk_freq)["cycles_per_sample"]
@@ -276,7 +276,7 @@ class SimSetup:
         """The telemetry divider a build would have if the sample period were this set-up's
         (``telemetry_divider_for`` at ``1 / sample_period_s``): a build's default fits the
         real period, and a shortened one would leave most results no time on the UART."""
-        from ..hdl.top import telemetry_divider_for
+        from ..hdl.board.top import telemetry_divider_for
         return telemetry_divider_for(self.config, baud, rate=1 / self.sample_period_s)
 
     def driver_timing(self):
@@ -657,7 +657,7 @@ def sample_read_cycles(result, setup):
     """Median cycles the bus spends reading one sample: the SPI burst from INT_STATUS (CS fall
     to CS rise), or on I2C the MPU9250 read's START to the AK8963 read's STOP."""
     import statistics
-    from ..hdl import mpu9250_regs as R
+    from ..hdl.contract import mpu9250_regs as R
     f = setup.clk_freq
     if result.bus is None:
         spans = [end - start for start, end, first, n, read in result.model.transactions
@@ -707,7 +707,7 @@ def core_harness(setup, *, baud=DEFAULT_BAUD, core_kwargs=None):
     """The ``AHRSCore`` that ``run_core`` simulates (``setup``'s clock, configuration and
     timing), in its co-simulation harness, and the cache key of its compiled build:
     ``(core, harness, key)``."""
-    from ..hdl.top import AHRSCore
+    from ..hdl.board.top import AHRSCore
     from .compiled_board import core_key
     core = AHRSCore(clk_freq=setup.clk_freq, config=setup.config, timing=setup.driver_timing(),
                     baud=baud, **(core_kwargs or {}))

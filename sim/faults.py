@@ -26,9 +26,9 @@ import bisect
 from dataclasses import dataclass, field
 from typing import Callable, Optional, Tuple
 
-from ..hdl import ak8963_regs as A
-from ..hdl import mpu9250_regs as R
-from ..hdl.sample_reader import GYRO_JUMP_DPS, gyro_jump_limit
+from ..hdl.contract import ak8963_regs as A
+from ..hdl.contract import mpu9250_regs as R
+from ..hdl.sensor.sample_reader import GYRO_JUMP_DPS, gyro_jump_limit
 
 
 __all__ = ["Fault", "FAULTS", "FaultInjector", "run_fault", "fault_names", "ERROR_FLAGS",
@@ -354,7 +354,7 @@ def _field_key(mag):
 def host_garbage_writes():
     """(address, value) writes no host may make: the constants of the register map and some
     filter state. ``HOST_WRITABLE`` refuses each."""
-    from ..hdl.register_map import CONFIG_REGS, REGS
+    from ..hdl.engine.register_map import CONFIG_REGS, REGS
     return [(CONFIG_REGS["ZERO"], 12345), (CONFIG_REGS["INV_GAIN"], 0),
             (CONFIG_REGS["SHL8"], 1), (REGS["THETA0"], 1 << 29), (REGS["P0_00"], -1),
             (REGS["QOUT0"], 0), (0xFD, 7)]
@@ -441,7 +441,7 @@ def run_fault(name, setup=None, *, at=20, duration=None, after=None, max_cycles=
         attempts = (power_up + reset + setup.self_test_cycles()) / clk / period
         inj.duration = attempts + duration if fault.recovers == "mag" else 3 * attempts
     if name == "clock_stretch_timeout":
-        from ..hdl.i2c_controller import I2CTiming
+        from ..hdl.sensor.i2c_controller import I2CTiming
         inj.saved["stretch_s"] = 2 * I2CTiming.for_clock(clk).timeout / clk
 
     def ready(cycle):
@@ -574,7 +574,7 @@ def catalogue_setup(wiring, *, odr=200, clk_freq=4e6, fault=None, self_test=None
     ``host_garbage`` runs the whole core, on ``cosim.quick_core_setup`` (1 kHz, 12 MHz)
     whatever ``odr`` and ``clk_freq`` say: the core tests' set-up, whose compiled build it
     shares."""
-    from ..hdl.mpu9250_driver import MPU9250Config
+    from ..hdl.sensor.mpu9250_driver import MPU9250Config
     from .cosim import SimSetup, quick_core_setup
     if fault == "host_garbage":
         return quick_core_setup()

@@ -42,8 +42,8 @@ import math
 from dataclasses import dataclass, replace
 from typing import Optional
 
-from ..hdl import mpu9250_regs as R
-from ..hdl.self_test import otp
+from ..hdl.contract import mpu9250_regs as R
+from ..hdl.sensor.self_test import otp
 from .sources import SensorSample, constant_source
 
 

@@ -28,8 +28,8 @@ def speed(samples=20):
     the I2C wiring in real time), each build cached first: cycles per second of each and
     their ratio, and whether the results were the same. A benchmark, not a test: the figures
     depend on the machine."""
-    from ..hdl.clocking import SYSTEM_CLOCK_HZ
-    from ..hdl.mpu9250_driver import MPU9250Config
+    from ..hdl.primitives.clocking import SYSTEM_CLOCK_HZ
+    from ..hdl.sensor.mpu9250_driver import MPU9250Config
     from .cosim import SimSetup, run_core, run_frontend
     spi = SimSetup()
     i2c_config = MPU9250Config(wiring="i2c")

@@ -17,7 +17,7 @@ def test_every_option_has_help():
 def test_config_help_names_every_filter():
     """``config``'s help lists the filters from the registry (it had one hard-coded list, and
     Madgwick, added since, was missing)."""
-    from mpu9250_ahrs.hdl.filter_registry import FILTER_NAMES
+    from mpu9250_ahrs.hdl.contract.filter_registry import FILTER_NAMES
     parser = build_parser()
     verbs = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
     action = next(a for a in verbs.choices["config"]._actions if a.dest == "action")

@@ -10,8 +10,8 @@ import pytest
 from amaranth.back import verilog
 
 from mpu9250_ahrs.cli import main
-from mpu9250_ahrs.hdl.mpu9250_driver import MPU9250Config
-from mpu9250_ahrs.hdl.top import AHRSCore
+from mpu9250_ahrs.hdl.sensor.mpu9250_driver import MPU9250Config
+from mpu9250_ahrs.hdl.board.top import AHRSCore
 from tests.conftest import require_tool
 
 
@@ -188,8 +188,8 @@ def test_simulated_period_is_shortened_only_where_the_design_keeps_up(
     holds twice the cycles a sample needs; else it runs in real time: at 1 MHz a sample's
     read (772 us) is longer than a fifth of 1 ms, and the shortened period lost 9 samples in
     14 that the design reads at the real rate."""
-    from mpu9250_ahrs.hdl.mpu9250_driver import MPU9250Config
-    from mpu9250_ahrs.hdl.top import rate_budget
+    from mpu9250_ahrs.hdl.sensor.mpu9250_driver import MPU9250Config
+    from mpu9250_ahrs.hdl.board.top import rate_budget
     from mpu9250_ahrs.sim import cosim
     config = MPU9250Config(wiring=wiring, smplrt_div=smplrt_div)
     assert cosim.SimSetup.default_odr_scale(config, clk_freq) == scale

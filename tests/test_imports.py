@@ -2,9 +2,12 @@
 
 - ``hdl/`` (the gateware) imports nothing from ``sim/``, ``reference/`` or the command line:
   the hardware builds from ``hdl/`` alone;
-- ``reference/`` imports nothing from ``sim/`` or the command line, and from ``hdl/`` only the
-  plain-data modules that state the contract both sides keep (``CONTRACT``: formats, tables,
-  register encodings and register maps; no Amaranth in them);
+- inside ``hdl/``, the wings import downward only, in the data's direction (``WING_ORDER``):
+  board, link, engine, sensor, primitives, contract; each may import its own wing and those
+  after it, and nothing sits beside the wings but the package's ``__init__``;
+- ``reference/`` imports nothing from ``sim/`` or the command line, and from ``hdl/`` only its
+  contract wing, the plain data both sides keep (``hdl/contract/``: formats, tables, register
+  encodings and register maps; no Amaranth in them);
 - ``sim/`` may import both (it drives the gateware and compares it with the reference), and of
   the host side only the frame format (``host.protocol``);
 - the command line (``mpu9250_ahrs/``) imports all; the host tool (``mpu9250_ahrs/host/``)
@@ -22,11 +25,12 @@ import pytest
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 FOLDERS = {"hdl": ROOT / "hdl", "sim": ROOT / "sim", "reference": ROOT / "reference"}
-CONTRACT = {"numeric_contract", "ak8963_regs", "mpu9250_regs", "filter_registry"}
-# where each folder may reach: a package, or (package, module) for single modules
+# hdl/'s wings, from the top (the boards) down: a wing imports its own and those after it
+WING_ORDER = ("board", "link", "engine", "sensor", "primitives", "contract")
+# where each folder may reach: a package, or (package, wing or module) for parts of one
 ALLOWED = {
     "hdl": {"hdl"},
-    "reference": {"reference", *(("hdl", name) for name in CONTRACT)},
+    "reference": {"reference", ("hdl", "contract")},
     "sim": {"sim", "hdl", "reference", ("host", "protocol")},
 }
 
@@ -68,7 +72,7 @@ def _allowed(folder, package, module):
 @pytest.mark.parametrize("folder", sorted(FOLDERS))
 def test_imports_go_one_way(folder):
     bad = []
-    # sub-packages too (``hdl/filters/``)
+    # sub-packages too (``hdl/engine/filters/``)
     for path in sorted(FOLDERS[folder].rglob("*.py")):
         inner = path.parent.relative_to(FOLDERS[folder]).parts
         for line, package, module in _imports(path, ".".join((folder, *inner))):
@@ -79,12 +83,33 @@ def test_imports_go_one_way(folder):
 
 
 def test_contract_modules_are_plain_python():
-    for name in sorted(CONTRACT):
-        for line, package, module in _imports(FOLDERS["hdl"] / f"{name}.py", "hdl"):
-            assert package == "hdl" and module in CONTRACT, \
-                f"hdl/{name}.py:{line} imports {package}.{module}: a contract module imports " \
-                "only other contract modules"
-        assert "amaranth" not in (FOLDERS["hdl"] / f"{name}.py").read_text(), name
+    for path in sorted((FOLDERS["hdl"] / "contract").glob("*.py")):
+        for line, package, module in _imports(path, "hdl.contract"):
+            assert package == "hdl" and module == "contract", \
+                f"hdl/contract/{path.name}:{line} imports {package}.{module}: a contract " \
+                "module imports only other contract modules"
+        assert "amaranth" not in path.read_text(), path.name
+
+
+def test_hdl_wings_import_downward_only():
+    """Every module of ``hdl/`` is in a wing (the package's ``__init__`` aside), and a wing
+    imports only its own and the wings after it in ``WING_ORDER``."""
+    hdl = FOLDERS["hdl"]
+    assert sorted(p.name for p in hdl.glob("*.py")) == ["__init__.py"]
+    assert sorted(p.name for p in hdl.iterdir() if p.is_dir() and p.name != "__pycache__") == \
+        sorted(WING_ORDER)
+    bad = []
+    for path in sorted(hdl.rglob("*.py")):
+        inner = path.parent.relative_to(hdl).parts
+        if not inner:
+            continue
+        wing = inner[0]
+        for line, package, target in _imports(path, ".".join(("hdl", *inner))):
+            if package == "hdl" and target is not None and \
+                    WING_ORDER.index(target) < WING_ORDER.index(wing):
+                bad.append(f"{path.relative_to(ROOT)}:{line} ({wing}) imports the {target} "
+                           f"wing, above it")
+    assert not bad, "an import back up between wings:\n" + "\n".join(bad)
 
 
 def test_checker_sees_a_bad_import(tmp_path):
@@ -98,7 +123,8 @@ def test_checker_sees_a_bad_import(tmp_path):
 
 
 PACKAGE_DIRS = {"mpu9250_ahrs": ROOT / "mpu9250_ahrs", "mpu9250_ahrs.hdl": ROOT / "hdl",
-                "mpu9250_ahrs.hdl.filters": ROOT / "hdl" / "filters",
+                **{f"mpu9250_ahrs.hdl.{wing}": ROOT / "hdl" / wing for wing in WING_ORDER},
+                "mpu9250_ahrs.hdl.engine.filters": ROOT / "hdl" / "engine" / "filters",
                 "mpu9250_ahrs.cli": ROOT / "mpu9250_ahrs" / "cli",
                 "mpu9250_ahrs.sim": ROOT / "sim", "mpu9250_ahrs.reference": ROOT / "reference",
                 "mpu9250_ahrs.host": ROOT / "mpu9250_ahrs" / "host"}

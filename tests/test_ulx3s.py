@@ -7,10 +7,10 @@ import json
 import pytest
 
 from mpu9250_ahrs.cli import main
-from mpu9250_ahrs.hdl.clocking import ECP5_PFD_HZ, ECP5_VCO_HZ, ecp5_pll_dividers
-from mpu9250_ahrs.hdl.mpu9250_driver import MPU9250Config
-from mpu9250_ahrs.hdl.top import BoardTop
-from mpu9250_ahrs.hdl.ulx3s import ULX3S_PINS, ULX3SPlatform
+from mpu9250_ahrs.hdl.primitives.clocking import ECP5_PFD_HZ, ECP5_VCO_HZ, ecp5_pll_dividers
+from mpu9250_ahrs.hdl.sensor.mpu9250_driver import MPU9250Config
+from mpu9250_ahrs.hdl.board.top import BoardTop
+from mpu9250_ahrs.hdl.board.ulx3s import ULX3S_PINS, ULX3SPlatform
 from tests.conftest import require_tool
 
 

@@ -72,9 +72,10 @@ def add_report(sub, quiet):
 
 
 def cmd_build(args):
-    from ..hdl.clocking import pll_ratio
-    from ..hdl.platform import MAX10Platform
-    from ..hdl.top import AHRSCore, BoardTop, core_verilog, io_constraints, io_register_settings
+    from ..hdl.primitives.clocking import pll_ratio
+    from ..hdl.board.platform import MAX10Platform
+    from ..hdl.board.top import (AHRSCore, BoardTop, core_verilog, io_constraints,
+                                 io_register_settings)
 
     out = Path(args.out)
     config = _config(args)
@@ -86,7 +87,7 @@ def cmd_build(args):
         options["calibration"] = load_calibration(args.calibration)
     if args.board == "ulx3s" and args.pin:
         raise ValueError("--pin is for the MAX10 board; the ULX3S's pins are fixed "
-                         "(hdl/ulx3s.py, build/README.md)")
+                         "(hdl/board/ulx3s.py, build/README.md)")
     if args.verilog_only:
         out.mkdir(parents=True, exist_ok=True)
         core = AHRSCore(clk_freq=clk_freq, config=config, baud=args.baud, **options)
@@ -120,7 +121,7 @@ def cmd_build(args):
 
 def _warn_untried_clock(clk_freq):
     """A clock above the one this project's timing is checked at: say where it is checked."""
-    from ..hdl.clocking import SYSTEM_CLOCK_HZ
+    from ..hdl.primitives.clocking import SYSTEM_CLOCK_HZ
     if clk_freq > SYSTEM_CLOCK_HZ:
         mhz = f"{clk_freq / 1e6:g}"
         print(f"mpu9250-ahrs build: warning: the core's timing is checked at "
@@ -131,9 +132,9 @@ def _warn_untried_clock(clk_freq):
 
 def _build_ulx3s(args, out, clk_freq, config, options):
     """``build --board ulx3s``: bitstream and timing with the open ECP5 tools."""
-    from ..hdl.clocking import ecp5_pll_dividers
-    from ..hdl.top import BoardTop
-    from ..hdl.ulx3s import ULX3SPlatform
+    from ..hdl.primitives.clocking import ecp5_pll_dividers
+    from ..hdl.board.top import BoardTop
+    from ..hdl.board.ulx3s import ULX3SPlatform
     from ..open_build import ulx3s_build
     ecp5_pll_dividers(ULX3SPlatform().default_clk_frequency, clk_freq)  # a clear error first
     out.mkdir(parents=True, exist_ok=True)
@@ -157,7 +158,7 @@ def cmd_report(args):
     result = report(clk_freq=clk, config=config, core_options=options, spread=args.spread,
                     baud=args.baud)
     if args.timing:
-        from ..hdl.top import AHRSCore, core_verilog
+        from ..hdl.board.top import AHRSCore, core_verilog
         from ..timing import ecp5_timing
         core = AHRSCore(clk_freq=clk, config=config, baud=args.baud, **options)
         from ..progress import steps

@@ -5,8 +5,8 @@ import json
 import sys
 import time
 
-from ..hdl.defaults import DEFAULT_BAUD
-from ..hdl.filter_registry import FILTER_NAMES
+from ..hdl.contract.defaults import DEFAULT_BAUD
+from ..hdl.contract.filter_registry import FILTER_NAMES
 from .options import _add_full_scale_options, _count, _positive
 
 

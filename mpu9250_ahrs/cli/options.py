@@ -4,7 +4,7 @@ declared once, the sensor configuration and the rate check they make of them."""
 import argparse
 import sys
 
-from ..hdl.defaults import DEFAULT_BAUD
+from ..hdl.contract.defaults import DEFAULT_BAUD
 
 
 __all__ = ["check_rates"]
@@ -52,7 +52,7 @@ def _pin(text):
 
 
 def _config(args):
-    from ..hdl.mpu9250_driver import MPU9250Config
+    from ..hdl.sensor.mpu9250_driver import MPU9250Config
     common = dict(gyro_fs_dps=args.gyro_fs, accel_fs_g=args.accel_fs,
                   int_latched=not args.int_pulse, wiring=args.wiring,
                   i2c_address=args.i2c_address, magnetometer=not args.no_mag,
@@ -77,7 +77,7 @@ def _core_options(args):
     if getattr(args, "no_pwm", False):
         out["pwm"] = False
     if getattr(args, "euler_rates", False):
-        from ..hdl.attitude_engine import default_filter_config
+        from ..hdl.engine.attitude_engine import default_filter_config
         from ..reference.fixed_point import FilterRates
         out["filter_config"] = default_filter_config(_config(args),
                                                      FilterRates(euler_rates=True))
@@ -87,8 +87,8 @@ def _core_options(args):
 def check_rates(config, clk_freq, args, *, out=None):
     """Refuse (ValueError, one line) a sample rate the design cannot filter at ``clk_freq``;
     warn (one line on ``out``) when the telemetry cannot carry every result."""
-    from ..hdl.top import rate_budget
-    from ..hdl.uart_tx import UARTTransmitter
+    from ..hdl.board.top import rate_budget
+    from ..hdl.link.uart_tx import UARTTransmitter
     # a baud the UART cannot make: one line here, not an error inside an elaboration
     UARTTransmitter.divisor_for(clk_freq, getattr(args, "baud", DEFAULT_BAUD))
     budget = rate_budget(config, clk_freq, getattr(args, "baud", DEFAULT_BAUD),
@@ -166,7 +166,7 @@ def _add_left_out_options(p, *, which=""):
 
 
 def _clock(args):
-    from ..hdl.clocking import SYSTEM_CLOCK_HZ
+    from ..hdl.primitives.clocking import SYSTEM_CLOCK_HZ
     if args.clk_freq is not None and args.clk_freq <= 0:
         raise ValueError(f"--clk-freq must be positive, not {args.clk_freq:g}")
     return args.clk_freq or SYSTEM_CLOCK_HZ

@@ -8,7 +8,7 @@ import os
 import sys
 import time
 
-from ..hdl.filter_registry import FILTER_NAMES, FLOAT_FILTERS
+from ..hdl.contract.filter_registry import FILTER_NAMES, FLOAT_FILTERS
 from .options import (_add_full_scale_options, _add_left_out_options, _add_sensor_options,
                       _clock, _config, _count, _core_options, _number, _positive, check_rates)
 
@@ -260,7 +260,7 @@ def attitude_json(result, filter):
 def _pose_sources(pose, samples, config, setup):
     """Model sources for a board held still at ``pose`` ("roll,pitch,yaw" in degrees), with
     the sensor error model's noise: MPU9250 and AK8963 values in counts."""
-    from ..hdl import ak8963_regs as A
+    from ..hdl.contract import ak8963_regs as A
     from ..sim.motion import SensorModel, accel_gyro_source, mag_source, static
     from ..reference.recording import Scales
     try:
@@ -304,7 +304,7 @@ def cmd_replay(args):
     if engine != "float" and args.filter not in FIXED_FILTERS:
         raise ValueError(f"--engine {engine} runs {', '.join(FIXED_FILTERS)}, not "
                          f"{args.filter}")
-    from ..hdl import mpu9250_regs as R
+    from ..hdl.contract import mpu9250_regs as R
     R.gyro_config(args.gyro_fs)             # the full scales the part has, as simulate checks
     R.accel_config(args.accel_fs)
     rec = load_broad(args.file, first=args.samples)

@@ -18,9 +18,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..hdl.register_map import REGS
-from ..hdl.frame_types import SENSOR
-from ..hdl.mpu9250_regs import ACCEL_FS_G
+from ..hdl.engine.register_map import REGS
+from ..hdl.link.frame_types import SENSOR
+from ..hdl.contract.mpu9250_regs import ACCEL_FS_G
 from ..reference.calibration import accel_six_pose, gyro_bias, mag_ellipsoid
 from ..reference.fixed_point import CalibrationFixed, calibration_registers
 from .link import BoardError

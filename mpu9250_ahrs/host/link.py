@@ -12,9 +12,9 @@ module imports nothing of the simulation: the caller hands the board over.
 import errno
 import time
 
-from ..hdl.command_decoder import REGMAP_VERSION
-from ..hdl.frame_types import REPLY
-from ..hdl.defaults import DEFAULT_BAUD
+from ..hdl.contract.commands import REGMAP_VERSION
+from ..hdl.link.frame_types import REPLY
+from ..hdl.contract.defaults import DEFAULT_BAUD
 from .protocol import FrameDecoder, answers, encode_command, reply_of
 
 

@@ -9,10 +9,10 @@ from dataclasses import dataclass
 
 from amaranth.lib import data
 
-from ..hdl.command_decoder import (COMMANDS, MAX_COMMAND_PAYLOAD, RESULT_INPUT_LOST, RESULTS,
-                                   SPACES)
-from ..hdl.frame_types import FRAME_TYPES
-from ..hdl.frame_types import CRC, HEADER_BYTES, SYNC, payload_bytes
+from ..hdl.contract.commands import (COMMANDS, MAX_COMMAND_PAYLOAD, RESULT_INPUT_LOST, RESULTS,
+                                     SPACES)
+from ..hdl.link.frame_types import FRAME_TYPES
+from ..hdl.link.frame_types import CRC, HEADER_BYTES, SYNC, payload_bytes
 
 
 __all__ = ["FrameError", "unpack", "to_python", "crc16", "encode_frame", "encode_command",
@@ -60,7 +60,7 @@ def encode_frame(frame_type, seq, payload):
 
 
 def encode_command(name, seq, *, addr=None, value=None, space="engine"):
-    """A command frame (``hdl.command_decoder.COMMANDS``): ``write`` (addr, value), ``read``
+    """A command frame (``hdl.contract.commands.COMMANDS``): ``write`` (addr, value), ``read``
     (addr), ``filter`` (value: a filter code), ``reset``, ``rate`` (value: divider), ``raw``
     (value: 0/1), ``who``. ``addr`` is the 8-bit address within ``space`` (``SPACES``)."""
     code, n = COMMANDS[name]
@@ -189,7 +189,7 @@ def corrupted_share(trials=20_000, *, seed=0, flips=(1, 2, 3, 4)):
     ``flips``, and random bodies behind a valid header. Returns {case: (accepted, trials)};
     a frame counts as accepted when the decoder returns one that differs from the original."""
     import random
-    from ..hdl.frame_types import ATTITUDE
+    from ..hdl.link.frame_types import ATTITUDE
     rng = random.Random(seed)
     n = payload_bytes(FRAME_TYPES[ATTITUDE])
     out = {}

@@ -1,16 +1,16 @@
 """The register map by name, with formats and units: the host converts physical values to
 register words and back (``config get`` / ``config set``).
 
-Names are those of ``hdl/register_map.py`` (engine, space 0x00), ``BOARD_REGS`` (space
+Names are those of ``hdl/engine/register_map.py`` (engine, space 0x00), ``BOARD_REGS`` (space
 0x01) and ``PWM_REGS`` (space 0x02); ``hdl/FRAMES.md`` lists them.
 """
 
 import math
 from dataclasses import dataclass
 
-from ..hdl.register_map import CONFIG_REGS, CONTROL_ADDR, HOST_WRITABLE
-from ..hdl.command_decoder import BOARD_REGS
-from ..hdl.pwm import PWM_REGS
+from ..hdl.engine.register_map import CONFIG_REGS, CONTROL_ADDR, HOST_WRITABLE
+from ..hdl.contract.commands import BOARD_REGS
+from ..hdl.link.pwm import PWM_REGS
 
 
 __all__ = ["Register", "REGISTERS", "lookup", "to_word", "from_word", "value_range"]

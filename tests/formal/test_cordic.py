@@ -20,7 +20,7 @@ from amaranth.asserts import AnyConst
 from amaranth.hdl import Assert, Cover
 from amaranth.sim import Simulator
 
-from mpu9250_ahrs.hdl.cordic import CORDIC, cordic_word
+from mpu9250_ahrs.hdl.engine.cordic import CORDIC, cordic_word
 from mpu9250_ahrs.reference import fixed_point as fx
 
 from .harness import counter, harness_module

@@ -12,7 +12,7 @@ from amaranth import *
 from amaranth.asserts import AnyConst
 from amaranth.hdl import Assert, Cover
 
-from mpu9250_ahrs.hdl.divider import Divider, divider_word
+from mpu9250_ahrs.hdl.engine.divider import Divider, divider_word
 from mpu9250_ahrs.reference.fixed_point import div_q24
 
 from .harness import counter, harness_module

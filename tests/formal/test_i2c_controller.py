@@ -15,7 +15,7 @@ from amaranth import *
 from amaranth.asserts import AnySeq
 from amaranth.hdl import Assert, Assume, Cover
 
-from mpu9250_ahrs.hdl.i2c_controller import I2CController, I2COp, I2CTiming
+from mpu9250_ahrs.hdl.sensor.i2c_controller import I2CController, I2COp, I2CTiming
 
 from .harness import Past, counter, harness_module
 from .stream_contract import stream_input, stream_output

@@ -10,7 +10,7 @@ import pytest
 from amaranth import *
 from amaranth.hdl import Assert, Cover
 
-from mpu9250_ahrs.hdl.spi_controller import SPIController, SPITiming
+from mpu9250_ahrs.hdl.sensor.spi_controller import SPIController, SPITiming
 
 from .harness import Past, counter, harness_module
 from .stream_contract import stream_input, stream_output

@@ -22,27 +22,27 @@ from amaranth import *
 from amaranth.lib import stream, wiring
 from amaranth.lib.wiring import Out
 
-from mpu9250_ahrs.hdl.attitude_engine import AttitudeEngine
-from mpu9250_ahrs.hdl.register_map import HOST_WRITABLE
-from mpu9250_ahrs.hdl.bring_up_sequencer import (BringUpSequencer, SelfTestWaits,
-                                                 bring_up_program)
-from mpu9250_ahrs.hdl.command_decoder import CommandDecoder
-from mpu9250_ahrs.hdl.config_port_arbiter import ConfigPortArbiter
-from mpu9250_ahrs.hdl.frame_arbiter import FrameArbiter
-from mpu9250_ahrs.hdl.host_port import HostPort
-from mpu9250_ahrs.hdl.i2c_controller import I2CController, I2CTiming
-from mpu9250_ahrs.hdl.mpu9250_driver import MPU9250Config, MPU9250Driver
-from mpu9250_ahrs.hdl.register_port import I2CRegisterPort, SPIRegisterPort
-from mpu9250_ahrs.hdl.register_port_arbiter import RegisterPortArbiter
-from mpu9250_ahrs.hdl.rewindable_fifo import RewindableFIFO
-from mpu9250_ahrs.hdl.sample_reader import SampleReader
-from mpu9250_ahrs.hdl.sensor_frontend import SensorFrontEnd
-from mpu9250_ahrs.hdl.spi_controller import SPIController, SPITiming
-from mpu9250_ahrs.hdl.frame_types import AttitudeFrame, Reply, SensorFrame
-from mpu9250_ahrs.hdl.telemetry import TelemetryFramer
-from mpu9250_ahrs.hdl.top import result_fetch, sample_borrow
-from mpu9250_ahrs.hdl.telemetry_scheduler import TelemetryScheduler
-from mpu9250_ahrs.hdl.uart_rx import UARTReceiver
+from mpu9250_ahrs.hdl.engine.attitude_engine import AttitudeEngine
+from mpu9250_ahrs.hdl.engine.register_map import HOST_WRITABLE
+from mpu9250_ahrs.hdl.sensor.bring_up_sequencer import (BringUpSequencer, SelfTestWaits,
+                                                        bring_up_program)
+from mpu9250_ahrs.hdl.link.command_decoder import CommandDecoder
+from mpu9250_ahrs.hdl.engine.config_port_arbiter import ConfigPortArbiter
+from mpu9250_ahrs.hdl.link.frame_arbiter import FrameArbiter
+from mpu9250_ahrs.hdl.engine.host_port import HostPort
+from mpu9250_ahrs.hdl.sensor.i2c_controller import I2CController, I2CTiming
+from mpu9250_ahrs.hdl.sensor.mpu9250_driver import MPU9250Config, MPU9250Driver
+from mpu9250_ahrs.hdl.sensor.register_port import I2CRegisterPort, SPIRegisterPort
+from mpu9250_ahrs.hdl.sensor.register_port_arbiter import RegisterPortArbiter
+from mpu9250_ahrs.hdl.link.rewindable_fifo import RewindableFIFO
+from mpu9250_ahrs.hdl.sensor.sample_reader import SampleReader
+from mpu9250_ahrs.hdl.sensor.sensor_frontend import SensorFrontEnd
+from mpu9250_ahrs.hdl.sensor.spi_controller import SPIController, SPITiming
+from mpu9250_ahrs.hdl.link.frame_types import AttitudeFrame, Reply, SensorFrame
+from mpu9250_ahrs.hdl.link.telemetry import TelemetryFramer
+from mpu9250_ahrs.hdl.board.top import result_fetch, sample_borrow
+from mpu9250_ahrs.hdl.link.telemetry_scheduler import TelemetryScheduler
+from mpu9250_ahrs.hdl.link.uart_rx import UARTReceiver
 
 from .comb_paths import valid_ready_paths
 from .stream_contract import contract_harness

@@ -10,8 +10,8 @@ from amaranth import *
 from amaranth.asserts import AnySeq
 from amaranth.hdl import Assert, Cover
 
-from mpu9250_ahrs.hdl.uart_rx import UARTReceiver
-from mpu9250_ahrs.hdl.uart_tx import UARTTransmitter
+from mpu9250_ahrs.hdl.link.uart_rx import UARTReceiver
+from mpu9250_ahrs.hdl.link.uart_tx import UARTTransmitter
 
 from .harness import harness_module
 from .stream_contract import stream_input, stream_output

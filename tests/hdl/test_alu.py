@@ -3,7 +3,7 @@
 import numpy as np
 from amaranth.sim import Simulator
 
-from mpu9250_ahrs.hdl.alu import ALU
+from mpu9250_ahrs.hdl.engine.alu import ALU
 from mpu9250_ahrs.reference.fixed_point import Status, sat16, sat32, wrap32
 
 

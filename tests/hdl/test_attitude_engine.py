@@ -11,12 +11,12 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from mpu9250_ahrs.hdl.attitude_engine import PEEKED, WORST_UPDATE_CYCLES, AttitudeEngine
-from mpu9250_ahrs.hdl.register_map import CONFIG_REGS, CONTROL_ADDR, REGS, control_word
+from mpu9250_ahrs.hdl.engine.attitude_engine import PEEKED, WORST_UPDATE_CYCLES, AttitudeEngine
+from mpu9250_ahrs.hdl.engine.register_map import CONFIG_REGS, CONTROL_ADDR, REGS, control_word
 from mpu9250_ahrs.reference.fixed_point import CalibrationFixed, KalmanFixedConfig, bam_to_deg
 from mpu9250_ahrs.reference.engine_model import attitude_fixed
 from mpu9250_ahrs.reference.frames import body_to_mag
-from mpu9250_ahrs.hdl.filter_registry import FILTER_NAMES
+from mpu9250_ahrs.hdl.contract.filter_registry import FILTER_NAMES
 from mpu9250_ahrs.reference.kalman import KalmanParams, kalman_filter
 from mpu9250_ahrs.sim.attitude_bench import first_mismatch, random_inputs, run_engine
 from mpu9250_ahrs.sim.motion import SensorModel, concat, static, turntable
@@ -399,7 +399,7 @@ def _b_read_program():
     before each), the square of a MUL's result three MULs on (a NOP, and the chain of MULs
     broken), and an ADD that reads it as both (a NOP). The results are written to the
     result's quaternion, angles and bias words."""
-    from mpu9250_ahrs.hdl.attitude_isa import Q14, Assembler
+    from mpu9250_ahrs.hdl.engine.attitude_isa import Q14, Assembler
     asm, r = Assembler(), REGS
     g0, g1, g2 = r["GRAW0"], r["GRAW1"], r["GRAW2"]
     q = [r[f"QOUT{k}"] for k in range(4)]
@@ -427,7 +427,7 @@ def test_b_operand_is_not_forwarded():
     assembler swaps an ADD's or MUL's operands, or puts a NOP before an instruction that would
     read it as ``b`` (``attitude_isa``). The program of ``_b_read_program`` against the
     instruction model, bit for bit."""
-    from mpu9250_ahrs.hdl.attitude_isa import Op
+    from mpu9250_ahrs.hdl.engine.attitude_isa import Op
 
     program, entry = _b_read_program()
     body = [ins.op for ins in program[entry["sample"]:]]
@@ -456,8 +456,8 @@ def _background_program(go_on):
     """A program of ``BACKGROUND_CHAIN`` (its operations started in the background, or each
     blocking with its shadow's instructions after it: the same results), the results written
     round the result's quaternion, angles and bias words; BIAS2 counts the ADDs."""
-    from mpu9250_ahrs.hdl.attitude_isa import Assembler
-    from mpu9250_ahrs.hdl.register_map import TEMPS
+    from mpu9250_ahrs.hdl.engine.attitude_isa import Assembler
+    from mpu9250_ahrs.hdl.engine.register_map import TEMPS
     asm, r = Assembler(scratch_pool=tuple(TEMPS)), REGS
     asm.label("init")
     asm.end()

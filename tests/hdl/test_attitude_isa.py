@@ -2,7 +2,7 @@
 
 import pytest
 
-from mpu9250_ahrs.hdl.attitude_isa import Q30, Assembler, Cond
+from mpu9250_ahrs.hdl.engine.attitude_isa import Q30, Assembler, Cond
 
 
 def asm_with_pool():
@@ -65,7 +65,7 @@ def test_fixed_conditions_are_fetch_jumps():
     them (``FETCH_JUMPS``: the engine decides it as it leaves the ROM); a register test carries
     none, and only a register test can be inverted."""
     from amaranth.lib import data
-    from mpu9250_ahrs.hdl.attitude_isa import FETCH_JUMPS, Instr, Instruction, Op
+    from mpu9250_ahrs.hdl.engine.attitude_isa import FETCH_JUMPS, Instr, Instruction, Op
 
     def jump(ins):
         return data.Const(data.Layout.cast(Instr), ins.encode()).jump
@@ -82,7 +82,7 @@ def test_fixed_conditions_are_fetch_jumps():
 def test_fixed_branches_fold_into_the_instruction_before():
     """A branch on a fixed condition is folded into the instruction before it (``then``), not
     into a branch or END, and not when a label names it; the labels after it move up."""
-    from mpu9250_ahrs.hdl.attitude_isa import Op
+    from mpu9250_ahrs.hdl.engine.attitude_isa import Op
     asm = Assembler()
     asm.add(1, 2, 3)
     asm.br("out", Cond.FILTER, code=2)          # folded into the ADD
@@ -106,7 +106,7 @@ def test_background_rules():
     them resolves, the other unit's operations included; a branch, a label, a folded jump,
     another operation of the same unit, an access to what the collect writes or a missing
     collect between them is refused at ``resolve``."""
-    from mpu9250_ahrs.hdl.attitude_isa import COLLECT, GO_ON, Op
+    from mpu9250_ahrs.hdl.engine.attitude_isa import COLLECT, GO_ON, Op
 
     def program(*between, start=lambda asm: asm.vec(20, 1, 2, go_on=True), collect=True):
         asm = Assembler()
@@ -171,7 +171,7 @@ def test_muls_that_read_a_result_too_early():
     of the MUL just before it (after the word, or at a folded jump's target); a MUL reading
     the result of the MUL two before it is refused, on a path through a folded jump too, and
     taken with another instruction between."""
-    from mpu9250_ahrs.hdl.attitude_isa import Op
+    from mpu9250_ahrs.hdl.engine.attitude_isa import Op
     def program(*emits):
         asm = Assembler()
         for emit in emits:

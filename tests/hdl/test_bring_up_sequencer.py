@@ -4,11 +4,11 @@ failed check does, a restart asked for, and the magnetometer's part run again.""
 import pytest
 from amaranth.sim import Simulator
 
-from mpu9250_ahrs.hdl import ak8963_regs as A
-from mpu9250_ahrs.hdl import mpu9250_regs as R
-from mpu9250_ahrs.hdl.bring_up_sequencer import (BringUpSequencer, Op, SelfTestWaits,
-                                                 bring_up_program)
-from mpu9250_ahrs.hdl.mpu9250_driver import MPU9250Config
+from mpu9250_ahrs.hdl.contract import ak8963_regs as A
+from mpu9250_ahrs.hdl.contract import mpu9250_regs as R
+from mpu9250_ahrs.hdl.sensor.bring_up_sequencer import (BringUpSequencer, Op, SelfTestWaits,
+                                                        bring_up_program)
+from mpu9250_ahrs.hdl.sensor.mpu9250_driver import MPU9250Config
 from mpu9250_ahrs.sim.streams import check_stream_rules
 
 from .register_port_model import RegisterPortModel
@@ -135,7 +135,7 @@ def test_waits_counted_in_ticks_last_their_cycles():
     """With ``tick_cycles`` > 1 the timer counts ticks (a pulse every so many cycles, at any
     phase): a WAIT lasts at least its cycles and at most two ticks more than counted in
     cycles (``tick_cycles`` 1, exact)."""
-    from mpu9250_ahrs.hdl.bring_up_sequencer import Op, Step
+    from mpu9250_ahrs.hdl.sensor.bring_up_sequencer import Op, Step
     wait = 37
 
     def streaming_after(tick_cycles, phase=0):

@@ -4,8 +4,8 @@ import pytest
 
 from amaranth.back import verilog
 
-from mpu9250_ahrs.hdl.clocking import (OSCILLATOR_HZ, SYSTEM_CLOCK_HZ, SystemPLL, cycles,
-                                       pll_ratio)
+from mpu9250_ahrs.hdl.primitives.clocking import (OSCILLATOR_HZ, SYSTEM_CLOCK_HZ, SystemPLL, cycles,
+                                                  pll_ratio)
 
 
 def test_cycles_rounds_up_and_forgives_float_noise():

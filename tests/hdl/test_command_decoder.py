@@ -9,14 +9,14 @@ from amaranth.lib import wiring
 from amaranth.sim import Simulator
 from hypothesis import example, given, settings, strategies as st
 
-from mpu9250_ahrs.hdl.register_map import (CONFIG_REGS, CONTROL_ADDR, CONTROL_KEEP, CONTROL_RESET,
-                                           HOST_WRITABLE, TELEMETRY_DIV_ADDR)
-from mpu9250_ahrs.hdl.command_decoder import (BOARD_REGS, COMMAND_STATS, COMMANDS, COUNTED,
-                                              COUNTER_WORDS, FIFO_DEPTH, REGMAP_VERSION,
-                                              RESULT_INPUT_LOST, RESULTS, CommandDecoder,
-                                              counter_word)
-from mpu9250_ahrs.hdl.driver_status import SelfTestStatus
-from mpu9250_ahrs.hdl.pwm import PWM_REGS, PWMOutputs
+from mpu9250_ahrs.hdl.engine.register_map import (CONFIG_REGS, CONTROL_ADDR, CONTROL_KEEP,
+                                                  CONTROL_RESET, HOST_WRITABLE, TELEMETRY_DIV_ADDR)
+from mpu9250_ahrs.hdl.contract.commands import (BOARD_REGS, COMMANDS, REGMAP_VERSION,
+                                                RESULT_INPUT_LOST, RESULTS)
+from mpu9250_ahrs.hdl.link.command_decoder import (COMMAND_STATS, COUNTED, COUNTER_WORDS,
+                                                   FIFO_DEPTH, CommandDecoder, counter_word)
+from mpu9250_ahrs.hdl.sensor.driver_status import SelfTestStatus
+from mpu9250_ahrs.hdl.link.pwm import PWM_REGS, PWMOutputs
 from mpu9250_ahrs.host.protocol import encode_command, encode_frame, to_python
 from mpu9250_ahrs.sim.streams import check_stream_rules
 
@@ -298,8 +298,8 @@ def test_control_words_the_engine_refuses_are_refused():
     """Issue #25: CONTROL takes a filter code only if it names a filter (with four filters in
     the registry every code does), and no reserved bit; a reset with keep is taken whatever
     bits 1:0 say. Refused words are not sent to the engine (``control_fields`` is the rule)."""
-    from mpu9250_ahrs.hdl.filter_registry import FILTER_NAMES
-    from mpu9250_ahrs.hdl.numeric_contract import control_fields
+    from mpu9250_ahrs.hdl.contract.filter_registry import FILTER_NAMES
+    from mpu9250_ahrs.hdl.contract.numeric_contract import control_fields
     words = [3, 2, 0x10, 0x8 | 0x3, -1, 1 << 31, 0x4 | 0x1]
     commands = [encode_command("write", k, addr=CONTROL_ADDR, value=w)
                 for k, w in enumerate(words)]
@@ -453,8 +453,8 @@ def test_counter_read_while_the_frame_count_is_not_stable():
 
 def test_frames_md_states_the_burst_bound_the_decoder_has():
     import pathlib
-    from mpu9250_ahrs.hdl.command_decoder import MAX_BURST_COMMANDS
+    from mpu9250_ahrs.hdl.contract.commands import MAX_BURST_COMMANDS
     text = (pathlib.Path(__file__).resolve().parents[2] / "hdl" / "FRAMES.md").read_text()
     assert f"`MAX_BURST_COMMANDS` = {MAX_BURST_COMMANDS} commands" in text
     assert f"more than {MAX_BURST_COMMANDS} commands sent back to back" in text
-    assert f"({FIFO_DEPTH:,} bytes, `FIFO_DEPTH`)" in text
+    assert f"({FIFO_DEPTH:,} bytes, `COMMAND_FIFO_BYTES`" in text

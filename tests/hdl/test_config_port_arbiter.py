@@ -6,7 +6,7 @@ import random
 
 from amaranth.sim import Simulator
 
-from mpu9250_ahrs.hdl.config_port_arbiter import ConfigPortArbiter
+from mpu9250_ahrs.hdl.engine.config_port_arbiter import ConfigPortArbiter
 from mpu9250_ahrs.sim.streams import check_stream_rules, stream_get
 
 

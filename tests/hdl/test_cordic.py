@@ -4,7 +4,7 @@ around ±90° and ±180°. (Every input at 8 bits: ``tests/formal/test_cordic.py
 
 import numpy as np
 
-from mpu9250_ahrs.hdl.cordic import CORDIC, cordic_word
+from mpu9250_ahrs.hdl.engine.cordic import CORDIC, cordic_word
 from mpu9250_ahrs.reference.fixed_point import (CORDIC_ITERATIONS, CORDIC_SHORT_ITERATIONS, Status,
                                                 cordic_rotate, cordic_vector)
 

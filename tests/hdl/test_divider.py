@@ -4,7 +4,7 @@ negative numerators, a zero or negative denominator, random pairs. (Every input 
 
 import numpy as np
 
-from mpu9250_ahrs.hdl.divider import Divider, divider_word
+from mpu9250_ahrs.hdl.engine.divider import Divider, divider_word
 from mpu9250_ahrs.reference.fixed_point import Status, div_q24
 
 from .start_done import operate, run_unit

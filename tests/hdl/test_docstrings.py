@@ -14,8 +14,9 @@ import mpu9250_ahrs.hdl as hdl
 
 def _components():
     found = []
-    for info in pkgutil.iter_modules(hdl.__path__):
-        module = importlib.import_module(f"{hdl.__name__}.{info.name}")
+    # every module of every wing (sub-packages included)
+    for info in pkgutil.walk_packages(hdl.__path__, f"{hdl.__name__}."):
+        module = importlib.import_module(info.name)
         for name, obj in vars(module).items():
             if inspect.isclass(obj) and issubclass(obj, wiring.Component) and \
                     obj.__module__ == module.__name__:

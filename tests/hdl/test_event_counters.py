@@ -6,7 +6,7 @@ import random
 from amaranth.hdl import Module, ResetInserter, Signal
 from amaranth.sim import Simulator
 
-from mpu9250_ahrs.hdl.event_counters import EventCounters
+from mpu9250_ahrs.hdl.link.event_counters import EventCounters
 
 
 def run(dut, events, reads=None):

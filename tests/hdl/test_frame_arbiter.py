@@ -7,9 +7,9 @@ from amaranth import Elaboratable, Module
 from amaranth.lib import data, wiring
 from amaranth.sim import Simulator
 
-from mpu9250_ahrs.hdl.frame_arbiter import FrameArbiter
-from mpu9250_ahrs.hdl.frame_types import Reply, SensorFrame
-from mpu9250_ahrs.hdl.telemetry import TelemetryFramer
+from mpu9250_ahrs.hdl.link.frame_arbiter import FrameArbiter
+from mpu9250_ahrs.hdl.link.frame_types import Reply, SensorFrame
+from mpu9250_ahrs.hdl.link.telemetry import TelemetryFramer
 from mpu9250_ahrs.host.protocol import decode_frames, unpack
 from mpu9250_ahrs.sim.streams import check_stream_rules
 

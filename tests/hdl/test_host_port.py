@@ -3,9 +3,9 @@ read-back one cycle later, nothing taken while the engine is not open."""
 
 from amaranth.sim import Simulator
 
-from mpu9250_ahrs.hdl.register_map import CONTROL_ADDR, control_word
-from mpu9250_ahrs.hdl.filter_registry import FILTER_CODES
-from mpu9250_ahrs.hdl.host_port import HostPort
+from mpu9250_ahrs.hdl.engine.register_map import CONTROL_ADDR, control_word
+from mpu9250_ahrs.hdl.contract.filter_registry import FILTER_CODES
+from mpu9250_ahrs.hdl.engine.host_port import HostPort
 from mpu9250_ahrs.sim.streams import check_stream_rules
 
 
@@ -71,7 +71,7 @@ def test_read_only_and_state_registers_refuse_writes():
     """With the engine's ``HOST_WRITABLE``, a write to a constant (ZERO, INV_GAIN, SHL8) or to
     filter state (0x20 up) is taken, writes nothing, and is counted; run-time registers and
     CONTROL are written as before."""
-    from mpu9250_ahrs.hdl.register_map import CONFIG_REGS, HOST_WRITABLE, REGS
+    from mpu9250_ahrs.hdl.engine.register_map import CONFIG_REGS, HOST_WRITABLE, REGS
     dut = HostPort(filter_at_reset=FILTER_CODES["flagship"], writable=HOST_WRITABLE)
     refused = [CONFIG_REGS["ZERO"], CONFIG_REGS["INV_GAIN"], CONFIG_REGS["SHL8"],
                REGS["P0_00"], REGS["THETA0"], 0x20, 0xFD]
@@ -106,8 +106,8 @@ def test_control_words_against_the_contract():
     against ``numeric_contract.control_fields`` (the reference's rule): the select, the
     reset pulse and the refusal count agree for each. A code that names no filter without keep
     is refused (with four filters there is none: code 3 is Madgwick)."""
-    from mpu9250_ahrs.hdl.filter_registry import FILTER_NAMES
-    from mpu9250_ahrs.hdl.numeric_contract import control_fields
+    from mpu9250_ahrs.hdl.contract.filter_registry import FILTER_NAMES
+    from mpu9250_ahrs.hdl.contract.numeric_contract import control_fields
     words = list(range(16)) + [0x10, 0x13, 0x8000_0000, -1, -16, 0x7FFF_FFF0 | 0x2]
     dut = HostPort(filter_at_reset=FILTER_CODES["flagship"])
     got = []

@@ -4,8 +4,8 @@ the AK8963 at 0x0C through the MPU9250's bypass multiplexer. Real sample rate (1
 
 import pytest
 
-from mpu9250_ahrs.hdl import ak8963_regs as A
-from mpu9250_ahrs.hdl.mpu9250_driver import MPU9250Config
+from mpu9250_ahrs.hdl.contract import ak8963_regs as A
+from mpu9250_ahrs.hdl.sensor.mpu9250_driver import MPU9250Config
 from mpu9250_ahrs.sim.cosim import SimSetup, expected_mag, run_frontend, sample_matches
 
 

@@ -5,9 +5,9 @@ import dataclasses
 
 import pytest
 
-from mpu9250_ahrs.hdl import ak8963_regs as A
-from mpu9250_ahrs.hdl import mpu9250_regs as R
-from mpu9250_ahrs.hdl.mpu9250_driver import MPU9250Config
+from mpu9250_ahrs.hdl.contract import ak8963_regs as A
+from mpu9250_ahrs.hdl.contract import mpu9250_regs as R
+from mpu9250_ahrs.hdl.sensor.mpu9250_driver import MPU9250Config
 from mpu9250_ahrs.sim.cosim import SimSetup, expected_mag, run_frontend, sample_matches
 
 
@@ -265,7 +265,7 @@ def test_a_part_slower_to_reset_than_its_datasheet_comes_up(wiring, slower):
     retry reset it again and read it too early, for ever (SPI: 93 restarts; I2C: 255); now the
     wait after H_RESET doubles with each restart (up to 4x) and the part streams. Its only
     complaints are the early accesses while it was still in reset."""
-    from mpu9250_ahrs.hdl.bring_up_sequencer import BACKOFF_MAX_SHIFT
+    from mpu9250_ahrs.hdl.sensor.bring_up_sequencer import BACKOFF_MAX_SHIFT
     setup = SimSetup(config=MPU9250Config(magnetometer=False, wiring=wiring),
                      odr_scale=1.0 if wiring == "i2c" else SimSetup.odr_scale)
     model = setup.model(magnetometer=False)

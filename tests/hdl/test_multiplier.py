@@ -3,7 +3,7 @@
 from amaranth.sim import Simulator
 from hypothesis import given, settings, strategies as st
 
-from mpu9250_ahrs.hdl.multiplier import Multiplier
+from mpu9250_ahrs.hdl.primitives.multiplier import Multiplier
 
 
 @settings(max_examples=200, deadline=None)

@@ -5,8 +5,8 @@ cycles after the last issue."""
 import numpy as np
 from amaranth.sim import Simulator
 
-from mpu9250_ahrs.hdl.attitude_isa import MUL_SHIFTS
-from mpu9250_ahrs.hdl.multiply_accumulate import MultiplyAccumulate
+from mpu9250_ahrs.hdl.engine.attitude_isa import MUL_SHIFTS
+from mpu9250_ahrs.hdl.engine.multiply_accumulate import MultiplyAccumulate
 from mpu9250_ahrs.reference.fixed_point import Status, mac
 
 

@@ -1,9 +1,9 @@
-"""The contract's CORDIC ROM, written out in ``hdl/numeric_contract.py``, equals the one the
-reference computes from ``math.atan`` on its own; the register encodings round-trip."""
+"""The contract's CORDIC ROM, written out in ``hdl/contract/numeric_contract.py``, equals the one
+the reference computes from ``math.atan`` on its own; the register encodings round-trip."""
 
 import numpy as np
 
-from mpu9250_ahrs.hdl import numeric_contract as contract
+from mpu9250_ahrs.hdl.contract import numeric_contract as contract
 from mpu9250_ahrs.reference import fixed_point
 
 

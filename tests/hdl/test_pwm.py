@@ -4,7 +4,7 @@ reset and while disabled, the command watchdog."""
 from amaranth.sim import Simulator
 from hypothesis import example, given, settings, strategies as st
 
-from mpu9250_ahrs.hdl.pwm import PWM_REGS, PWMOutputs
+from mpu9250_ahrs.hdl.link.pwm import PWM_REGS, PWMOutputs
 
 CLK = 4e6          # 4 cycles a µs; the motor period's minimum is 200 cycles (20 kHz)
 
@@ -278,7 +278,7 @@ def test_no_output_high_for_a_whole_period_unless_asked(ops):
 
 
 def test_an_asynchronous_reset_drops_the_outputs_at_once():
-    """As a board builds it (``hdl/top.py``: the core's domain has an asynchronous reset), a
+    """As a board builds it (``hdl/board/top.py``: the core's domain has an asynchronous reset), a
     reset takes every output low at once, before any clock edge, and they stay low after it
     (every channel disabled at reset). The registers read their reset values after it, though
     the read-back's block RAM kept the words written before."""

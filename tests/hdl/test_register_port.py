@@ -5,7 +5,7 @@ rather than losing a byte. (The I2C register port runs against the bus model in
 
 from amaranth.sim import Simulator
 
-from mpu9250_ahrs.hdl.register_port import SPIRegisterPort
+from mpu9250_ahrs.hdl.sensor.register_port import SPIRegisterPort
 from mpu9250_ahrs.sim.streams import check_stream_rules, stream_get, stream_put
 
 

@@ -3,7 +3,7 @@ response, bytes and responses go to the owner only."""
 
 from amaranth.sim import Simulator
 
-from mpu9250_ahrs.hdl.register_port_arbiter import RegisterPortArbiter
+from mpu9250_ahrs.hdl.sensor.register_port_arbiter import RegisterPortArbiter
 from mpu9250_ahrs.sim.streams import check_stream_rules
 
 

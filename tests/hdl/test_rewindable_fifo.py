@@ -7,7 +7,7 @@ import random
 import pytest
 from amaranth.sim import Simulator
 
-from mpu9250_ahrs.hdl.rewindable_fifo import RewindableFIFO
+from mpu9250_ahrs.hdl.link.rewindable_fifo import RewindableFIFO
 from mpu9250_ahrs.sim.streams import check_stream_rules
 
 

@@ -4,9 +4,9 @@ freshness (DRDY after a read without it, or new bytes), restarts and the stale t
 import pytest
 from amaranth.sim import Simulator
 
-from mpu9250_ahrs.hdl.sample_reader import BAD_BURST_LIMIT, MPU_BYTES, SampleReader
-from mpu9250_ahrs.hdl.sample_store import (OFFER_WRITES, SAMPLE_STORE_DEPTH, SLOT_WORDS,
-                                           STORE_WORDS)
+from mpu9250_ahrs.hdl.sensor.sample_reader import BAD_BURST_LIMIT, MPU_BYTES, SampleReader
+from mpu9250_ahrs.hdl.sensor.sample_store import (OFFER_WRITES, SAMPLE_STORE_DEPTH, SLOT_WORDS,
+                                                  STORE_WORDS)
 from mpu9250_ahrs.sim.streams import check_stream_rules
 
 from .register_port_model import RegisterPortModel
@@ -75,7 +75,7 @@ def run(bursts, *, mag_ok=1, extra_periods=0, gyro_jump=None, wiring="spi"):
 def _check_store(sim, dut):
     """A model of the sample store fed by the reader's writes (byte lanes): once each offered
     sample's writes after the offer are in (four cycles from its ``valid``), its slot holds
-    the payload (``hdl/sample_store.py``); a burst's bytes never go to the slot of the last
+    the payload (``hdl/sensor/sample_store.py``); a burst's bytes never go to the slot of the last
     sample offered (the engine may hold it). Returns the counters of the samples checked."""
     ram = [0] * SAMPLE_STORE_DEPTH
     checked = []
@@ -154,7 +154,7 @@ def test_gyro_jump_on_each_axis():
     fails the burst, on any axis (``gyro_jumps``, the reference's rule); the edges pass; the
     base is the last sample passed on."""
     import numpy as np
-    from mpu9250_ahrs.hdl.sample_reader import gyro_jumps
+    from mpu9250_ahrs.hdl.sensor.sample_reader import gyro_jumps
 
     def gyro(x, y, z):
         return burst(0, data=b"".join((v & 0xFFFF).to_bytes(2, "big")
@@ -192,7 +192,7 @@ def test_tick_is_about_a_64th_of_a_period_at_most_max():
     """The reader's tick, which the bring-up waits and the command time-out count too: 1/64 of
     the period, at most ``MAX_TICK_CYCLES`` (so the self-test's 1 ms between reads stays
     about 1 ms at low sample rates), at least a cycle."""
-    from mpu9250_ahrs.hdl.sample_reader import MAX_TICK_CYCLES, tick_cycles
+    from mpu9250_ahrs.hdl.sensor.sample_reader import MAX_TICK_CYCLES, tick_cycles
     assert tick_cycles(48_000) == 750                      # 1 kHz at 48 MHz
     assert tick_cycles(48_000_000 // 4) == MAX_TICK_CYCLES == 1024
     assert tick_cycles(10) == 1

@@ -1,13 +1,14 @@
-"""SelfTest: the sums and verdicts against the rules of ``hdl/self_test.py``, at the thresholds."""
+"""SelfTest: the sums and verdicts against the rules of ``hdl/sensor/self_test.py``, at the
+thresholds."""
 
 import random
 
 import pytest
 from amaranth.sim import Simulator
 
-from mpu9250_ahrs.hdl.self_test import (ACCEL_CODE0, CODE_INDEX, GYRO_CODE0, MAG_INDEX,
-                                        MAG_LIMITS, SelfTest, mag_axis_passes,
-                                        mpu_axis_passes, otp)
+from mpu9250_ahrs.hdl.sensor.self_test import (ACCEL_CODE0, CODE_INDEX, GYRO_CODE0, MAG_INDEX,
+                                               MAG_LIMITS, SelfTest, mag_axis_passes,
+                                               mpu_axis_passes, otp)
 
 
 def test_otp_table():

@@ -3,7 +3,7 @@
 import pytest
 from amaranth.sim import Simulator
 
-from mpu9250_ahrs.hdl.spi_controller import SPIController, SPITiming
+from mpu9250_ahrs.hdl.sensor.spi_controller import SPIController, SPITiming
 from mpu9250_ahrs.sim.streams import check_stream_rules, stream_put
 
 
@@ -179,7 +179,7 @@ def test_the_sample_point_leaves_the_io_budget_its_margin():
     100 ns, the FPGA's output and input, the board both ways: 114 ns) leaves at least 10 ns
     before the sampling edge (125 ns); the fast SCLK is 48/7 MHz for it (a period of 7 cycles,
     low 4 and high 3, with the sample 2 cycles into the high level; 8 MHz left 4 ns)."""
-    from mpu9250_ahrs.hdl.spi_controller import IO_BUDGET
+    from mpu9250_ahrs.hdl.sensor.spi_controller import IO_BUDGET
     timing = SPITiming.for_clock(48e6)
     assert IO_BUDGET.arrival_ns == 114
     assert timing.setup_margin_ns(48e6) >= IO_BUDGET.margin_ns == 10
@@ -196,8 +196,8 @@ def test_cipo_sampling_point_against_the_output_delay(sdo_delay_ns, reads_right)
     burst reads right; beyond the sampling edge (126 ns: the bit arrives after the edge at
     125 ns) it does not, so the sampling point is where the timing analysis says."""
     from dataclasses import replace
-    from mpu9250_ahrs.hdl.clocking import SYSTEM_CLOCK_HZ
-    from mpu9250_ahrs.hdl.mpu9250_driver import MPU9250Config
+    from mpu9250_ahrs.hdl.primitives.clocking import SYSTEM_CLOCK_HZ
+    from mpu9250_ahrs.hdl.sensor.mpu9250_driver import MPU9250Config
     from mpu9250_ahrs.sim.cosim import SimSetup, run_frontend, sample_matches
     from mpu9250_ahrs.sim.mpu9250_model import MPU9250Model
     from mpu9250_ahrs.sim.sources import counting_source
@@ -225,9 +225,9 @@ def test_the_sample_burst_runs_without_a_pause():
     AK8963's ST2, ``SAMPLE_BYTES`` + 1 bytes) is clocked without a pause between its bytes: CS
     low for the CS setup, 8 SCLK periods a byte, and the CS hold; and within
     ``sample_read_cycles``' bound, which ``build`` and ``report`` use for the rate check."""
-    from mpu9250_ahrs.hdl.mpu9250_driver import MPU9250Config
-    from mpu9250_ahrs.hdl.sample_reader import SAMPLE_BYTES
-    from mpu9250_ahrs.hdl.sensor_frontend import sample_read_cycles as bound
+    from mpu9250_ahrs.hdl.sensor.mpu9250_driver import MPU9250Config
+    from mpu9250_ahrs.hdl.sensor.sample_reader import SAMPLE_BYTES
+    from mpu9250_ahrs.hdl.sensor.sensor_frontend import sample_read_cycles as bound
     from mpu9250_ahrs.sim.cosim import SimSetup, run_frontend, sample_read_cycles
     setup = SimSetup(config=MPU9250Config(), odr_scale=0.1)
     t = SPITiming.for_clock(setup.clk_freq)

@@ -7,10 +7,10 @@ from amaranth.hdl import Array, C, Cat, Module
 from amaranth.lib import data
 from amaranth.sim import Simulator
 
-from mpu9250_ahrs.hdl.frame_types import ATTITUDE, SENSOR, SYNC, AttitudeFrame, SensorFrame
-from mpu9250_ahrs.hdl.telemetry import TelemetryFramer
-from mpu9250_ahrs.hdl.top import result_fetch, sample_borrow
-from mpu9250_ahrs.hdl.uart_tx import UARTTransmitter
+from mpu9250_ahrs.hdl.link.frame_types import ATTITUDE, SENSOR, SYNC, AttitudeFrame, SensorFrame
+from mpu9250_ahrs.hdl.link.telemetry import TelemetryFramer
+from mpu9250_ahrs.hdl.board.top import result_fetch, sample_borrow
+from mpu9250_ahrs.hdl.link.uart_tx import UARTTransmitter
 from mpu9250_ahrs.reference.engine_model import attitude_fixed
 from mpu9250_ahrs.sim.attitude_bench import EngineRun, first_mismatch
 from mpu9250_ahrs.sim.cosim import QUICK_CORE_BAUD, SimSetup, quick_core_setup, sample_matches
@@ -245,7 +245,7 @@ def test_engine_never_waits_for_a_slow_uart():
     filtered (``filtered`` = the sample counter + 1, nothing ``lost``), the results the UART had
     no time for are counted in ``not_sent``, and each frame that goes out is the engine's
     result for exactly its sample (six-axis, so the reference sees every sample's input)."""
-    from mpu9250_ahrs.hdl.mpu9250_driver import MPU9250Config
+    from mpu9250_ahrs.hdl.sensor.mpu9250_driver import MPU9250Config
     setup = SimSetup(clk_freq=12e6, config=MPU9250Config(magnetometer=False), odr_scale=0.1)
     core, model, frames, _ = run_core(setup, 3, baud=921_600, max_cycles=200_000,
                                       telemetry_divider=1, filter="complementary")
@@ -266,7 +266,7 @@ def test_engine_never_waits_for_a_slow_uart():
 def test_telemetry_divider_is_a_run_time_register():
     """``TELEMETRY_DIV`` (0xFE) written through ``cfg``: every third result is framed from
     then on (the counters in consecutive frames step by 3)."""
-    from mpu9250_ahrs.hdl.register_map import TELEMETRY_DIV_ADDR
+    from mpu9250_ahrs.hdl.engine.register_map import TELEMETRY_DIV_ADDR
     # the quick set-up's compiled build where it can run (cosim.quick_core_setup)
     core, _, frames, _ = run_core(quick_core_setup(), 4, baud=QUICK_CORE_BAUD,
                                   max_cycles=160_000, writes=[(TELEMETRY_DIV_ADDR, 3)],

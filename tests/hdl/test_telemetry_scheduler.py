@@ -3,7 +3,7 @@
 import pytest
 from amaranth.sim import Simulator
 
-from mpu9250_ahrs.hdl.telemetry_scheduler import TelemetryScheduler
+from mpu9250_ahrs.hdl.link.telemetry_scheduler import TelemetryScheduler
 from mpu9250_ahrs.sim.streams import check_stream_rules
 
 

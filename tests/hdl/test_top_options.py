@@ -5,7 +5,7 @@ import pytest
 from amaranth.back import verilog
 
 from mpu9250_ahrs.cli import main
-from mpu9250_ahrs.hdl.top import AHRSCore
+from mpu9250_ahrs.hdl.board.top import AHRSCore
 
 
 def test_left_out_blocks_and_their_ports_are_gone():

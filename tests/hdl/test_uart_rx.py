@@ -4,7 +4,7 @@ errors and overruns counted."""
 import pytest
 from amaranth.sim import Simulator
 
-from mpu9250_ahrs.hdl.uart_rx import UARTReceiver
+from mpu9250_ahrs.hdl.link.uart_rx import UARTReceiver
 from mpu9250_ahrs.sim.streams import check_stream_rules
 
 

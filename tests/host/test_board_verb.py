@@ -8,7 +8,7 @@ import signal
 import subprocess
 import sys
 
-from mpu9250_ahrs.hdl.filter_registry import FILTER_CODES
+from mpu9250_ahrs.hdl.contract.filter_registry import FILTER_CODES
 
 
 def _cli(*argv, timeout=120):

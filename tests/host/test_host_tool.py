@@ -12,8 +12,8 @@ import pytest
 import serial
 
 from mpu9250_ahrs.cli import main
-from mpu9250_ahrs.hdl.frame_types import ATTITUDE, FRAME_TYPES
-from mpu9250_ahrs.hdl.frame_types import payload_bytes
+from mpu9250_ahrs.hdl.link.frame_types import ATTITUDE, FRAME_TYPES
+from mpu9250_ahrs.hdl.link.frame_types import payload_bytes
 from mpu9250_ahrs.host.link import SIM_BOARDS, open_link
 from mpu9250_ahrs.host.protocol import encode_frame
 from mpu9250_ahrs.sim.board import SensorErrors, SimulatedBoard, garble, pty_baud
@@ -289,7 +289,7 @@ def test_a_board_started_twice_runs_one_simulation():
 def _burst(board, link, n, first_seq):
     """``n`` commands written at once (reads and writes of T, alternately) while telemetry
     streams; returns {seq: reply fields} of the replies that came."""
-    from mpu9250_ahrs.hdl.frame_types import REPLY
+    from mpu9250_ahrs.hdl.link.frame_types import REPLY
     from mpu9250_ahrs.host.protocol import encode_command, reply_of
     seqs = [(first_seq + k) % 256 for k in range(n)]
     data = b"".join(encode_command("write", s, addr=0x08, value=100 + k) if k % 2 else
@@ -312,7 +312,7 @@ def test_commands_sent_back_to_back_are_all_answered_or_the_loss_is_said(board):
     four, and one of ``MAX_BURST_COMMANDS``, are answered whole; a longer burst at full line
     rate cannot be (a reply is longer than a command): the bytes dropped are counted and the
     reply after them says so (``input_lost``)."""
-    from mpu9250_ahrs.hdl.command_decoder import MAX_BURST_COMMANDS
+    from mpu9250_ahrs.hdl.contract.commands import MAX_BURST_COMMANDS
     from mpu9250_ahrs.host.config import get
     with open_link(board.port) as link:
         overruns = get(link, "RX_OVERRUNS")["value"]

@@ -6,8 +6,8 @@ import random
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from mpu9250_ahrs.hdl.frame_types import ATTITUDE, FRAME_TYPES, SENSOR
-from mpu9250_ahrs.hdl.frame_types import payload_bytes
+from mpu9250_ahrs.hdl.link.frame_types import ATTITUDE, FRAME_TYPES, SENSOR
+from mpu9250_ahrs.hdl.link.frame_types import payload_bytes
 from mpu9250_ahrs.host.protocol import (FrameDecoder, corrupted_share, crc16, decode_frames,
                                         encode_command, encode_frame, unpack)
 from tests.hdl.test_telemetry import crc16_ibm_3740
@@ -135,8 +135,8 @@ def test_a_reply_to_another_command_with_the_same_seq_is_not_taken():
     """Issue #60: ``Link.command`` took the first reply whose sequence number matched; a
     CRC-good reply to another command (or another address) with that number was read as the
     value asked for (``config get T`` -> -33.3 s)."""
-    from mpu9250_ahrs.hdl.command_decoder import COMMANDS, RESULTS, SPACES
-    from mpu9250_ahrs.hdl.frame_types import REPLY, Reply
+    from mpu9250_ahrs.hdl.contract.commands import COMMANDS, RESULTS, SPACES
+    from mpu9250_ahrs.hdl.link.frame_types import REPLY, Reply
     from mpu9250_ahrs.host.link import Link
 
     def reply(command, addr, value, seq=1):

@@ -71,7 +71,7 @@ def test_recorded_stretch_with_the_field_at_100_hz():
     """As on the board: the AK8963's new fields at 100 Hz of the recording's time (one sample
     in about three at 286 Hz), the heading's and the reference's gains set for that period
     (``mag_dt``): the fixed flagship still follows the float one."""
-    from mpu9250_ahrs.hdl.numeric_contract import mag_period
+    from mpu9250_ahrs.hdl.contract.numeric_contract import mag_period
     rec = load_broad(RECORDINGS[1])
     n = 8000
     gc, ac, mc = quantise(rec.gyr[:n], rec.acc[:n], rec.mag[:n], SCALES)
@@ -94,9 +94,9 @@ def test_the_magnetometer_gains_follow_its_own_rate(odr, field_period):
     time constants are ``tau_mag`` and ``tau_ref`` seconds at any rate (at 1 kHz they were ten
     times that). A rate slower than the AK8963's brings a new field every sample."""
     import math
-    from mpu9250_ahrs.hdl.attitude_engine import default_flagship_config
-    from mpu9250_ahrs.hdl.mpu9250_driver import MPU9250Config
-    from mpu9250_ahrs.hdl.numeric_contract import FlagshipParams, svf_gain
+    from mpu9250_ahrs.hdl.engine.attitude_engine import default_flagship_config
+    from mpu9250_ahrs.hdl.sensor.mpu9250_driver import MPU9250Config
+    from mpu9250_ahrs.hdl.contract.numeric_contract import FlagshipParams, svf_gain
     p = FlagshipParams()
     regs = default_flagship_config(MPU9250Config.for_odr(odr)).registers()
     q30 = lambda tau, t: int(round((1 - math.exp(-t / tau)) * 2 ** 30))

@@ -4,8 +4,8 @@ trace as the models saw it), on both wirings and for the whole core."""
 
 import pytest
 
-from mpu9250_ahrs.hdl.defaults import DEFAULT_BAUD
-from mpu9250_ahrs.hdl.mpu9250_driver import MPU9250Config
+from mpu9250_ahrs.hdl.contract.defaults import DEFAULT_BAUD
+from mpu9250_ahrs.hdl.sensor.mpu9250_driver import MPU9250Config
 from mpu9250_ahrs.sim.compiled_design import verilator_available
 from mpu9250_ahrs.sim.cosim import (QUICK_CORE_BAUD, SimSetup, quick_core_setup, run_core,
                                     run_frontend)
@@ -107,11 +107,12 @@ def test_waveforms_from_the_compiled_path(tmp_path):
 
 def test_cache_key_covers_the_microcode():
     """A compiled build is looked up by its parameters and a hash of the package's sources:
-    those of the sub-packages (the filters' microcode in ``hdl/filters/``) are in the hash, so
-    a change to a filter's program alone builds again rather than running the old one."""
+    those of the sub-packages (the filters' microcode in ``hdl/engine/filters/``) are in the hash,
+    so a change to a filter's program alone builds again rather than running the old one."""
     from mpu9250_ahrs.sim.compiled_design import _source_files
     names = {name for name, _ in _source_files()}
-    assert {"hdl/filters/flagship.py", "hdl/attitude_engine.py", "sim/cosim.py"} <= names
+    assert {"hdl/engine/filters/flagship.py", "hdl/engine/attitude_engine.py",
+            "sim/cosim.py"} <= names
 
 
 @pytest.mark.parametrize("compiled", [True, False], ids=["compiled", "python"])

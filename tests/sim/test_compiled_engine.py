@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from mpu9250_ahrs.hdl.attitude_engine import WORST_UPDATE_CYCLES, AttitudeEngine
-from mpu9250_ahrs.hdl.register_map import CONFIG_REGS, CONTROL_ADDR, control_word
-from mpu9250_ahrs.hdl.filter_registry import FILTER_CODES
+from mpu9250_ahrs.hdl.engine.attitude_engine import WORST_UPDATE_CYCLES, AttitudeEngine
+from mpu9250_ahrs.hdl.engine.register_map import CONFIG_REGS, CONTROL_ADDR, control_word
+from mpu9250_ahrs.hdl.contract.filter_registry import FILTER_CODES
 from mpu9250_ahrs.reference.engine_model import FILTERS, attitude_fixed
 from mpu9250_ahrs.reference.frames import body_to_mag
 from mpu9250_ahrs.sim.attitude_bench import RESULT_FIELDS, first_mismatch, run_engine

@@ -6,7 +6,7 @@ design streaming again (with new magnetometer fields where the fault was the mag
 
 import pytest
 
-from mpu9250_ahrs.hdl.mpu9250_driver import BAD_BURST_LIMIT, burst_is_plausible
+from mpu9250_ahrs.hdl.sensor.mpu9250_driver import BAD_BURST_LIMIT, burst_is_plausible
 from mpu9250_ahrs.sim.faults import FAULTS, FaultInjector, catalogue_setup, fault_names, run_fault
 
 
@@ -21,7 +21,7 @@ def bound(name, setup):
     attempt = (power_up + reset) / setup.clk_freq / period
     k = timing.mag_timeout_periods(setup.config)
     ak_period = 0.01 * setup.odr_scale * (1 + setup.ak_clock_error) / period
-    from mpu9250_ahrs.hdl.i2c_controller import I2CTiming
+    from mpu9250_ahrs.hdl.sensor.i2c_controller import I2CTiming
     i2c_timeout = I2CTiming.for_clock(setup.clk_freq).timeout / setup.clk_freq / period
     spi = setup.config.wiring == "spi"
     self_test = setup.self_test_cycles() / setup.clk_freq / period
@@ -120,7 +120,7 @@ def test_rate_change_is_written_back(wiring):
     samples went unread with ``skipped`` 0 and no flag, for ever. Now the first early sample
     sets ``rate_error``, the configuration is written again (SMPLRT_DIV back to its value,
     no restart of bring-up), and the flag clears with the samples on time."""
-    from mpu9250_ahrs.hdl import mpu9250_regs as R
+    from mpu9250_ahrs.hdl.contract import mpu9250_regs as R
     setup = catalogue_setup(wiring, fault="rate_change")
     r, result = run_fault("rate_change", setup, at=AT, after=12, keep_result=True)
     assert "rate_error" in r["flags"] and "restarts" not in r["flags"], r
@@ -152,7 +152,7 @@ def test_gyro_jump_check_has_no_false_alarm_on_the_shared_trials():
     """Issue #25: the gyro jump check (``GYRO_JUMP_DPS`` between two samples) on every shared
     BROAD trial, at every full scale it is active at (its recordings at their own 286 Hz, so
     a sample is 3.5 ms: a coarser test than 1 kHz): no sample would be refused."""
-    from mpu9250_ahrs.hdl.sample_reader import gyro_jump_limit, gyro_jumps
+    from mpu9250_ahrs.hdl.sensor.sample_reader import gyro_jump_limit, gyro_jumps
     from mpu9250_ahrs.reference.recording import Scales, load_broad, quantise
     from tests.conftest import broad_files
     files = broad_files()
@@ -169,7 +169,7 @@ def test_gyro_jump_check_has_no_false_alarm_on_the_shared_trials():
 
 
 def _fast_rate_setup():
-    from mpu9250_ahrs.hdl.mpu9250_driver import MPU9250Config
+    from mpu9250_ahrs.hdl.sensor.mpu9250_driver import MPU9250Config
     from mpu9250_ahrs.sim.cosim import SimSetup
     config = MPU9250Config.for_odr(8000)
     return SimSetup(clk_freq=12e6, config=config,
@@ -214,7 +214,7 @@ def test_magnetometer_loss_raises_no_rate_alarm():
     written again) for a part that kept its rate, in the README's own example (``simulate
     --fault ak8963_lost``); the reader now allows the read's time
     (``DriverTiming.drdy_jitter_cycles``)."""
-    from mpu9250_ahrs.hdl.mpu9250_driver import MPU9250Config
+    from mpu9250_ahrs.hdl.sensor.mpu9250_driver import MPU9250Config
     from mpu9250_ahrs.sim.cosim import SimSetup
     config = MPU9250Config()
     r = run_fault("ak8963_lost", SimSetup(clk_freq=12e6, config=config,

@@ -2,7 +2,7 @@
 
 import pytest
 
-from mpu9250_ahrs.hdl import mpu9250_regs as R
+from mpu9250_ahrs.hdl.contract import mpu9250_regs as R
 from mpu9250_ahrs.sim.mpu9250_model import MPU9250Model, MPU9250Timing, ProtocolError
 from mpu9250_ahrs.sim.sources import SensorSample, counting_source, table_source
 
@@ -301,7 +301,7 @@ def test_sample_out_of_range_rejected():
 
 # -- auxiliary I2C master -------------------------------------------------------------------------
 
-from mpu9250_ahrs.hdl import ak8963_regs as A                    # noqa: E402
+from mpu9250_ahrs.hdl.contract import ak8963_regs as A           # noqa: E402
 from mpu9250_ahrs.sim.ak8963_model import AK8963Model, constant_field   # noqa: E402
 
 
@@ -395,7 +395,7 @@ def test_wait_for_es_delays_data_ready_by_the_transfer():
 def test_self_test_response_and_factory_codes():
     """SELF_TEST_* hold the factory codes (through a reset); an axis with its self-test bit
     reads its factory response, halved per full-scale step, times its gain (0: a dead axis)."""
-    from mpu9250_ahrs.hdl.self_test import otp
+    from mpu9250_ahrs.hdl.sensor.self_test import otp
     codes = (90, 94, 102, 112, 115, 108)
     m = MPU9250Model(self_test_codes=codes, self_test_gain=(1, 1, 1, 1, 0, 1))
     base = SensorSample(accel=(10, 20, 30), gyro=(-5, 0, 5))

@@ -97,7 +97,7 @@ def _opens(wave, pins, block):
 def test_front_end_waveforms_open_in_gtkwave(tmp_path, compiled, wiring):
     """Both simulators, both wirings: a VCD of the front end opens in GTKWave, the window of
     the save file on a sensor transaction."""
-    from mpu9250_ahrs.hdl.mpu9250_driver import MPU9250Config
+    from mpu9250_ahrs.hdl.sensor.mpu9250_driver import MPU9250Config
     from mpu9250_ahrs.sim.cosim import SimSetup, run_frontend
     from mpu9250_ahrs.sim.compiled_design import verilator_available
     _gtkwave()

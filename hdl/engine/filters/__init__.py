@@ -1,0 +1,51 @@
+"""The attitude engine's filters: one microcode module each, ``hdl/engine/filters/<name>.py``, for
+each name of the registry (``hdl/contract/filter_registry.py``), in its order; the microcode they
+share in ``shared.py``.
+
+A filter module has ``emit(asm, r)`` (its routine: from the calibrated sample — G, A, M, the
+zero tests' ACC_OK and MAG_OK, made before the dispatch — to QOUT, THETA and BIAS, ending in
+END or a branch to the ``angles_out`` tail), ``CONFIG_REGISTERS`` (its run-time registers,
+placed from 0x70 in the registry's order: ``hdl/engine/register_map.py``) and ``REGISTERS`` (its own
+state and working registers, allocated after the shared ones). Adding a filter: its module
+here, its name in the registry, its integer step (a module of ``reference/``, called from
+``reference/engine_model.py``) and, if it has run-time registers, their configuration in
+``numeric_contract`` (``filter_registers`` gives every filter's defaults).
+"""
+
+import importlib
+from dataclasses import dataclass
+from typing import Callable
+
+from ...contract.filter_registry import FILTER_NAMES
+
+
+__all__ = ["FilterRoutine", "routines", "config_registers", "state_registers"]
+
+
+@dataclass(frozen=True)
+class FilterRoutine:
+    """One filter of the engine: its ``name``, its ``code`` (CONTROL bits 1:0 and
+    ``AttitudeFlags.filter``) and ``emit(asm, regs)``, its routine."""
+    name: str
+    code: int
+    emit: Callable
+
+
+def _modules():
+    return [importlib.import_module(f"{__name__}.{name}") for name in FILTER_NAMES]
+
+
+def routines():
+    """The filters in ROM order (the first is reached by falling through the dispatch)."""
+    return tuple(FilterRoutine(name, code, module.emit)
+                 for code, (name, module) in enumerate(zip(FILTER_NAMES, _modules())))
+
+
+def config_registers():
+    """Every filter's run-time registers (names), in the registry's order: from 0x70."""
+    return [name for module in _modules() for name in module.CONFIG_REGISTERS]
+
+
+def state_registers():
+    """Every filter's own registers (names), in the registry's order."""
+    return [name for module in _modules() for name in module.REGISTERS]

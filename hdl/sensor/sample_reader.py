@@ -1,0 +1,690 @@
+"""Sample reader of the MPU9250 driver: a burst per data-ready edge, its checks, the sample.
+
+The rules it applies (``hdl/FAULTS.md`` has what each catches):
+
+- every burst is checked (``burst_is_plausible``, and a gyro jump of ``GYRO_JUMP_DPS`` from the
+  last sample passed on: ``gyro_jumps``): one that fails is not passed on, sets
+  ``bad_burst`` and counts in the next sample's ``skipped``; ``BAD_BURST_LIMIT`` in a row ask
+  for a restart of bring-up;
+- no data-ready edge for the time-out asks for a restart (``int_timeout``);
+- a magnetometer field is new only on ST1.DRDY after a read without it, or with bytes other
+  than the last read's; no new field for ``mag_timeout_periods`` sample periods makes it stale
+  (``mag_stale``) and asks for the magnetometer to be set up again (``mag_lost``);
+- data-ready intervals against the sample period give ``skipped`` (samples made and never read);
+  they are measured from the edge of the last burst that held a sample, so a burst without
+  RAW_RDY (a spurious INT pulse, or a line stuck low) moves nothing and samples lost meanwhile
+  show in the next interval;
+- a data-ready interval shorter than ``EARLY_FRACTION`` (7/8) of the period (less the edge's
+  allowed jitter, ``drdy_jitter_cycles``) whose burst holds a new sample means the sensor runs
+  faster than configured (SMPLRT_DIV or CONFIG changed under the driver: a glitch, a brown-out
+  of that register): ``rate_error`` is set and the reader asks for the configuration to be
+  written again (``reconfigure``, a pulse the board counts). The sample itself is real and is
+  passed on (flagged).
+"""
+
+import operator
+from functools import reduce
+from types import SimpleNamespace
+
+from amaranth import *
+from amaranth.lib import stream, wiring
+from amaranth.lib.cdc import FFSynchronizer
+from amaranth.lib.wiring import In, Out
+
+from ..primitives.clocking import ticks
+from ..contract import ak8963_regs as A
+from ..contract import mpu9250_regs as R
+from .register_port import RegisterPortSignature
+from .sample import Sample
+from .sample_store import (FIELD_LANES, OFFER_WRITES, SENSOR_BITS, SLOT_WORDS, SLOTS, STORE_BITS,
+                           STORE_WORDS, SampleStoreWriteSignature, store_places)
+
+
+__all__ = ["SAMPLE_BYTES", "MPU_BYTES", "BAD_BURST_LIMIT", "EARLY_FRACTION", "burst_is_plausible",
+           "GYRO_JUMP_DPS", "gyro_jump_limit", "gyro_jumps", "MAX_TICK_CYCLES", "tick_cycles",
+           "SampleReader"]
+
+
+SAMPLE_BYTES = 1 + R.SENSOR_BYTES + A.SAMPLE_BYTES   # INT_STATUS, accel/temp/gyro, ST1..ST2
+MPU_BYTES = 1 + R.SENSOR_BYTES
+
+# Sample bursts that fail their checks in a row before the driver restarts bring-up: one bad
+# burst is dropped and flagged; four (four sample periods) mean the data line or the part is
+# gone, and bring-up's WHO_AM_I check then says which.
+BAD_BURST_LIMIT = 4
+
+# A data-ready interval below this fraction of the configured period is early. The sensor's
+# clock is within a few per cent of its nominal rate and an edge is seen within two cycles,
+# so 7/8 leaves margin against false alarms; a rate divider that lost its value (SMPLRT_DIV
+# n -> m < n: (m + 1)/(n + 1) of the period, at most 7/8 for n <= 7, or CONFIG's DLPF off:
+# 1/8) is caught, and with a latched INT a rate too fast for the read shows as edges one
+# read apart (read time < 7/8 of the period: ``rate_budget``'s bound is the period itself).
+# Less the edge's own jitter where it has one (``SampleReader``'s ``drdy_jitter_cycles``: with
+# WAIT_FOR_ES, data-ready waits for the magnetometer's read, which a NACK cuts short).
+EARLY_FRACTION = (7, 8)
+
+
+def burst_is_plausible(burst):
+    """The check every sample burst passes before it becomes a sample (the gateware computes
+    the same): ``burst`` is INT_STATUS followed by the fourteen accel/temp/gyro bytes. It fails
+    when RAW_RDY is 0 (the registers hold no new sample: a data line stuck low reads all
+    zeros), when INT_STATUS reads 0xFF (its reserved bits read 0 on a working part) or when
+    the fourteen data bytes are all 0xFF (a data line stuck high or floating)."""
+    status, data_bytes = burst[0], burst[1:MPU_BYTES]
+    return bool(status & R.INT_STATUS_RAW_RDY) and status != 0xFF and \
+        not all(b == 0xFF for b in data_bytes)
+
+
+# A change of angular rate no rigid body behind the gyro's low-pass makes within one sample:
+# 1000 °/s from one sample to the next. The shared BROAD trials change by 274 °/s at most
+# (trial 24, tapping, at 286 Hz: 4,497 counts at ±2000 °/s). A bit flipped on the data line in
+# the top bits of a gyro word (the flips whose rate error, integrated, would tilt the attitude
+# by a degree or more at 1 kHz) is a larger jump; lower bits do not matter to the attitude.
+GYRO_JUMP_DPS = 1000
+
+
+def gyro_jump_limit(gyro_fs_dps):
+    """The jump, in counts at the full scale ``gyro_fs_dps``, that fails a burst: a power of
+    two (the gateware tests the bits above it), or None where it is beyond the words' range
+    (±500 °/s and less: no check). ±2000 °/s: 16,384 counts (1000 °/s); ±1000: 32,768."""
+    counts = GYRO_JUMP_DPS * 32768 / gyro_fs_dps
+    limit = 1 << (round(counts) - 1).bit_length()
+    return limit if limit <= 32768 else None
+
+
+def gyro_jumps(previous, gyro, limit):
+    """True where a gyro triple (counts) jumped on some axis from the ``previous`` one (the
+    gateware's check, for arrays of N × 3): by ``limit`` or more up, by more than ``limit``
+    down. The gateware tests whether the difference lies in [-limit, limit), two's
+    complement's range: its bits from log2(limit) up all equal its sign."""
+    import numpy as np
+    if limit is None:
+        return np.zeros(len(gyro), bool)
+    delta = np.asarray(gyro, np.int64) - np.asarray(previous, np.int64)
+    return np.any((delta >= limit) | (delta < -limit), axis=-1)
+
+
+# The longest tick: at low sample rates 1/64 of a period would be milliseconds, and the
+# bring-up sequencer's waits (a millisecond between the self-test's reads) and the command
+# decoder's time-out count the same tick; 1,024 cycles is 21 µs at 48 MHz.
+MAX_TICK_CYCLES = 1024
+
+
+def tick_cycles(period_cycles):
+    """The cycles of the reader's tick (``SampleReader.tick``): about 1/64 of the sample
+    period, at most ``MAX_TICK_CYCLES``, which its interval clocks and time-outs count (and
+    the driver's bring-up timer and the core's command time-out)."""
+    return max(1, min(period_cycles // 64, MAX_TICK_CYCLES))
+
+
+class SampleReader(wiring.Component):
+    """Reads a nine-axis sample per data-ready edge while ``enable``.
+
+    Parameters
+        ``wiring``: "spi" (one fast burst of ``SAMPLE_BYTES`` from INT_STATUS: the AK8963's bytes
+            are in EXT_SENS_DATA) or "i2c" (the MPU9250's ``MPU_BYTES``, then the AK8963's eight
+            from ST1 directly). ``int_active_low``: the INT pin's polarity; ``int_latched``:
+            INT is latched until INT_STATUS is read (else a 50 µs pulse). ``gyro_jump``:
+            ``gyro_jump_limit`` of the full scale (None: no check): a burst whose gyro moved
+            that far on an axis from the last sample passed on fails its checks.
+        ``magnetometer``: the configuration has one (else no freshness check).
+        ``period_cycles``: the sample period. ``first_timeout_cycles``: the data-ready time-out
+            after streaming starts; ``timeout_cycles`` after each sample (each counted in
+            ticks, ``tick_cycles``: it lasts its cycles to two ticks more).
+        ``mag_timeout_periods``: sample periods without a new field before it is stale.
+        ``drdy_jitter_cycles`` (0): how much sooner a data-ready edge may come from a part that
+            keeps its rate: an interval is early under ``EARLY_FRACTION`` of the period less
+            this (rounded up to 4 ticks of its clocks: a sixteenth of a period at most), but
+            never under half a period (``DriverTiming.drdy_jitter_cycles``: with WAIT_FOR_ES,
+            the I2C master's read of the AK8963, which ends at once on a NACK).
+    Members
+        ``port`` (a register port's client side): the reader's commands.
+        ``int_pin`` (in): INT, raw (synchronised here).
+        ``samples`` (out, stream of ``Sample``): one per burst that passes its checks; valid
+            never waits for ready: a sample read while the last is still offered is dropped,
+            and the next one carries ``flags.overrun`` and counts it in ``skipped``.
+        ``enable`` (in): read samples (bring-up is done). ``start`` (in, pulse): streaming
+            begins (a data-ready already active counts as an edge). ``restarted`` (in, pulse):
+            bring-up was restarted: the next sample carries ``flags.resumed``.
+        ``mag_ok`` (in): the magnetometer is up; ``mag_setup`` (in): it is being set up (its
+            time-out waits).
+        ``restart`` (out, pulse): no data-ready for the time-out, or ``BAD_BURST_LIMIT`` bad
+            bursts in a row. ``reconfigure`` (out, pulse): a sample came early (above).
+            ``mag_lost`` (out, pulse): no new field for the time-out.
+            ``mag_nack`` (out, pulse): the AK8963's read failed (I2C wiring).
+        ``int_timeout``, ``bad_burst``, ``mag_stale``, ``read_error``, ``rate_error`` (out):
+            status, as ``DriverStatus`` has them (``read_error``: the MPU9250's read failed,
+            I2C; ``rate_error``: the last sample came early, cleared by one on time).
+            ``reconfigure`` is also the pulse per early sample that the board counts
+            (RATE_ERRORS, in the command decoder's counters).
+        ``tick`` (out): a pulse every ``tick_cycles(period_cycles)`` cycles, free-running (the
+            prescaler of its clocks and time-outs; the driver's sequencer counts it too).
+        ``store`` (out, ``SampleStoreWriteSignature``): the burst's sensor bytes, written into
+            the sample store's slot as they arrive (``hdl/sensor/sample_store.py``), and, in the
+            cycles after a sample's ``valid`` rose (two, four if its magnetometer is not up),
+            the payload's other words and, so, zeros over its field (as ``mag`` in the
+            payload): the slot holds the payload from the fifth cycle of ``valid``.
+            ``sample_slot`` (out): the store's slot of the sample offered, beside ``samples``
+            (it changes only as a sample is offered, and holds while it is valid).
+
+    Latency: a sample is valid two cycles after its last byte. Throughput: one sample per
+    data-ready edge, as fast as the bus reads them (a read starts ten cycles after the last
+    check at the soonest: the sample count's update, ``_counts``).
+    """
+
+    def __init__(self, *, wiring="spi", int_active_low=False, int_latched=True, magnetometer=True,
+                 gyro_jump=None, period_cycles, first_timeout_cycles, timeout_cycles,
+                 mag_timeout_periods, drdy_jitter_cycles=0):
+        self.wiring = wiring
+        self.drdy_jitter_cycles = drdy_jitter_cycles
+        self.int_active_low = int_active_low
+        self.int_latched = int_latched
+        self.gyro_jump = gyro_jump
+        self.magnetometer = magnetometer
+        self.period_cycles = period_cycles
+        self.first_timeout_cycles = first_timeout_cycles
+        self.timeout_cycles = timeout_cycles
+        self.mag_timeout_periods = mag_timeout_periods
+        super().__init__({
+            "port": Out(RegisterPortSignature().flip()),
+            "int_pin": In(1),
+            "samples": Out(stream.Signature(Sample)),
+            "enable": In(1), "start": In(1), "restarted": In(1),
+            "mag_ok": In(1), "mag_setup": In(1),
+            "restart": Out(1), "reconfigure": Out(1), "mag_lost": Out(1), "mag_nack": Out(1),
+            "int_timeout": Out(1), "bad_burst": Out(1), "mag_stale": Out(1),
+            "read_error": Out(1), "rate_error": Out(1),
+            "tick": Out(1),
+            "store": Out(SampleStoreWriteSignature()),
+            "sample_slot": Out(range(SLOTS), init=SLOTS - 1),
+        })
+
+    def elaborate(self, platform):
+        m = Module()
+        spi = self.wiring == "spi"
+
+        # -- bytes of the burst -------------------------------------------------------------------
+        port = self.port
+        # reset-less: a sample is only read once all its bytes are in
+        buf = Array(Signal(8, name=f"rx{i}", reset_less=True) for i in range(SAMPLE_BYTES))
+        rx_index = Signal(range(SAMPLE_BYTES + 1))
+        m.d.comb += [port.rx.ready.eq(1), port.rsp.ready.eq(1)]
+        with m.If(port.rx.valid & (rx_index < SAMPLE_BYTES)):
+            m.d.sync += [buf[rx_index].eq(port.rx.payload), rx_index.eq(rx_index + 1)]
+
+        # the parts below share their signals and helpers through ``n``
+        n = SimpleNamespace()
+        (n.spi, n.port, n.buf, n.rx_index) = (
+            spi, port, buf, rx_index)
+        self._interrupt(m, n)
+        self._judging(m, n)
+        self._sample_register(m, n)
+        self._burst_checks(m, n)
+        self._store(m, n)
+        self._states(m, n)
+        return m
+
+    def _store(self, m, n):
+        """The sample store's writes: each sensor byte of the burst into the slot being
+        written (``n.written``) as it arrives; then, once a sample is offered (``n.after`` set
+        to 1 by the check that offers it), a word a cycle into its slot: the payload's words
+        after the sensor fields (``counter``, ``flags``, ``skipped``), and, if its
+        magnetometer is not up (``n.zero_field``), zeros over its field. Bytes and these
+        writes never meet: a burst's first byte comes a command and a bus transfer after the
+        check (sixteen cycles at the least)."""
+        rx, store = n.port.rx, self.store
+        n.written = written = Signal(range(SLOTS))
+        places = store_places(SAMPLE_BYTES, MPU_BYTES)
+        word, lane, placed = Signal(range(SLOT_WORDS)), Signal(2), Signal()
+        with m.Switch(n.rx_index):
+            for index, (w, k) in places.items():
+                with m.Case(index):
+                    m.d.comb += [word.eq(w), lane.eq(k), placed.eq(1)]
+        # the writes after an offer: (word, lanes, data); the field's zeros last
+        bits = Cat(self.samples.payload.as_value(), C(0, 32 * STORE_WORDS - STORE_BITS))
+        writes = [(k, 0xF, bits[32 * k:32 * k + 32])
+                  for k in range(SENSOR_BITS // 32, STORE_WORDS)]
+        tail = len(writes)
+        writes += [(w, lanes, C(0, 32)) for w, lanes in FIELD_LANES]
+        assert len(writes) == OFFER_WRITES
+        # the writes after an offer, one-hot (``n.after``'s bit k: write k now), so that each
+        # write's address, lanes and word are chosen by a bit of a register, an AND-OR, not
+        # by a decoder of a count in front of every bit of the data
+        n.after = after = Signal(len(writes))
+        n.zero_field = zero_field = Signal()
+        # a byte's write is the address and data unless an offer's write chooses them (the
+        # byte is gated by ``after`` being 0: an offer's writes and the bytes never meet, but
+        # the receiver's payload holds its last byte)
+        busy = after.any()
+        m.d.comb += [
+            store.w_addr.eq(Cat(reduce(operator.or_, (Mux(after[k], w, 0)
+                                                      for k, (w, _, _) in enumerate(writes)),
+                                       Mux(busy, 0, word)),
+                                Mux(busy, self.sample_slot, written))),
+            store.w_data.eq(reduce(operator.or_, (Mux(after[k], value, 0)
+                                                  for k, (_, _, value) in enumerate(writes)),
+                                   Mux(busy, 0, rx.payload.replicate(4)))),
+            store.w_en.eq(reduce(operator.or_, (Mux(after[k], lanes, 0)
+                                                for k, (_, lanes, _) in enumerate(writes)),
+                                 Mux(rx.valid & (n.rx_index < SAMPLE_BYTES) & placed & ~busy,
+                                     1 << lane, 0))),
+        ]
+        # the next write, or none after the last (after the payload's words if the field
+        # needs no zeros)
+        m.d.sync += after.eq(Cat(C(0, 1), after[:-1]) &
+                             Mux(zero_field, C(-1, len(writes)), C((1 << tail) - 1, len(writes))))
+
+    def _burst_checks(self, m, n):
+        """The checks that look at every byte, made as the bytes come in (one comparator and
+        one subtractor for the burst, not one per byte and per axis): whether the fourteen
+        data bytes are all 0xFF (``n.data_ones``), and whether a gyro word moved by
+        ``gyro_jump`` or more from the sample passed on (``n.gyro_moved``; that sample changes
+        only at a burst's check, so it holds still while the burst is read)."""
+        rx, rx_index, sample = n.port.rx, n.rx_index, n.sample
+        n.data_ones = data_ones = Signal()
+        n.gyro_moved = gyro_moved = Signal()
+        arriving = Signal()
+        m.d.comb += arriving.eq(rx.valid & (rx_index < SAMPLE_BYTES))
+        with m.If(arriving & (rx_index >= 1) & (rx_index < MPU_BYTES)):
+            m.d.sync += data_ones.eq(data_ones & (rx.payload == 0xFF))
+        if self.gyro_jump is None:
+            return
+        # new - last passed on outside [-2**b, 2**b): the 17-bit difference's bits b..16 are
+        # not all its sign (``gyro_jumps``); each word is judged when its low byte comes,
+        # its high byte the one before
+        b = self.gyro_jump.bit_length() - 1
+        is_low = [rx_index == 1 + 8 + 2 * axis + 1 for axis in range(3)]
+        axis = Signal(range(3))
+        m.d.comb += axis.eq(Mux(is_low[0], 0, Mux(is_low[1], 1, 2)))
+        high = Signal(8, reset_less=True)      # the byte before this one: the word's high
+        with m.If(arriving):
+            m.d.sync += high.eq(rx.payload)
+        new = Cat(rx.payload, high).as_signed()
+        delta = Signal(signed(17))
+        m.d.comb += delta.eq(new - Array(sample.gyro)[axis])
+        top = delta[b:17]
+        with m.If(arriving & Cat(*is_low).any()):
+            with m.If(~((top == 0) | top.all())):
+                m.d.sync += gyro_moved.eq(1)
+
+
+    def _interrupt(self, m, n):
+        """The data-ready edges, and the clocks that measure the intervals between them."""
+        # -- interrupt ----------------------------------------------------------------------------
+        int_sync = Signal()
+        m.submodules.int_sync = FFSynchronizer(self.int_pin, int_sync)
+        int_active, int_prev, int_edge, int_pending = Signal(), Signal(), Signal(), Signal()
+        m.d.comb += [int_active.eq(int_sync ^ int(self.int_active_low)),
+                     int_edge.eq(int_active & ~int_prev)]
+        m.d.sync += int_prev.eq(int_active)
+        with m.If(int_edge):
+            m.d.sync += int_pending.eq(1)
+
+        # Sensor samples missed and samples too early, from data-ready edges: one sample period
+        # apart; an interval of n periods (rounded: a clock's phase starts half a period in)
+        # means n - 1 samples made and never read (e.g. a latched INT still high from the
+        # sample before); one under ``EARLY_FRACTION`` of a period means the part runs faster
+        # than it was told. Intervals are measured from the edge of the last burst that held a
+        # sample (``since_sample``), so a spurious pulse (its burst has no RAW_RDY: nothing
+        # was made) moves nothing. ``since_edge`` runs from the edge of the burst in flight (or the
+        # latest), ``since_next`` from an edge that came while a burst was being read: that
+        # one is judged at the burst's check, early if the burst held a sample (a read ends
+        # well within a period, ``rate_budget``), else against the base before it.
+        # The clocks count in ticks of about 1/64 of a period (one prescaler for all; at
+        # most ``MAX_TICK_CYCLES``, so more at low rates): the rounding to whole periods and
+        # the 7/8 threshold need no finer time, and a clock is then 10 bits, not 20 (1 kHz,
+        # 48 MHz). ``steps`` ticks make a period, within half a tick.
+        tick_len = tick_cycles(self.period_cycles)
+        steps = max(2, round(self.period_cycles / tick_len))
+        prescale = Signal(range(tick_len))
+        step = Signal()                         # a tick of the clocks
+        m.d.comb += step.eq(prescale == tick_len - 1)
+        m.d.sync += prescale.eq(Mux(step, 0, prescale + 1))
+        counters = [(Signal(range(steps), name=f"{n}_phase"), Signal(4, name=f"{n}_periods"))
+                    for n in ("sample", "edge", "next")]
+        since_sample, since_edge, since_next = counters
+
+        def advanced(clock):
+            """``clock``'s value after this cycle's count."""
+            ph, pe = clock
+            wrap = step & (ph == steps - 1)
+            return (Mux(wrap, 0, ph + step),
+                    Mux(wrap & (pe != 15), pe + 1, pe))
+
+        for clock in counters:
+            m.d.sync += [c.eq(v) for c, v in zip(clock, advanced(clock))]
+        phase, periods = since_sample
+        tick = Signal()                         # a sample period has gone by
+        m.d.comb += tick.eq(step & (phase == steps - 1))
+        skipped = Signal(4)                     # for the sample this edge announces
+        early = Signal()                        # this edge came < EARLY_FRACTION of a period
+        seen_edge = Signal()                    # ``since_sample`` is a base
+        pending_edge = Signal()                 # ``int_pending`` came from an edge
+        read_edge = Signal()                    # the burst in flight was started by an edge
+        deferred = Signal()                     # an edge came while it was read
+        deferred_base = (Signal.like(phase), Signal.like(periods))   # ``since_sample`` then
+        dropped = Signal(4)                     # read but not passed on (consumer busy, checks)
+        num, den = EARLY_FRACTION
+        # t < f*P - J with periods == 1 (at least half a period: then periods == 0 only), J
+        # the data-ready edge's allowed jitter (``drdy_jitter_cycles``) in the clocks' ticks;
+        # with a jitter, rounded down to a multiple of 4 ticks (a sixteenth of a period more
+        # allowance at most), so that the comparison leaves out the phase's two low bits
+        jitter_ticks = -(-self.drdy_jitter_cycles // tick_len)
+        early_phase = steps * (2 * num - den) // (2 * den)
+        if jitter_ticks:
+            early_phase = max(0, early_phase - jitter_ticks) // 4 * 4
+        reading = Signal()                      # a burst in flight, before its check
+
+        def restart_clock(clock):
+            m.d.sync += [clock[0].eq(steps // 2), clock[1].eq(0)]
+
+        def copy_clock(dst, src):
+            """``dst`` takes ``src``'s value, advanced by this cycle's count."""
+            m.d.sync += [d.eq(v) for d, v in zip(dst, advanced(src))]
+        (n.int_active, n.int_edge, n.int_pending, n.since_sample, n.since_edge, n.since_next,
+         n.phase, n.periods, n.tick, n.skipped, n.early, n.seen_edge, n.pending_edge, n.read_edge,
+         n.deferred, n.deferred_base, n.dropped, n.early_phase, n.reading, n.restart_clock,
+         n.copy_clock) = (
+            int_active, int_edge, int_pending, since_sample, since_edge, since_next, phase,
+            periods, tick, skipped, early, seen_edge, pending_edge, read_edge, deferred,
+            deferred_base, dropped, early_phase, reading, restart_clock, copy_clock)
+        n.step, n.tick_len = step, tick_len
+        m.d.comb += self.tick.eq(step)
+
+
+    def _judging(self, m, n):
+        """Judging an edge's interval (samples skipped, too early), and what a burst's start
+        and check do to the clocks."""
+        (phase, periods, int_edge, read_edge, seen_edge, reading, restart_clock, since_next,
+         since_edge, since_sample, pending_edge, copy_clock, deferred, skipped, early, int_pending,
+         deferred_base, early_phase) = (
+            n.phase, n.periods, n.int_edge, n.read_edge, n.seen_edge, n.reading, n.restart_clock,
+            n.since_next, n.since_edge, n.since_sample, n.pending_edge, n.copy_clock, n.deferred,
+            n.skipped, n.early, n.int_pending, n.deferred_base, n.early_phase)
+        # one judge for the three places an edge is judged (the last that applies wins, as
+        # a statement would): the interval and whether its base is known, then the figures
+        judging = Signal()
+        judged = (Signal.like(phase), Signal.like(periods))
+        judged_ok = Signal()
+
+        def judge(interval, base_ok):
+            """(skipped, early) for an edge ``interval`` (phase, periods) after a base."""
+            m.d.comb += [judging.eq(1), judged_ok.eq(base_ok),
+                         *(j.eq(v) for j, v in zip(judged, interval))]
+
+        with m.If(judging):
+            ph, pe = judged
+            m.d.sync += [skipped.eq(Mux(judged_ok & (pe > 1), pe - 1, 0)),
+                         early.eq(judged_ok & ((pe == 0) | ((pe == 1) & (ph < early_phase))))]
+
+        snap_edge = (Signal.like(phase), Signal.like(periods))      # ``since_edge`` then
+        with m.If(int_edge):
+            m.d.sync += [int_pending.eq(1), pending_edge.eq(1)]
+            with m.If(reading):
+                restart_clock(since_next)
+                m.d.sync += [deferred.eq(1), deferred_base[0].eq(phase),
+                             deferred_base[1].eq(periods), snap_edge[0].eq(since_edge[0]),
+                             snap_edge[1].eq(since_edge[1])]
+            with m.Else():
+                restart_clock(since_edge)
+                judge(since_sample, seen_edge)
+
+        def read_started():
+            m.d.sync += [read_edge.eq(pending_edge), pending_edge.eq(int_edge)]
+
+        def checked(spurious):
+            """A burst's check. If it held a sample, intervals are measured from its edge
+            (a base only if an edge started its read: the one at ``start``, or one made again
+            for a level still high, has no known edge). An edge that came during its read is
+            judged now: from this burst's edge if it held a sample, else from the base."""
+            with m.If(~spurious):
+                m.d.sync += seen_edge.eq(read_edge)
+                copy_clock(since_sample, since_edge)
+            base_ok = Mux(~spurious, read_edge, seen_edge)
+            with m.If(int_edge):                    # an edge in this very cycle
+                restart_clock(since_edge)
+                m.d.sync += deferred.eq(0)
+                judge([Mux(~spurious, e, b) for e, b in zip(since_edge, since_sample)],
+                      base_ok)
+            with m.Elif(deferred):
+                copy_clock(since_edge, since_next)
+                m.d.sync += deferred.eq(0)
+                judge([Mux(~spurious, e, b) for e, b in zip(snap_edge, deferred_base)],
+                      base_ok)
+        (n.read_started, n.checked) = (
+            read_started, checked)
+
+
+    def _sample_register(self, m, n):
+        """The sample offered, the time-outs, the start and the magnetometer's freshness."""
+        (int_active, port, int_pending, seen_edge, pending_edge, deferred, skipped, early, tick) = (
+            n.int_active, n.port, n.int_pending, n.seen_edge, n.pending_edge, n.deferred,
+            n.skipped, n.early, n.tick)
+        # the sample offered: written whole before it is offered, so no reset (on a MAX10 a
+        # synchronous reset costs logic per bit)
+        sample = Signal.like(self.samples.payload, reset_less=True)
+        m.d.comb += self.samples.payload.eq(sample)
+        gyro_jumped = Signal()                  # the gyro moved too far (``gyro_jump``)
+        have_base = Signal()                    # a sample was passed on since ``start``
+        # The data-ready time-outs count the clocks' ticks (``n.step``, about 1/64 of a
+        # period), not cycles: a 12-bit count rather than a 22-bit one (at 48 MHz and 1 kHz).
+        # ``ticks``: at least the time-out (with ticks of a cycle, one cycle more)
+        first_ticks, after_ticks = (ticks(cycles, n.tick_len, exact=cycles + 1) for cycles in
+                                    (self.first_timeout_cycles, self.timeout_cycles))
+        n.after_ticks = after_ticks
+        timer = Signal(range(max(first_ticks, after_ticks) + 1))
+        m.d.sync += timer.eq(timer - (n.step & (timer != 0)))
+        counter = self._counts(m, n)            # samples read since power-on
+        overrun = Signal()
+        resumed = Signal()
+        bad_bursts = Signal(range(BAD_BURST_LIMIT + 1))
+        with m.If(self.restarted):
+            m.d.sync += resumed.eq(1)
+        with m.If(self.start):
+            # a latched INT already active gives no edge: it counts as one
+            m.d.sync += [timer.eq(first_ticks), int_pending.eq(int_active),
+                         seen_edge.eq(0), pending_edge.eq(0), deferred.eq(0), skipped.eq(0),
+                         early.eq(0), bad_bursts.eq(0), have_base.eq(0)]
+
+        # -- magnetometer freshness ---------------------------------------------------------------
+        limit = self.mag_timeout_periods
+        mag_age = Signal(range(limit + 1))      # sample periods since the last new field
+        if self.magnetometer:
+            with m.If(self.start | self.mag_setup):
+                m.d.sync += mag_age.eq(0)
+            with m.Elif(self.enable & tick):
+                with m.If(mag_age == limit - 1):
+                    # flagged at once, whatever the reader is doing; the set-up runs beside it
+                    m.d.comb += self.mag_lost.eq(1)
+                    m.d.sync += [self.mag_stale.eq(1), mag_age.eq(0)]
+                with m.Else():
+                    m.d.sync += mag_age.eq(mag_age + 1)
+        prev_field = Signal(7 * 8, reset_less=True)     # HX..HZ and ST2 of the previous read
+        prev_drdy = Signal()                            # and its ST1.DRDY
+        mag_read_failed = Signal()                      # I2C: this sample's AK8963 read
+
+        with m.If(self.samples.valid & self.samples.ready):
+            m.d.sync += self.samples.valid.eq(0)
+
+        def command(device, reg, length):
+            p = port.cmd.payload
+            m.d.comb += [port.cmd.valid.eq(1), p.device.eq(device), p.reg.eq(reg),
+                         p.length.eq(length), p.fast.eq(1)]
+
+        # A command once offered stays offered until taken (a stream's rule), even if
+        # ``enable`` drops or ``start`` clears the pending edge meanwhile: its sample is then
+        # read and passed on as usual.
+        offered = Signal()
+        m.d.sync += offered.eq(port.cmd.valid & ~port.cmd.ready)
+        (n.sample, n.gyro_jumped, n.have_base, n.timer, n.counter, n.overrun, n.resumed,
+         n.bad_bursts, n.mag_age, n.prev_field, n.prev_drdy, n.mag_read_failed, n.command,
+         n.offered) = (
+            sample, gyro_jumped, have_base, timer, counter, overrun, resumed, bad_bursts, mag_age,
+            prev_field, prev_drdy, mag_read_failed, command, offered)
+
+
+    def _states(self, m, n):
+        """The reader's states: waiting for an edge, the burst's reads, its check."""
+        (reading, command, checked, rx_index, spi, sample, buf, counter, overrun, dropped, skipped,
+         resumed, prev_field, prev_drdy, mag_age, mag_read_failed, offered, read_started, timer,
+         gyro_jumped, have_base, early, int_pending, int_edge, port, bad_bursts, int_active,
+         pending_edge) = (
+            n.reading, n.command, n.checked, n.rx_index, n.spi, n.sample, n.buf, n.counter,
+            n.overrun, n.dropped, n.skipped, n.resumed, n.prev_field, n.prev_drdy, n.mag_age,
+            n.mag_read_failed, n.offered, n.read_started, n.timer, n.gyro_jumped, n.have_base,
+            n.early, n.int_pending, n.int_edge, n.port, n.bad_bursts, n.int_active, n.pending_edge)
+        with m.FSM() as fsm:
+            m.d.comb += reading.eq(fsm.ongoing("READ_MPU") | fsm.ongoing("MAG_CMD") |
+                                   fsm.ongoing("READ_MAG"))
+            with m.State("IDLE"):
+                m.d.sync += [rx_index.eq(0), n.data_ones.eq(1), n.gyro_moved.eq(0)]
+                with m.If(offered | (self.enable & int_pending & ~n.counting_busy)):
+                    command(0, R.INT_STATUS, SAMPLE_BYTES if spi else MPU_BYTES)
+                    with m.If(port.cmd.ready):
+                        m.d.sync += [int_pending.eq(int_edge), mag_read_failed.eq(0)]
+                        read_started()
+                        m.next = "READ_MPU"
+                with m.Elif(self.enable & ~self.start & (timer == 0)):
+                    m.d.sync += self.int_timeout.eq(1)
+                    m.d.comb += self.restart.eq(1)
+                    m.next = "HALT"
+            with m.State("HALT"):
+                # until bring-up has restarted (``enable`` drops)
+                with m.If(~self.enable):
+                    m.next = "IDLE"
+            with m.State("READ_MPU"):
+                with m.If(port.rsp.valid):
+                    with m.If(port.rsp.payload.error):
+                        # the read failed on the bus (I2C): no sample; a restart if it persists.
+                        # It never reached INT_STATUS, so a latched INT is still active and will
+                        # give no new edge: read again at once.
+                        m.d.sync += [buf[0].eq(0), self.read_error.eq(1),
+                                     int_pending.eq(int_pending | int_active)]
+                        m.next = "CHECK"
+                    with m.Else():
+                        m.next = "CHECK"
+                        if not spi:                 # the AK8963 is a second read on this bus
+                            # only for a burst with a sample (RAW_RDY): a spurious pulse's read
+                            # of it took the AK8963's new field (reading ST2 ends it) into a
+                            # burst dropped, and the next came two AK8963 periods later, past
+                            # the magnetometer's time-out at 200 Hz: a false "lost" (#60)
+                            with m.If(self.mag_ok & buf[0][0]):
+                                m.next = "MAG_CMD"
+            with m.State("MAG_CMD"):
+                command(1, A.ST1, A.SAMPLE_BYTES)
+                with m.If(port.cmd.ready):
+                    m.next = "READ_MAG"
+            with m.State("READ_MAG"):
+                with m.If(port.rsp.valid):
+                    # a failed read leaves the bytes stale: no field this sample
+                    m.next = "CHECK"
+                    with m.If(port.rsp.payload.error):
+                        m.d.comb += self.mag_nack.eq(1)
+                        m.d.sync += mag_read_failed.eq(1)
+            with m.State("CHECK"):
+                m.d.sync += [n.counting.eq(1),
+                             timer.eq(n.after_ticks), self.int_timeout.eq(0)]
+                m.next = "IDLE"
+                plausible = buf[0][0] & (buf[0] != 0xFF) & ~n.data_ones
+                if self.gyro_jump is not None:
+                    m.d.comb += gyro_jumped.eq(have_base & n.gyro_moved)
+                    plausible = plausible & ~gyro_jumped
+                # no RAW_RDY: no new sample in this burst (a spurious INT pulse, a read made
+                # again) or none readable (a line stuck low reads zeros): either way the
+                # intervals from the last sample's edge count what was lost, not ``dropped``
+                spurious = ~buf[0][0]
+                checked(spurious)
+                if self.int_latched:
+                    # after a spurious pulse's burst, a latched INT still active means a
+                    # sample is waiting that gave no edge (it rose under the pulse): read
+                    # again (once per such burst: a line stuck high still times out)
+                    with m.If(spurious & int_active & ~int_pending & ~int_edge):
+                        m.d.sync += [int_pending.eq(1), pending_edge.eq(0)]
+                with m.If(~plausible):
+                    m.d.sync += [self.bad_burst.eq(1), bad_bursts.eq(bad_bursts + 1)]
+                    with m.If(~spurious):     # a sample was made and lost
+                        m.d.sync += dropped.eq(Mux(dropped == 15, 15, dropped + 1))
+                    with m.If(bad_bursts == BAD_BURST_LIMIT - 1):
+                        m.d.comb += self.restart.eq(1)
+                        m.d.sync += bad_bursts.eq(0)
+                        m.next = "HALT"
+                with m.Else():
+                    m.d.sync += [self.bad_burst.eq(0), bad_bursts.eq(0),
+                                 self.rate_error.eq(early)]
+                    with m.If(early):
+                        # a new sample too soon: the part runs faster than it was told
+                        m.d.comb += self.reconfigure.eq(1)
+                    if not spi:
+                        m.d.sync += self.read_error.eq(0)
+                    self._emit(m, sample, buf, counter, overrun, dropped, skipped, resumed,
+                               prev_field, prev_drdy, mag_age, mag_read_failed)
+                    with m.If(~self.samples.valid):
+                        # this one is the payload now: its slot offered, the next written
+                        m.d.sync += [have_base.eq(1), self.sample_slot.eq(n.written),
+                                     n.written.eq(Mux(n.written == SLOTS - 1, 0,
+                                                      n.written + 1)),
+                                     n.after.eq(1),
+                                     n.zero_field.eq(~self.mag_ok | mag_read_failed)]
+
+    def _counts(self, m, n):
+        """The samples read (returned: 32 bits, wrapping): a check (``n.counting`` set) is
+        counted in the nine cycles after it, a nibble a cycle in the last eight: the count
+        turns once through a 4-bit adder (not a 32-bit incrementer) while
+        ``n.counting_busy``, and the next read is not started meanwhile (the count is read at
+        a check, which a read precedes)."""
+        head = Signal(32)                       # the count of samples read
+        n.counting = Signal()
+        carry = Signal()
+        steps = Signal(range(len(head) // 4 + 1))     # the nibbles still to go
+        n.counting_busy = n.counting | (steps != 0)
+        with m.If(steps != 0):
+            nibble = head[:4] + carry
+            m.d.sync += [head.eq(Cat(head[4:], nibble[:4])), carry.eq(nibble[4]),
+                         steps.eq(steps - 1)]
+        with m.If(n.counting):
+            m.d.sync += [steps.eq(len(head) // 4), carry.eq(1), n.counting.eq(0)]
+        return head
+
+    def _emit(self, m, sample, buf, counter, overrun, dropped, skipped, resumed, prev_field,
+              prev_drdy, mag_age, mag_read_failed):
+        """A burst that passed its checks becomes the sample (or, with the last still offered,
+        a dropped one). The magnetometer's freshness is decided here."""
+        def be16(k):
+            return Cat(buf[k + 1], buf[k]).as_signed()
+
+        def le16(k):
+            return Cat(buf[k], buf[k + 1]).as_signed()
+
+        st1, st2 = buf[MPU_BYTES], buf[MPU_BYTES + 7]
+        field = Cat(*(buf[MPU_BYTES + 1 + k] for k in range(6)), st2)
+        mag_up = self.mag_ok & ~mag_read_failed
+        # ST1.DRDY after a read without it is a new measurement (reading ST2 clears DRDY);
+        # DRDY again with the same bytes as the last read is an old one read again (the I2C
+        # master left EXT_SENS_DATA alone: a NACK, or reads paced to every n-th sample)
+        mag_new = mag_up & st1[0] & (~prev_drdy | (field != prev_field))
+        with m.If(mag_up):
+            m.d.sync += [prev_field.eq(field), prev_drdy.eq(st1[0])]
+        with m.If(mag_new):
+            m.d.sync += [mag_age.eq(0), self.mag_stale.eq(0)]
+        hofl = st2[3]
+        with m.If(self.samples.valid):
+            m.d.sync += [overrun.eq(1), dropped.eq(Mux(dropped == 15, 15, dropped + 1))]
+        with m.Else():
+            p = sample
+            m.d.sync += [self.samples.valid.eq(1), overrun.eq(0), resumed.eq(0),
+                         p.counter.eq(counter), dropped.eq(0),
+                         # after a restart the time since the last sample is unknown
+                         p.skipped.eq(Mux(resumed, 0, Mux(skipped + dropped > 15, 15,
+                                                          skipped + dropped))),
+                         p.flags.data_ready.eq(buf[0][0]),
+                         p.flags.overrun.eq(overrun),
+                         p.flags.resumed.eq(resumed),
+                         p.flags.mag_new.eq(mag_new),
+                         p.flags.mag_dor.eq(mag_new & st1[1]),
+                         p.flags.mag_overflow.eq(mag_new & hofl),
+                         p.flags.mag_valid.eq(mag_new & ~hofl),
+                         p.temp.eq(be16(1 + 6))]
+            for axis in range(3):
+                m.d.sync += [p.accel[axis].eq(be16(1 + 2 * axis)),
+                             p.gyro[axis].eq(be16(1 + 8 + 2 * axis)),
+                             p.mag[axis].eq(Mux(mag_up, le16(MPU_BYTES + 1 + 2 * axis), 0))]
