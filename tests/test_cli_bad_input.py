@@ -453,9 +453,14 @@ ENTRY_POINTS = [
 def _entry(args, **kw):
     import subprocess
     import sys
+    import signal
     module = "mpu9250_ahrs" + (f".{args[0]}" if args[0] else "")     # "": the verbs
+    # SIGINT as a terminal delivers it, whoever started the tests (a process started by one
+    # that ignores SIGINT, a script's background job, inherits that and ignores Ctrl-C)
     return subprocess.Popen([sys.executable, "-m", module, *args[1:]],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, **kw)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+                            **kw)
 
 
 def test_python_m_entry_points_bad_arguments():

@@ -17,8 +17,12 @@ def _cli(*argv, timeout=120):
 
 
 def test_config_then_monitor_against_one_board(tmp_path):
+    # Ctrl-C as in a terminal: a process started by one that ignores SIGINT (a script's
+    # background job, a CI runner) inherits that, and Python then keeps ignoring it (the
+    # board ran on, and the test hung in communicate)
     board = subprocess.Popen([sys.executable, "-m", "mpu9250_ahrs", "board", "--seconds", "300"],
-                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         line = board.stdout.readline()
         assert line.startswith("simulated board on /dev/"), line
