@@ -207,8 +207,9 @@ def test_damaged_commands_change_nothing(seed, damage):
                 frame = frame[:rng.randrange(3, len(frame))]
                 # the host goes quiet: the time-out runs from the last byte the decoder
                 # took, and it takes one every two cycles, so the bytes still in its FIFO
-                # (at most FIFO_DEPTH) add to the host's silence
-                gaps[len(data) + len(frame)] = TIMEOUT + 10 + 2 * FIFO_DEPTH
+                # (at most those sent so far, and FIFO_DEPTH) add to the host's silence
+                sent = len(data) + len(frame)
+                gaps[sent] = TIMEOUT + 10 + 2 * min(FIFO_DEPTH, sent)
             elif damage == "noise":
                 frame = bytearray(rng.randbytes(len(frame)))
             else:
