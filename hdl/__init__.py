@@ -17,8 +17,9 @@ subsystem. A wing imports only itself and the wings below it, in the data's dire
 - ``primitives``: ``memories``, ``multiplier``, ``clocking``;
 - ``contract``: plain data shared with ``reference/`` and the host, no Amaranth: the numeric
   contract ``numeric_contract``, the register maps ``mpu9250_regs``, ``ak8963_regs``, the
-  filters' names and codes ``filter_registry``, the defaults the command line shares
-  (``defaults``).
+  filters' names and codes ``filter_registry``, the command channel's tables ``commands``, the
+  PWM block's registers ``pwm_regs``, the self-test's axes ``self_test_axes``, the defaults
+  the command line shares (``defaults``).
 
 Nothing here imports ``sim/`` or ``reference/`` (``tests/test_imports.py``).
 """

@@ -215,3 +215,19 @@ def test_the_host_tool_imports_no_simulation():
            if m.startswith("mpu9250_ahrs.host") for t in sorted(targets)
            if t.startswith("mpu9250_ahrs.sim")]
     assert not bad, "\n".join(bad)
+
+
+# What the host tool reads of the gateware: the contract wing and the frame layouts, and (until
+# it is lifted into the contract: it is built from the instruction set and the filters'
+# modules) the engine's register map
+HOST_MAY_READ = ("mpu9250_ahrs.hdl.contract", "mpu9250_ahrs.hdl.link.frame_types",
+                 "mpu9250_ahrs.hdl.engine.register_map")
+
+
+def test_the_host_reads_only_the_contract_and_the_frame_layouts():
+    graph = _import_graph(_modules())
+    bad = sorted(f"{module} imports {target}" for module, targets in graph.items()
+                 if module.startswith("mpu9250_ahrs.host") for target in targets
+                 if target.startswith("mpu9250_ahrs.hdl") and
+                 not target.startswith(HOST_MAY_READ))
+    assert not bad, "the host reads gateware beyond the contract:\n" + "\n".join(bad)

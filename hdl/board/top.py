@@ -60,7 +60,8 @@ from ..link.command_decoder import CommandDecoder
 from ..engine.config_port_arbiter import ConfigPortArbiter
 from ..link.frame_arbiter import FrameArbiter
 from ..link.frame_types import ATTITUDE, REPLY, SENSOR
-from ..link.pwm import PWM_CHANNELS, PWMOutputs
+from ..contract.pwm_regs import PWM_CHANNELS
+from ..link.pwm import PWMOutputs
 from ..link.frame_types import (CRC, AttitudeFrame, Reply, SensorFrame, TelemetryCounters,
                                 frame_bytes)
 from ..link.telemetry import TelemetryFramer

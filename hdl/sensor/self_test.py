@@ -44,13 +44,12 @@ from ..primitives.memories import FrameRAM
 from ..primitives.multiplier import BLACKBOX_NAME
 
 
-__all__ = ["otp", "mpu_axis_passes", "mag_axis_passes", "SelfTest", "TestByte", "AXES",
-           "SUM_INDEX",
+__all__ = ["otp", "mpu_axis_passes", "mag_axis_passes", "SelfTest", "TestByte", "SUM_INDEX",
            "CODE_INDEX", "MAG_INDEX", "GYRO_CODE0", "ACCEL_CODE0", "MAG_LIMITS"]
 
 
-# the bits of ``SelfTest.fail`` (and ``DriverStatus.self_test_fail``), in order
-AXES = ("accel_x", "accel_y", "accel_z", "gyro_x", "gyro_y", "gyro_z", "mag_x", "mag_y", "mag_z")
+# the bits of ``SelfTest.fail`` (and ``DriverStatus.self_test_fail``) are in the order of the
+# contract's ``self_test_axes.AXES``
 SUM_INDEX, CODE_INDEX, MAG_INDEX = 0, 16, 24
 GYRO_CODE0 = 15719          # 2·|S| > 15719: |S| ≥ 7860 LSB (60 °/s at ±250 °/s)
 ACCEL_CODE0 = 7373          # 2·|S| > 7373 and < 22119: 3687 ≤ |S| ≤ 11059 (225, 675 mg at ±2 g)

@@ -1,7 +1,7 @@
 """``config``: read and write the board's registers by name, in physical units."""
 
 from ..hdl.contract.filter_registry import FILTER_CODES
-from ..hdl.link.pwm import MOTOR_MAX_HZ, PERIOD_BITS, PWM_CHANNELS, SERVO_PERIOD_US
+from ..hdl.contract.pwm_regs import MOTOR_MAX_HZ, PERIOD_BITS, PWM_CHANNELS, SERVO_PERIOD_US
 from .link import BoardError
 from .regmap import from_word, lookup, to_word
 

@@ -7,7 +7,7 @@ import time
 from ..hdl.contract.filter_registry import FILTER_NAMES
 from ..hdl.link.frame_types import ATTITUDE, SENSOR
 from ..hdl.link.frame_types import AttitudeFrame
-from ..hdl.sensor.self_test import AXES as SELF_TEST_AXES
+from ..hdl.contract.self_test_axes import AXES as SELF_TEST_AXES
 from .protocol import unpack
 
 
@@ -112,7 +112,7 @@ def _live_line(link, count, elapsed, ftype, fields):
     status = fields["status"]
     flags = [k for k, v in status.items() if v and k not in ("restarts", "self_test_fail",
                                                                 "streaming", "mag_ok")]
-    # the axes that failed their self-test, by name (hdl/sensor/self_test.py: AXES)
+    # the axes that failed their self-test, by name (hdl/contract/self_test_axes.py: AXES)
     flags += [f"self_test:{axis}" for i, axis in enumerate(SELF_TEST_AXES)
               if status.get("self_test_fail", 0) >> i & 1]
     text = f"{count} frames {rate:6.1f}/s"

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 from ..hdl.engine.register_map import CONFIG_REGS, CONTROL_ADDR, HOST_WRITABLE
 from ..hdl.contract.commands import BOARD_REGS
-from ..hdl.link.pwm import PWM_REGS
+from ..hdl.contract.pwm_regs import PWM_REGS
 
 
 __all__ = ["Register", "REGISTERS", "lookup", "to_word", "from_word", "value_range"]

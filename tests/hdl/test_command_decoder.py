@@ -16,7 +16,8 @@ from mpu9250_ahrs.hdl.contract.commands import (BOARD_REGS, COMMANDS, REGMAP_VER
 from mpu9250_ahrs.hdl.link.command_decoder import (COMMAND_STATS, COUNTED, COUNTER_WORDS,
                                                    FIFO_DEPTH, CommandDecoder, counter_word)
 from mpu9250_ahrs.hdl.sensor.driver_status import SelfTestStatus
-from mpu9250_ahrs.hdl.link.pwm import PWM_REGS, PWMOutputs
+from mpu9250_ahrs.hdl.contract.pwm_regs import PWM_REGS
+from mpu9250_ahrs.hdl.link.pwm import PWMOutputs
 from mpu9250_ahrs.host.protocol import encode_command, encode_frame, to_python
 from mpu9250_ahrs.sim.streams import check_stream_rules
 

@@ -4,7 +4,8 @@ reset and while disabled, the command watchdog."""
 from amaranth.sim import Simulator
 from hypothesis import example, given, settings, strategies as st
 
-from mpu9250_ahrs.hdl.link.pwm import PWM_REGS, PWMOutputs
+from mpu9250_ahrs.hdl.contract.pwm_regs import PWM_REGS
+from mpu9250_ahrs.hdl.link.pwm import PWMOutputs
 
 CLK = 4e6          # 4 cycles a µs; the motor period's minimum is 200 cycles (20 kHz)
 
