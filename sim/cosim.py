@@ -594,15 +594,11 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
         payload_layout = data.Layout.cast(dut.samples.payload.shape())
         status_layout = data.Layout.cast(dut.status.shape())
         try:
-            frontend_loop(design, models,
-                          lambda c, v, p, st: observe(c, v, data.Const(payload_layout, p),
-                                                      data.Const(status_layout, st)),
-                          max_cycles, ready=ready)
-        except KeyboardInterrupt:
-            if not keep_on_interrupt:
-                raise
-            out["interrupted"] = True
-            out["status"], out["cycles"] = last["status"], design.cycle
+            out["interrupted"] = _run_interruptible(lambda: frontend_loop(
+                design, models,
+                lambda c, v, p, st: observe(c, v, data.Const(payload_layout, p),
+                                            data.Const(status_layout, st)),
+                max_cycles, ready=ready), keep_on_interrupt)
         except Done:
             from ..host.protocol import unpack
             out["asa"] = unpack(dut.asa.shape(), design.get("asa"))
@@ -610,13 +606,15 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
             out["who_am_i"] = design.get("who_am_i")
             out["self_test"] = unpack(dut.self_test.shape(), design.get("self_test"))
             check_monitors(design, harness)
+        if out.get("interrupted"):
+            out["status"], out["cycles"] = last["status"], design.cycle
         if trace:
             design.close()                  # the waveform complete
     elif trace:
         with trace.python_writer(sim):
-            out["interrupted"] = _run_interruptible(sim, keep_on_interrupt)
+            out["interrupted"] = _run_interruptible(sim.run, keep_on_interrupt)
     else:
-        out["interrupted"] = _run_interruptible(sim, keep_on_interrupt)
+        out["interrupted"] = _run_interruptible(sim.run, keep_on_interrupt)
     traced_to = out["cycles"]
     if out.get("interrupted") and not compiled:
         out["status"], out["cycles"] = last["status"], out.get("seen", 0)
@@ -632,11 +630,11 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
                        bool(out.get("interrupted")))
 
 
-def _run_interruptible(sim, keep):
-    """``sim.run()``; True if Ctrl-C ended it and ``keep``: the caller keeps what was
-    simulated (without ``keep`` the interrupt goes on up)."""
+def _run_interruptible(run, keep):
+    """``run()`` (a simulator's run, a compiled loop); True if Ctrl-C ended it and ``keep``:
+    the caller keeps what was simulated (without ``keep`` the interrupt goes on up)."""
     try:
-        sim.run()
+        run()
     except KeyboardInterrupt:
         if not keep:
             raise
@@ -841,15 +839,13 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
             out["samples"].append(unpack(offered.payload.shape(), bits))
             if trace:
                 trace.at_sample(len(out["samples"]), design.cycle)
-        try:
-            end = core_loop(design, core, PinModels(setup.clk_freq, mpu=model, bus=bus),
-                            divisor=core.uart.divisor, received=received, record=record,
-                            more_wanted=more_wanted, max_cycles=max_cycles, writes=writes,
-                            progress=progress, offered=offered_sample)
-        except KeyboardInterrupt:
-            if not keep_on_interrupt:
-                raise
-            out["interrupted"], end = True, design.cycle
+        ended = []                          # the loop's last cycle, unless interrupted
+        out["interrupted"] = _run_interruptible(lambda: ended.append(core_loop(
+            design, core, PinModels(setup.clk_freq, mpu=model, bus=bus),
+            divisor=core.uart.divisor, received=received, record=record,
+            more_wanted=more_wanted, max_cycles=max_cycles, writes=writes, progress=progress,
+            offered=offered_sample)), keep_on_interrupt)
+        end = ended[0] if ended else design.cycle
         out["end"] = (end, *(unpack(v.shape(), design.get(name)) for name, v in
                              (("counters", core.counters), ("status", core.status),
                               ("asa", core.asa))))
@@ -859,9 +855,9 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
             design.close()                  # the waveform complete
     elif trace:
         with trace.python_writer(sim):
-            out["interrupted"] = _run_interruptible(sim, keep_on_interrupt)
+            out["interrupted"] = _run_interruptible(sim.run, keep_on_interrupt)
     else:
-        out["interrupted"] = _run_interruptible(sim, keep_on_interrupt)
+        out["interrupted"] = _run_interruptible(sim.run, keep_on_interrupt)
     if out["end"] is None:              # Ctrl-C in Amaranth's simulator: its last result
         out["end"] = (max(out["cycles"], default=0), {}, {}, [])
     if trace:
