@@ -222,20 +222,23 @@ class DriverTiming:
         period is (a simulation compresses the I2C master's transfers alike). 0 otherwise."""
         if config.wiring != "spi" or not config.magnetometer or config.aux_every != 1:
             return 0
-        scale = self.period_s(config) * config.output_data_rate
-        # the I2C master's clock as bring-up sets it (I2C_MST_CTRL's I2C_MST_CLK_400KHZ)
-        hz = R.I2C_MST_CLK_KHZ[R.I2C_MST_CLK_400KHZ] * 1e3
-        return cycles(AK8963_READ_BITS / hz * scale, clk_freq)
+        return self._aux_bits_cycles(AK8963_READ_BITS, clk_freq, config)
 
     def aux_idle_cycles(self, clk_freq, config):
         """The longest cycle of the MPU9250's I2C master as bring-up sets it (SPI wiring):
         SLV0's read of the AK8963 and an SLV4 transfer (``SLV4_BITS``) at 400 kHz, scaled as
         the period is; at least the AK8963's power-down wait. A magnetometer set-up waits it
         out before it clears I2C_MST_STATUS (``bring_up_program``)."""
+        return max(self._aux_bits_cycles(AK8963_READ_BITS + SLV4_BITS, clk_freq, config),
+                   cycles(self.mag_power_down_s, clk_freq))
+
+    def _aux_bits_cycles(self, bits, clk_freq, config):
+        """``bits`` on the MPU9250's auxiliary I2C bus at the clock bring-up sets
+        (I2C_MST_CTRL's I2C_MST_CLK_400KHZ), in cycles, scaled as the period is (a simulation
+        compresses the I2C master's transfers alike)."""
         scale = self.period_s(config) * config.output_data_rate
         hz = R.I2C_MST_CLK_KHZ[R.I2C_MST_CLK_400KHZ] * 1e3
-        return max(cycles((AK8963_READ_BITS + SLV4_BITS) / hz * scale, clk_freq),
-                   cycles(self.mag_power_down_s, clk_freq))
+        return cycles(bits / hz * scale, clk_freq)
 
     def int_timeout(self, config):
         """The data-ready time-out before the first sample, in seconds."""
