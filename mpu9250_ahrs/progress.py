@@ -5,11 +5,13 @@ so logs, pipes and tests see the same output as before. ``bar(total, desc, unit)
 tqdm bar, or an object with the same methods that does nothing; ``steps(names, desc)`` a bar
 over named steps (``next(name)`` moves it on) whose elapsed time moves while a step runs, and
 off a terminal (unless quiet) one line on stderr per step and a line a minute within one: the
-synthesis and place-and-route steps it is used for take minutes. The simulators take any object with ``update(n)`` and
-``set_postfix_str(text)``.
+synthesis and place-and-route steps it is used for take minutes. The simulators take any
+object with ``update(n)`` and ``set_postfix_str(text)``.
 """
 
 import sys
+import threading
+import time
 
 
 __all__ = ["set_quiet", "enabled", "bar", "steps", "NullBar"]
@@ -65,16 +67,12 @@ class _Steps:
     HEARTBEAT_S = 60.0
 
     def __init__(self, names, desc):
-        import threading
-        import time
-        self._time = time.monotonic
-        self.names, self.desc = names, desc
-        self.bar = bar(len(names), desc, "step")
+        self.total, self.desc = len(names), desc
+        self.bar = bar(self.total, desc, "step")
         self.lines = not enabled() and not _quiet
-        self.started = False
-        self.count = 0
+        self.count = 0                  # steps begun
         self.name = ""
-        self.t0 = self.step_t0 = self.last_line = self._time()
+        self.t0 = self.step_t0 = self.last_line = time.monotonic()
         self._stop = threading.Event()
         self._thread = None
         if not isinstance(self.bar, NullBar) or self.lines:
@@ -82,7 +80,7 @@ class _Steps:
             self._thread.start()
 
     def _elapsed(self, since):
-        seconds = int(self._time() - since)
+        seconds = int(time.monotonic() - since)
         return f"{seconds // 60}:{seconds % 60:02d}"
 
     def _tick(self):
@@ -92,24 +90,22 @@ class _Steps:
             return
         # a line once a step or the last line is ``HEARTBEAT_S`` old
         while not self._stop.wait(min(1.0, self.HEARTBEAT_S)):
-            if self.started and self._time() - self.last_line >= self.HEARTBEAT_S:
-                self.last_line = self._time()
+            if self.count and time.monotonic() - self.last_line >= self.HEARTBEAT_S:
+                self.last_line = time.monotonic()
                 print(f"{self.desc}: {self.name}: still running, "
                       f"{self._elapsed(self.step_t0)} in this step", file=sys.stderr,
                       flush=True)
 
     def next(self, name):
-        if self.started:
+        if self.count:
             self.bar.update(1)
-        self.started = True
         self.count += 1
         self.name = name
-        self.step_t0 = self.last_line = self._time()
+        self.step_t0 = self.last_line = time.monotonic()
         self.bar.set_postfix_str(name)
         if self.lines:
             # a job may name sub-steps of its few (the ECP5 build's): no count for those
-            label = f"step {self.count}/{len(self.names)}: " if \
-                self.count <= len(self.names) else ""
+            label = f"step {self.count}/{self.total}: " if self.count <= self.total else ""
             print(f"{self.desc}: {label}{name} ({self._elapsed(self.t0)} since start)",
                   file=sys.stderr, flush=True)
 

@@ -72,14 +72,20 @@ def _allowed(folder, package, module):
 @pytest.mark.parametrize("folder", sorted(FOLDERS))
 def test_imports_go_one_way(folder):
     bad = []
-    # sub-packages too (``hdl/engine/filters/``)
+    for path, _inner, line, package, module in _folder_imports(folder):
+        if not _allowed(folder, package, module):
+            target = package if module is None else f"{package}.{module}"
+            bad.append(f"{path.relative_to(ROOT)}:{line} imports {target}")
+    assert not bad, "forbidden import direction:\n" + "\n".join(bad)
+
+
+def _folder_imports(folder):
+    """``(path, inner, line, package, module)`` for every import in ``folder``'s modules,
+    sub-packages too (``hdl/engine/filters/``); ``inner``: the path's sub-package parts."""
     for path in sorted(FOLDERS[folder].rglob("*.py")):
         inner = path.parent.relative_to(FOLDERS[folder]).parts
         for line, package, module in _imports(path, ".".join((folder, *inner))):
-            if not _allowed(folder, package, module):
-                target = package if module is None else f"{package}.{module}"
-                bad.append(f"{path.relative_to(ROOT)}:{line} imports {target}")
-    assert not bad, "forbidden import direction:\n" + "\n".join(bad)
+            yield path, inner, line, package, module
 
 
 def test_contract_modules_are_plain_python():
@@ -99,16 +105,11 @@ def test_hdl_wings_import_downward_only():
     assert sorted(p.name for p in hdl.iterdir() if p.is_dir() and p.name != "__pycache__") == \
         sorted(WING_ORDER)
     bad = []
-    for path in sorted(hdl.rglob("*.py")):
-        inner = path.parent.relative_to(hdl).parts
-        if not inner:
-            continue
-        wing = inner[0]
-        for line, package, target in _imports(path, ".".join(("hdl", *inner))):
-            if package == "hdl" and target is not None and \
-                    WING_ORDER.index(target) < WING_ORDER.index(wing):
-                bad.append(f"{path.relative_to(ROOT)}:{line} ({wing}) imports the {target} "
-                           f"wing, above it")
+    for path, inner, line, package, target in _folder_imports("hdl"):
+        if inner and package == "hdl" and target is not None and \
+                WING_ORDER.index(target) < WING_ORDER.index(inner[0]):
+            bad.append(f"{path.relative_to(ROOT)}:{line} ({inner[0]}) imports the {target} "
+                       f"wing, above it")
     assert not bad, "an import back up between wings:\n" + "\n".join(bad)
 
 

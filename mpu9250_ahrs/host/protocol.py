@@ -167,8 +167,7 @@ def answers(fields, name, seq, *, addr=None, space="engine", **_):
     code, _n = COMMANDS[name]
     if fields["cmd_seq"] != seq or fields["command"] != code:
         return False
-    if name in ("write", "read") and \
-            fields["result"] & ~RESULT_INPUT_LOST != RESULTS["bad_command"]:
+    if name in ("write", "read") and _result_code(fields) != RESULTS["bad_command"]:
         return fields["addr"] == (SPACES[space] << 8) | addr
     return True
 
@@ -178,9 +177,13 @@ def reply_of(fields):
     ``input_lost``: the board dropped bytes from the host before this command (its input
     FIFO full: ``RESULT_INPUT_LOST``), so commands sent since the last reply may have had
     none."""
-    code = fields["result"] & ~RESULT_INPUT_LOST
-    return {**fields, "result_name": RESULT_NAMES.get(code, "unknown"),
+    return {**fields, "result_name": RESULT_NAMES.get(_result_code(fields), "unknown"),
             "input_lost": bool(fields["result"] & RESULT_INPUT_LOST)}
+
+
+def _result_code(fields):
+    """A reply's result code (``RESULTS``), without the ``RESULT_INPUT_LOST`` bit."""
+    return fields["result"] & ~RESULT_INPUT_LOST
 
 
 def corrupted_share(trials=20_000, *, seed=0, flips=(1, 2, 3, 4)):
