@@ -275,8 +275,8 @@ def cycles_per_update(samples=6):
     from .hdl.engine.register_map import CONTROL_ADDR, control_word
     from .hdl.contract.filter_registry import FILTER_CODES
     from .reference.frames import body_to_mag
-    from .sim.attitude_bench import run_engine
-    from .sim.motion import SensorModel, static
+    from .sim.scenarios.attitude_bench import run_engine
+    from .sim.models.motion import SensorModel, static
 
     sensor = SensorModel(seed=1, gyro_noise=math.radians(0.05), accel_noise=0.02, mag_noise=0.3)
     gc, ac, mc = sensor.counts(static((30, -20, 100), samples / 100))
@@ -301,7 +301,8 @@ def drdy_to_attitude_us(clk_freq, config, results=21):
     worst of all. Real bus and engine timing; only the waits of bring-up and the sample
     period are compressed, which the latency does not depend on."""
     from .hdl.contract.defaults import DEFAULT_BAUD
-    from .sim.cosim import SimSetup, run_core
+    from .sim.scenarios.setup import SimSetup
+    from .sim.scenarios.core import run_core
     setup = SimSetup(clk_freq=clk_freq, config=config,
                      odr_scale=SimSetup.default_odr_scale(config, clk_freq))
     # the telemetry divider for the shortened sample period, as ``simulate`` has it: the same

@@ -1,5 +1,5 @@
 """What the ``python -m`` tools of the package (``reference.soak``, ``host.protocol``,
-``sim.benchmark``, ``sim.faults``, ``sim.speed``) share with the command line's verbs: a bad
+``sim.scenarios.benchmark``, ``sim.scenarios.faults``, ``sim.scenarios.speed``) share with the command line's verbs: a bad
 argument is argparse's one usage line, an error while running one ``PROG: error: ...`` line
 (exit 2), Ctrl-C one ``PROG: interrupted`` line (exit 130), never a traceback. Here, where
 every folder that has such a tool may import it (``tests/test_imports.py``)."""

@@ -289,7 +289,7 @@ def test_replay_without_scored_samples_prints_null(capsys, tmp_path):
 
 
 def test_simulate_fault_list(capsys):
-    from mpu9250_ahrs.sim.faults import FAULTS
+    from mpu9250_ahrs.sim.scenarios.faults import FAULTS
     code, out, err = run(["simulate", "--fault", "list"], capsys)
     assert code == 0
     assert [line.split()[0] for line in out.splitlines()] == list(FAULTS)
@@ -381,7 +381,7 @@ def test_host_verbs_bad_input(capsys, tmp_path):
 
 
 def test_benchmark_bad_recording(tmp_path, capsys):
-    from mpu9250_ahrs.sim.benchmark import main as benchmark
+    from mpu9250_ahrs.sim.scenarios.benchmark import main as benchmark
     bad = tmp_path / "bad.hdf5"
     bad.write_text("not HDF5")
     for path in (str(tmp_path / "missing.hdf5"), str(bad)):
@@ -393,7 +393,7 @@ def test_benchmark_checks_its_output_paths_first(tmp_path, capsys):
     """Issue #29: the benchmark's --json/--figure folders are made before the trials run, and
     a folder given for a file is one error line before any work (a missing recording would
     otherwise be the first error)."""
-    from mpu9250_ahrs.sim.benchmark import main as benchmark
+    from mpu9250_ahrs.sim.scenarios.benchmark import main as benchmark
     missing = str(tmp_path / "missing.hdf5")
     code = benchmark([missing, "--no-fixed", "--json", str(tmp_path)])
     assert_one_error(code, capsys.readouterr().err, "not a writable file path")
@@ -445,8 +445,8 @@ ENTRY_POINTS = [
     (["reference.soak", "--samples", "-1"], "--samples: -1 is less than 1"),
     (["host.protocol", "abc"], "'abc' is not a whole number"),
     (["host.protocol", "-5"], "-5 is less than 1"),
-    (["sim.benchmark", "x.hdf5", "--jobs", "0"], "--jobs: 0 is less than 1"),
-    (["sim.faults", "--wiring", "usb"], "invalid choice"),
+    (["sim.scenarios.benchmark", "x.hdf5", "--jobs", "0"], "--jobs: 0 is less than 1"),
+    (["sim.scenarios.faults", "--wiring", "usb"], "invalid choice"),
 ]
 
 
@@ -479,9 +479,9 @@ def test_python_m_entry_points_ctrl_c_is_one_line():
     import signal
     import time
     from tests.conftest import broad_files
-    long_runs = [["reference.soak", "--samples", "100000000"], ["sim.faults"]]
+    long_runs = [["reference.soak", "--samples", "100000000"], ["sim.scenarios.faults"]]
     if broad_files():
-        long_runs.append(["sim.benchmark", broad_files()[0], "--jobs", "2"])
+        long_runs.append(["sim.scenarios.benchmark", broad_files()[0], "--jobs", "2"])
     procs = [_entry(args) for args in long_runs]
     time.sleep(6)                                   # imported and working
     for proc in procs:
@@ -535,7 +535,7 @@ def test_simulate_ctrl_c_keeps_what_was_simulated(tmp_path):
     lines = out.strip().splitlines()
     samples = [json.loads(line) for line in lines if line.startswith('{"counter"')]
     summary = json.loads(next(line for line in lines if '"interrupted"' in line))
-    # (how many depends on the machine's load: tests/sim/test_compiled_board.py counts them)
+    # (how many depends on the machine's load: tests/sim/test_compiled_bench.py counts them)
     assert summary["interrupted"] is True and summary["samples"] == len(samples)
     assert err.strip().splitlines()[-1] == (f"mpu9250-ahrs simulate: interrupted; kept what "
                                             f"was simulated ({len(samples)} samples)")

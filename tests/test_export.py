@@ -128,10 +128,10 @@ def test_simulate_command(tmp_path, capsys):
     assert summary["self_test"] == {"done": 1, "mag_done": 1, "fail": 0}
     assert summary["who_am_i"] == 0x71
     assert vcd.stat().st_size > 0 and (tmp_path / "x.gtkw").is_file()
-    from mpu9250_ahrs.sim.compiled_design import verilator_available
+    from mpu9250_ahrs.sim.bench.compiled_design import verilator_available
     # waveforms from the compiled path too (a build that traces); the save file's traces
     # are in the VCD (a traced run equals an untraced one: the slow step,
-    # tests/sim/test_compiled_board.py)
+    # tests/sim/test_compiled_bench.py)
     assert summary["simulator"] == ("compiled (Verilator)" if verilator_available()
                                     else "python (Amaranth)")
     text = vcd.read_text()
@@ -144,7 +144,7 @@ def test_simulate_command(tmp_path, capsys):
         re.search(rf"\$var \w+ +\d+ \S+ {re.escape(t)}(?: \[[\d:]+\])? \$end", header)
         for t in traced), traced
     # and GTKWave itself opens it with the save file: no parse error, every trace found
-    from mpu9250_ahrs.sim.waveforms import GTKWAVE_HINT, gtkwave_check
+    from mpu9250_ahrs.sim.bench.waveforms import GTKWAVE_HINT, gtkwave_check
     require_tool("gtkwave", GTKWAVE_HINT)
     require_tool("xvfb-run", GTKWAVE_HINT)
     opened = gtkwave_check(vcd, tmp_path / "x.gtkw")
@@ -152,7 +152,7 @@ def test_simulate_command(tmp_path, capsys):
     assert {"cs_n", "sclk", "cipo", "streaming", "mag_ok"} <= set(opened["traces"]), opened
     # it opens on the first sensor transaction (chip select low to high) at a readable scale:
     # from [timestart], 2**-zoom time units per 200 pixels of a 1000-pixel wave area
-    from mpu9250_ahrs.sim.waveforms import GTKW_WIDTH_PX
+    from mpu9250_ahrs.sim.bench.waveforms import GTKW_WIDTH_PX
     start = int(re.search(r"^\[timestart\] (\d+)$", gtkw, re.M).group(1))
     zoom = float(re.search(r"^\*(-?[\d.]+) ", gtkw, re.M).group(1))
     end = start + 2 ** -zoom * GTKW_WIDTH_PX / 200
@@ -170,7 +170,7 @@ def test_simulate_i2c_wiring(capsys):
     summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert summary["wiring"] == "i2c" and summary["violations"] == []
     assert summary["status"]["mag_ok"] == 1
-    from mpu9250_ahrs.sim.compiled_design import verilator_available
+    from mpu9250_ahrs.sim.bench.compiled_design import verilator_available
     assert summary["simulator"] == ("compiled (Verilator)" if verilator_available()
                                     else "python (Amaranth)")
 
@@ -190,9 +190,10 @@ def test_simulated_period_is_shortened_only_where_the_design_keeps_up(
     14 that the design reads at the real rate."""
     from mpu9250_ahrs.hdl.sensor.mpu9250_driver import MPU9250Config
     from mpu9250_ahrs.hdl.board.top import rate_budget
-    from mpu9250_ahrs.sim import cosim
+    from mpu9250_ahrs.sim.scenarios import frontend
+    from mpu9250_ahrs.sim.scenarios.setup import SimSetup
     config = MPU9250Config(wiring=wiring, smplrt_div=smplrt_div)
-    assert cosim.SimSetup.default_odr_scale(config, clk_freq) == scale
+    assert SimSetup.default_odr_scale(config, clk_freq) == scale
     period = 0.2 * clk_freq / config.output_data_rate
     assert (period >= 2 * rate_budget(config, clk_freq)["cycles_per_sample"]) == (scale == 0.2)
     seen = {}
@@ -200,7 +201,7 @@ def test_simulated_period_is_shortened_only_where_the_design_keeps_up(
     def run_frontend(setup, **kwargs):
         seen["scale"] = setup.odr_scale
         raise _Stop
-    monkeypatch.setattr(cosim, "run_frontend", run_frontend)
+    monkeypatch.setattr(frontend, "run_frontend", run_frontend)
     with pytest.raises(_Stop):
         main(["simulate", "--samples", "1", "--clk-freq", str(clk_freq), "--wiring", wiring,
               "--smplrt-div", str(smplrt_div), "--baud", "9600"])
@@ -212,13 +213,13 @@ def test_simulated_period_is_shortened_only_where_the_design_keeps_up(
 def test_simulate_leaves_out_what_build_does(option, left_out, monkeypatch):
     """``simulate --attitude`` takes ``build``'s --no-pwm and --no-commands: the core it
     simulates is the one built (such cores run in tests/hdl/test_top_options.py)."""
-    from mpu9250_ahrs.sim import cosim
+    from mpu9250_ahrs.sim.scenarios import core
     seen = {}
 
     def run_core(setup, **kwargs):
         seen.update(kwargs["core_kwargs"])
         raise _Stop
-    monkeypatch.setattr(cosim, "run_core", run_core)
+    monkeypatch.setattr(core, "run_core", run_core)
     with pytest.raises(_Stop):
         main(["simulate", "--samples", "1", "--attitude", "--no-self-test", option])
     assert {k: seen.get(k) for k in left_out} == left_out

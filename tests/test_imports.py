@@ -97,17 +97,23 @@ def test_contract_modules_are_plain_python():
         assert "amaranth" not in path.read_text(), path.name
 
 
-def test_hdl_wings_import_downward_only():
-    """Every module of ``hdl/`` is in a wing (the package's ``__init__`` aside), and a wing
-    imports only its own and the wings after it in ``WING_ORDER``."""
-    hdl = FOLDERS["hdl"]
-    assert sorted(p.name for p in hdl.glob("*.py")) == ["__init__.py"]
-    assert sorted(p.name for p in hdl.iterdir() if p.is_dir() and p.name != "__pycache__") == \
-        sorted(WING_ORDER)
+# sim/'s wings, top floor first: scenarios (what is simulated) use the benches (how), which
+# drive the models (what the design talks to)
+SIM_WING_ORDER = ("scenarios", "bench", "models")
+
+
+@pytest.mark.parametrize("folder,order", [("hdl", WING_ORDER), ("sim", SIM_WING_ORDER)])
+def test_wings_import_downward_only(folder, order):
+    """Every module of ``hdl/`` and of ``sim/`` is in a wing (the package's ``__init__``
+    aside), and a wing imports only its own and the wings after it in its order."""
+    top = FOLDERS[folder]
+    assert sorted(p.name for p in top.glob("*.py")) == ["__init__.py"]
+    assert sorted(p.name for p in top.iterdir() if p.is_dir() and p.name != "__pycache__") == \
+        sorted(order)
     bad = []
-    for path, inner, line, package, target in _folder_imports("hdl"):
-        if inner and package == "hdl" and target is not None and \
-                WING_ORDER.index(target) < WING_ORDER.index(inner[0]):
+    for path, inner, line, package, target in _folder_imports(folder):
+        if inner and package == folder and target is not None and \
+                order.index(target) < order.index(inner[0]):
             bad.append(f"{path.relative_to(ROOT)}:{line} ({inner[0]}) imports the {target} "
                        f"wing, above it")
     assert not bad, "an import back up between wings:\n" + "\n".join(bad)
@@ -127,7 +133,9 @@ PACKAGE_DIRS = {"mpu9250_ahrs": ROOT / "mpu9250_ahrs", "mpu9250_ahrs.hdl": ROOT 
                 **{f"mpu9250_ahrs.hdl.{wing}": ROOT / "hdl" / wing for wing in WING_ORDER},
                 "mpu9250_ahrs.hdl.engine.filters": ROOT / "hdl" / "engine" / "filters",
                 "mpu9250_ahrs.cli": ROOT / "mpu9250_ahrs" / "cli",
-                "mpu9250_ahrs.sim": ROOT / "sim", "mpu9250_ahrs.reference": ROOT / "reference",
+                "mpu9250_ahrs.sim": ROOT / "sim",
+                **{f"mpu9250_ahrs.sim.{wing}": ROOT / "sim" / wing for wing in SIM_WING_ORDER},
+                "mpu9250_ahrs.reference": ROOT / "reference",
                 "mpu9250_ahrs.host": ROOT / "mpu9250_ahrs" / "host"}
 
 

@@ -94,7 +94,7 @@ def _open(args):
     from ..host.link import open_link
     board = None
     if args.port == "sim":
-        from ..sim.board import SimulatedBoard
+        from ..sim.scenarios.board import SimulatedBoard
         board = SimulatedBoard().start()
     try:
         return open_link(args.port, args.baud, timeout=args.timeout, board=board)
@@ -114,7 +114,7 @@ def _progress(what, k, n):
 
 def cmd_board(args):
     """``board``: a SimulatedBoard on a pseudo-terminal until Ctrl-C (or ``--seconds``)."""
-    from ..sim.board import SimulatedBoard
+    from ..sim.scenarios.board import SimulatedBoard
     board = SimulatedBoard().start()
     print(f"simulated board on {board.port}", flush=True)
     if board.compiled:

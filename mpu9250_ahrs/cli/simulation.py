@@ -104,10 +104,13 @@ def add_replay(sub, quiet):
 
 def cmd_simulate(args):
     from .. import progress
-    from ..sim.cosim import SimSetup, run_core, run_frontend, simulator_name
+    from ..sim.scenarios.setup import SimSetup
+    from ..sim.scenarios.core import run_core
+    from ..sim.scenarios.frontend import run_frontend
+    from ..sim.bench.bench import simulator_name
 
     if args.fault == "list":
-        from ..sim.faults import FAULTS
+        from ..sim.scenarios.faults import FAULTS
         for name, fault in FAULTS.items():
             print(f"{name:24s} {'/'.join(fault.wirings):8s} {fault.description}")
         return 0
@@ -198,9 +201,9 @@ def cmd_simulate(args):
 
 
 def _waveform(args):
-    """``--vcd``, ``--trace-from`` and ``--trace-to`` as a ``sim.waveforms.Waveform`` (None
+    """``--vcd``, ``--trace-from`` and ``--trace-to`` as a ``sim.bench.waveforms.Waveform`` (None
     without --vcd); one error line for a bad value or a window without a file."""
-    from ..sim.waveforms import Waveform, parse_bound
+    from ..sim.bench.waveforms import Waveform, parse_bound
     bounds = [None if text is None else parse_bound(text, option)
               for text, option in ((args.trace_from, "--trace-from"),
                                    (args.trace_to, "--trace-to"))]
@@ -216,7 +219,7 @@ def _simulator_choice(args):
     """``--simulator`` as ``run_frontend``'s ``compiled``: True, False or "prefer" (auto:
     compiled, built once if need be, where the run allows it). Auto without Verilator and g++
     says so in one line and runs Amaranth's simulator."""
-    from ..sim.compiled_design import verilator_available
+    from ..sim.bench.compiled_design import verilator_available
     if args.simulator == "compiled":
         return True
     if args.simulator == "python":
@@ -231,7 +234,7 @@ def _simulator_choice(args):
 def _simulate_fault(args, setup, compiled=None, wave=None):
     """``simulate --fault NAME``: the front end with one fault of the catalogue."""
     from .. import progress
-    from ..sim.faults import run_fault
+    from ..sim.scenarios.faults import run_fault
     if args.attitude or args.pose:
         raise ValueError("--fault runs the sensor front end with its test pattern: leave out "
                          "--attitude and --pose")
@@ -261,7 +264,7 @@ def _pose_sources(pose, samples, config, setup):
     """Model sources for a board held still at ``pose`` ("roll,pitch,yaw" in degrees), with
     the sensor error model's noise: MPU9250 and AK8963 values in counts."""
     from ..hdl.contract import ak8963_regs as A
-    from ..sim.motion import SensorModel, accel_gyro_source, mag_source, static
+    from ..sim.models.motion import SensorModel, accel_gyro_source, mag_source, static
     from ..reference.recording import Scales
     try:
         euler = [float(v) for v in pose.split(",")]
@@ -290,7 +293,7 @@ def sample_read_time(result, setup):
     """Simulated time of one full sample read, from the interrupt's data to the sample, in µs:
     the SPI burst, or the two I2C reads, as the status log shows them (first and last sample
     times cannot be told apart from there, so this measures the bus, not the whole latency)."""
-    from ..sim.cosim import sample_read_cycles
+    from ..sim.scenarios.frontend import sample_read_cycles
     cycles = sample_read_cycles(result, setup)
     return None if cycles is None else round(cycles / setup.clk_freq * 1e6, 2)
 
@@ -345,7 +348,7 @@ def cmd_replay(args):
     t = np.arange(len(truth)) * rec.dt
     if engine == "board":
         from ..progress import bar
-        from ..sim.board_replay import replay_board
+        from ..sim.scenarios.board_replay import replay_board
         with bar(len(truth), "replay --engine board", "result") as shown:
             board = replay_board(args.filter, *counts, rec.dt, gyro_fs_dps=args.gyro_fs,
                                  accel_fs_g=args.accel_fs, progress=shown, **units, **params)
@@ -355,8 +358,8 @@ def cmd_replay(args):
         extra = board.summary()
     elif engine == "gateware":
         from ..reference.flagship_fixed import q30_to_float
-        from ..sim.attitude_bench import first_mismatch
-        from ..sim.compiled_engine import replay_gateware
+        from ..sim.scenarios.attitude_bench import first_mismatch
+        from ..sim.scenarios.compiled_engine import replay_gateware
         run, ref, compiled = replay_gateware(args.filter, *counts, rec.dt, **units, **params)
         quat = q30_to_float(run.quat)
         mismatch = first_mismatch(run, ref)

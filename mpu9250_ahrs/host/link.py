@@ -1,7 +1,7 @@
 """A board on a serial port: frames in, commands out, with time-outs and one-line errors.
 
 ``open_link(port, baud)`` opens a serial device with pyserial (``exclusive``: a port another
-program holds is "busy"); given a ``board`` (a ``sim.board.SimulatedBoard`` the caller started
+program holds is "busy"); given a ``board`` (a ``sim.scenarios.board.SimulatedBoard`` the caller started
 in this process: the command line does for ``--port sim``) it opens that board's
 pseudo-terminal and stops the board when the link closes. Against a simulated board in this
 process (``board``, or the path of one registered in ``SIM_BOARDS``) time-outs count the

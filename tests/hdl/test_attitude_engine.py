@@ -18,10 +18,10 @@ from mpu9250_ahrs.reference.engine_model import attitude_fixed
 from mpu9250_ahrs.reference.frames import body_to_mag
 from mpu9250_ahrs.hdl.contract.filter_registry import FILTER_NAMES
 from mpu9250_ahrs.reference.kalman import KalmanParams, kalman_filter
-from mpu9250_ahrs.sim.attitude_bench import first_mismatch, random_inputs, run_engine
-from mpu9250_ahrs.sim.motion import SensorModel, concat, static, turntable
+from mpu9250_ahrs.sim.scenarios.attitude_bench import first_mismatch, random_inputs, run_engine
+from mpu9250_ahrs.sim.models.motion import SensorModel, concat, static, turntable
 from mpu9250_ahrs.reference.recording import load_broad, quantise
-from mpu9250_ahrs.sim.streams import stream_put
+from mpu9250_ahrs.sim.bench.streams import stream_put
 
 from .start_done import run_unit
 
@@ -324,7 +324,7 @@ def test_skipped_samples_integrate_the_elapsed_time(select):
 def test_euler_rate_prediction_bit_exact(select):
     """``EULER_RATES`` (the per-axis filters' Euler-angle-rate prediction) on tumbling motion
     and through ±90° pitch (cos θ held at its minimum): engine = reference, every field."""
-    from mpu9250_ahrs.sim.motion import random_motion
+    from mpu9250_ahrs.sim.models.motion import random_motion
     traj = concat(turntable((0, 1, 0), rate_dps=400.0, duration=0.3),
                   random_motion(0.25, seed=4))
     gc, ac, mc = SENSOR.counts(traj)
@@ -341,7 +341,7 @@ def test_longest_updates_within_the_bound():
     (tilt and heading: the accelerometer and a valid field on every sample), its first update
     after a reset its longest; and the first updates of the flagship and Madgwick's filter
     (their longest here): each within ``WORST_UPDATE_CYCLES``, bit for bit."""
-    from mpu9250_ahrs.sim.motion import random_motion
+    from mpu9250_ahrs.sim.models.motion import random_motion
     traj = concat(turntable((0, 1, 0), rate_dps=400.0, duration=0.05),
                   random_motion(0.05, seed=4))
     gc, ac, mc = SENSOR.counts(traj)
@@ -381,7 +381,7 @@ def _against_the_model(program, entry):
     """One sample through ``program`` on the engine and on the instruction model: (the
     engine's run, the model's (quaternion, angles, bias)), asserted equal, bit for bit."""
     from mpu9250_ahrs.reference.engine_model import EngineModel
-    from mpu9250_ahrs.sim.attitude_isa_model import AttitudeISAModel
+    from mpu9250_ahrs.sim.models.attitude_isa_model import AttitudeISAModel
 
     gyro, accel, mag_ak = ([[1200, -3400, 50]], [[0, 0, 8192]], [[10, 20, 30]])
     run = run_engine(AttitudeEngine(program=(program, entry)), gyro, accel, mag_ak)

@@ -9,7 +9,7 @@ from mpu9250_ahrs.hdl.contract import mpu9250_regs as R
 from mpu9250_ahrs.hdl.sensor.bring_up_sequencer import (BringUpSequencer, Op, SelfTestWaits,
                                                         bring_up_program)
 from mpu9250_ahrs.hdl.sensor.mpu9250_driver import MPU9250Config
-from mpu9250_ahrs.sim.streams import check_stream_rules
+from mpu9250_ahrs.sim.bench.streams import check_stream_rules
 
 from .register_port_model import RegisterPortModel
 from .test_mpu9250_driver import expected_writes

@@ -19,7 +19,7 @@ from mpu9250_ahrs.hdl.sensor.driver_status import SelfTestStatus
 from mpu9250_ahrs.hdl.contract.pwm_regs import PWM_REGS
 from mpu9250_ahrs.hdl.link.pwm import PWMOutputs
 from mpu9250_ahrs.host.protocol import encode_command, encode_frame, to_python
-from mpu9250_ahrs.sim.streams import check_stream_rules
+from mpu9250_ahrs.sim.bench.streams import check_stream_rules
 
 TIMEOUT = 200
 VERSION = 0x0002ABCD

@@ -7,7 +7,7 @@ import random
 from amaranth.sim import Simulator
 
 from mpu9250_ahrs.hdl.engine.config_port_arbiter import ConfigPortArbiter
-from mpu9250_ahrs.sim.streams import check_stream_rules, stream_get
+from mpu9250_ahrs.sim.bench.streams import check_stream_rules, stream_get
 
 
 def test_two_clients_share_the_port():

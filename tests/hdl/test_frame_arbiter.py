@@ -11,7 +11,7 @@ from mpu9250_ahrs.hdl.link.frame_arbiter import FrameArbiter
 from mpu9250_ahrs.hdl.link.frame_types import Reply, SensorFrame
 from mpu9250_ahrs.hdl.link.telemetry import TelemetryFramer
 from mpu9250_ahrs.host.protocol import decode_frames, unpack
-from mpu9250_ahrs.sim.streams import check_stream_rules
+from mpu9250_ahrs.sim.bench.streams import check_stream_rules
 
 
 class Pair(Elaboratable):

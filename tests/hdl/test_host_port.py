@@ -6,7 +6,7 @@ from amaranth.sim import Simulator
 from mpu9250_ahrs.hdl.engine.register_map import CONTROL_ADDR, control_word
 from mpu9250_ahrs.hdl.contract.filter_registry import FILTER_CODES
 from mpu9250_ahrs.hdl.engine.host_port import HostPort
-from mpu9250_ahrs.sim.streams import check_stream_rules
+from mpu9250_ahrs.sim.bench.streams import check_stream_rules
 
 
 def test_writes_control_and_read_back():

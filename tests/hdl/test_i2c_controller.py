@@ -5,9 +5,9 @@ import pytest
 from amaranth.sim import Simulator
 
 from mpu9250_ahrs.hdl.sensor.i2c_controller import I2CController, I2COp, I2CTiming
-from mpu9250_ahrs.sim.cosim import CosimHarness, attach_models
-from mpu9250_ahrs.sim.i2c_bus import I2CBusModel
-from mpu9250_ahrs.sim.streams import check_stream_rules, stream_get, stream_put
+from mpu9250_ahrs.sim.bench.harness import CosimHarness, attach_models
+from mpu9250_ahrs.sim.models.i2c_bus import I2CBusModel
+from mpu9250_ahrs.sim.bench.streams import check_stream_rules, stream_get, stream_put
 
 
 CLK = 12e6

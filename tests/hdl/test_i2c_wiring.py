@@ -6,7 +6,8 @@ import pytest
 
 from mpu9250_ahrs.hdl.contract import ak8963_regs as A
 from mpu9250_ahrs.hdl.sensor.mpu9250_driver import MPU9250Config
-from mpu9250_ahrs.sim.cosim import SimSetup, expected_mag, run_frontend, sample_matches
+from mpu9250_ahrs.sim.scenarios.setup import SimSetup
+from mpu9250_ahrs.sim.scenarios.frontend import expected_mag, run_frontend, sample_matches
 
 
 def i2c_setup(setup_kw=None, **config):

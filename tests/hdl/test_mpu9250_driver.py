@@ -8,7 +8,8 @@ import pytest
 from mpu9250_ahrs.hdl.contract import ak8963_regs as A
 from mpu9250_ahrs.hdl.contract import mpu9250_regs as R
 from mpu9250_ahrs.hdl.sensor.mpu9250_driver import MPU9250Config
-from mpu9250_ahrs.sim.cosim import SimSetup, expected_mag, run_frontend, sample_matches
+from mpu9250_ahrs.sim.scenarios.setup import SimSetup
+from mpu9250_ahrs.sim.scenarios.frontend import expected_mag, run_frontend, sample_matches
 
 
 NO_MAG_FLAGS = {"mag_valid": 0, "mag_overflow": 0, "mag_new": 0, "mag_dor": 0}
@@ -284,7 +285,7 @@ def test_a_part_slower_to_reset_than_its_datasheet_comes_up(wiring, slower):
 
 def self_test_setup(wiring):
     """The self-tests on a 200 Hz part at a 4 MHz clock, times scaled as the fault tests'."""
-    from mpu9250_ahrs.sim.faults import catalogue_setup
+    from mpu9250_ahrs.sim.scenarios.faults import catalogue_setup
     return catalogue_setup(wiring, self_test=True)
 
 

@@ -6,7 +6,7 @@ rather than losing a byte. (The I2C register port runs against the bus model in
 from amaranth.sim import Simulator
 
 from mpu9250_ahrs.hdl.sensor.register_port import SPIRegisterPort
-from mpu9250_ahrs.sim.streams import check_stream_rules, stream_get, stream_put
+from mpu9250_ahrs.sim.bench.streams import check_stream_rules, stream_get, stream_put
 
 
 def run(commands, *, rx_stall=0):

@@ -4,7 +4,7 @@ response, bytes and responses go to the owner only."""
 from amaranth.sim import Simulator
 
 from mpu9250_ahrs.hdl.sensor.register_port_arbiter import RegisterPortArbiter
-from mpu9250_ahrs.sim.streams import check_stream_rules
+from mpu9250_ahrs.sim.bench.streams import check_stream_rules
 
 
 def test_priority_and_ownership():

@@ -8,7 +8,7 @@ import pytest
 from amaranth.sim import Simulator
 
 from mpu9250_ahrs.hdl.link.rewindable_fifo import RewindableFIFO
-from mpu9250_ahrs.sim.streams import check_stream_rules
+from mpu9250_ahrs.sim.bench.streams import check_stream_rules
 
 
 class Model:

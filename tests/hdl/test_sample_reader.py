@@ -7,7 +7,7 @@ from amaranth.sim import Simulator
 from mpu9250_ahrs.hdl.sensor.sample_reader import BAD_BURST_LIMIT, MPU_BYTES, SampleReader
 from mpu9250_ahrs.hdl.sensor.sample_store import (OFFER_WRITES, SAMPLE_STORE_DEPTH, SLOT_WORDS,
                                                   STORE_WORDS)
-from mpu9250_ahrs.sim.streams import check_stream_rules
+from mpu9250_ahrs.sim.bench.streams import check_stream_rules
 
 from .register_port_model import RegisterPortModel
 

@@ -4,7 +4,7 @@ import pytest
 from amaranth.sim import Simulator
 
 from mpu9250_ahrs.hdl.sensor.spi_controller import SPIController, SPITiming
-from mpu9250_ahrs.sim.streams import check_stream_rules, stream_put
+from mpu9250_ahrs.sim.bench.streams import check_stream_rules, stream_put
 
 
 def response_byte(index):
@@ -198,9 +198,10 @@ def test_cipo_sampling_point_against_the_output_delay(sdo_delay_ns, reads_right)
     from dataclasses import replace
     from mpu9250_ahrs.hdl.primitives.clocking import SYSTEM_CLOCK_HZ
     from mpu9250_ahrs.hdl.sensor.mpu9250_driver import MPU9250Config
-    from mpu9250_ahrs.sim.cosim import SimSetup, run_frontend, sample_matches
-    from mpu9250_ahrs.sim.mpu9250_model import MPU9250Model
-    from mpu9250_ahrs.sim.sources import counting_source
+    from mpu9250_ahrs.sim.scenarios.setup import SimSetup
+    from mpu9250_ahrs.sim.scenarios.frontend import run_frontend, sample_matches
+    from mpu9250_ahrs.sim.models.mpu9250_model import MPU9250Model
+    from mpu9250_ahrs.sim.models.sources import counting_source
     setup = SimSetup(config=MPU9250Config(magnetometer=False), odr_scale=0.1)
     assert setup.clk_freq == SYSTEM_CLOCK_HZ
     timing = SPITiming.for_clock(setup.clk_freq)
@@ -228,7 +229,8 @@ def test_the_sample_burst_runs_without_a_pause():
     from mpu9250_ahrs.hdl.sensor.mpu9250_driver import MPU9250Config
     from mpu9250_ahrs.hdl.sensor.sample_reader import SAMPLE_BYTES
     from mpu9250_ahrs.hdl.sensor.sensor_frontend import sample_read_cycles as bound
-    from mpu9250_ahrs.sim.cosim import SimSetup, run_frontend, sample_read_cycles
+    from mpu9250_ahrs.sim.scenarios.setup import SimSetup
+    from mpu9250_ahrs.sim.scenarios.frontend import run_frontend, sample_read_cycles
     setup = SimSetup(config=MPU9250Config(), odr_scale=0.1)
     t = SPITiming.for_clock(setup.clk_freq)
     result = run_frontend(setup, n_samples=2)

@@ -12,13 +12,14 @@ from mpu9250_ahrs.hdl.link.telemetry import TelemetryFramer
 from mpu9250_ahrs.hdl.board.top import result_fetch, sample_borrow
 from mpu9250_ahrs.hdl.link.uart_tx import UARTTransmitter
 from mpu9250_ahrs.reference.engine_model import attitude_fixed
-from mpu9250_ahrs.sim.attitude_bench import EngineRun, first_mismatch
-from mpu9250_ahrs.sim.cosim import QUICK_CORE_BAUD, SimSetup, quick_core_setup, sample_matches
-from mpu9250_ahrs.sim.cosim import run_core as cosim_run_core
-from mpu9250_ahrs.sim.streams import check_stream_rules, stream_put
+from mpu9250_ahrs.sim.scenarios.attitude_bench import EngineRun, first_mismatch
+from mpu9250_ahrs.sim.scenarios.setup import QUICK_CORE_BAUD, SimSetup, quick_core_setup
+from mpu9250_ahrs.sim.scenarios.frontend import sample_matches
+from mpu9250_ahrs.sim.scenarios.core import run_core as cosim_run_core
+from mpu9250_ahrs.sim.bench.streams import check_stream_rules, stream_put
 from mpu9250_ahrs.host.protocol import (FrameDecoder, FrameError, crc16, decode_frames,
                                         encode_frame, unpack)
-from mpu9250_ahrs.sim.uart import attach_uart_receiver
+from mpu9250_ahrs.sim.bench.uart import attach_uart_receiver
 
 
 def random_frame(rng):
@@ -186,7 +187,7 @@ def test_decoder_resynchronises_and_rejects_bad_crc():
 
 def run_core(setup, n_frames, *, baud, max_cycles, vcd=None, writes=(), compiled=None,
              **core_kw):
-    """Model -> core -> UART -> decoder until ``n_frames`` frames came (``sim.cosim.run_core``)
+    """Model -> core -> UART -> decoder until ``n_frames`` frames came (``sim.scenarios.core.run_core``)
     and no protocol violation; (core, model, frames, asa). ``compiled``: as ``run_core``'s,
     but a waveform asked for (``vcd``) is always Amaranth's simulator's."""
     path = vcd and vcd()
@@ -200,7 +201,7 @@ def run_core(setup, n_frames, *, baud, max_cycles, vcd=None, writes=(), compiled
 def model_reference(core, model, n, asa, select):
     """The fixed-point engine over the first ``n`` samples the model was read for (the AK8963's
     bytes from the same bursts), whether or not their results were sent."""
-    from mpu9250_ahrs.sim.cosim import expected_mag
+    from mpu9250_ahrs.sim.scenarios.frontend import expected_mag
     reads = [model.samples[k] for k in model.sample_reads[:n]]
     mags = [expected_mag(model.ext_reads[i], core.config.magnetometer,
                          model.ext_reads[i - 1] if i else None) for i in range(n)]
@@ -267,7 +268,7 @@ def test_telemetry_divider_is_a_run_time_register():
     """``TELEMETRY_DIV`` (0xFE) written through ``cfg``: every third result is framed from
     then on (the counters in consecutive frames step by 3)."""
     from mpu9250_ahrs.hdl.engine.register_map import TELEMETRY_DIV_ADDR
-    # the quick set-up's compiled build where it can run (cosim.quick_core_setup)
+    # the quick set-up's compiled build where it can run (setup.quick_core_setup)
     core, _, frames, _ = run_core(quick_core_setup(), 4, baud=QUICK_CORE_BAUD,
                                   max_cycles=160_000, writes=[(TELEMETRY_DIV_ADDR, 3)],
                                   compiled="prefer")

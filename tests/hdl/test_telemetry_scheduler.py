@@ -4,7 +4,7 @@ import pytest
 from amaranth.sim import Simulator
 
 from mpu9250_ahrs.hdl.link.telemetry_scheduler import TelemetryScheduler
-from mpu9250_ahrs.sim.streams import check_stream_rules
+from mpu9250_ahrs.sim.bench.streams import check_stream_rules
 
 
 @pytest.mark.parametrize("divider", [1, 3])

@@ -40,7 +40,8 @@ def test_build_leaves_them_out(tmp_path, flag, absent, present):
 
 def test_a_core_without_the_command_channel_still_streams_attitude():
     """The engine and the telemetry as in the default build: the same results, framed."""
-    from mpu9250_ahrs.sim.cosim import QUICK_CORE_BAUD, quick_core_setup, run_core
+    from mpu9250_ahrs.sim.scenarios.setup import QUICK_CORE_BAUD, quick_core_setup
+    from mpu9250_ahrs.sim.scenarios.core import run_core
     setup = quick_core_setup()
     # the default build: the quick set-up's compiled build where it can run
     default = run_core(setup, n_frames=1, baud=QUICK_CORE_BAUD, compiled="prefer")

@@ -5,7 +5,7 @@ import pytest
 from amaranth.sim import Simulator
 
 from mpu9250_ahrs.hdl.link.uart_rx import UARTReceiver
-from mpu9250_ahrs.sim.streams import check_stream_rules
+from mpu9250_ahrs.sim.bench.streams import check_stream_rules
 
 
 def waveform(data, bit_cycles, *, stop=1):

@@ -16,7 +16,7 @@ from mpu9250_ahrs.hdl.link.frame_types import ATTITUDE, FRAME_TYPES
 from mpu9250_ahrs.hdl.link.frame_types import payload_bytes
 from mpu9250_ahrs.host.link import SIM_BOARDS, open_link
 from mpu9250_ahrs.host.protocol import encode_frame
-from mpu9250_ahrs.sim.board import SensorErrors, SimulatedBoard, garble, pty_baud
+from mpu9250_ahrs.sim.scenarios.board import SensorErrors, SimulatedBoard, garble, pty_baud
 
 
 def run_cli(capsys, *argv):

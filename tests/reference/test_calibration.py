@@ -7,7 +7,7 @@ from mpu9250_ahrs.reference.calibration import (accel_six_pose, asa_sensitivity,
                                                 gyro_bias, kalman_params_from_noise,
                                                 mag_ellipsoid)
 from mpu9250_ahrs.reference.frames import euler_to_quat, quat_to_matrix
-from mpu9250_ahrs.sim.motion import SensorModel, earth_field, random_motion, static
+from mpu9250_ahrs.sim.models.motion import SensorModel, earth_field, random_motion, static
 
 
 def test_gyro_bias():

@@ -8,7 +8,8 @@ from mpu9250_ahrs.reference.evaluate import FILTERS, run_filter
 from mpu9250_ahrs.reference.frames import euler_to_quat, orientation_errors
 from mpu9250_ahrs.reference.kalman import PUBLISHED, kalman_filter
 from mpu9250_ahrs.reference.madgwick import madgwick_filter
-from mpu9250_ahrs.sim.motion import SensorModel, concat, random_motion, static, turn, turntable
+from mpu9250_ahrs.sim.models.motion import (SensorModel, concat, random_motion, static, turn,
+    turntable)
 from mpu9250_ahrs.reference.recording import to_units
 
 NOISY = SensorModel(gyro_noise=np.radians(0.05), accel_noise=0.02, mag_noise=0.3,

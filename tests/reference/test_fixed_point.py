@@ -13,7 +13,7 @@ from mpu9250_ahrs.reference.fixed_point import (ATAN_TABLE, CORDIC_GAIN, KalmanF
                                                 deg_to_bam, div_floor, kalman_fixed,
                                                 rshift_round, wrap32)
 from mpu9250_ahrs.reference.kalman import KalmanParams, kalman_filter
-from mpu9250_ahrs.sim.motion import SensorModel, concat, random_motion, static, turntable
+from mpu9250_ahrs.sim.models.motion import SensorModel, concat, random_motion, static, turntable
 from mpu9250_ahrs.reference.recording import load_broad, quantise
 
 LSB = 16.4

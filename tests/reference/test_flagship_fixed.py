@@ -11,7 +11,8 @@ from mpu9250_ahrs.reference.flagship import flagship_filter
 from mpu9250_ahrs.reference.flagship_fixed import (FlagshipFixedConfig, flagship_fixed,
                                                    q30_to_float)
 from mpu9250_ahrs.reference.frames import orientation_errors
-from mpu9250_ahrs.sim.motion import SensorModel, concat, random_motion, static, turn, turntable
+from mpu9250_ahrs.sim.models.motion import (SensorModel, concat, random_motion, static, turn,
+    turntable)
 from mpu9250_ahrs.reference.recording import Scales, load_broad, quantise, to_units
 
 SCALES = Scales()

@@ -12,7 +12,7 @@ import pytest
 
 from mpu9250_ahrs.reference.evaluate import run_filter, run_fixed
 from mpu9250_ahrs.reference.frames import orientation_errors
-from mpu9250_ahrs.sim.motion import SensorModel, concat, random_motion, static, turn
+from mpu9250_ahrs.sim.models.motion import SensorModel, concat, random_motion, static, turn
 
 
 RATE = 100.0

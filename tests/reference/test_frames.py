@@ -5,7 +5,7 @@ from mpu9250_ahrs.reference.frames import (accel_tilt, euler_to_quat, mag_to_bod
                                            orientation_errors, quat_from_accel_mag, quat_mul,
                                            quat_to_euler, quat_to_matrix, tilt_compensated_heading,
                                            wrap_angle)
-from mpu9250_ahrs.sim.motion import earth_field
+from mpu9250_ahrs.sim.models.motion import earth_field
 
 RNG = np.random.default_rng(3)
 EULER = RNG.uniform([-np.pi, -1.5, -np.pi], [np.pi, 1.5, np.pi], (500, 3))

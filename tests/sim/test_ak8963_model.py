@@ -3,7 +3,7 @@
 import pytest
 
 from mpu9250_ahrs.hdl.contract import ak8963_regs as A
-from mpu9250_ahrs.sim.ak8963_model import AK8963Model, AK8963Timing, constant_field
+from mpu9250_ahrs.sim.models.ak8963_model import AK8963Model, AK8963Timing, constant_field
 
 
 def read(m, addr, n=1):

@@ -10,8 +10,8 @@ from mpu9250_ahrs.hdl.contract.filter_registry import FILTER_NAMES
 from mpu9250_ahrs.reference.fixed_point import CalibrationFixed
 from mpu9250_ahrs.reference.engine_model import RESULT_FLAGS, EngineModel
 from mpu9250_ahrs.reference.frames import body_to_mag
-from mpu9250_ahrs.sim.attitude_isa_model import AttitudeISAModel
-from mpu9250_ahrs.sim.motion import SensorModel, concat, static, turn
+from mpu9250_ahrs.sim.models.attitude_isa_model import AttitudeISAModel
+from mpu9250_ahrs.sim.models.motion import SensorModel, concat, static, turn
 
 
 def run_both(g, a, m, valid, select, *, asa=(128, 128, 128), **model):

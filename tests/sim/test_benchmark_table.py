@@ -37,7 +37,7 @@ def test_readme_accuracy_table_is_the_benchmarks():
     if len(files) != 7:
         pytest.skip("the seven shared BROAD recordings are not beside the checkout")
     from concurrent.futures import ProcessPoolExecutor
-    from mpu9250_ahrs.sim.benchmark import run_trial, split_table, table
+    from mpu9250_ahrs.sim.scenarios.benchmark import run_trial, split_table, table
     with ProcessPoolExecutor(2) as pool:
         results = dict(pool.map(run_trial, files))
     measured = {}

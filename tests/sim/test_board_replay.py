@@ -9,8 +9,8 @@ import pytest
 
 from mpu9250_ahrs.cli import main
 from mpu9250_ahrs.reference.recording import Scales, load_broad, quantise
-from mpu9250_ahrs.sim.board_replay import replay_board
-from mpu9250_ahrs.sim.compiled_design import verilator_available
+from mpu9250_ahrs.sim.scenarios.board_replay import replay_board
+from mpu9250_ahrs.sim.bench.compiled_design import verilator_available
 
 from tests.conftest import broad_files
 

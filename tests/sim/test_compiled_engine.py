@@ -2,7 +2,7 @@
 and whole recordings bit for bit with the fixed-point model, for each filter.
 
 Needs verilator and g++ (``apt-get install verilator g++``): skipped without them on a developer
-machine, a failure in CI. The compiled model is cached (``sim/compiled_engine.py``), so only the
+machine, a failure in CI. The compiled model is cached (``sim/scenarios/compiled_engine.py``), so only the
 first run after a design change pays the build (about 15 s)."""
 
 import glob
@@ -17,9 +17,9 @@ from mpu9250_ahrs.hdl.engine.register_map import CONFIG_REGS, CONTROL_ADDR, cont
 from mpu9250_ahrs.hdl.contract.filter_registry import FILTER_CODES
 from mpu9250_ahrs.reference.engine_model import FILTERS, attitude_fixed
 from mpu9250_ahrs.reference.frames import body_to_mag
-from mpu9250_ahrs.sim.attitude_bench import RESULT_FIELDS, first_mismatch, run_engine
-from mpu9250_ahrs.sim.compiled_engine import CompiledEngine, replay_gateware
-from mpu9250_ahrs.sim.motion import SensorModel, concat, random_motion, static
+from mpu9250_ahrs.sim.scenarios.attitude_bench import RESULT_FIELDS, first_mismatch, run_engine
+from mpu9250_ahrs.sim.scenarios.compiled_engine import CompiledEngine, replay_gateware
+from mpu9250_ahrs.sim.models.motion import SensorModel, concat, random_motion, static
 from mpu9250_ahrs.reference.recording import Scales, load_broad, quantise
 
 from tests.conftest import require_tool
@@ -66,8 +66,8 @@ def test_random_inputs_and_calibration(compiled, seed, filter):
     engine, bit for bit with the fixed-point model."""
     from mpu9250_ahrs.reference.fixed_point import KalmanFixedConfig
     from mpu9250_ahrs.reference.flagship_fixed import FlagshipFixedConfig
-    from mpu9250_ahrs.sim.attitude_bench import random_inputs
-    from mpu9250_ahrs.sim.compiled_engine import configuration_writes
+    from mpu9250_ahrs.sim.scenarios.attitude_bench import random_inputs
+    from mpu9250_ahrs.sim.scenarios.compiled_engine import configuration_writes
     g, a, m, valid, cal, asa = random_inputs(seed, 25)
     kalman = KalmanFixedConfig()
     flagship = FlagshipFixedConfig.matching(kalman)

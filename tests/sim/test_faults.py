@@ -7,7 +7,8 @@ design streaming again (with new magnetometer fields where the fault was the mag
 import pytest
 
 from mpu9250_ahrs.hdl.sensor.mpu9250_driver import BAD_BURST_LIMIT, burst_is_plausible
-from mpu9250_ahrs.sim.faults import FAULTS, FaultInjector, catalogue_setup, fault_names, run_fault
+from mpu9250_ahrs.sim.scenarios.faults import (FAULTS, FaultInjector, catalogue_setup, fault_names,
+    run_fault)
 
 
 AT, AFTER, DURATION = 3, 4, 8
@@ -170,7 +171,7 @@ def test_gyro_jump_check_has_no_false_alarm_on_the_shared_trials():
 
 def _fast_rate_setup():
     from mpu9250_ahrs.hdl.sensor.mpu9250_driver import MPU9250Config
-    from mpu9250_ahrs.sim.cosim import SimSetup
+    from mpu9250_ahrs.sim.scenarios.setup import SimSetup
     config = MPU9250Config.for_odr(8000)
     return SimSetup(clk_freq=12e6, config=config,
                     odr_scale=SimSetup.default_odr_scale(config, 12e6))
@@ -215,7 +216,7 @@ def test_magnetometer_loss_raises_no_rate_alarm():
     --fault ak8963_lost``); the reader now allows the read's time
     (``DriverTiming.drdy_jitter_cycles``)."""
     from mpu9250_ahrs.hdl.sensor.mpu9250_driver import MPU9250Config
-    from mpu9250_ahrs.sim.cosim import SimSetup
+    from mpu9250_ahrs.sim.scenarios.setup import SimSetup
     config = MPU9250Config()
     r = run_fault("ak8963_lost", SimSetup(clk_freq=12e6, config=config,
                                           odr_scale=SimSetup.default_odr_scale(config, 12e6)))
@@ -243,7 +244,7 @@ def test_spurious_int_on_i2c_leaves_the_magnetometers_field():
     mag_stale and a set-up again, about 11 periods without a field (here 0.7 T before the
     16th sample). Now the AK8963 is read only for a burst that holds a sample."""
     import dataclasses
-    from mpu9250_ahrs.sim import faults
+    from mpu9250_ahrs.sim.scenarios import faults
     faults.FAULTS["spurious_int_07"] = dataclasses.replace(
         FAULTS["spurious_int"], name="spurious_int_07", before_next=0.7)
     try:

@@ -3,8 +3,8 @@
 import pytest
 
 from mpu9250_ahrs.hdl.contract import mpu9250_regs as R
-from mpu9250_ahrs.sim.mpu9250_model import MPU9250Model, MPU9250Timing, ProtocolError
-from mpu9250_ahrs.sim.sources import SensorSample, counting_source, table_source
+from mpu9250_ahrs.sim.models.mpu9250_model import MPU9250Model, MPU9250Timing, ProtocolError
+from mpu9250_ahrs.sim.models.sources import SensorSample, counting_source, table_source
 
 
 class Host:
@@ -302,7 +302,7 @@ def test_sample_out_of_range_rejected():
 # -- auxiliary I2C master -------------------------------------------------------------------------
 
 from mpu9250_ahrs.hdl.contract import ak8963_regs as A           # noqa: E402
-from mpu9250_ahrs.sim.ak8963_model import AK8963Model, constant_field   # noqa: E402
+from mpu9250_ahrs.sim.models.ak8963_model import AK8963Model, constant_field   # noqa: E402
 
 
 def aux_model(**kw):

@@ -8,7 +8,7 @@ from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import Out
 from amaranth.sim import Simulator
 
-from mpu9250_ahrs.sim.streams import StreamMonitor, check_stream_rules, stream_get
+from mpu9250_ahrs.sim.bench.streams import StreamMonitor, check_stream_rules, stream_get
 
 
 class Counter(wiring.Component):

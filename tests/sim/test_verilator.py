@@ -1,8 +1,8 @@
 """Verilator builds: the run-time library's objects are compiled once and taken from the
-cache by every build that compiles them the same way (``sim.verilator._Runtime``), here on a
+cache by every build that compiles them the same way (``sim.bench.verilator._Runtime``), here on a
 stand-in makefile (no compiler run)."""
 
-from mpu9250_ahrs.sim import verilator
+from mpu9250_ahrs.sim.bench import verilator
 from tests.conftest import require_tool
 
 MAKEFILE = """default: verilated.o design.o

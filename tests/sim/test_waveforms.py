@@ -1,4 +1,4 @@
-"""The co-simulations' waveforms (``sim/waveforms.py``): window bounds, the VCD cut, the names
+"""The co-simulations' waveforms (``sim/bench/waveforms.py``): window bounds, the VCD cut, the names
 GTKWave refuses renamed before tracing; then, in the slow step, every kind of waveform the
 project writes opened in GTKWave itself under Xvfb (its VCD reader is stricter than
 ``vcd2fst``'s, which took the files GTKWave refused)."""
@@ -7,9 +7,9 @@ import os
 
 import pytest
 
-from mpu9250_ahrs.sim.compiled_design import readable_names
-from mpu9250_ahrs.sim.waveforms import (GTKWAVE_HINT, RunTrace, TraceWindow, Waveform,
-                                        crop_vcd, gtkwave_check, parse_bound)
+from mpu9250_ahrs.sim.bench.compiled_design import readable_names
+from mpu9250_ahrs.sim.bench.waveforms import (GTKWAVE_HINT, RunTrace, TraceWindow, Waveform,
+    crop_vcd, gtkwave_check, parse_bound)
 from tests.conftest import require_tool
 
 
@@ -98,8 +98,9 @@ def test_front_end_waveforms_open_in_gtkwave(tmp_path, compiled, wiring):
     """Both simulators, both wirings: a VCD of the front end opens in GTKWave, the window of
     the save file on a sensor transaction."""
     from mpu9250_ahrs.hdl.sensor.mpu9250_driver import MPU9250Config
-    from mpu9250_ahrs.sim.cosim import SimSetup, run_frontend
-    from mpu9250_ahrs.sim.compiled_design import verilator_available
+    from mpu9250_ahrs.sim.scenarios.setup import SimSetup
+    from mpu9250_ahrs.sim.scenarios.frontend import run_frontend
+    from mpu9250_ahrs.sim.bench.compiled_design import verilator_available
     _gtkwave()
     if compiled and not verilator_available():
         require_tool("verilator", "apt-get install verilator g++ make")
@@ -121,7 +122,8 @@ def test_core_waveform_in_a_window_as_fst(tmp_path, compiled):
     """The whole core, FST (Verilator's own writer; Amaranth's VCD through vcd2fst), traced
     from the 2nd sample out to the 3rd: it opens in GTKWave, holds only that window, and
     shows the read of the 3rd sample."""
-    from mpu9250_ahrs.sim.cosim import quick_core_setup, run_core
+    from mpu9250_ahrs.sim.scenarios.setup import quick_core_setup
+    from mpu9250_ahrs.sim.scenarios.core import run_core
     _gtkwave()
     wave = Waveform(str(tmp_path / "core.fst"), ("samples", 2), ("samples", 3))
     run = run_core(quick_core_setup(), n_results=4, vcd=wave, compiled=compiled)

@@ -1,4 +1,4 @@
-"""The compiled whole-board path (``sim.compiled_board``) against Amaranth's simulator: the
+"""The compiled whole-board path (``sim.bench.compiled_bench``) against Amaranth's simulator: the
 same stimulus gives the same samples, results, cycles, frames and bus transactions (the pin
 trace as the models saw it), on both wirings and for the whole core."""
 
@@ -6,9 +6,10 @@ import pytest
 
 from mpu9250_ahrs.hdl.contract.defaults import DEFAULT_BAUD
 from mpu9250_ahrs.hdl.sensor.mpu9250_driver import MPU9250Config
-from mpu9250_ahrs.sim.compiled_design import verilator_available
-from mpu9250_ahrs.sim.cosim import (QUICK_CORE_BAUD, SimSetup, quick_core_setup, run_core,
-                                    run_frontend)
+from mpu9250_ahrs.sim.bench.compiled_design import verilator_available
+from mpu9250_ahrs.sim.scenarios.setup import QUICK_CORE_BAUD, SimSetup, quick_core_setup
+from mpu9250_ahrs.sim.scenarios.core import run_core
+from mpu9250_ahrs.sim.scenarios.frontend import run_frontend
 
 
 pytestmark = pytest.mark.skipif(not verilator_available(), reason="needs verilator and g++")
@@ -109,10 +110,10 @@ def test_cache_key_covers_the_microcode():
     """A compiled build is looked up by its parameters and a hash of the package's sources:
     those of the sub-packages (the filters' microcode in ``hdl/engine/filters/``) are in the hash,
     so a change to a filter's program alone builds again rather than running the old one."""
-    from mpu9250_ahrs.sim.compiled_design import _source_files
+    from mpu9250_ahrs.sim.bench.compiled_design import _source_files
     names = {name for name, _ in _source_files()}
     assert {"hdl/engine/filters/flagship.py", "hdl/engine/attitude_engine.py",
-            "sim/cosim.py"} <= names
+            "sim/bench/harness.py"} <= names
 
 
 @pytest.mark.parametrize("compiled", [True, False], ids=["compiled", "python"])
@@ -141,7 +142,7 @@ def test_a_first_build_says_so_piped_or_not(tmp_path, monkeypatch, capsys):
     on a terminal: piped or logged, simulate was silent for all of it. Now a line when it
     starts and one with the time it took, whatever stderr is."""
     from amaranth import Module, Signal
-    from mpu9250_ahrs.sim.compiled_design import CompiledDesign
+    from mpu9250_ahrs.sim.bench.compiled_design import CompiledDesign
     monkeypatch.setenv("MPU9250_AHRS_CACHE", str(tmp_path))
     m, a, b = Module(), Signal(4), Signal(4)
     m.d.sync += b.eq(a + 1)

@@ -24,15 +24,17 @@ the samples the board read, with the flags the driver gave them.
 
 import math
 from dataclasses import dataclass, replace
-from typing import List
 
 import numpy as np
 
-from ..hdl.sensor.mpu9250_driver import DriverTiming, MPU9250Config
-from ..hdl.contract.numeric_contract import mag_period
-from .ak8963_model import AK8963Model, AK8963Timing
-from .cosim import SimSetup, run_core, sample_matches, simulator_name
-from .sources import SensorSample
+from ...hdl.sensor.mpu9250_driver import DriverTiming, MPU9250Config
+from ...hdl.contract.numeric_contract import mag_period
+from ..models.ak8963_model import AK8963Model, AK8963Timing
+from .setup import SimSetup
+from .core import run_core
+from .frontend import sample_matches
+from ..bench.bench import simulator_name
+from ..models.sources import SensorSample
 
 
 __all__ = ["REPLAY_CLOCK_HZ", "REPLAY_BAUD", "BoardReplay", "replay_board"]
@@ -90,6 +92,33 @@ class BoardReplay:
                 "counters": self.counters}
 
 
+
+def _recording_model(setup, gyr, acc, mag_ak, period_s, dt):
+    """The MPU9250 model that plays the recording (body-axis counts ``gyr``, ``acc``; the
+    field ``mag_ak`` in the AK8963's axes) from the first sample the driver reads, and
+    ``first``: ``{"read": index}`` of that sample once it is read."""
+    total = len(gyr)
+    table = [SensorSample(accel=tuple(int(v) for v in a), gyro=tuple(int(v) for v in g))
+             for a, g in zip(acc, gyr)]
+    # the recording starts with the first sample the driver reads: the samples the model
+    # makes during bring-up (never read) are the recording's first
+    first = {}
+
+    def source(index, t):
+        if model.sample_reads and "read" not in first:
+            first["read"] = model.sample_reads[0]
+        return table[min(max(index - first.get("read", index), 0), total - 1)]
+    model = setup.model(source=source, aux_devices={})
+    # the AK8963 measures at its own 100 Hz against the recording's rate (``dt``), as on a
+    # real board: the field of the sample the MPU9250 made last, in one sample of 1/(100 dt)
+    ak = AK8963Model(timing=AK8963Timing().scaled(odr=period_s / (100 * dt) / 0.01),
+                     source=lambda k, t: mag_ak[min(max(len(model.samples) - 1 -
+                                                        first.get("read", 10 ** 9), 0),
+                                                    total - 1)])
+    model.aux_devices[0x0C] = ak
+    return model, first
+
+
 def replay_board(filter, gyr_counts, acc_counts, mag_counts, dt, *, gyro_fs_dps=2000,
                  accel_fs_g=16, samples=None, compiled="prefer", progress=None,
                  period_cycles=None, divider=None, **units_and_params):
@@ -97,16 +126,16 @@ def replay_board(filter, gyr_counts, acc_counts, mag_counts, dt, *, gyro_fs_dps=
     through the co-simulated board, the engine set up for ``filter``: a ``BoardReplay``.
     ``period_cycles`` (the simulated sample period) and ``divider`` (frame every n-th result)
     default to the shortest that work."""
-    from ..hdl.engine.register_map import TELEMETRY_DIV_ADDR
-    from ..hdl.link.frame_types import AttitudeFrame, frame_bytes
-    from ..hdl.board.top import rate_budget
-    from ..reference.evaluate import engine_configs
-    from ..reference.engine_model import attitude_fixed
-    from ..reference.flagship_fixed import q30_to_float
-    from ..reference.frames import body_to_mag
+    from ...hdl.engine.register_map import TELEMETRY_DIV_ADDR
+    from ...hdl.link.frame_types import AttitudeFrame, frame_bytes
+    from ...hdl.board.top import rate_budget
+    from ...reference.evaluate import engine_configs
+    from ...reference.engine_model import attitude_fixed
+    from ...reference.flagship_fixed import q30_to_float
+    from ...reference.frames import body_to_mag
     from .attitude_bench import EngineRun, first_mismatch
     from .compiled_engine import configuration_writes
-    from ..hdl.link.uart_tx import UARTTransmitter
+    from ...hdl.link.uart_tx import UARTTransmitter
 
     total = len(gyr_counts) if samples is None else min(samples, len(gyr_counts))
     if total < 1:
@@ -135,25 +164,8 @@ def replay_board(filter, gyr_counts, acc_counts, mag_counts, dt, *, gyro_fs_dps=
     gyr = np.asarray(gyr_counts)[:total]
     acc = np.asarray(acc_counts)[:total]
     mag_ak = body_to_mag(np.asarray(mag_counts)[:total])
-    table = [SensorSample(accel=tuple(int(v) for v in a), gyro=tuple(int(v) for v in g))
-             for a, g in zip(acc, gyr)]
-    # the recording starts with the first sample the driver reads: the samples the model
-    # makes during bring-up (never read) are the recording's first
-    first = {}
-
-    def source(index, t):
-        if model.sample_reads and "read" not in first:
-            first["read"] = model.sample_reads[0]
-        return table[min(max(index - first.get("read", index), 0), total - 1)]
-    model = setup.model(source=source, aux_devices={})
-    # the AK8963 measures at its own 100 Hz against the recording's rate (``dt``), as on a
-    # real board: the field of the sample the MPU9250 made last, in one sample of 1/(100 dt)
-    period_s = period_cycles / REPLAY_CLOCK_HZ
-    ak = AK8963Model(timing=AK8963Timing().scaled(odr=period_s / (100 * dt) / 0.01),
-                     source=lambda k, t: mag_ak[min(max(len(model.samples) - 1 -
-                                                        first.get("read", 10 ** 9), 0),
-                                                    total - 1)])
-    model.aux_devices[0x0C] = ak
+    model, first = _recording_model(setup, gyr, acc, mag_ak, period_cycles / REPLAY_CLOCK_HZ,
+                                    dt)
 
     # the flagship's magnetometer gains for the AK8963's period, as the board sets them
     # (``attitude_engine.default_flagship_config``)

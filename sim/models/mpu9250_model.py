@@ -1,7 +1,7 @@
 """Behavioural model of the MPU9250 as an SPI peripheral.
 
 The model is plain Python driven by pin events with time stamps in seconds, so it can be unit
-tested on its own and attached to Amaranth's simulator by ``sim.cosim`` (which feeds it the pin
+tested on its own and attached to Amaranth's simulator by ``sim.bench.harness`` (which feeds it the pin
 levels the gateware drives, one system clock at a time).
 
 What it does, as the part does (``shared/mpu9250-notes.md``):
@@ -35,15 +35,15 @@ its factory response ``otp(code)`` (LSB at ±2 g, ±250 °/s; halved per full-sc
 ``self_test_gain`` (1.0: a good part; 0: a dead axis) on top of the source's counts.
 
 Not modelled: the FIFO, sensor warm-up, the primary I2C interface's own pins (that is
-``sim.i2c_bus``, which uses ``read_reg``/``write_reg`` here).
+``sim.models.i2c_bus``, which uses ``read_reg``/``write_reg`` here).
 """
 
 import math
 from dataclasses import dataclass, replace
 from typing import Optional
 
-from ..hdl.contract import mpu9250_regs as R
-from ..hdl.sensor.self_test import otp
+from ...hdl.contract import mpu9250_regs as R
+from ...hdl.sensor.self_test import otp
 from .sources import SensorSample, constant_source
 
 

@@ -1,6 +1,6 @@
 """The comparison table on BROAD recordings, and the figure.
 
-    python -m mpu9250_ahrs.sim.benchmark ../shared/data/broad/*.hdf5 \\
+    python -m mpu9250_ahrs.sim.scenarios.benchmark ../shared/data/broad/*.hdf5 \\
         [--json results.json] [--figure trial.png] [--jobs 2]
 
 Every filter gets the same quantised inputs (MPU9250 ±2000 °/s, ±16 g; AK8963 0.15 µT/LSB) and
@@ -22,12 +22,12 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
-from ..hdl.contract.filter_registry import FILTER_NAMES, FLOAT_FILTERS
-from ..reference.recording import Scales, load_broad, quantise, to_units
-from ..reference.compare import external_filters, missing_external_filters
-from ..reference.entry_point import count, run_main
-from ..reference.evaluate import run_filter, run_fixed, score
-from ..reference.kalman import KalmanParams
+from ...hdl.contract.filter_registry import FILTER_NAMES, FLOAT_FILTERS
+from ...reference.recording import Scales, load_broad, quantise, to_units
+from ...reference.compare import external_filters, missing_external_filters
+from ...reference.entry_point import count, run_main
+from ...reference.evaluate import run_filter, run_fixed, score
+from ...reference.kalman import KalmanParams
 
 
 __all__ = ["FILTER_SET", "run_trial", "table", "split_table", "main"]
@@ -45,7 +45,7 @@ def _filter_set():
     """(row name, kind, filter, parameters), one parameter set for all trials, from the
     registry (``hdl/contract/filter_registry.py``): each float filter (its defaults, its fixed point
     if the gateware has it, its variants), then the gateware's, the engine's Verilog in Verilator
-    (``sim/compiled_engine.py``; "≠" marks a result that is not bit for bit the fixed row's)."""
+    (``sim/scenarios/compiled_engine.py``; "≠" marks a result that is not bit for bit the fixed row's)."""
     rows = []
     for name in FLOAT_FILTERS:
         if name in FILTER_NAMES or name not in VARIANTS:
@@ -79,7 +79,7 @@ def run_trial(path, with_fixed=True):
             quat = fixed[name] = run_fixed(name, *counts, rec.dt, **units, **params)
         else:
             from .compiled_engine import run_gateware
-            from ..reference.flagship_fixed import q30_to_float
+            from ...reference.flagship_fixed import q30_to_float
             run = run_gateware(name, *counts, rec.dt, **units, **params)[0]
             quat = q30_to_float(run.quat)
             extra = {"bit_exact": bool(np.array_equal(quat, fixed.get(name))),
@@ -136,7 +136,7 @@ def figure(path, out_png, filter_name="flagship"):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from ..reference.frames import quat_to_euler
+    from ...reference.frames import quat_to_euler
 
     rec = load_broad(path)
     gyr, acc, mag = to_units(*quantise(rec.gyr, rec.acc, rec.mag))
@@ -162,7 +162,7 @@ def _ignore_interrupt():
 
 
 def main(argv=None):
-    p = argparse.ArgumentParser(prog="python -m mpu9250_ahrs.sim.benchmark",
+    p = argparse.ArgumentParser(prog="python -m mpu9250_ahrs.sim.scenarios.benchmark",
                                 description=__doc__.split("\n\n")[0])
     p.add_argument("files", nargs="+", help="BROAD recordings (HDF5)")
     p.add_argument("--json", help="write all figures as JSON")
@@ -221,4 +221,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    sys.exit(run_main("python -m mpu9250_ahrs.sim.benchmark", main))
+    sys.exit(run_main("python -m mpu9250_ahrs.sim.scenarios.benchmark", main))

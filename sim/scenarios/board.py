@@ -25,18 +25,19 @@ import os
 import termios
 import threading
 import time
-from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
 
-from ..hdl.contract import ak8963_regs as A
-from ..hdl.contract.defaults import DEFAULT_BAUD
-from ..hdl.sensor.mpu9250_driver import MPU9250Config
-from ..reference.frames import body_to_mag, euler_to_quat, quat_to_matrix
-from .cosim import CosimHarness, SimSetup, attach_mpu9250
-from .sources import SensorSample
-from .uart import attach_uart_receiver
+from ...hdl.contract import ak8963_regs as A
+from ...hdl.contract.defaults import DEFAULT_BAUD
+from ...hdl.sensor.mpu9250_driver import MPU9250Config
+from ...reference.frames import body_to_mag, euler_to_quat, quat_to_matrix
+from ..bench.open_bench import compiled_wanted, open_bench
+from ..bench.harness import CosimHarness, PinModels
+from ..models.sources import SensorSample
+from .core import core_key
+from .setup import SimSetup
 
 
 __all__ = ["SensorErrors", "SimulatedBoard", "board_setup", "garble", "line_segments",
@@ -144,8 +145,7 @@ class SimulatedBoard:
     """
     def __init__(self, *, errors=SensorErrors(), sample_cycles=1600, core_kwargs=None, seed=1,
                  setup=None, compiled=None):
-        from ..hdl.board.top import AHRSCore
-        from .cosim import compiled_wanted
+        from ...hdl.board.top import AHRSCore
         # a board runs for as long as it is used: worth a build whenever one can be had
         self.compiled = compiled_wanted("prefer" if compiled is None else compiled)
         self.errors = errors
@@ -157,7 +157,6 @@ class SimulatedBoard:
         core_kwargs = dict(clk_freq=self.setup.clk_freq, config=config,
                            timing=self.setup.driver_timing(), baud=self.setup.clk_freq / 4,
                            command_timeout_s=2e-3, telemetry_divider=1, **(core_kwargs or {}))
-        from .compiled_board import core_key
         self._key = core_key("board", **core_kwargs)
         self.core = AHRSCore(**core_kwargs)
         self.lsb_g = 32768 / config.accel_fs_g
@@ -219,7 +218,6 @@ class SimulatedBoard:
         """Start the simulation thread; returns once the pseudo-terminal exists. A board
         already started is returned as it is (``with SimulatedBoard().start()`` starts one
         thread, not two on one model)."""
-        from amaranth.sim import Simulator
         if self._thread is not None:
             if self._stop.is_set():
                 raise RuntimeError("this simulated board was stopped: make a new one")
@@ -235,31 +233,30 @@ class SimulatedBoard:
         self.port = os.ttyname(slave)
         core = self.core
         harness = CosimHarness(core, spi=core.imu, int_pin=core.imu_int)
-        if self.compiled:
-            return self._start_compiled(harness)
-        sim = Simulator(harness)
-        sim.add_clock(1 / self.setup.clk_freq)
-        attach_mpu9250(sim, self.model, harness, self.setup.clk_freq)
         sent = []
-        divisor = core.uart.divisor
-        attach_uart_receiver(sim, core.uart_tx, divisor, sent)
-        poll = 10 * divisor                         # a byte time
+        bench = open_bench(harness, {"uart_rx": core.uart_rx}, {"uart_tx": core.uart_tx},
+                           self.setup.clk_freq, compiled=self.compiled, name="board",
+                           key=self._key, models=PinModels(self.setup.clk_freq, mpu=self.model),
+                           uart=("uart_tx", core.uart.divisor, sent))
+        return self._run_in_thread(lambda: bench.run(lambda b: self._bridge(b, sent)))
 
-        async def bridge(ctx):
-            ctx.set(core.uart_rx, 1)
-            while not self._stop.is_set():
-                await ctx.tick().repeat(poll)
-                self.cycles = ctx.get(harness.cycle)
-                ratio = pty_baud(master) / NOMINAL_BAUD
-                self._flush(sent, ratio)
-                for level, cycles in self._from_host(divisor):
-                    if self._stop.is_set():
-                        break
-                    ctx.set(core.uart_rx, level)
-                    await ctx.tick().repeat(cycles)
-                self._flush(sent, ratio)
-        sim.add_testbench(bridge)
-        return self._run_in_thread(sim.run)
+    async def _bridge(self, bench, sent):
+        """The scenario: every byte time a look at the pseudo-terminal; the design's bytes
+        (``sent``) to the host, the host's played into ``uart_rx`` at the host's baud."""
+        divisor = self.core.uart.divisor
+        poll = 10 * divisor                         # a byte time
+        bench.set("uart_rx", 1)
+        while not self._stop.is_set():
+            await bench.tick(poll)
+            self.cycles = bench.cycle
+            ratio = pty_baud(self._master) / NOMINAL_BAUD
+            self._flush(sent, ratio)
+            for level, cycles in self._from_host(divisor):
+                if self._stop.is_set():
+                    break
+                bench.set("uart_rx", level)
+                await bench.tick(cycles)
+            self._flush(sent, ratio)
 
     def _run_in_thread(self, run):
         def guarded():
@@ -290,59 +287,6 @@ class SimulatedBoard:
                 os.write(self._master, out)
             except OSError:                          # nobody reading: the bytes are lost
                 pass
-
-    def _start_compiled(self, harness):
-        """``start`` on the compiled path (``sim.compiled_board``): the same bridge, played
-        by a loop that wakes at the models' events, the UART's bit times and every byte time
-        to look at the pseudo-terminal."""
-        from .compiled_board import UARTReader, _Models, board_ports
-        from .compiled_design import CompiledDesign
-        from .compiled_design import NEVER
-        from .cosim import PinModels
-        core, master = self.core, self._master
-        inputs, outputs = board_ports(harness,
-                                      extra_inputs={"uart_rx": core.uart_rx},
-                                      extra_outputs={"uart_tx": core.uart_tx})
-        design = CompiledDesign(harness, inputs, outputs, name="board", key=self._key)
-        divisor = core.uart.divisor
-        poll = 10 * divisor                         # a byte time
-
-        def run():
-            sent = []
-            pins = _Models(design, PinModels(self.setup.clk_freq, mpu=self.model))
-            uart = UARTReader(design, "uart_tx", divisor, sent)
-            mask = design.mask("pin_a", "pin_b", "uart_tx")
-            design.set("uart_rx", 1)
-            line = deque()                      # the host's line still to play
-            cycle, next_poll, next_edge, ratio = 0, poll, NEVER, 1.0
-            while not self._stop.is_set():
-                pins.poll(cycle)
-                uart.poll(cycle)
-                if cycle >= next_edge:
-                    if line:
-                        level, cycles = line.popleft()
-                        design.set("uart_rx", level)
-                        next_edge = cycle + cycles
-                    else:                       # the host's bytes sent
-                        self.cycles = cycle
-                        self._flush(sent, ratio)
-                        next_edge, next_poll = NEVER, cycle
-                if next_edge == NEVER and cycle >= next_poll:
-                    self.cycles = cycle
-                    ratio = pty_baud(master) / NOMINAL_BAUD
-                    self._flush(sent, ratio)
-                    # (a deque: 4 KB from the host are some 40,000 runs, taken from the front)
-                    line = deque(self._from_host(divisor))
-                    if line:
-                        level, cycles = line.popleft()
-                        design.set("uart_rx", level)
-                        next_edge = cycle + cycles
-                    else:
-                        next_poll = cycle + poll
-                # while the host's line plays, its edges are the bridge's times; else the poll
-                until = next_edge if next_edge != NEVER else next_poll
-                cycle = design.run(min(pins.wake, uart.at, until), mask)
-        return self._run_in_thread(run)
 
     def wait_cycles(self, cycles, timeout=600):
         """Block until the simulation has run ``cycles`` more cycles."""

@@ -19,9 +19,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..reference.frames import (body_to_mag, euler_to_quat, quat_conj, quat_from_rotvec,
-                                quat_mul, quat_normalize, quat_to_matrix)
-from ..reference.recording import G, Scales, quantise
+from ...reference.frames import (body_to_mag, euler_to_quat, quat_conj, quat_from_rotvec, quat_mul,
+    quat_normalize, quat_to_matrix)
+from ...reference.recording import G, Scales, quantise
 from .sources import SensorSample
 
 

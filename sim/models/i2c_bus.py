@@ -14,7 +14,7 @@ What it can do to the controller:
 - ``stuck_clocks``: start with SDA held low, as a device interrupted mid-read holds it, until
   that many SCL clocks have gone by.
 
-Faults to inject mid-run (``sim.faults``): ``hold_sda(clocks)`` holds SDA low from now on for that
+Faults to inject mid-run (``sim.scenarios.faults``): ``hold_sda(clocks)`` holds SDA low from now on for that
 many SCL clocks (a device that lost its place; ``release_sda`` ends it), ``nack_next`` NACKs the
 next that-many register-pointer bytes (to ``nack_address``, or any device if None): a NACK in
 the middle of a transfer.

@@ -1,5 +1,5 @@
 """The compiled whole-board path's speed against Amaranth's simulator, side by side:
-``python -m mpu9250_ahrs.sim.speed`` prints both paths' cycles per second on the same runs
+``python -m mpu9250_ahrs.sim.scenarios.speed`` prints both paths' cycles per second on the same runs
 (the SPI and I2C front ends, the whole core) and whether their results were the same, and the
 compiled core's own speed clocked free (``compiled_free_cycles_per_s``): the most the core's
 ratio could reach if the Python models and the loop around them cost nothing."""
@@ -14,10 +14,14 @@ def compiled_core_free_speed(cycles=3_000_000):
     """Cycles per second of the compiled core (the build ``run_core`` uses at ``SimSetup``'s
     defaults, from the cache) clocked ``cycles`` edges in one call from reset, its pins idle:
     no Python in the loop, so the Verilated model's own speed."""
-    from .compiled_board import core_design
-    from .cosim import SimSetup, core_harness
-    core, harness, key = core_harness(SimSetup())
-    design = core_design(harness, core, key=key)
+    from ..bench.compiled_bench import CompiledBench
+    from ..bench.harness import PinModels
+    from .core import core_harness, core_ports
+    from .setup import SimSetup
+    setup = SimSetup()
+    core, harness, key = core_harness(setup)
+    design = CompiledBench(harness, *core_ports(core), setup.clk_freq, name="core", key=key,
+                           models=PinModels(setup.clk_freq, mpu=setup.model())).design
     start = time.perf_counter()
     design.run(cycles, 0)
     return round(cycles / (time.perf_counter() - start))
@@ -28,9 +32,11 @@ def speed(samples=20):
     the I2C wiring in real time), each build cached first: cycles per second of each and
     their ratio, and whether the results were the same. A benchmark, not a test: the figures
     depend on the machine."""
-    from ..hdl.primitives.clocking import SYSTEM_CLOCK_HZ
-    from ..hdl.sensor.mpu9250_driver import MPU9250Config
-    from .cosim import SimSetup, run_core, run_frontend
+    from ...hdl.primitives.clocking import SYSTEM_CLOCK_HZ
+    from ...hdl.sensor.mpu9250_driver import MPU9250Config
+    from .core import run_core
+    from .frontend import run_frontend
+    from .setup import SimSetup
     spi = SimSetup()
     i2c_config = MPU9250Config(wiring="i2c")
     i2c = SimSetup(config=i2c_config,
@@ -60,10 +66,10 @@ def speed(samples=20):
 
 
 def main(argv=None):
-    """``python -m mpu9250_ahrs.sim.speed``: both paths' speeds as JSON."""
+    """``python -m mpu9250_ahrs.sim.scenarios.speed``: both paths' speeds as JSON."""
     import argparse
     import json
-    argparse.ArgumentParser(prog="python -m mpu9250_ahrs.sim.speed",
+    argparse.ArgumentParser(prog="python -m mpu9250_ahrs.sim.scenarios.speed",
                             description="Both simulation paths' cycles per second on the same "
                                         "runs.").parse_args(argv)
     print(json.dumps(speed(), indent=1))
@@ -72,5 +78,5 @@ def main(argv=None):
 
 if __name__ == "__main__":
     import sys
-    from ..reference.entry_point import run_main
-    sys.exit(run_main("python -m mpu9250_ahrs.sim.speed", main))
+    from ...reference.entry_point import run_main
+    sys.exit(run_main("python -m mpu9250_ahrs.sim.scenarios.speed", main))

@@ -1,5 +1,5 @@
 """Verilator builds of the package's compiled simulations, cached: the one build path the
-compiled engine (``sim.compiled_engine``) and the compiled designs (``sim.compiled_design``)
+compiled engine (``sim.scenarios.compiled_engine``) and the compiled designs (``sim.bench.compiled_design``)
 share (the cache, a lock per entry, a temporary folder, the command, the atomic publish, and
 Verilator's run-time library built once for all of them: ``_Runtime``).
 """

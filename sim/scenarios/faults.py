@@ -2,7 +2,7 @@
 
 A ``Fault`` says what goes wrong (``inject``) and, for a fault that can go away, how it ends
 (``remove``), in terms of the simulated parts: the MPU9250 model, the AK8963 model, the I2C bus
-model and two pin overrides (CIPO and INT) that ``sim.cosim.attach_models`` applies. A
+model and two pin overrides (CIPO and INT) that ``sim.bench.harness.attach_models`` applies. A
 ``FaultInjector`` switches a fault on once the design has read ``at`` samples (``at`` = 0: at
 power-up), and off ``duration`` sample periods later (by default the fault's; a magnetometer
 fault's at least twice the driver's magnetometer time-out, whatever the rate).
@@ -26,9 +26,9 @@ import bisect
 from dataclasses import dataclass, field
 from typing import Callable, Optional, Tuple
 
-from ..hdl.contract import ak8963_regs as A
-from ..hdl.contract import mpu9250_regs as R
-from ..hdl.sensor.sample_reader import GYRO_JUMP_DPS, gyro_jump_limit
+from ...hdl.contract import ak8963_regs as A
+from ...hdl.contract import mpu9250_regs as R
+from ...hdl.sensor.sample_reader import GYRO_JUMP_DPS, gyro_jump_limit
 
 
 __all__ = ["Fault", "FAULTS", "FaultInjector", "run_fault", "fault_names", "ERROR_FLAGS",
@@ -354,7 +354,7 @@ def _field_key(mag):
 def host_garbage_writes():
     """(address, value) writes no host may make: the constants of the register map and some
     filter state. ``HOST_WRITABLE`` refuses each."""
-    from ..hdl.engine.register_map import CONFIG_REGS, REGS
+    from ...hdl.engine.register_map import CONFIG_REGS, REGS
     return [(CONFIG_REGS["ZERO"], 12345), (CONFIG_REGS["INV_GAIN"], 0),
             (CONFIG_REGS["SHL8"], 1), (REGS["THETA0"], 1 << 29), (REGS["P0_00"], -1),
             (REGS["QOUT0"], 0), (0xFD, 7)]
@@ -364,7 +364,8 @@ def run_host_garbage(setup, *, n_results=4, baud=None, compiled=None):
     """The whole core twice, with and without ``host_garbage_writes`` at the start: every
     result must be the same and every write counted in ``cfg_refused`` (port and frames).
     ``baud``: the UART's (default: a quarter of the clock, so that frames come quickly)."""
-    from .cosim import run_core, simulator_name
+    from .core import run_core
+    from ..bench.bench import simulator_name
     bad = host_garbage_writes()
     baud = baud or round(setup.clk_freq / 4)   # an integer: the build's cache key has it
     clean = run_core(setup, n_results=n_results, n_frames=1, baud=baud, compiled=compiled)
@@ -391,7 +392,9 @@ def run_fault(name, setup=None, *, at=20, duration=None, after=None, max_cycles=
     summary dict (module docstring). ``at``: samples read before a mid-run fault; ``duration``:
     sample periods until it is removed (default: the fault's); ``after``: samples to see once
     it is removed (default 12). ``keep_result``: return (summary, the ``CosimResult``)."""
-    from .cosim import SimSetup, run_frontend, simulator_name
+    from .setup import SimSetup
+    from .frontend import run_frontend
+    from ..bench.bench import simulator_name
     setup = setup or SimSetup()
     if name not in FAULTS:
         raise ValueError(f"unknown fault {name!r}; simulate --fault list names them")
@@ -441,7 +444,7 @@ def run_fault(name, setup=None, *, at=20, duration=None, after=None, max_cycles=
         attempts = (power_up + reset + setup.self_test_cycles()) / clk / period
         inj.duration = attempts + duration if fault.recovers == "mag" else 3 * attempts
     if name == "clock_stretch_timeout":
-        from ..hdl.sensor.i2c_controller import I2CTiming
+        from ...hdl.sensor.i2c_controller import I2CTiming
         inj.saved["stretch_s"] = 2 * I2CTiming.for_clock(clk).timeout / clk
 
     def ready(cycle):
@@ -571,11 +574,11 @@ def catalogue_setup(wiring, *, odr=200, clk_freq=4e6, fault=None, self_test=None
     I2C: × 0.25, whose 1.25 ms still fits its read), so that a fault runs in seconds; the
     AK8963's clock 10 % slow (``SimSetup.ak_clock_error``); the self-tests at bring-up only
     for the faults they are to find (``Fault.self_test``), or as ``self_test`` says.
-    ``host_garbage`` runs the whole core, on ``cosim.quick_core_setup`` (1 kHz, 12 MHz)
+    ``host_garbage`` runs the whole core, on ``setup.quick_core_setup`` (1 kHz, 12 MHz)
     whatever ``odr`` and ``clk_freq`` say: the core tests' set-up, whose compiled build it
     shares."""
-    from ..hdl.sensor.mpu9250_driver import MPU9250Config
-    from .cosim import SimSetup, quick_core_setup
+    from ...hdl.sensor.mpu9250_driver import MPU9250Config
+    from .setup import SimSetup, quick_core_setup
     if fault == "host_garbage":
         return quick_core_setup()
     config = MPU9250Config.for_odr(odr, wiring=wiring)
@@ -587,7 +590,7 @@ def catalogue_setup(wiring, *, odr=200, clk_freq=4e6, fault=None, self_test=None
 
 def catalogue_table(wirings=("spi", "i2c"), *, at=3, after=4, duration=8, out=None):
     """Run every fault of the catalogue on ``catalogue_setup`` and print a Markdown table of
-    what was measured (``python -m mpu9250_ahrs.sim.faults``). Returns the summaries."""
+    what was measured (``python -m mpu9250_ahrs.sim.scenarios.faults``). Returns the summaries."""
     import sys
     out = out or sys.stdout
     rows = []
@@ -612,9 +615,9 @@ def catalogue_table(wirings=("spi", "i2c"), *, at=3, after=4, duration=8, out=No
 
 
 def main(argv=None):
-    """``python -m mpu9250_ahrs.sim.faults``: the catalogue as a table."""
+    """``python -m mpu9250_ahrs.sim.scenarios.faults``: the catalogue as a table."""
     import argparse
-    parser = argparse.ArgumentParser(prog="python -m mpu9250_ahrs.sim.faults",
+    parser = argparse.ArgumentParser(prog="python -m mpu9250_ahrs.sim.scenarios.faults",
                                      description="Run the fault catalogue (hdl/FAULTS.md) in "
                                      "co-simulation and print what was measured as a table.")
     parser.add_argument("--wiring", choices=("spi", "i2c"), action="append",
@@ -626,5 +629,5 @@ def main(argv=None):
 
 if __name__ == "__main__":
     import sys
-    from ..reference.entry_point import run_main
-    sys.exit(run_main("python -m mpu9250_ahrs.sim.faults", main))
+    from ...reference.entry_point import run_main
+    sys.exit(run_main("python -m mpu9250_ahrs.sim.scenarios.faults", main))

@@ -12,8 +12,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from amaranth.sim import Simulator
 
-from ..reference.engine_model import RESULT_FIELDS, RESULT_FLAGS
-from .streams import Monitored, stream_put
+from ...reference.engine_model import RESULT_FIELDS, RESULT_FLAGS
+from ..bench.streams import Monitored, stream_put
 
 
 __all__ = ["EngineRun", "RESULT_FIELDS", "run_engine", "first_mismatch", "random_inputs"]
@@ -99,7 +99,7 @@ def run_engine(dut, gyro, accel, mag_ak, mag_valid=None, *, asa=(128, 128, 128),
     sim.add_clock(1e-6)
     sim.add_testbench(testbench)
     if vcd and gtkw is None:
-        from .waveforms import gtkw_beside
+        from ..bench.waveforms import gtkw_beside
         gtkw = gtkw_beside(vcd)
     traces = [dut.samples.valid, dut.samples.ready, dut.busy, dut.results.valid,
               dut.results.payload.quat, dut.results.payload.angles, dut.results.payload.bias,
@@ -136,7 +136,7 @@ def random_inputs(seed, n):
     rarely has: any gyro and accelerometer count, zero accelerometer and field vectors (a
     fifth each), missing fields (``mag_valid`` 0 for about 30 %), and a random calibration and
     ASA. Returns (gyro, accel, mag_ak, mag_valid, CalibrationFixed, asa)."""
-    from ..reference.fixed_point import CalibrationFixed
+    from ...reference.fixed_point import CalibrationFixed
     rng = np.random.default_rng(seed)
     g = rng.integers(-32768, 32768, (n, 3))
     a = rng.integers(-32768, 32768, (n, 3))

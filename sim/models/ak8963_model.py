@@ -1,7 +1,7 @@
 """Behavioural model of the AK8963 magnetometer at register level.
 
 Two buses reach it: the MPU9250 model's auxiliary I2C master (SPI wiring) and the bit-level I2C
-bus model in ``sim.i2c_bus`` (I2C wiring, through the MPU9250's bypass multiplexer). Both use the
+bus model in ``sim.models.i2c_bus`` (I2C wiring, through the MPU9250's bypass multiplexer). Both use the
 register-device interface every model here offers: ``read_reg``, ``write_reg``,
 ``next_address`` (auto-increment with the part's wrap rules) and ``advance(t)``.
 
@@ -25,7 +25,7 @@ The field source gives ``(hx, hy, hz)`` in 16-bit counts (0.15 µT/LSB) in the A
 
 from dataclasses import dataclass, replace
 
-from ..hdl.contract import ak8963_regs as A
+from ...hdl.contract import ak8963_regs as A
 from .mpu9250_model import Violation, ProtocolError
 
 

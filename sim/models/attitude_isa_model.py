@@ -7,14 +7,13 @@ before the slower gateware simulation, and to debug a program one instruction at
 under test here.
 """
 
-from ..hdl.engine.attitude_isa import (COLLECT, CORDIC_SHORT, GO_ON, MUL_SHIFTS, UNITS, Cond, Flag,
-                                       Op)
-from ..hdl.engine.register_map import CONFIG_REGS, LOAD_ORDER, REGS, config_init, load_words
-from ..hdl.contract.filter_registry import FILTER_CODES
-from ..hdl.engine.attitude_program import build_program
-from ..reference.fixed_point import (CORDIC_ITERATIONS, CORDIC_SHORT_ITERATIONS, INV_GAIN_Q30,
-                                     Status, cordic_rotate, cordic_vector, div_q24, sat, sat16,
-                                     sat32, wrap32)
+from ...hdl.engine.attitude_isa import (COLLECT, CORDIC_SHORT, GO_ON, MUL_SHIFTS, UNITS, Cond, Flag,
+    Op)
+from ...hdl.engine.register_map import CONFIG_REGS, LOAD_ORDER, REGS, config_init, load_words
+from ...hdl.contract.filter_registry import FILTER_CODES
+from ...hdl.engine.attitude_program import build_program
+from ...reference.fixed_point import (CORDIC_ITERATIONS, CORDIC_SHORT_ITERATIONS, INV_GAIN_Q30,
+    Status, cordic_rotate, cordic_vector, div_q24, sat, sat16, sat32, wrap32)
 
 
 __all__ = ["AttitudeISAModel"]

@@ -142,7 +142,7 @@ GTKW_WIDTH_PX = 1000
 
 def layout(kind, wiring, status_fields=()):
     """What a save file shows, grouped by block: [(group, [(name, width, label)])], each name
-    relative to the harness's scope (``sim.cosim.CosimHarness``: the design is ``dut``).
+    relative to the harness's scope (``sim.bench.harness.CosimHarness``: the design is ``dut``).
     ``kind``: "frontend" or "core"; ``status_fields``: the status flags by (name, width)."""
     pins = "pins" if kind == "frontend" else "imu"
     if wiring == "spi":
@@ -287,7 +287,7 @@ def vcd_timescale_s(vcd):
 
 class RunTrace:
     """The waveform of one co-simulation run, on either simulator: ``wave`` (``Waveform``, or
-    a path) of a harness (``sim.cosim.CosimHarness``) around a ``kind`` ("frontend" or
+    a path) of a harness (``sim.bench.harness.CosimHarness``) around a ``kind`` ("frontend" or
     "core") design on ``wiring`` whose status has ``status_fields`` ((name, width) each).
 
     Compiled: ``start_compiled(design)`` before the run (a build with ``trace=format``);

@@ -1,0 +1,1 @@
+"""What is simulated, each scenario written once for both simulators (``sim.bench``)."""
