@@ -13,7 +13,7 @@ from .frames import accel_tilt, euler_to_quat, filter_inputs, tilt_compensated_h
 from .kalman import _wrap_deg
 
 
-__all__ = ["PRESETS", "coefficient", "complementary_filter"]
+__all__ = ["PRESETS", "coefficient", "complementary_filter", "run_float"]
 
 
 # Published presets: τ = 0.8 s at dt = 25 ms (a ≈ 0.97) and τ = 1.5 s at dt = 30 ms (a ≈ 0.98).
@@ -52,3 +52,10 @@ def complementary_filter(gyr_dps, acc, mag, dt, *, tau=0.8, a=None, rates="euler
         theta = _wrap_deg(a * pred + (1 - a) * meas)
         out[k] = theta
     return out, euler_to_quat(np.radians(out))
+
+
+def run_float(gyr, acc, mag, dt, **params):
+    """The filter as ``evaluate.run_filter`` runs it (its record in ``filter_registry``): gyr
+    rad/s, acc m/s², mag µT -> quaternions body->ENU; ``params``: ``tau``, ``rates``."""
+    return complementary_filter(np.degrees(gyr), acc, mag, dt, tau=params.get("tau", 0.8),
+                                rates=params.get("rates", "body"))[1]

@@ -1,23 +1,21 @@
 """The attitude engine in integers: ``EngineModel`` (one sample at a time, with the
 run-time registers, the filter select and resets, exactly as the gateware acts on them) and
-``attitude_fixed`` (the same over arrays), from the primitives and the per-axis filters of
-``reference/fixed_point.py``, the flagship's step in ``reference/flagship_fixed.py`` and
-Madgwick's in ``reference/madgwick_fixed.py``. The gateware's attitude engine equals it bit for
-bit.
+``attitude_fixed`` (the same over arrays), from the primitives of ``reference/fixed_point.py``
+and each filter's integer step, found through its record (``hdl/contract/filter_registry.py``:
+``reference/per_axis_fixed.py``, ``flagship_fixed.py``, ``madgwick_fixed.py``). The gateware's
+attitude engine equals it bit for bit.
 """
 
 import dataclasses
+import importlib
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..hdl.contract.numeric_contract import (CalibrationFixed, KalmanFixedConfig, calibration_of,
-                                             calibration_registers, control_fields,
-                                             filter_registers)
-from ..hdl.contract.filter_registry import FILTER_NAMES
-from .fixed_point import Status, _KalmanFixed, _calibrate_one, _complementary_step
-from .flagship_fixed import FlagshipFixed, euler_quat_fixed
-from .madgwick_fixed import MadgwickFixed
+                                             calibration_registers, control_fields)
+from ..hdl.contract.filter_registry import FILTER_NAMES, FILTERS as _RECORDS, filter_registers
+from .fixed_point import Status, _KalmanFixed, _calibrate_one
 
 
 __all__ = ["FILTERS", "RESULT_FLAGS", "RESULT_FIELDS", "AttitudeFixed", "EngineModel",
@@ -30,9 +28,14 @@ RESULT_FLAGS = ("acc_used", "mag_used", "mag_disturbed", "mag_new_ref", "at_rest
                 "bias_updated")
 # the fields of a result that the gateware must reproduce, in the order they are compared
 RESULT_FIELDS = ("quat", "angles", "bias", *RESULT_FLAGS, "saturated", "filter")
-_FLAGSHIP = FILTERS.index("flagship")
-_KALMAN = FILTERS.index("kalman")
-_MADGWICK = FILTERS.index("madgwick")
+
+
+def fixed_step_maker(record):
+    """The function that makes a filter's integer step (``reg``, ``kf``): its record's
+    ``fixed_step``, ``"module:function"`` of this package (or a dotted module elsewhere)."""
+    module, function = record.fixed_step.split(":")
+    module = module if "." in module else f"{__package__}.{module}"
+    return getattr(importlib.import_module(module), function)
 
 
 @dataclass
@@ -78,8 +81,8 @@ class EngineModel:
         registers keep their values."""
         self.kf = _KalmanFixed(KalmanFixedConfig(), self.reg)
         self.kf.reg = self.reg                      # one register dict for every filter
-        self.flagship = FlagshipFixed(self.reg, self.kf.bias)
-        self.madgwick = MadgwickFixed(self.reg)
+        # each filter's step, by code: the per-axis ones on ``kf``, the flagship sharing its bias
+        self.steps = [fixed_step_maker(record)(self.reg, self.kf) for record in _RECORDS]
 
     def write(self, name, value):
         self.reg[name] = int(value)
@@ -104,9 +107,8 @@ class EngineModel:
         if not 0 <= code < len(FILTERS):
             raise ValueError(f"filter code {code} names no filter (0..{len(FILTERS) - 1})")
         if code != self.filter:
-            self.kf.prev = None                      # next sample is a first one
-            self.flagship.first = True
-            self.madgwick.first = True
+            for step in self.steps:                  # next sample is a first one
+                step.first = True
         self.filter = code
 
     def sample(self, g_raw, a_raw, m_raw, mag_valid=True, asa=(128, 128, 128), skipped=0):
@@ -118,23 +120,10 @@ class EngineModel:
         g, a, m = _calibrate_one(list(g_raw), list(a_raw), list(m_raw), asa,
                                  calibration_of(self.reg), st)
         kf = self.kf
-        flags = set()
-        if self.filter in (_FLAGSHIP, _MADGWICK):
-            quaternion_filter = self.flagship if self.filter == _FLAGSHIP else self.madgwick
-            quat, kf.theta, flags = quaternion_filter.step(g, a, m, bool(mag_valid), st, periods)
-            kf.prev = list(g)
-        else:
-            if self.filter == _KALMAN:
-                acc_ok, mag_ok = kf.step(g, a, m, mag_valid, st, periods)
-                if acc_ok or mag_ok:
-                    flags.add("bias_updated")
-            else:
-                kf.theta, acc_ok, mag_ok = _complementary_step(kf.theta, g, a, m, mag_valid,
-                                                               self.reg, st, periods)
-                kf.prev = list(g)
-            flags |= {"acc_used"} if acc_ok else set()
-            flags |= {"mag_used"} if mag_ok else set()
-            quat = euler_quat_fixed(kf.theta, st)
+        # the angles a filter leaves are where the per-axis filters continue, and this
+        # sample's rate the Kalman filter's previous one
+        quat, kf.theta, flags = self.steps[self.filter].step(g, a, m, mag_valid, st, periods)
+        kf.prev = list(g)
         return {"quat": list(quat), "angles": list(kf.theta), "bias": list(kf.bias),
                 **{f: f in flags for f in RESULT_FLAGS}, "saturated": st.saturated,
                 "filter": self.filter}

@@ -4,14 +4,14 @@
 bit-exact fixed-point model of the engine's filters (``FIXED_FILTERS``, the registry's).
 """
 
+import importlib
+
 import numpy as np
 
-from ..hdl.contract.filter_registry import FILTER_NAMES, FLOAT_FILTERS
-from .complementary import complementary_filter
-from .flagship import FlagshipParams, flagship_filter
+from ..hdl.contract.filter_registry import FILTER_NAMES, FLOAT_FILTERS, record
+from .flagship import FlagshipParams
 from .frames import orientation_errors
-from .kalman import KalmanParams, kalman_filter
-from .madgwick import madgwick_filter
+from .kalman import KalmanParams
 
 
 __all__ = ["FILTERS", "FIXED_FILTERS", "run_filter", "run_fixed", "engine_configs", "score"]
@@ -23,18 +23,13 @@ FIXED_FILTERS = FILTER_NAMES
 
 
 def run_filter(name, gyr, acc, mag, dt, **params):
-    """gyr rad/s, acc m/s², mag µT (body frame) -> quaternions body->ENU (N,4)."""
-    if name == "kalman":
-        return kalman_filter(np.degrees(gyr), acc, mag, dt, params.get("kalman", KalmanParams()))[2]
-    if name == "complementary":
-        return complementary_filter(np.degrees(gyr), acc, mag, dt, tau=params.get("tau", 0.8),
-                                    rates=params.get("rates", "body"))[1]
-    if name == "madgwick":
-        return madgwick_filter(gyr, acc, mag, dt, beta=params.get("beta", 0.1))
-    if name == "flagship":
-        return flagship_filter(gyr, acc, mag, dt, params.get("flagship", FlagshipParams()),
-                               mag_valid=params.get("mag_valid"), mag_dt=params.get("mag_dt"))
-    raise ValueError(f"unknown filter {name!r}; choose from {', '.join(FILTERS)}")
+    """gyr rad/s, acc m/s², mag µT (body frame) -> quaternions body->ENU (N,4): the float
+    filter of ``name``'s record (``filter_registry``: its module's ``run_float``)."""
+    if name not in FILTERS:
+        raise ValueError(f"unknown filter {name!r}; choose from {', '.join(FILTERS)}")
+    module = record(name).float_step
+    module = module if "." in module else f"{__package__}.{module}"
+    return importlib.import_module(module).run_float(gyr, acc, mag, dt, **params)
 
 
 def engine_configs(name, dt, *, gyro_lsb_per_dps=16.4, accel_lsb_per_ms2=2048 / 9.80665,

@@ -45,7 +45,7 @@ from ..hdl.contract.numeric_contract import FlagshipParams, sample_counts, svf_g
 from .frames import filter_inputs
 
 
-__all__ = ["FlagshipParams", "flagship_filter", "sample_counts"]
+__all__ = ["FlagshipParams", "flagship_filter", "sample_counts", "run_float"]
 
 
 def _qmul(p, q):
@@ -198,3 +198,11 @@ def flagship_filter(gyr, acc, mag, dt, params=FlagshipParams(), *, mag_valid=Non
         out[k] = _qmul((math.cos(d / 2), 0.0, 0.0, math.sin(d / 2)), qag)
         biases[k] = b
     return (out, biases) if return_bias else out
+
+
+def run_float(gyr, acc, mag, dt, **params):
+    """The filter as ``evaluate.run_filter`` runs it (its record in ``filter_registry``): gyr
+    rad/s, acc m/s², mag µT -> quaternions body->ENU; ``params``: ``flagship``
+    (``FlagshipParams``), ``mag_valid``, ``mag_dt``."""
+    return flagship_filter(gyr, acc, mag, dt, params.get("flagship", FlagshipParams()),
+                           mag_valid=params.get("mag_valid"), mag_dt=params.get("mag_dt"))

@@ -27,8 +27,8 @@ from .fixed_point import (INV_GAIN_Q30, Status, cordic_rotate, cordic_vector, ma
                           step_n, tilt_angles, wrap32)
 
 
-__all__ = ["FlagshipFixedConfig", "FlagshipFixed", "flagship_fixed", "q30_to_float",
-           "euler_quat_fixed", "quat_angles_fixed", "FLAGSHIP_CONSTANTS", "ONE", "HALF"]
+__all__ = ["FlagshipFixedConfig", "FlagshipFixed", "engine_step", "flagship_fixed",
+           "q30_to_float", "euler_quat_fixed", "quat_angles_fixed", "FLAGSHIP_CONSTANTS", "ONE", "HALF"]
 
 ONE = 1 << 30
 HALF = 1 << 29                 # mul(x, HALF, 30) = x / 2 rounded half up
@@ -259,6 +259,12 @@ class FlagshipFixed:
             self.ref_norm, self.ref_dip, self.cand_norm = self.cand_norm, self.cand_dip, 0
             flags.add("mag_new_ref")
         return False
+
+
+def engine_step(reg, kf):
+    """The flagship as the engine model runs it (its record in ``filter_registry``): its bias
+    the per-axis Kalman filter's (``kf.bias``, the same Q16.16 words)."""
+    return FlagshipFixed(reg, kf.bias)
 
 
 def flagship_fixed(gyr_counts, acc_counts, mag_counts, config=FlagshipFixedConfig(), *,

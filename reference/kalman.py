@@ -22,7 +22,7 @@ import numpy as np
 from .frames import accel_tilt, euler_to_quat, filter_inputs, tilt_compensated_heading
 
 
-__all__ = ["KalmanParams", "PUBLISHED", "kalman_filter"]
+__all__ = ["KalmanParams", "PUBLISHED", "kalman_filter", "run_float"]
 
 
 @dataclass(frozen=True)
@@ -100,3 +100,9 @@ def kalman_filter(gyr_dps, acc, mag, dt, params=KalmanParams(), *, mag_valid=Non
         euler[k] = x[:, 0]
         bias[k] = x[:, 1]
     return euler, bias, euler_to_quat(np.radians(euler))
+
+
+def run_float(gyr, acc, mag, dt, **params):
+    """The filter as ``evaluate.run_filter`` runs it (its record in ``filter_registry``): gyr
+    rad/s, acc m/s², mag µT -> quaternions body->ENU; ``params``: ``kalman`` (``KalmanParams``)."""
+    return kalman_filter(np.degrees(gyr), acc, mag, dt, params.get("kalman", KalmanParams()))[2]

@@ -20,7 +20,7 @@ import numpy as np
 from .frames import filter_inputs, quat_from_accel_mag
 
 
-__all__ = ["madgwick_filter"]
+__all__ = ["madgwick_filter", "run_float"]
 
 
 def _gradient_terms(w, x, y, z, d, s):
@@ -84,3 +84,9 @@ def madgwick_filter(gyr, acc, mag, dt, *, beta=0.1, q0=None, align=True, mag_val
         w, x, y, z = w / qn, x / qn, y / qn, z / qn
         out[k] = (w, x, y, z)
     return out
+
+
+def run_float(gyr, acc, mag, dt, **params):
+    """The filter as ``evaluate.run_filter`` runs it (its record in ``filter_registry``): gyr
+    rad/s, acc m/s², mag µT -> quaternions body->ENU; ``params``: ``beta``."""
+    return madgwick_filter(gyr, acc, mag, dt, beta=params.get("beta", 0.1))

@@ -37,7 +37,7 @@ from .flagship_fixed import (FLAGSHIP_CONSTANTS, HALF, ONE, _matrix, _normalise,
 THREE_HALVES = FLAGSHIP_CONSTANTS["THREE_HALVES"]
 
 
-__all__ = ["MadgwickFixed"]
+__all__ = ["MadgwickFixed", "engine_step"]
 
 
 # The quick normalisation (``_unit``): taken when |v·y|² is within 1 ± 1/16 of one (Q.14 bounds),
@@ -169,3 +169,8 @@ class MadgwickFixed:
             terms[3] += [(w8, pb[0]), (x8, qb[0]), (z8, pb[1], -1), (z8, pb[1], -1),
                          (y8, qb[1]), (y8, pb[2])]
         return [mac(t, 30, st) for t in terms]
+
+
+def engine_step(reg, kf):
+    """Madgwick's filter as the engine model runs it (its record in ``filter_registry``)."""
+    return MadgwickFixed(reg)

@@ -19,19 +19,26 @@ import math
 from dataclasses import dataclass
 
 
-__all__ = ["CONTROL_RESET", "CONTROL_KEEP", "CONTROL_BITS", "control_fields",
+__all__ = ["CONTROL_RESET", "CONTROL_KEEP", "CONTROL_BITS", "control_code_bits", "control_fields",
            "CORDIC_ITERATIONS", "CORDIC_SHORT_ITERATIONS", "ATAN_TABLE", "INV_GAIN_Q30",
            "CalibrationFixed", "calibration_registers", "calibration_of",
            "KalmanFixedConfig", "FilterRates", "FlagshipParams", "svf_gain", "sample_counts",
            "AK8963_RATE_HZ", "mag_period", "FlagshipFixedConfig", "CORDIC_GAIN_SQUARED",
-           "MadgwickFixedConfig", "MADGWICK_UNIT_BOUNDS", "filter_registers"]
+           "MadgwickFixedConfig", "MADGWICK_UNIT_BOUNDS"]
 
 
 # The engine's CONTROL register (0xFF): bits 1:0 the filter's code, bit 2 reset the filter
-# state, bit 3 keep the filter (bits 1:0 ignored); bits 31:4 are reserved and must be 0.
+# state, bit 3 keep the filter (the code ignored); beyond four filters the code's higher bits in
+# bits 5:4 (``control_code_bits``); the bits above are reserved and must be 0.
 CONTROL_RESET = 1 << 2
 CONTROL_KEEP = 1 << 3
 CONTROL_BITS = 4
+
+
+def control_code_bits(filter_count):
+    """The bits of a filter code for ``filter_count`` filters: 2 (CONTROL bits 1:0) up to
+    four, then one more per doubling (in CONTROL bits 4, 5, ...)."""
+    return max(2, (filter_count - 1).bit_length())
 
 
 def control_fields(value, filter_count):
@@ -41,10 +48,11 @@ def control_fields(value, filter_count):
     in ``cfg_refused``, nothing changes): a reserved bit set, or, without keep, a code that
     names no filter. The gateware (``hdl/engine/host_port.py``) implements the same rule."""
     value &= 0xFFFF_FFFF
-    if value >> CONTROL_BITS:
+    high = control_code_bits(filter_count) - 2          # the code's bits in CONTROL 4 and up
+    if value >> (CONTROL_BITS + high):
         return None
     keep = bool(value & CONTROL_KEEP)
-    code = value & 0b11
+    code = (value & 0b11) | (value >> CONTROL_BITS) << 2
     if not keep and code >= filter_count:
         return None
     return (None if keep else code), bool(value & CONTROL_RESET)
@@ -329,12 +337,3 @@ class MadgwickFixedConfig:
             raise ValueError(f"Madgwick's BETA_K = {value} does not fit 31 bits "
                              f"(beta {self.beta}, dt {self.dt} s)")
         return {"BETA_K": value}
-
-
-def filter_registers(kalman, flagship=None, madgwick=None):
-    """Every filter's run-time registers by name (the engine's reset values, the reference's
-    and what a host writes): the per-axis filters' (``kalman``, a ``KalmanFixedConfig``), the
-    flagship's and Madgwick's, each matching ``kalman`` when None."""
-    flagship = FlagshipFixedConfig.matching(kalman) if flagship is None else flagship
-    madgwick = MadgwickFixedConfig.matching(kalman) if madgwick is None else madgwick
-    return {**kalman.registers(), **flagship.registers(), **madgwick.registers()}

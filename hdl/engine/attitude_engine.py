@@ -57,7 +57,8 @@ from ..primitives.memories import MicrocodeROM, RegisterFile
 from ..primitives.multiplier import Multiplier
 from ..contract.numeric_contract import (INV_GAIN_Q30, CalibrationFixed, FilterRates,
                                          FlagshipFixedConfig, KalmanFixedConfig,
-                                         calibration_registers, filter_registers, mag_period)
+                                         calibration_registers, mag_period)
+from ..contract.filter_registry import filter_registers
 from .attitude_result import Attitude
 from .config_write import ConfigWrite
 from ..sensor.sample import Sample

@@ -80,6 +80,8 @@ from dataclasses import dataclass, field, replace
 from amaranth.hdl import unsigned
 from amaranth.lib import data
 
+from ..contract.filter_registry import FILTERS
+
 
 __all__ = ["Op", "Cond", "Flag", "FETCH_JUMPS", "REGISTER_CONDS", "MUL_SHIFTS", "Q14", "Q24",
            "DOUBLED", "Q30", "CORDIC_SHORT", "GO_ON", "COLLECT", "UNITS", "REG_COUNT", "REG_BITS",
@@ -142,6 +144,11 @@ class Flag(enum.IntEnum):
     BIAS_UPDATED = 5
 
 
+# the fetch-decided conditions' index: 3 bits for four filters, a bit more per doubling of them
+# (a wider ROM word: the cost of a fifth filter's dispatch, beside its routine's words)
+JUMP_BITS = (3 + len(FILTERS)).bit_length()
+
+
 class Instr(data.Struct):
     op: unsigned(4)
     d: unsigned(REG_BITS)
@@ -157,7 +164,7 @@ class Instr(data.Struct):
     cond: unsigned(3)
     inv: unsigned(1)
     target: unsigned(ROM_BITS)
-    jump: unsigned(3)       # BR on a fixed condition: ``FETCH_JUMPS`` (0: none)
+    jump: unsigned(JUMP_BITS)   # BR on a fixed condition: ``FETCH_JUMPS`` (0: none)
 
 
 # A branch on a condition that holds still for the whole run is decided as it leaves the
@@ -167,7 +174,7 @@ class Instr(data.Struct):
 # decided in execute).
 FETCH_JUMPS = {
     (Cond.ALWAYS, 0): 1, (Cond.MAG_INVALID, 0): 2, (Cond.FIRST, 0): 3,
-    **{(Cond.FILTER, code): 4 + code for code in range(4)},
+    **{(Cond.FILTER, code): 4 + code for code in range(len(FILTERS))},
 }
 REGISTER_CONDS = (Cond.A_ZERO, Cond.A_NEG)
 

@@ -3,6 +3,8 @@
 from amaranth.hdl import signed
 from amaranth.lib import data
 
+from ..contract.filter_registry import FILTER_CODE_BITS
+
 
 __all__ = ["AttitudeFlags", "Attitude"]
 
@@ -25,8 +27,8 @@ class AttitudeFlags(data.Struct):
       measurement update).
     - ``saturated``: some intermediate result of this update was clamped (a calibrated value
       beyond 16 bits, a covariance or gain beyond its format, R ≤ 0): check the coefficients.
-    - ``filter``: the filter that produced this result: 0 per-axis Kalman, 1 complementary,
-      2 flagship.
+    - ``filter``: the filter that produced this result, its code (``filter_registry``: 0
+      per-axis Kalman, 1 complementary, 2 flagship, 3 Madgwick), ``FILTER_CODE_BITS`` wide.
     - ``overrun``: the sample's own ``overrun`` flag: samples were dropped before it.
     """
     acc_used: 1
@@ -36,7 +38,7 @@ class AttitudeFlags(data.Struct):
     at_rest: 1
     bias_updated: 1
     saturated: 1
-    filter: 2
+    filter: FILTER_CODE_BITS
     overrun: 1
 
 

@@ -7,12 +7,12 @@ from amaranth.lib.wiring import In, Out
 
 from .attitude_isa import REG_BITS
 from .register_map import CONTROL_ADDR
-from ..contract.filter_registry import FILTER_NAMES
+from ..contract.filter_registry import FILTER_CODE_BITS, FILTER_NAMES
 from .config_write import ConfigWrite
 from ..contract.numeric_contract import CONTROL_BITS, CONTROL_KEEP, CONTROL_RESET
 
 
-__all__ = ["HostPort", "address_in", "control_accepted"]
+__all__ = ["HostPort", "address_in", "control_accepted", "control_code", "control_word_of"]
 
 
 def address_in(addr, addresses):
@@ -28,7 +28,21 @@ def control_accepted(data):
     (``numeric_contract.control_fields``, the reference's statement of the same rule)."""
     data = Value.cast(data)
     keep = data[CONTROL_KEEP.bit_length() - 1]
-    return (data[CONTROL_BITS:32] == 0) & (keep | (data[:2] < len(FILTER_NAMES)))
+    high = FILTER_CODE_BITS - 2                 # the code's bits from CONTROL bit 4 up
+    return (data[CONTROL_BITS + high:32] == 0) & (keep | (control_code(data) < len(FILTER_NAMES)))
+
+
+def control_code(data):
+    """The filter code in a CONTROL word: bits 1:0, and its higher bits from bit 4 when there
+    are more than four filters (``numeric_contract.control_fields``)."""
+    high = FILTER_CODE_BITS - 2
+    return data[:2] if not high else Cat(data[:2], data[CONTROL_BITS:CONTROL_BITS + high])
+
+
+def control_word_of(select):
+    """A filter code as it reads back in the CONTROL word (``control_code``'s inverse)."""
+    high = FILTER_CODE_BITS - 2
+    return select if not high else Cat(select[:2], C(0, CONTROL_BITS - 2), select[2:])
 
 
 class HostPort(wiring.Component):
@@ -57,7 +71,7 @@ class HostPort(wiring.Component):
             are the transfer's whatever ``w_en``).
         ``r_en``, ``r_addr`` (out), ``r_data`` (in, signed 32): the read port, word next cycle
             (the address is the read transfer's whatever ``r_en``).
-        ``select`` (out, 2): the filter select; ``reset``, ``switched`` (out): one-cycle pulses.
+        ``select`` (out, ``FILTER_CODE_BITS``): the filter select; ``reset``, ``switched`` (out): one-cycle pulses.
     Latency: a write reaches the register file's write port in the cycle it is taken; a
     read's word is offered the cycle after its address is taken.
     """
@@ -72,7 +86,7 @@ class HostPort(wiring.Component):
             "open": In(1),
             "w_en": Out(1), "w_addr": Out(REG_BITS), "w_data": Out(signed(32)),
             "r_en": Out(1), "r_addr": Out(REG_BITS), "r_data": In(signed(32)),
-            "select": Out(2, init=filter_at_reset), "reset": Out(1), "switched": Out(1),
+            "select": Out(FILTER_CODE_BITS, init=filter_at_reset), "reset": Out(1), "switched": Out(1),
             "refused": Out(16),
         })
 
@@ -92,7 +106,7 @@ class HostPort(wiring.Component):
         with m.Elif(self.cfg.valid & self.open):
             with m.If(write.addr == CONTROL_ADDR):
                 keep = write.data[CONTROL_KEEP.bit_length() - 1]
-                new = Mux(keep, self.select, write.data[:2])
+                new = Mux(keep, self.select, control_code(write.data))
                 m.d.sync += self.select.eq(new)
                 m.d.comb += [self.switched.eq(new != self.select),
                              self.reset.eq(write.data[CONTROL_RESET.bit_length() - 1])]
@@ -106,7 +120,7 @@ class HostPort(wiring.Component):
                      self.cfg_read.ready.eq(self.open & ~busy & ~self.cfg_read_data.valid)]
         with m.If(busy):
             m.d.sync += [busy.eq(0), self.cfg_read_data.valid.eq(1),
-                         word.eq(self.r_data | Mux(control, self.select, 0))]
+                         word.eq(self.r_data | Mux(control, control_word_of(self.select), 0))]
         with m.If(self.cfg_read_data.valid & self.cfg_read_data.ready):
             m.d.sync += self.cfg_read_data.valid.eq(0)
         with m.If(self.cfg_read.valid & self.cfg_read.ready):

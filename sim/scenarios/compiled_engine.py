@@ -246,7 +246,7 @@ def configuration_writes(filter, kalman, flagship, cal=None, *, madgwick=None):
     calibration; Madgwick's matching ``kalman`` when None), then select it with a filter
     reset (so that INIT starts from the new P₀): what a host sends, and what makes one
     compiled build serve every recording."""
-    from ...hdl.contract.numeric_contract import filter_registers
+    from ...hdl.contract.filter_registry import filter_registers
     from ...hdl.engine.register_map import CONFIG_REGS, CONTROL_ADDR, control_word
     from ...reference.fixed_point import CalibrationFixed, calibration_registers
     regs = {**filter_registers(kalman, flagship, madgwick),

@@ -2,21 +2,21 @@
 each name of the registry (``hdl/contract/filter_registry.py``), in its order; the microcode they
 share in ``shared.py``.
 
-A filter module has ``emit(asm, r)`` (its routine: from the calibrated sample — G, A, M, the
+A filter module (its record's ``microcode``: a module of this package, or a dotted name for one
+elsewhere) has ``emit(asm, r)`` (its routine: from the calibrated sample — G, A, M, the
 zero tests' ACC_OK and MAG_OK, made before the dispatch — to QOUT, THETA and BIAS, ending in
 END or a branch to the ``angles_out`` tail), ``CONFIG_REGISTERS`` (its run-time registers,
 placed from 0x70 in the registry's order: ``hdl/engine/register_map.py``) and ``REGISTERS`` (its own
 state and working registers, allocated after the shared ones). Adding a filter: its module
-here, its name in the registry, its integer step (a module of ``reference/``, called from
-``reference/engine_model.py``) and, if it has run-time registers, their configuration in
-``numeric_contract`` (``filter_registers`` gives every filter's defaults).
+here, its float and integer steps in ``reference/`` and its record in the registry
+(``hdl/contract/filter_registry.py``: what each part is).
 """
 
 import importlib
 from dataclasses import dataclass
 from typing import Callable
 
-from ...contract.filter_registry import FILTER_NAMES
+from ...contract.filter_registry import FILTERS
 
 
 __all__ = ["FilterRoutine", "routines", "config_registers", "state_registers"]
@@ -24,7 +24,7 @@ __all__ = ["FilterRoutine", "routines", "config_registers", "state_registers"]
 
 @dataclass(frozen=True)
 class FilterRoutine:
-    """One filter of the engine: its ``name``, its ``code`` (CONTROL bits 1:0 and
+    """One filter of the engine: its ``name``, its ``code`` (CONTROL's filter code and
     ``AttitudeFlags.filter``) and ``emit(asm, regs)``, its routine."""
     name: str
     code: int
@@ -32,13 +32,14 @@ class FilterRoutine:
 
 
 def _modules():
-    return [importlib.import_module(f"{__name__}.{name}") for name in FILTER_NAMES]
+    return [importlib.import_module(f.microcode if "." in f.microcode else
+                                    f"{__name__}.{f.microcode}") for f in FILTERS]
 
 
 def routines():
     """The filters in ROM order (the first is reached by falling through the dispatch)."""
-    return tuple(FilterRoutine(name, code, module.emit)
-                 for code, (name, module) in enumerate(zip(FILTER_NAMES, _modules())))
+    return tuple(FilterRoutine(f.name, code, module.emit)
+                 for code, (f, module) in enumerate(zip(FILTERS, _modules())))
 
 
 def config_registers():
