@@ -68,9 +68,13 @@ class EngineModel:
     the per-axis filters continue from the angles of whichever filter ran last."""
 
     def __init__(self, config=None, cal=None, flagship=None, *, filter="flagship",
-                 registers=None, madgwick=None):
+                 registers=None, madgwick=None, configs=None):
+        # ``configs``: the configurations by filter name (``evaluate.engine_configs``; "kalman"
+        # the per-axis filters'), over ``config``, ``flagship`` and ``madgwick``
+        configs = {"flagship": flagship, "madgwick": madgwick, **(configs or {})}
+        config = configs.pop("kalman", config)
         config = KalmanFixedConfig() if config is None else config
-        self.reg = {**filter_registers(config, flagship, madgwick),
+        self.reg = {**filter_registers(config, **configs),
                     **calibration_registers(CalibrationFixed() if cal is None else cal),
                     **(registers or {})}
         self.filter = FILTERS.index(filter)
@@ -132,7 +136,7 @@ class EngineModel:
 def attitude_fixed(gyr_raw, acc_raw, mag_ak_raw, mag_valid=None, *, asa=(128, 128, 128),
                    cal=CalibrationFixed(), config=KalmanFixedConfig(), flagship=None,
                    madgwick=None, select="kalman", registers=None, resets=(), writes=None,
-                   skipped=None, controls=None):
+                   skipped=None, controls=None, configs=None):
     """The gateware's attitude engine in integers over arrays (``EngineModel`` per sample):
     calibration, then the filter ``select`` names (one name, or an array of names per
     sample); ``config``, ``flagship``, ``madgwick``: the filters' configurations (the last two
@@ -149,7 +153,7 @@ def attitude_fixed(gyr_raw, acc_raw, mag_ak_raw, mag_valid=None, *, asa=(128, 12
     valid = [True] * n if mag_valid is None else [bool(v) for v in mag_valid]
     resets = set(resets)
     model = EngineModel(config, cal, flagship, filter=sel[0] if n else "kalman",
-                        registers=registers, madgwick=madgwick)
+                        registers=registers, madgwick=madgwick, configs=configs)
     out = AttitudeFixed(np.empty((n, 4), np.int64), np.empty((n, 3), np.int64),
                         np.empty((n, 3), np.int64),
                         *(np.zeros(n, bool) for _ in range(len(RESULT_FLAGS) + 1)),

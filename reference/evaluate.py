@@ -8,8 +8,7 @@ import importlib
 
 import numpy as np
 
-from ..hdl.contract.filter_registry import FILTER_NAMES, FLOAT_FILTERS, record
-from .flagship import FlagshipParams
+from ..hdl.contract.filter_registry import FILTER_NAMES, FILTERS as RECORDS, FLOAT_FILTERS, record
 from .frames import orientation_errors
 from .kalman import KalmanParams
 
@@ -34,12 +33,12 @@ def run_filter(name, gyr, acc, mag, dt, **params):
 
 def engine_configs(name, dt, *, gyro_lsb_per_dps=16.4, accel_lsb_per_ms2=2048 / 9.80665,
                    **params):
-    """The engine's registers for filter ``name`` with this module's default parameters (or
-    ``params``): (KalmanFixedConfig, FlagshipFixedConfig, MadgwickFixedConfig)."""
+    """The engine's configurations for filter ``name`` with this module's default parameters
+    (or ``params``): one per filter by name (``filter_registry``), ``"kalman"`` the per-axis
+    filters' ``KalmanFixedConfig``, each other from its record's configuration class
+    (``from_params``)."""
     from .complementary import coefficient
-    from .fixed_point import KalmanFixedConfig
-    from .flagship_fixed import FlagshipFixedConfig
-    from ..hdl.contract.numeric_contract import MadgwickFixedConfig
+    from ..hdl.contract.numeric_contract import KalmanFixedConfig
     if name not in FIXED_FILTERS:
         raise ValueError(f"no fixed-point model of {name!r} yet; there are: "
                          f"{', '.join(FIXED_FILTERS)}")
@@ -47,11 +46,10 @@ def engine_configs(name, dt, *, gyro_lsb_per_dps=16.4, accel_lsb_per_ms2=2048 / 
     kalman = KalmanFixedConfig(dt=dt, gyro_lsb_per_dps=gyro_lsb_per_dps, q_angle=p.q_angle,
                                q_bias=p.q_bias, r=p.r, p0=p.p0,
                                a=coefficient(params.get("tau", 0.8), dt))
-    flagship = FlagshipFixedConfig(dt, gyro_lsb_per_dps * 180 / np.pi, accel_lsb_per_ms2,
-                                   params.get("flagship", FlagshipParams()),
-                                   mag_dt=params.get("mag_dt"))
-    madgwick = MadgwickFixedConfig(dt, params.get("beta", MadgwickFixedConfig.beta))
-    return kalman, flagship, madgwick
+    return {"kalman": kalman,
+            **{f.name: f.config.from_params(dt, gyro_lsb_per_dps=gyro_lsb_per_dps,
+                                            accel_lsb_per_ms2=accel_lsb_per_ms2, **params)
+               for f in RECORDS if f.config is not None}}
 
 
 def run_fixed(name, gyr_counts, acc_counts, mag_counts, dt, *, gyro_lsb_per_dps=16.4,
@@ -61,10 +59,10 @@ def run_fixed(name, gyr_counts, acc_counts, mag_counts, dt, *, gyro_lsb_per_dps=
     from .engine_model import attitude_fixed
     from .flagship_fixed import q30_to_float
     from .frames import body_to_mag
-    kalman, flagship, madgwick = engine_configs(name, dt, gyro_lsb_per_dps=gyro_lsb_per_dps,
-                                                accel_lsb_per_ms2=accel_lsb_per_ms2, **params)
+    configs = engine_configs(name, dt, gyro_lsb_per_dps=gyro_lsb_per_dps,
+                             accel_lsb_per_ms2=accel_lsb_per_ms2, **params)
     out = attitude_fixed(gyr_counts, acc_counts, body_to_mag(mag_counts), mag_valid,
-                         config=kalman, flagship=flagship, madgwick=madgwick, select=name)
+                         configs=configs, select=name)
     return q30_to_float(out.quat)
 
 

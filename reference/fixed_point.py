@@ -34,17 +34,17 @@ import numpy as np
 
 # the register encodings are the gateware's contract; the CORDIC table below is computed here,
 # independently of the one the gateware holds (a test checks that they agree)
-from ..hdl.contract.numeric_contract import (CalibrationFixed, FilterRates, KalmanFixedConfig,
-                                             calibration_registers)
+from ..hdl.contract.numeric_contract import CalibrationFixed, KalmanFixedConfig
 
 
 __all__ = ["CORDIC_ITERATIONS", "CORDIC_SHORT_ITERATIONS", "ATAN_TABLE", "CORDIC_GAIN",
            "rshift_round", "sat",
            "wrap32", "div_floor", "cordic_vector", "cordic_rotate", "bam_to_deg", "deg_to_bam",
-           "div_q24", "Status", "KalmanFixedConfig", "CalibrationFixed", "calibrate_fixed",
-           "kalman_fixed", "complementary_fixed", "FilterRates",
+           "div_q24", "Status", "calibrate_fixed", "kalman_fixed", "complementary_fixed",
            "euler_rates_fixed", "step_n", "COS_PITCH_MIN", "tilt_angles",
-           "mul", "mac", "sat32", "sat16", "calibration_registers"]
+           "mul", "mac", "sat32", "sat16"]
+# (the register configurations it uses are the contract's, imported from there by everyone:
+# ``hdl/contract/numeric_contract.py``)
 
 # 16 iterations leave at most atan(2⁻¹⁵) = 0.0018° of angle: far below the sensors' noise, and
 # a shift amount of 4 bits and a 16-entry table in the gateware

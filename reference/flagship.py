@@ -45,7 +45,7 @@ from ..hdl.contract.numeric_contract import FlagshipParams, sample_counts, svf_g
 from .frames import filter_inputs
 
 
-__all__ = ["FlagshipParams", "flagship_filter", "sample_counts", "run_float"]
+__all__ = ["flagship_filter", "run_float"]
 
 
 def _qmul(p, q):

@@ -27,7 +27,7 @@ from .fixed_point import (INV_GAIN_Q30, Status, cordic_rotate, cordic_vector, ma
                           step_n, tilt_angles, wrap32)
 
 
-__all__ = ["FlagshipFixedConfig", "FlagshipFixed", "engine_step", "flagship_fixed",
+__all__ = ["FlagshipFixed", "engine_step", "flagship_fixed",
            "q30_to_float", "euler_quat_fixed", "quat_angles_fixed", "FLAGSHIP_CONSTANTS", "ONE", "HALF"]
 
 ONE = 1 << 30

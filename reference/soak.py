@@ -20,7 +20,8 @@ import time
 import numpy as np
 
 from .entry_point import count, positive, run_main
-from .fixed_point import FilterRates, Status, _KalmanFixed, bam_to_deg
+from ..hdl.contract.numeric_contract import FilterRates
+from .fixed_point import Status, _KalmanFixed, bam_to_deg
 from .kalman import KalmanParams, kalman_filter
 
 

@@ -133,6 +133,7 @@ PACKAGE_DIRS = {"mpu9250_ahrs": ROOT / "mpu9250_ahrs", "mpu9250_ahrs.hdl": ROOT 
                 **{f"mpu9250_ahrs.hdl.{wing}": ROOT / "hdl" / wing for wing in WING_ORDER},
                 "mpu9250_ahrs.hdl.engine.filters": ROOT / "hdl" / "engine" / "filters",
                 "mpu9250_ahrs.cli": ROOT / "mpu9250_ahrs" / "cli",
+                "mpu9250_ahrs.flows": ROOT / "mpu9250_ahrs" / "flows",
                 "mpu9250_ahrs.sim": ROOT / "sim",
                 **{f"mpu9250_ahrs.sim.{wing}": ROOT / "sim" / wing for wing in SIM_WING_ORDER},
                 "mpu9250_ahrs.reference": ROOT / "reference",
@@ -240,3 +241,26 @@ def test_the_host_reads_only_the_contract_and_the_frame_layouts():
                  if target.startswith("mpu9250_ahrs.hdl") and
                  not target.startswith(HOST_MAY_READ))
     assert not bad, "the host reads gateware beyond the contract:\n" + "\n".join(bad)
+
+
+def test_contract_names_are_exported_once():
+    """A class or table of the contract is importable under one name: no module outside
+    ``hdl/contract/`` lists one in its ``__all__`` (``reference.fixed_point`` once offered
+    ``KalmanFixedConfig`` beside the contract's)."""
+    import importlib
+    contract = {}
+    for path in sorted((FOLDERS["hdl"] / "contract").glob("*.py")):
+        module = importlib.import_module(f"mpu9250_ahrs.hdl.contract.{path.stem}")
+        contract.update((n, getattr(module, n)) for n in getattr(module, "__all__", ())
+                        if not isinstance(getattr(module, n), (int, float, str)))
+    again = []
+    for folder in ("reference", "sim", "hdl"):
+        for path in sorted(FOLDERS[folder].rglob("*.py")):
+            inner = path.relative_to(FOLDERS[folder]).with_suffix("").parts
+            if folder == "hdl" and inner[0] == "contract" or inner[-1] == "__init__":
+                continue
+            module = importlib.import_module(".".join(("mpu9250_ahrs", folder, *inner)))
+            again += [f"{folder}/{'/'.join(inner)}.py: {n}"
+                      for n in getattr(module, "__all__", ())
+                      if n in contract and getattr(module, n) is contract[n]]
+    assert not again, "contract names exported again:\n" + "\n".join(again)

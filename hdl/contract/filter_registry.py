@@ -11,9 +11,14 @@ them: ``tests/test_imports.py``):
 - ``fixed_step``: ``"<module>:<function>"`` of ``reference/``: ``function(reg, kf)`` makes the
   integer step the engine model runs (``reference/engine_model.py``: ``step(g, a, m,
   mag_valid, st, periods)`` -> quaternion, angles, flags; ``first``);
-- ``config``: its run-time registers' configuration (a class of ``numeric_contract`` with
-  ``matching(kalman)``, the defaults at a ``KalmanFixedConfig``'s sample period, and
-  ``registers()``), or None: registers of the per-axis filters' ``KalmanFixedConfig``.
+- ``config``: its run-time registers' configuration (a class of the contract with
+  ``matching(kalman)``, the defaults at a ``KalmanFixedConfig``'s sample period,
+  ``from_params(dt, gyro_lsb_per_dps=, accel_lsb_per_ms2=, **params)``, the registers for a
+  recording and the float filter's parameters, and ``registers()``), or None: registers of the
+  per-axis filters' ``KalmanFixedConfig``. The configurations travel as one mapping by filter
+  name (``"kalman"``: the per-axis filters'; ``reference.evaluate.engine_configs``), which
+  ``filter_registers``, ``EngineModel``/``attitude_fixed`` (``configs=``) and the bench's
+  ``configuration_writes`` take whole.
 
 A new filter is its three modules and a record here (``tests/hdl/test_filter_record.py`` sketches
 a fifth). Its code is its position; CONTROL carries it in bits 1:0 and, beyond four filters, in

@@ -266,6 +266,14 @@ class FlagshipFixedConfig:
     mag_dt: float = None
 
     @classmethod
+    def from_params(cls, dt, *, gyro_lsb_per_dps, accel_lsb_per_ms2, **params):
+        """The registers for a recording's sample period and sensor scales with the float
+        filter's parameters (``params``: ``flagship``, a ``FlagshipParams``; ``mag_dt``), as
+        ``reference.evaluate.engine_configs`` asks every filter's configuration."""
+        return cls(dt, gyro_lsb_per_dps * 180 / math.pi, accel_lsb_per_ms2,
+                   params.get("flagship", FlagshipParams()), mag_dt=params.get("mag_dt"))
+
+    @classmethod
     def matching(cls, kalman):
         """The published parameters at a ``KalmanFixedConfig``'s sample period and gyro LSB
         (the default beside a per-axis configuration)."""
@@ -325,6 +333,12 @@ class MadgwickFixedConfig:
     flagship's ``K_RAD`` (the same quantity: radians per count and period)."""
     dt: float = 0.01
     beta: float = 0.1
+
+    @classmethod
+    def from_params(cls, dt, **params):
+        """The register for a sample period and the float filter's ``beta`` (``params``;
+        ``FlagshipFixedConfig.from_params``'s rule)."""
+        return cls(dt, params.get("beta", cls.beta))
 
     @classmethod
     def matching(cls, kalman):

@@ -135,7 +135,7 @@ def _build_ulx3s(args, out, clk_freq, config, options):
     from ..hdl.primitives.clocking import ecp5_pll_dividers
     from ..hdl.board.top import BoardTop
     from ..hdl.board.ulx3s import ULX3SPlatform
-    from ..open_build import ulx3s_build
+    from ..flows.open_build import ulx3s_build
     ecp5_pll_dividers(ULX3SPlatform().default_clk_frequency, clk_freq)  # a clear error first
     out.mkdir(parents=True, exist_ok=True)
     from ..progress import steps
@@ -150,7 +150,7 @@ def _build_ulx3s(args, out, clk_freq, config, options):
 
 
 def cmd_report(args):
-    from ..report import report
+    from ..flows.report import report
     # the build the options make, as build would make it (its checks first: one line)
     config, clk = _config(args), _clock(args)
     check_rates(config, clk, args)
@@ -159,7 +159,7 @@ def cmd_report(args):
                     baud=args.baud)
     if args.timing:
         from ..hdl.board.top import AHRSCore, core_verilog
-        from ..timing import ecp5_timing
+        from ..flows.timing import ecp5_timing
         core = AHRSCore(clk_freq=clk, config=config, baud=args.baud, **options)
         from ..progress import steps
         with steps(["synth"] + [f"seed {k}" for k in range(args.seeds)],

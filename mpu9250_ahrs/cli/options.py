@@ -78,7 +78,7 @@ def _core_options(args):
         out["pwm"] = False
     if getattr(args, "euler_rates", False):
         from ..hdl.engine.attitude_engine import default_filter_config
-        from ..reference.fixed_point import FilterRates
+        from ..hdl.contract.numeric_contract import FilterRates
         out["filter_config"] = default_filter_config(_config(args),
                                                      FilterRates(euler_rates=True))
     return out

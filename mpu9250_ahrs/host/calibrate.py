@@ -22,7 +22,7 @@ from ..hdl.engine.register_map import REGS
 from ..hdl.link.frame_types import SENSOR
 from ..hdl.contract.mpu9250_regs import ACCEL_FS_G
 from ..reference.calibration import accel_six_pose, gyro_bias, mag_ellipsoid
-from ..reference.fixed_point import CalibrationFixed, calibration_registers
+from ..hdl.contract.numeric_contract import CalibrationFixed, calibration_registers
 from .link import BoardError
 
 

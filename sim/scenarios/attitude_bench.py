@@ -136,7 +136,7 @@ def random_inputs(seed, n):
     rarely has: any gyro and accelerometer count, zero accelerometer and field vectors (a
     fifth each), missing fields (``mag_valid`` 0 for about 30 %), and a random calibration and
     ASA. Returns (gyro, accel, mag_ak, mag_valid, CalibrationFixed, asa)."""
-    from ...reference.fixed_point import CalibrationFixed
+    from ...hdl.contract.numeric_contract import CalibrationFixed
     rng = np.random.default_rng(seed)
     g = rng.integers(-32768, 32768, (n, 3))
     a = rng.integers(-32768, 32768, (n, 3))

@@ -170,8 +170,8 @@ def replay_board(filter, gyr_counts, acc_counts, mag_counts, dt, *, gyro_fs_dps=
     # the flagship's magnetometer gains for the AK8963's period, as the board sets them
     # (``attitude_engine.default_flagship_config``)
     units_and_params.setdefault("mag_dt", mag_period(dt))
-    kalman, flagship, madgwick = engine_configs(filter, dt, **units_and_params)
-    writes = configuration_writes(filter, kalman, flagship, madgwick=madgwick) + [
+    configs = engine_configs(filter, dt, **units_and_params)
+    writes = configuration_writes(filter, configs=configs) + [
         (TELEMETRY_DIV_ADDR, divider)]
     # samples made during bring-up are never read: the run ends once the model made the
     # recording's last sample and the periods a frame takes after it (its result is out and
@@ -193,7 +193,7 @@ def replay_board(filter, gyr_counts, acc_counts, mag_counts, dt, *, gyro_fs_dps=
     ref = attitude_fixed([s["gyro"] for s in given], [s["accel"] for s in given],
                          [s["mag"] for s in given],
                          [s["flags"]["mag_valid"] for s in given], asa=run.asa,
-                         config=kalman, flagship=flagship, madgwick=madgwick, select=filter,
+                         configs=configs, select=filter,
                          skipped=[s["skipped"] for s in given])
     frames = [f for f in run.frames if f["sample"]["counter"] < n]
     sent = [f["sample"]["counter"] for f in frames]
@@ -211,8 +211,8 @@ def replay_board(filter, gyr_counts, acc_counts, mag_counts, dt, *, gyro_fs_dps=
     # against ``replay --engine fixed`` (the field valid at every sample): the frames equal
     # to it; they differ only after a field the driver did not take as new (the same bytes
     # as the read before, both with ST1.DRDY: a read again, by its rule)
-    plain = attitude_fixed(gyr[:n], acc[:n], mag_ak[:n], None, asa=run.asa, config=kalman,
-                           flagship=flagship, madgwick=madgwick, select=filter)
+    plain = attitude_fixed(gyr[:n], acc[:n], mag_ak[:n], None, asa=run.asa,
+                           configs=configs, select=filter)
     as_fixed = sum(np.array_equal(q, plain.quat[k]) for q, k in
                    zip(got.quat, [model.sample_reads[c] - offset for c in sent]))
     not_new = sum(1 for s in given if not s["flags"]["mag_valid"])

@@ -241,15 +241,19 @@ class CompiledEngine:
         return self.last_cycles / self.last_wall_s if self.last_wall_s else 0.0
 
 
-def configuration_writes(filter, kalman, flagship, cal=None, *, madgwick=None):
+def configuration_writes(filter, kalman=None, flagship=None, cal=None, *, madgwick=None,
+                         configs=None):
     """Register writes that set an engine up for ``filter`` with these configurations (and
-    calibration; Madgwick's matching ``kalman`` when None), then select it with a filter
-    reset (so that INIT starts from the new P₀): what a host sends, and what makes one
-    compiled build serve every recording."""
+    calibration; ``configs``: all of them by filter name, ``evaluate.engine_configs``; a
+    filter's not given matches ``kalman``), then select it with a filter reset (so that INIT
+    starts from the new P₀): what a host sends, and what makes one compiled build serve
+    every recording."""
     from ...hdl.contract.filter_registry import filter_registers
     from ...hdl.engine.register_map import CONFIG_REGS, CONTROL_ADDR, control_word
-    from ...reference.fixed_point import CalibrationFixed, calibration_registers
-    regs = {**filter_registers(kalman, flagship, madgwick),
+    from ...hdl.contract.numeric_contract import CalibrationFixed, calibration_registers
+    configs = {"flagship": flagship, "madgwick": madgwick, **(configs or {})}
+    kalman = configs.pop("kalman", kalman)
+    regs = {**filter_registers(kalman, **configs),
             **calibration_registers(CalibrationFixed() if cal is None else cal)}
     return [(CONFIG_REGS[name], value) for name, value in regs.items()] + [
         (CONTROL_ADDR, control_word(filter, reset=True))]
@@ -259,15 +263,14 @@ def run_gateware(filter, gyr_counts, acc_counts, mag_counts, dt, *, mag_valid=No
                  engine=None, **scales_and_params):
     """A recording (body-axis counts) through the compiled engine, set up for ``filter`` by
     register writes before the first sample: (EngineRun, CompiledEngine, the configurations
-    (KalmanFixedConfig, FlagshipFixedConfig, MadgwickFixedConfig))."""
+    by filter name, ``engine_configs``'s)."""
     from ...hdl.engine.attitude_engine import AttitudeEngine
     from ...reference.evaluate import engine_configs
     from ...reference.frames import body_to_mag
-    kalman, flagship, madgwick = configs = engine_configs(filter, dt, **scales_and_params)
+    configs = engine_configs(filter, dt, **scales_and_params)
     engine = CompiledEngine(AttitudeEngine) if engine is None else engine
     run = engine.run(gyr_counts, acc_counts, body_to_mag(mag_counts), mag_valid,
-                     writes={0: configuration_writes(filter, kalman, flagship,
-                                                     madgwick=madgwick)})
+                     writes={0: configuration_writes(filter, configs=configs)})
     return run, engine, configs
 
 
@@ -277,11 +280,11 @@ def replay_gateware(filter, gyr_counts, acc_counts, mag_counts, dt, *, mag_valid
     AttitudeFixed, CompiledEngine)."""
     from ...reference.engine_model import attitude_fixed
     from ...reference.frames import body_to_mag
-    run, engine, (kalman, flagship, madgwick) = run_gateware(
+    run, engine, configs = run_gateware(
         filter, gyr_counts, acc_counts, mag_counts, dt, mag_valid=mag_valid, engine=engine,
         **scales_and_params)
     ref = attitude_fixed(gyr_counts, acc_counts, body_to_mag(mag_counts), mag_valid,
-                         config=kalman, flagship=flagship, madgwick=madgwick, select=filter)
+                         configs=configs, select=filter)
     return run, ref, engine
 
 

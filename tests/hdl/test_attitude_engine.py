@@ -13,7 +13,8 @@ from hypothesis import given, settings, strategies as st
 
 from mpu9250_ahrs.hdl.engine.attitude_engine import PEEKED, WORST_UPDATE_CYCLES, AttitudeEngine
 from mpu9250_ahrs.hdl.engine.register_map import CONFIG_REGS, CONTROL_ADDR, REGS, control_word
-from mpu9250_ahrs.reference.fixed_point import CalibrationFixed, KalmanFixedConfig, bam_to_deg
+from mpu9250_ahrs.hdl.contract.numeric_contract import CalibrationFixed, KalmanFixedConfig
+from mpu9250_ahrs.reference.fixed_point import bam_to_deg
 from mpu9250_ahrs.reference.engine_model import attitude_fixed
 from mpu9250_ahrs.reference.frames import body_to_mag
 from mpu9250_ahrs.hdl.contract.filter_registry import FILTER_NAMES

@@ -8,10 +8,10 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from mpu9250_ahrs.reference.complementary import complementary_filter
-from mpu9250_ahrs.reference.fixed_point import (ATAN_TABLE, CORDIC_GAIN, KalmanFixedConfig, bam_to_deg,
-                                                complementary_fixed, cordic_rotate, cordic_vector,
-                                                deg_to_bam, div_floor, kalman_fixed,
-                                                rshift_round, wrap32)
+from mpu9250_ahrs.reference.fixed_point import (ATAN_TABLE, CORDIC_GAIN, bam_to_deg,
+    complementary_fixed, cordic_rotate, cordic_vector, deg_to_bam, div_floor, kalman_fixed,
+    rshift_round, wrap32)
+from mpu9250_ahrs.hdl.contract.numeric_contract import KalmanFixedConfig
 from mpu9250_ahrs.reference.kalman import KalmanParams, kalman_filter
 from mpu9250_ahrs.sim.models.motion import SensorModel, concat, random_motion, static, turntable
 from mpu9250_ahrs.reference.recording import load_broad, quantise

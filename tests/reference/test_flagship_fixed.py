@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from mpu9250_ahrs.reference.flagship import flagship_filter
-from mpu9250_ahrs.reference.flagship_fixed import (FlagshipFixedConfig, flagship_fixed,
-                                                   q30_to_float)
+from mpu9250_ahrs.hdl.contract.numeric_contract import FlagshipFixedConfig
+from mpu9250_ahrs.reference.flagship_fixed import flagship_fixed, q30_to_float
 from mpu9250_ahrs.reference.frames import orientation_errors
 from mpu9250_ahrs.sim.models.motion import (SensorModel, concat, random_motion, static, turn,
     turntable)

@@ -67,9 +67,8 @@ def test_fixed_learns_the_datasheets_largest_bias():
     from mpu9250_ahrs.reference.flagship_fixed import q30_to_float
     from mpu9250_ahrs.reference.frames import body_to_mag
     traj, gc, ac, mc, bias = bias_scenario(5.0)
-    kalman, flagship, madgwick = engine_configs("flagship", 1 / RATE)
-    out = attitude_fixed(gc, ac, body_to_mag(mc), None, config=kalman, flagship=flagship,
-                         madgwick=madgwick, select="flagship")
+    out = attitude_fixed(gc, ac, body_to_mag(mc), None,
+                         configs=engine_configs("flagship", 1 / RATE), select="flagship")
     moving, end = errors(q30_to_float(out.quat), traj)
     assert end < 0.1 and moving < 1.0, (moving, end)
     learnt = np.asarray(out.bias[-1], float) / 65536 / GYRO_LSB_PER_DPS

@@ -4,7 +4,7 @@ one (the 10⁶-sample soaks are ``python -m mpu9250_ahrs.reference.soak``)."""
 
 import pytest
 
-from mpu9250_ahrs.reference.fixed_point import FilterRates, KalmanFixedConfig
+from mpu9250_ahrs.hdl.contract.numeric_contract import FilterRates, KalmanFixedConfig
 from mpu9250_ahrs.reference.soak import soak
 
 
@@ -47,7 +47,8 @@ def test_flagship_at_every_supported_rate(rate):
     import numpy as np
     from mpu9250_ahrs.reference.engine_model import attitude_fixed
     from mpu9250_ahrs.reference.flagship import flagship_filter
-    from mpu9250_ahrs.reference.flagship_fixed import FlagshipFixedConfig, q30_to_float
+    from mpu9250_ahrs.hdl.contract.numeric_contract import FlagshipFixedConfig
+    from mpu9250_ahrs.reference.flagship_fixed import q30_to_float
     from mpu9250_ahrs.reference.frames import body_to_mag, quat_conj, quat_mul
     from mpu9250_ahrs.reference.soak import (ACCEL_LSB_PER_G, GYRO_LSB_PER_DPS, MAG_UT_PER_LSB,
                                              synthetic_motion)

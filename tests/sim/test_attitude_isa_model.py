@@ -7,7 +7,7 @@ import numpy as np
 from mpu9250_ahrs.hdl.engine.attitude_isa import ROM_DEPTH, Flag
 from mpu9250_ahrs.hdl.engine.attitude_program import build_program
 from mpu9250_ahrs.hdl.contract.filter_registry import FILTER_NAMES
-from mpu9250_ahrs.reference.fixed_point import CalibrationFixed
+from mpu9250_ahrs.hdl.contract.numeric_contract import CalibrationFixed
 from mpu9250_ahrs.reference.engine_model import RESULT_FLAGS, EngineModel
 from mpu9250_ahrs.reference.frames import body_to_mag
 from mpu9250_ahrs.sim.models.attitude_isa_model import AttitudeISAModel

@@ -64,8 +64,8 @@ def test_random_inputs_and_calibration(compiled, seed, filter):
     """Random raw samples (zero vectors and missing fields among them), a random calibration
     and ASA, any filter: 40 examples of 25 samples (1,000 samples a run) through the compiled
     engine, bit for bit with the fixed-point model."""
-    from mpu9250_ahrs.reference.fixed_point import KalmanFixedConfig
-    from mpu9250_ahrs.reference.flagship_fixed import FlagshipFixedConfig
+    from mpu9250_ahrs.hdl.contract.numeric_contract import KalmanFixedConfig
+    from mpu9250_ahrs.hdl.contract.numeric_contract import FlagshipFixedConfig
     from mpu9250_ahrs.sim.scenarios.attitude_bench import random_inputs
     from mpu9250_ahrs.sim.scenarios.compiled_engine import configuration_writes
     g, a, m, valid, cal, asa = random_inputs(seed, 25)

@@ -44,7 +44,7 @@ def ulx3s_build(top, out, clk_hz, *, seed=1, progress=None):
     the logs (``top.rpt`` synthesis, ``top.tim`` place and route) and ``top.timing.json``.
     Returns a dict of the timing figures. Raises RuntimeError (one paragraph: the tool's last
     lines) when a tool fails, timing included."""
-    from .hdl.board.ulx3s import ULX3SPlatform
+    from ..hdl.board.ulx3s import ULX3SPlatform
     say = progress or (lambda message: None)
     env = _environment()
     out = Path(out)

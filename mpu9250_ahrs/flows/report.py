@@ -60,8 +60,8 @@ def hard_blocks_as_blackboxes(engine, rams=(), others=()):
 
 
 def _stubs(engine, rams):
-    from .hdl.primitives.memories import blackbox_stub
-    from .hdl.primitives.multiplier import BLACKBOX_STUB
+    from ..hdl.primitives.memories import blackbox_stub
+    from ..hdl.primitives.multiplier import BLACKBOX_STUB
     return blackbox_stub(engine.regfile, engine.rom) + BLACKBOX_STUB + \
         "".join(ram.stub() for ram in rams)
 
@@ -155,8 +155,8 @@ def synthesize(top, name, engine, rams=(), others=(), *, blocks=False, ports=Non
     ``ports``: the top's ports, for an elaboratable that is not a component. ``spread``: also
     ``logic_elements_spread``, the count of that many equivalent netlists
     (``logic_element_spread``)."""
-    from .hdl.primitives.memories import m9k_blocks
-    from .hdl.primitives.multiplier import BLACKBOX_NAME
+    from ..hdl.primitives.memories import m9k_blocks
+    from ..hdl.primitives.multiplier import BLACKBOX_NAME
     rams = [*rams, engine.cordic.atan_rom]        # the CORDIC's arctangents: a ROM
     hard_blocks_as_blackboxes(engine, rams, others)
     with tempfile.TemporaryDirectory() as tmp:
@@ -271,12 +271,12 @@ def cycles_per_update(samples=6):
     first sample after a reset (returned apart: it also starts the filter). The flagship's
     longest path, at rest while its magnetic reference is still learnt, is longer by the bias
     update (``replay --engine gateware`` prints the most over a recording)."""
-    from .hdl.engine.attitude_engine import AttitudeEngine
-    from .hdl.engine.register_map import CONTROL_ADDR, control_word
-    from .hdl.contract.filter_registry import FILTER_CODES
-    from .reference.frames import body_to_mag
-    from .sim.scenarios.attitude_bench import run_engine
-    from .sim.models.motion import SensorModel, static
+    from ..hdl.engine.attitude_engine import AttitudeEngine
+    from ..hdl.engine.register_map import CONTROL_ADDR, control_word
+    from ..hdl.contract.filter_registry import FILTER_CODES
+    from ..reference.frames import body_to_mag
+    from ..sim.scenarios.attitude_bench import run_engine
+    from ..sim.models.motion import SensorModel, static
 
     sensor = SensorModel(seed=1, gyro_noise=math.radians(0.05), accel_noise=0.02, mag_noise=0.3)
     gc, ac, mc = sensor.counts(static((30, -20, 100), samples / 100))
@@ -300,9 +300,9 @@ def drdy_to_attitude_us(clk_freq, config, results=21):
     None; ``without_mag_correction``: the most over the others; ``drdy_to_attitude``: the
     worst of all. Real bus and engine timing; only the waits of bring-up and the sample
     period are compressed, which the latency does not depend on."""
-    from .hdl.contract.defaults import DEFAULT_BAUD
-    from .sim.scenarios.setup import SimSetup
-    from .sim.scenarios.core import run_core
+    from ..hdl.contract.defaults import DEFAULT_BAUD
+    from ..sim.scenarios.setup import SimSetup
+    from ..sim.scenarios.core import run_core
     setup = SimSetup(clk_freq=clk_freq, config=config,
                      odr_scale=SimSetup.default_odr_scale(config, clk_freq))
     # the telemetry divider for the shortened sample period, as ``simulate`` has it: the same
@@ -326,17 +326,17 @@ def report(*, clk_freq=None, config=None, latency=True, core_options=None, sprea
     datapath, cycles and latency are those of the default build either way. ``spread``: the whole
     design's ``logic_elements`` also over that many equivalent netlists
     (``design.logic_elements_spread``)."""
-    from .hdl.engine.attitude_engine import AttitudeEngine
-    from .hdl.primitives.clocking import SYSTEM_CLOCK_HZ
-    from .hdl.sensor.mpu9250_driver import MPU9250Config
-    from .hdl.contract.defaults import DEFAULT_BAUD
-    from .hdl.board.top import AHRSCore, AsyncResetCore, rate_budget
+    from ..hdl.engine.attitude_engine import AttitudeEngine
+    from ..hdl.primitives.clocking import SYSTEM_CLOCK_HZ
+    from ..hdl.sensor.mpu9250_driver import MPU9250Config
+    from ..hdl.contract.defaults import DEFAULT_BAUD
+    from ..hdl.board.top import AHRSCore, AsyncResetCore, rate_budget
 
     baud = DEFAULT_BAUD if baud is None else baud
     config = MPU9250Config() if config is None else config
     clk_freq = SYSTEM_CLOCK_HZ if clk_freq is None else clk_freq
     engine = AttitudeEngine()
-    from .progress import steps
+    from ..progress import steps
     shown = steps(["datapath", "design", "cycles", "latency"], "report")
     shown.next("synthesis of the datapath (Yosys)")
     datapath = synthesize(engine, "attitude_engine", engine)
@@ -385,7 +385,7 @@ def report(*, clk_freq=None, config=None, latency=True, core_options=None, sprea
             "memory_bits": round(100 * design["memory_bits"] / DEVICE["memory_bits"], 1),
         },
         "link": link_figures(config, budget["baud"], budget["telemetry_divider"]),
-        "tool": "Yosys 0.23 synth_intel -family max10 (see mpu9250_ahrs/report.py for method)",
+        "tool": "Yosys 0.23 synth_intel -family max10 (see mpu9250_ahrs/flows/report.py for method)",
     }
 
 
@@ -393,9 +393,9 @@ def link_figures(config, baud, divider=None):
     """The UART's frames: bytes per frame type, the most frames a second the link carries
     (10 bits a byte), and the telemetry divider (``divider``, or the default for ``config``)
     and frame rate."""
-    from .hdl.link.frame_types import FRAME_TYPES
-    from .hdl.link.frame_types import frame_bytes
-    from .hdl.board.top import telemetry_divider_for
+    from ..hdl.link.frame_types import FRAME_TYPES
+    from ..hdl.link.frame_types import frame_bytes
+    from ..hdl.board.top import telemetry_divider_for
     names = {0x01: "sensor", 0x02: "attitude", 0x81: "reply"}
     sizes = {names[t]: frame_bytes(layout) for t, layout in FRAME_TYPES.items()}
     divider = telemetry_divider_for(config, baud, divider)
