@@ -230,3 +230,23 @@ def test_help_lists_verbs(capsys):
         main(["--help"])
     out = capsys.readouterr().out
     assert "build" in out and "simulate" in out
+
+
+def test_verilog_only_writes_an_instance_of_every_port(tmp_path):
+    """Issue #56: ``build --verilog-only`` writes an instantiation template beside the core,
+    every port of its top module once, with its direction; the attitude stream's fields as
+    build/README.md lists them."""
+    import pathlib
+    import re
+    from mpu9250_ahrs.flows.instantiation import attitude_fields
+    assert main(["build", "--verilog-only", "--attitude-port", "--out", str(tmp_path)]) == 0
+    verilog = (tmp_path / "mpu9250_ahrs_core.v").read_text()
+    template = (tmp_path / "mpu9250_ahrs_core_inst.v").read_text()
+    top = re.search(r"^module mpu9250_ahrs_core\b.*?^endmodule", verilog, re.M | re.S).group(0)
+    ports = re.findall(r"^\s*(input|output)\s+(?:\[[^\]]+\]\s+)?(\w+)\s*;", top, re.M)
+    assert ports and len(re.findall(r"^    \.", template, re.M)) == len(ports)
+    for direction, name in ports:
+        assert re.search(rf"^    \.{name}\({name}\)[, ]\s*// {direction}\b", template, re.M), name
+    assert ".attitude__payload(" in template and "[361:0]" in template
+    readme = (pathlib.Path(__file__).resolve().parents[1] / "build" / "README.md").read_text()
+    assert all(line in readme for line in attitude_fields())

@@ -48,6 +48,7 @@ from ..engine.attitude_isa import REG_BITS
 from ..engine.register_map import TELEMETRY_DIV_ADDR
 from ..engine.attitude_engine import (PEEKED, WORST_UPDATE_CYCLES, AttitudeEngine,
                                       default_filter_config, default_flagship_config)
+from ..engine.attitude_result import Attitude
 from ..engine.config_write import ConfigWrite
 from ..sensor.driver_status import DriverStatus
 from ..sensor.sample_store import STORE_BITS, sample_store_ram
@@ -64,6 +65,8 @@ from ..contract.pwm_regs import PWM_CHANNELS
 from ..link.pwm import PWMOutputs
 from ..link.frame_types import (CRC, AttitudeFrame, Reply, SensorFrame, TelemetryCounters,
                                 frame_bytes)
+from ..link.axi_lite_slave import AXILiteSignature, AXILiteSlave
+from ..link.stream_tap import StreamTap
 from ..link.telemetry import TelemetryFramer
 from ..link.telemetry_scheduler import TelemetryScheduler
 from ..link.uart_rx import UARTReceiver
@@ -177,6 +180,18 @@ class AHRSCore(wiring.Component):
         ``pwm`` (default: as ``commands``): with the PWM outputs (the ``pwm`` port); without,
             the command channel answers ``bad_address`` for the PWM registers. Both options
             are for users who need the room (``report`` counts each build).
+        ``attitude_port`` (False): with ``attitude`` (out, stream of ``Attitude``): every
+            result the engine gives, for logic on the same chip, held until taken and never
+            holding the engine or the telemetry up (``StreamTap``: a result that comes while
+            the one before still waits is not offered, counted in ``attitude_dropped``, out,
+            16, saturating). Its cost: a register of the result's 362 bits and the counter
+            (``report --attitude-port`` counts the build with it); unconnected in a board
+            top, synthesis removes it.
+        ``axi_lite`` (False): with ``s_axi`` (an AXI4-Lite slave, ``AXILiteSlave``: the
+            last result held coherently, status, counters, the engine's registers through
+            the command channel's rules; ``hdl/AXI_LITE.md``) and ``irq`` (out: a result came,
+            write-one-to-clear). The engine's register port is then the slave's: the ``cfg``
+            ports are left unconnected.
 
     With the engine, every sample the driver reads is filtered: the engine takes a sample as
     soon as its previous update is done (``WORST_UPDATE_CYCLES`` at most) and the
@@ -190,7 +205,8 @@ class AHRSCore(wiring.Component):
     def __init__(self, *, clk_freq=SYSTEM_CLOCK_HZ, config=MPU9250Config(),
                  timing=DriverTiming(), baud=DEFAULT_BAUD, filter_config=None,
                  calibration=None, flagship_config=None, filter="flagship",
-                 telemetry_divider=None, command_timeout_s=0.005, commands=True, pwm=None):
+                 telemetry_divider=None, command_timeout_s=0.005, commands=True, pwm=None,
+                 attitude_port=False, axi_lite=False):
         if pwm is None:
             pwm = commands
         if pwm and not commands:
@@ -198,6 +214,8 @@ class AHRSCore(wiring.Component):
                              "pwm=True needs commands=True")
         self.commands = commands
         self.has_pwm = pwm and self.commands
+        self.attitude_port = attitude_port
+        self.axi_lite = axi_lite
         self.clk_freq = clk_freq
         self.config = config
         self.baud = baud
@@ -259,6 +277,15 @@ class AHRSCore(wiring.Component):
             ports["raw_mode"] = Out(1)
         if self.has_pwm:
             ports["pwm"] = Out(PWM_CHANNELS)
+        if attitude_port:
+            self.attitude_tap = StreamTap(Attitude)
+            ports["attitude"] = Out(stream.Signature(Attitude))
+            ports["attitude_dropped"] = Out(16)
+        if axi_lite:
+            self.axi_tap = StreamTap(Attitude)
+            self.axi_slave = AXILiteSlave(HOST_WRITABLE)
+            ports["s_axi"] = In(AXILiteSignature())
+            ports["irq"] = Out(1)
         super().__init__(ports)
 
     def elaborate(self, platform):
@@ -299,12 +326,15 @@ class AHRSCore(wiring.Component):
         with m.If(fe.samples.valid & fe.samples.ready):
             m.d.sync += held_status.eq(fe.status)
 
+        # the engine's first register port: the ``cfg`` ports, or the AXI slave's
+        cfg_port = self._axi(m, engine, sched, fe) if self.axi_lite else \
+            (flipped(self.cfg), flipped(self.cfg_read), flipped(self.cfg_read_data))
         if self.commands:
-            self._command_channel(m, engine, framer, arbiter, fe)
+            self._command_channel(m, engine, framer, arbiter, fe, cfg_port)
         else:
-            connect(m, flipped(self.cfg), engine.cfg)
-            connect(m, flipped(self.cfg_read), engine.cfg_read)
-            connect(m, engine.cfg_read_data, flipped(self.cfg_read_data))
+            connect(m, cfg_port[0], engine.cfg)
+            connect(m, cfg_port[1], engine.cfg_read)
+            connect(m, engine.cfg_read_data, cfg_port[2])
             connect(m, framer.o_stream, arbiter.i0)
         # the divider register: the engine keeps its copy for read-back
         divider = Signal(16, init=self.telemetry_divider)
@@ -322,10 +352,35 @@ class AHRSCore(wiring.Component):
         connect(m, arbiter.o_stream, uart.i_stream)
         with m.If(fe.samples.valid & fe.samples.ready):
             m.d.sync += self.samples_seen.eq(self.samples_seen + 1)
+        if self.attitude_port:
+            # every result as the scheduler takes it (it takes every one): the tap watches
+            # the transfer and takes no part in it
+            m.submodules.attitude_tap = tap = self.attitude_tap
+            m.d.comb += [tap.taken.eq(engine.results.valid & engine.results.ready),
+                         tap.payload.eq(engine.results.payload),
+                         self.attitude_dropped.eq(tap.dropped)]
+            connect(m, tap.o, flipped(self.attitude))
         return m
 
 
-    def _command_channel(self, m, engine, framer, arbiter, fe):
+    def _axi(self, m, engine, sched, fe):
+        """The AXI4-Lite slave on its own tap of the results; returns its register port
+        (cfg, cfg_read, cfg_read_data) for the engine's first client."""
+        m.submodules.axi_tap = tap = self.axi_tap
+        m.submodules.axi_slave = axi = self.axi_slave
+        m.d.comb += [tap.taken.eq(engine.results.valid & engine.results.ready),
+                     tap.payload.eq(engine.results.payload), tap.hold.eq(axi.hold),
+                     axi.status.eq(fe.status), axi.counters.eq(sched.counters),
+                     axi.dropped.eq(tap.dropped), axi.refused.eq(engine.cfg_refused),
+                     self.irq.eq(axi.irq)]
+        connect(m, tap.o, axi.result)
+        connect(m, flipped(self.s_axi), axi.axi)
+        # the ``cfg`` ports left unconnected, their outputs driven (never ready, no word)
+        m.d.comb += [self.cfg.ready.eq(0), self.cfg_read.ready.eq(0),
+                     self.cfg_read_data.valid.eq(0)]
+        return axi.cfg, axi.cfg_read, axi.cfg_read_data
+
+    def _command_channel(self, m, engine, framer, arbiter, fe, cfg_port):
         """Host -> UART receiver -> command decoder (its FIFO inside) -> engine / board / PWM,
         and its replies -> framer -> arbiter (before telemetry) -> UART."""
         m.submodules.uart_rx = rx = self.receiver
@@ -356,14 +411,14 @@ class AHRSCore(wiring.Component):
         # The engine's register port: the ``cfg`` ports (a test bench, or tied off) first,
         # then the command decoder's; a waiting transfer keeps its client.
         m.submodules.cfg_arbiter = cfg_arbiter = ConfigPortArbiter()
-        connect(m, flipped(self.cfg), cfg_arbiter.first)
+        connect(m, cfg_port[0], cfg_arbiter.first)
         connect(m, decoder.cfg, cfg_arbiter.second)
         connect(m, cfg_arbiter.cfg, engine.cfg)
-        connect(m, flipped(self.cfg_read), cfg_arbiter.first_read)
+        connect(m, cfg_port[1], cfg_arbiter.first_read)
         connect(m, decoder.cfg_read, cfg_arbiter.second_read)
         connect(m, cfg_arbiter.cfg_read, engine.cfg_read)
         connect(m, engine.cfg_read_data, cfg_arbiter.cfg_read_data)
-        connect(m, cfg_arbiter.first_read_data, flipped(self.cfg_read_data))
+        connect(m, cfg_arbiter.first_read_data, cfg_port[2])
         connect(m, cfg_arbiter.second_read_data, decoder.cfg_read_data)
         connect(m, reply_framer.o_stream, arbiter.i0)
         connect(m, framer.o_stream, arbiter.i1)

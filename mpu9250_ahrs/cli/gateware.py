@@ -93,9 +93,14 @@ def cmd_build(args):
         core = AHRSCore(clk_freq=clk_freq, config=config, baud=args.baud, **options)
         path = out / "mpu9250_ahrs_core.v"
         # with ports clk and rst (asynchronous, active high: ``AsyncResetCore``)
-        path.write_text(core_verilog(core))
+        text = core_verilog(core)
+        path.write_text(text)
+        from ..flows.instantiation import instantiation_template
+        template = out / "mpu9250_ahrs_core_inst.v"
+        template.write_text(instantiation_template(text))
         print(f"wrote {path} (system clock {clk_freq / 1e6:g} MHz; rst asynchronous, "
-              f"active high, released synchronously to clk)")
+              f"active high, released synchronously to clk) and {template} (an instance, "
+              f"every port commented)")
         return 0
     if args.board == "ulx3s":
         return _build_ulx3s(args, out, clk_freq, config, options)

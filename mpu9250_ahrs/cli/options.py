@@ -76,6 +76,10 @@ def _core_options(args):
         out["commands"] = False
     if getattr(args, "no_pwm", False):
         out["pwm"] = False
+    if getattr(args, "attitude_port", False):
+        out["attitude_port"] = True
+    if getattr(args, "axi_lite", False):
+        out["axi_lite"] = True
     if getattr(args, "euler_rates", False):
         from ..hdl.engine.attitude_engine import default_filter_config
         from ..hdl.contract.numeric_contract import FilterRates
@@ -163,6 +167,14 @@ def _add_left_out_options(p, *, which=""):
     p.add_argument("--no-commands", action="store_true",
                    help=f"leave the command channel (UART receiver, decoder, replies) out{which}, "
                         f"and with it the PWM outputs: telemetry only, the filters as built")
+    p.add_argument("--attitude-port", action="store_true",
+                   help=f"with the core's attitude stream for logic on the same chip{which} "
+                        f"(ports attitude__valid/ready/payload, attitude_dropped; "
+                        f"build/README.md); a board top leaves it unconnected")
+    p.add_argument("--axi-lite", action="store_true",
+                   help=f"with an AXI4-Lite slave for a soft CPU{which} (ports s_axi__*, irq; "
+                        f"hdl/AXI_LITE.md): the last result, status, counters, the engine's "
+                        f"registers")
 
 
 def _clock(args):

@@ -42,6 +42,7 @@ class CoreRun:
     samples: List[dict] = field(default_factory=list)   # the engine's inputs (``Sample``s)
     bus: Optional[I2CBusModel] = None                       # I2C wiring
     interrupted: bool = False               # Ctrl-C ended the run: what it had simulated
+    ports: dict = field(default_factory=dict)   # the attitude port's at the end, if built
 
     def latencies_us(self, clk_freq):
         """Data-ready edge (INT at the pin) to the result leaving the engine, per result."""
@@ -77,13 +78,18 @@ def core_harness(setup, *, baud=DEFAULT_BAUD, core_kwargs=None):
 
 
 def core_ports(core):
-    """The ports ``run_core``'s scenario reads and drives: (inputs, outputs) by name."""
+    """The ports ``run_core``'s scenario reads and drives: (inputs, outputs) by name; with
+    the core's ``attitude`` port, its stream too (``attitude_*``; its ready held low)."""
     results, offered = core.engine.results, core.engine.samples
-    return ({"cfg_valid": core.cfg.valid, "cfg_payload": core.cfg.payload},
-            {"r_valid": results.valid, "imu_int": core.imu_int, "s_valid": offered.valid,
-             "uart_tx": core.uart_tx, "cfg_ready": core.cfg.ready, "r_ready": results.ready,
-             "s_payload": offered.payload, "r_payload": results.payload,
-             "counters": core.counters, "status": core.status, "asa": core.asa})
+    outputs = {"r_valid": results.valid, "imu_int": core.imu_int, "s_valid": offered.valid,
+               "uart_tx": core.uart_tx, "cfg_ready": core.cfg.ready, "r_ready": results.ready,
+               "s_payload": offered.payload, "r_payload": results.payload,
+               "counters": core.counters, "status": core.status, "asa": core.asa}
+    if core.attitude_port:
+        outputs.update(attitude_valid=core.attitude.valid,
+                       attitude_payload=core.attitude.payload,
+                       attitude_dropped=core.attitude_dropped)
+    return {"cfg_valid": core.cfg.valid, "cfg_payload": core.cfg.payload}, outputs
 
 
 class _ResultWatch:
@@ -99,6 +105,7 @@ class _ResultWatch:
         self.received = bytearray()
         self.decoder = FrameDecoder()
         self.end = None
+        self.ports = {}                 # the attitude port's at the end (``core_ports``)
 
     def more_wanted(self):
         self.frames += [f for _, _, f in self.decoder.feed(self.received)]
@@ -149,6 +156,7 @@ class _ResultWatch:
                 continue
             await bench.changed("r_valid", "imu_int", "s_valid", until=self.max_cycles)
         self.end = (bench.cycle, *(bench.get(n) for n in ("counters", "status", "asa")))
+        self.ports = {n: bench.get(n) for n in bench.ports if n.startswith("attitude_")}
         bench.check()
 
 
@@ -200,4 +208,4 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
     cycles, counters, status, asa = watch.end
     return CoreRun(watch.results, watch.cycles, watch.ints, watch.frames, counters, status,
                    cycles, wall, model, asa, core, bench.compiled, watch.samples, bus,
-                   interrupted)
+                   interrupted, watch.ports)

@@ -72,7 +72,9 @@ def _walk(m, obj, signature, flipped, prefix, streams):
             if isinstance(member.signature, stream.Signature):
                 streams.append((path, value, inward))
             else:
-                _walk(m, value, member.signature, inward, f"{path}.", streams)
+                # an ``In`` member's signature comes flipped already: its flows are the
+                # component's own, as at this level
+                _walk(m, value, member.signature, flipped, f"{path}.", streams)
         elif inward:
             m.d.comb += value.eq(AnySeq(Shape.cast(member.shape).width))
 

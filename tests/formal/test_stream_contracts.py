@@ -35,6 +35,8 @@ from mpu9250_ahrs.hdl.sensor.mpu9250_driver import MPU9250Config, MPU9250Driver
 from mpu9250_ahrs.hdl.sensor.register_port import I2CRegisterPort, SPIRegisterPort
 from mpu9250_ahrs.hdl.sensor.register_port_arbiter import RegisterPortArbiter
 from mpu9250_ahrs.hdl.link.rewindable_fifo import RewindableFIFO
+from mpu9250_ahrs.hdl.link.stream_tap import StreamTap
+from mpu9250_ahrs.hdl.link.axi_lite_slave import AXILiteSlave
 from mpu9250_ahrs.hdl.sensor.sample_reader import SampleReader
 from mpu9250_ahrs.hdl.sensor.sensor_frontend import SensorFrontEnd
 from mpu9250_ahrs.hdl.sensor.spi_controller import SPIController, SPITiming
@@ -84,6 +86,8 @@ COMPONENTS = {
     "frame_arbiter": lambda: FrameArbiter(2),
     "host_port": HostPort,
     "rewindable_fifo": lambda: RewindableFIFO(depth=8),
+    "stream_tap": lambda: StreamTap(8),
+    "axi_lite_slave": lambda: AXILiteSlave(HOST_WRITABLE),
     "config_port_arbiter": ConfigPortArbiter,
     "command_decoder": lambda: CommandDecoder(writable=HOST_WRITABLE, version=0x00020000,
                                               timeout=50),
