@@ -238,7 +238,9 @@ def test_verilog_only_writes_an_instance_of_every_port(tmp_path):
     build/README.md lists them."""
     import pathlib
     import re
-    from mpu9250_ahrs.flows.instantiation import attitude_fields
+    from mpu9250_ahrs.flows.instantiation import payload_fields
+    from mpu9250_ahrs.hdl.engine.attitude_result import Attitude
+    from mpu9250_ahrs.hdl.sensor.sample import Sample
     assert main(["build", "--verilog-only", "--attitude-port", "--out", str(tmp_path)]) == 0
     verilog = (tmp_path / "mpu9250_ahrs_core.v").read_text()
     template = (tmp_path / "mpu9250_ahrs_core_inst.v").read_text()
@@ -249,4 +251,5 @@ def test_verilog_only_writes_an_instance_of_every_port(tmp_path):
         assert re.search(rf"^    \.{name}\({name}\)[, ]\s*// {direction}\b", template, re.M), name
     assert ".attitude__payload(" in template and "[361:0]" in template
     readme = (pathlib.Path(__file__).resolve().parents[1] / "build" / "README.md").read_text()
-    assert all(line in readme for line in attitude_fields())
+    assert all(line in readme for line in payload_fields(Attitude) + payload_fields(Sample))
+    assert ".sample__payload(" in template and "[202:0]" in template

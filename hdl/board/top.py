@@ -51,6 +51,7 @@ from ..engine.attitude_engine import (PEEKED, WORST_UPDATE_CYCLES, AttitudeEngin
 from ..engine.attitude_result import Attitude
 from ..engine.config_write import ConfigWrite
 from ..sensor.driver_status import DriverStatus
+from ..sensor.sample import Sample
 from ..sensor.sample_store import STORE_BITS, sample_store_ram
 from ..sensor.sample_reader import tick_cycles
 from ..sensor.sensor_frontend import SensorFrontEnd, sample_read_cycles
@@ -184,9 +185,11 @@ class AHRSCore(wiring.Component):
             result the engine gives, for logic on the same chip, held until taken and never
             holding the engine or the telemetry up (``StreamTap``: a result that comes while
             the one before still waits is not offered, counted in ``attitude_dropped``, out,
-            16, saturating). Its cost: a register of the result's 362 bits and the counter
-            (``report --attitude-port`` counts the build with it); unconnected in a board
-            top, synthesis removes it.
+            16, saturating); and ``sample`` (out, stream of ``Sample``), ``sample_dropped``
+            (out, 16): each sample as the engine takes it, the same way (its ``counter`` is
+            its result's). Its cost: registers of the result's 362 bits and the sample's
+            and the counters (``report --attitude-port`` counts the build with it);
+            unconnected in a board top, synthesis removes it.
         ``axi_lite`` (False): with ``s_axi`` (an AXI4-Lite slave, ``AXILiteSlave``: the
             last result held coherently, status, counters, the engine's registers through
             the command channel's rules; ``hdl/AXI_LITE.md``) and ``irq`` (out: a result came,
@@ -279,8 +282,11 @@ class AHRSCore(wiring.Component):
             ports["pwm"] = Out(PWM_CHANNELS)
         if attitude_port:
             self.attitude_tap = StreamTap(Attitude)
+            self.sample_tap = StreamTap(Sample)
             ports["attitude"] = Out(stream.Signature(Attitude))
             ports["attitude_dropped"] = Out(16)
+            ports["sample"] = Out(stream.Signature(Sample))
+            ports["sample_dropped"] = Out(16)
         if axi_lite:
             self.axi_tap = StreamTap(Attitude)
             self.axi_slave = AXILiteSlave(HOST_WRITABLE)
@@ -360,6 +366,12 @@ class AHRSCore(wiring.Component):
                          tap.payload.eq(engine.results.payload),
                          self.attitude_dropped.eq(tap.dropped)]
             connect(m, tap.o, flipped(self.attitude))
+            # each sample as the engine takes it (the reader's payload: the whole sample)
+            m.submodules.sample_tap = stap = self.sample_tap
+            m.d.comb += [stap.taken.eq(fe.samples.valid & fe.samples.ready),
+                         stap.payload.eq(fe.samples.payload),
+                         self.sample_dropped.eq(stap.dropped)]
+            connect(m, stap.o, flipped(self.sample))
         return m
 
 

@@ -168,9 +168,10 @@ def _add_left_out_options(p, *, which=""):
                    help=f"leave the command channel (UART receiver, decoder, replies) out{which}, "
                         f"and with it the PWM outputs: telemetry only, the filters as built")
     p.add_argument("--attitude-port", action="store_true",
-                   help=f"with the core's attitude stream for logic on the same chip{which} "
-                        f"(ports attitude__valid/ready/payload, attitude_dropped; "
-                        f"build/README.md); a board top leaves it unconnected")
+                   help=f"with the core's attitude and sample streams for logic on the same "
+                        f"chip{which} (ports attitude__*, attitude_dropped, sample__*, "
+                        f"sample_dropped; build/README.md); a board top leaves them "
+                        f"unconnected")
     p.add_argument("--axi-lite", action="store_true",
                    help=f"with an AXI4-Lite slave for a soft CPU{which} (ports s_axi__*, irq; "
                         f"hdl/AXI_LITE.md): the last result, status, counters, the engine's "

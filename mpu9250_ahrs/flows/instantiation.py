@@ -4,7 +4,7 @@ own Verilog or a Platform Designer wrapper."""
 
 import re
 
-__all__ = ["instantiation_template", "attitude_fields", "PORT_NOTES"]
+__all__ = ["instantiation_template", "payload_fields", "PORT_NOTES"]
 
 
 # what a port is, by its name's start (the first that matches): the core's documentation in
@@ -27,6 +27,9 @@ PORT_NOTES = (
     ("attitude_dropped", "results the attitude stream could not offer (16, saturating)"),
     ("attitude__", "every result (Attitude: quat, angles, bias, counter, flags; "
                    "stream: payload held while valid and not ready)"),
+    ("sample_dropped", "samples the sample stream could not offer (16, saturating)"),
+    ("sample__", "each sample as the engine takes it (Sample: accel, temp, gyro, mag, "
+                 "counter, flags, skipped; stream rules as attitude__)"),
     ("s_axi__", "AXI4-Lite slave (hdl/AXI_LITE.md)"),
     ("irq", "AXI interrupt: a result came (IRQ bit 0, write one to clear)"),
 )
@@ -64,11 +67,10 @@ def instantiation_template(verilog, module="mpu9250_ahrs_core", instance="ahrs")
     return "\n".join(lines) + "\n"
 
 
-def attitude_fields():
-    """``attitude__payload``'s fields as Verilog slices, one line each (build/README.md lists
-    them; a test compares): the ``Attitude`` layout's offsets."""
+def payload_fields(layout):
+    """A stream payload's fields (``Attitude``, ``Sample``) as Verilog slices, one line each
+    (build/README.md lists them; a test compares): the layout's offsets."""
     from amaranth.lib import data
-    from ..hdl.engine.attitude_result import Attitude
     lines = []
 
     def walk(layout, prefix, base):
@@ -84,5 +86,5 @@ def attitude_fields():
                 continue
             width = data.Layout.cast(shape).size if inner is not None else field.width
             lines.append(f"{path}: [{base + field.offset + width - 1}:{base + field.offset}]")
-    walk(Attitude, "", 0)
+    walk(layout, "", 0)
     return lines

@@ -88,7 +88,10 @@ def core_ports(core):
     if core.attitude_port:
         outputs.update(attitude_valid=core.attitude.valid,
                        attitude_payload=core.attitude.payload,
-                       attitude_dropped=core.attitude_dropped)
+                       attitude_dropped=core.attitude_dropped,
+                       attitude_sample_valid=core.sample.valid,
+                       attitude_sample_payload=core.sample.payload,
+                       attitude_sample_dropped=core.sample_dropped)
     return {"cfg_valid": core.cfg.valid, "cfg_payload": core.cfg.payload}, outputs
 
 

@@ -15,18 +15,22 @@ ROOT = pathlib.Path(__file__).resolve().parents[2]
 
 
 def _run(tmp_path, transactions, **harness):
+    from tests.cocotb.axi_harness import verilog
+    source = tmp_path / "axi_harness.v"
+    verilog(source, **harness)
+    return _cocotb(tmp_path, source, "axi_harness", "axi_lite_bench", transactions)
+
+
+def _cocotb(tmp_path, source, top, module, transactions=0):
     pytest.importorskip("cocotb")
     pytest.importorskip("cocotbext.axi")
     require_tool("iverilog", "apt-get install iverilog")
     from cocotb_tools.runner import get_runner
-    from tests.cocotb.axi_harness import verilog
-    source = tmp_path / "axi_harness.v"
-    verilog(source, **harness)
     runner = get_runner("icarus")
-    runner.build(sources=[source], hdl_toplevel="axi_harness", build_dir=tmp_path / "build",
+    runner.build(sources=[source], hdl_toplevel=top, build_dir=tmp_path / "build",
                  always=True, timescale=("1ns", "1ps"))
     # the bench module from its folder (cocotb puts ``test_dir`` on the path)
-    results = runner.test(hdl_toplevel="axi_harness", test_module="axi_lite_bench",
+    results = runner.test(hdl_toplevel=top, test_module=module,
                           build_dir=tmp_path / "build", test_dir=ROOT / "tests" / "cocotb",
                           results_xml=str(tmp_path / "results.xml"),
                           extra_env={"MPU9250_AXI_TRANSACTIONS": str(transactions)})

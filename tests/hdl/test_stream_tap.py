@@ -73,7 +73,8 @@ def test_the_dropped_count_saturates():
 
 def test_the_core_attitude_port_never_holds_the_engine():
     """The quick core with the port and nobody taking from it: the engine and telemetry run as
-    without it; the port holds the first result (bit for bit) and counts every later one."""
+    without it; the port holds the first result (bit for bit) and counts every later one, and
+    the sample port the first sample."""
     from mpu9250_ahrs.sim.scenarios.core import run_core
     from mpu9250_ahrs.sim.scenarios.setup import QUICK_CORE_BAUD, quick_core_setup
     run = run_core(quick_core_setup(), n_results=4, baud=QUICK_CORE_BAUD,
@@ -82,4 +83,8 @@ def test_the_core_attitude_port_never_holds_the_engine():
     assert run.ports["attitude_valid"] == 1
     assert run.ports["attitude_payload"] == run.results[0]
     assert run.ports["attitude_dropped"] == len(run.results) - 1
+    # the sample stream the same way: the first sample the engine took, the later ones counted
+    assert run.ports["attitude_sample_valid"] == 1
+    assert run.ports["attitude_sample_payload"] == run.samples[0]
+    assert run.ports["attitude_sample_dropped"] == len(run.samples) - 1
     assert run.counters["lost"] == 0
