@@ -6,7 +6,9 @@ subsystem. A wing imports only itself and the wings below it, in the data's dire
   flow);
 - ``link``: telemetry (``telemetry_scheduler``, ``telemetry`` the framer, ``frame_arbiter``,
   ``frame_types``), the UART (``uart_tx``, ``uart_rx``), commands (``command_decoder``, its
-  ``rewindable_fifo`` and ``event_counters``), the PWM outputs (``pwm``, ``board_bus``);
+  ``rewindable_fifo`` and ``event_counters``), the PWM outputs (``pwm``, ``board_bus``), the
+  doors for logic on the same chip (``stream_tap`` for the attitude and sample streams,
+  ``axi_lite_slave``);
 - ``engine``: ``attitude_engine`` on ``alu``, ``multiply_accumulate``, ``cordic``, ``divider``,
   ``host_port``; its instruction set ``attitude_isa`` and program ``attitude_program``, the
   filters' microcode ``filters`` (one module each), the ``register_map``, ``config_port_arbiter``
@@ -18,7 +20,8 @@ subsystem. A wing imports only itself and the wings below it, in the data's dire
 - ``contract``: plain data shared with ``reference/`` and the host, no Amaranth: the numeric
   contract ``numeric_contract``, the register maps ``mpu9250_regs``, ``ak8963_regs``, the
   filters' names and codes ``filter_registry``, the command channel's tables ``commands``, the
-  PWM block's registers ``pwm_regs``, the self-test's axes ``self_test_axes``, the defaults
+  PWM block's registers ``pwm_regs``, the self-test's axes ``self_test_axes``, the AXI
+  slave's map ``axi_regs``, the defaults
   the command line shares (``defaults``).
 
 Nothing here imports ``sim/`` or ``reference/`` (``tests/test_imports.py``).

@@ -98,9 +98,15 @@ def cmd_build(args):
         from ..flows.instantiation import instantiation_template
         template = out / "mpu9250_ahrs_core_inst.v"
         template.write_text(instantiation_template(text))
+        if core.axi_lite:
+            # a Platform Designer component (untested: no Quartus here)
+            from ..flows.platform_designer import hw_tcl
+            (out / "mpu9250_ahrs_core_hw.tcl").write_text(hw_tcl(text, clk_freq=clk_freq))
         print(f"wrote {path} (system clock {clk_freq / 1e6:g} MHz; rst asynchronous, "
               f"active high, released synchronously to clk) and {template} (an instance, "
-              f"every port commented)")
+              f"every port commented)" + (", and mpu9250_ahrs_core_hw.tcl (a Platform "
+                                          "Designer component, untested: no Quartus here)"
+                                          if core.axi_lite else ""))
         return 0
     if args.board == "ulx3s":
         return _build_ulx3s(args, out, clk_freq, config, options)

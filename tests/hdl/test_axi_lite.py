@@ -50,3 +50,20 @@ def test_axi_lite_slave_under_cocotbext_axi(tmp_path, transactions):
 def test_the_documented_map_is_the_contracts():
     from mpu9250_ahrs.hdl.contract.axi_regs import markdown_table
     assert markdown_table() in (ROOT / "hdl" / "AXI_LITE.md").read_text()
+
+
+def test_platform_designer_component_names_every_port_once(tmp_path):
+    """``build --verilog-only --axi-lite`` writes a ``_hw.tcl`` (untested in Quartus: there is
+    none here) with every top port of the core in one interface, the AXI signals under their
+    AMBA roles."""
+    import re
+    from mpu9250_ahrs.cli import main
+    assert main(["build", "--verilog-only", "--axi-lite", "--out", str(tmp_path)]) == 0
+    verilog = (tmp_path / "mpu9250_ahrs_core.v").read_text()
+    tcl = (tmp_path / "mpu9250_ahrs_core_hw.tcl").read_text()
+    top = re.search(r"^module mpu9250_ahrs_core\b.*?^endmodule", verilog, re.M | re.S).group(0)
+    ports = re.findall(r"^\s*(?:input|output)\s+(?:\[[^\]]+\]\s+)?(\w+)\s*;", top, re.M)
+    listed = re.findall(r"^add_interface_port \w+ (\w+) ", tcl, re.M)
+    assert sorted(listed) == sorted(ports)
+    assert "add_interface_port s_axi s_axi__awvalid awvalid Input 1" in tcl
+    assert "add_interface_port irq irq irq Output 1" in tcl
