@@ -5,6 +5,7 @@ while nobody takes it, every later one counted as dropped, the engine and teleme
 
 import random
 
+import pytest
 from amaranth.sim import Simulator
 
 from mpu9250_ahrs.hdl.link.stream_tap import StreamTap
@@ -71,6 +72,8 @@ def test_the_dropped_count_saturates():
     sim.run()
 
 
+# a core build of its own (about 15 s to compile on a clean machine): the slow step
+@pytest.mark.slow
 def test_the_core_attitude_port_never_holds_the_engine():
     """The quick core with the port and nobody taking from it: the engine and telemetry run as
     without it; the port holds the first result (bit for bit) and counts every later one, and
