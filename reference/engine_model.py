@@ -14,7 +14,8 @@ import numpy as np
 
 from ..hdl.contract.numeric_contract import (CalibrationFixed, KalmanFixedConfig, calibration_of,
                                              calibration_registers, control_fields)
-from ..hdl.contract.filter_registry import FILTER_NAMES, FILTERS as _RECORDS, filter_registers
+from ..hdl.contract.filter_registry import (FILTER_NAMES, FILTERS as _RECORDS, filter_registers,
+                                           module_name)
 from .fixed_point import Status, _KalmanFixed, _calibrate_one
 
 
@@ -34,8 +35,7 @@ def fixed_step_maker(record):
     """The function that makes a filter's integer step (``reg``, ``kf``): its record's
     ``fixed_step``, ``"module:function"`` of this package (or a dotted module elsewhere)."""
     module, function = record.fixed_step.split(":")
-    module = module if "." in module else f"{__package__}.{module}"
-    return getattr(importlib.import_module(module), function)
+    return getattr(importlib.import_module(module_name(module, __package__)), function)
 
 
 @dataclass

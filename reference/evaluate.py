@@ -8,7 +8,8 @@ import importlib
 
 import numpy as np
 
-from ..hdl.contract.filter_registry import FILTER_NAMES, FILTERS as RECORDS, FLOAT_FILTERS, record
+from ..hdl.contract.filter_registry import (FILTER_NAMES, FILTERS as RECORDS, FLOAT_FILTERS,
+                                           module_name, record)
 from .frames import orientation_errors
 from .kalman import KalmanParams
 
@@ -23,11 +24,9 @@ FIXED_FILTERS = FILTER_NAMES
 
 def run_filter(name, gyr, acc, mag, dt, **params):
     """gyr rad/s, acc m/s², mag µT (body frame) -> quaternions body->ENU (N,4): the float
-    filter of ``name``'s record (``filter_registry``: its module's ``run_float``)."""
-    if name not in FILTERS:
-        raise ValueError(f"unknown filter {name!r}; choose from {', '.join(FILTERS)}")
-    module = record(name).float_step
-    module = module if "." in module else f"{__package__}.{module}"
+    filter of ``name``'s record (``filter_registry``: its module's ``run_float``; an unknown
+    name is a ValueError naming the filters)."""
+    module = module_name(record(name).float_step, __package__)
     return importlib.import_module(module).run_float(gyr, acc, mag, dt, **params)
 
 

@@ -362,15 +362,11 @@ class AHRSCore(wiring.Component):
             # every result as the scheduler takes it (it takes every one): the tap watches
             # the transfer and takes no part in it
             m.submodules.attitude_tap = tap = self.attitude_tap
-            m.d.comb += [tap.taken.eq(engine.results.valid & engine.results.ready),
-                         tap.payload.eq(engine.results.payload),
-                         self.attitude_dropped.eq(tap.dropped)]
+            m.d.comb += [*tap.watch(engine.results), self.attitude_dropped.eq(tap.dropped)]
             connect(m, tap.o, flipped(self.attitude))
             # each sample as the engine takes it (the reader's payload: the whole sample)
             m.submodules.sample_tap = stap = self.sample_tap
-            m.d.comb += [stap.taken.eq(fe.samples.valid & fe.samples.ready),
-                         stap.payload.eq(fe.samples.payload),
-                         self.sample_dropped.eq(stap.dropped)]
+            m.d.comb += [*stap.watch(fe.samples), self.sample_dropped.eq(stap.dropped)]
             connect(m, stap.o, flipped(self.sample))
         return m
 
@@ -380,8 +376,7 @@ class AHRSCore(wiring.Component):
         (cfg, cfg_read, cfg_read_data) for the engine's first client."""
         m.submodules.axi_tap = tap = self.axi_tap
         m.submodules.axi_slave = axi = self.axi_slave
-        m.d.comb += [tap.taken.eq(engine.results.valid & engine.results.ready),
-                     tap.payload.eq(engine.results.payload), tap.hold.eq(axi.hold),
+        m.d.comb += [*tap.watch(engine.results), tap.hold.eq(axi.hold),
                      axi.status.eq(fe.status), axi.counters.eq(sched.counters),
                      axi.dropped.eq(tap.dropped), axi.refused.eq(engine.cfg_refused),
                      self.irq.eq(axi.irq)]

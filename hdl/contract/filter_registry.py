@@ -33,7 +33,7 @@ from .numeric_contract import FlagshipFixedConfig, MadgwickFixedConfig, control_
 
 
 __all__ = ["FilterRecord", "FILTERS", "FILTER_NAMES", "FILTER_CODES", "FLOAT_FILTERS",
-           "FILTER_CODE_BITS", "record", "filter_registers"]
+           "FILTER_CODE_BITS", "record", "module_name", "filter_registers"]
 
 
 @dataclass(frozen=True)
@@ -70,6 +70,12 @@ def record(name):
         if f.name == name:
             return f
     raise ValueError(f"unknown filter {name!r}; choose from {', '.join(FILTER_NAMES)}")
+
+
+def module_name(part, package):
+    """The module a record's part names (``microcode``, ``float_step``, or ``fixed_step``'s
+    module): a module of ``package`` (the wing that owns it), or, dotted, one elsewhere."""
+    return part if "." in part else f"{package}.{part}"
 
 
 def filter_registers(kalman, flagship=None, madgwick=None, **configs):

@@ -12,7 +12,8 @@ from .config_write import ConfigWrite
 from ..contract.numeric_contract import CONTROL_BITS, CONTROL_KEEP, CONTROL_RESET
 
 
-__all__ = ["HostPort", "address_in", "control_accepted", "control_code", "control_word_of"]
+__all__ = ["HostPort", "address_in", "control_accepted", "write_allowed", "control_code",
+           "control_word_of"]
 
 
 def address_in(addr, addresses):
@@ -30,6 +31,15 @@ def control_accepted(data):
     keep = data[CONTROL_KEEP.bit_length() - 1]
     high = FILTER_CODE_BITS - 2                 # the code's bits from CONTROL bit 4 up
     return (data[CONTROL_BITS + high:32] == 0) & (keep | (control_code(data) < len(FILTER_NAMES)))
+
+
+def write_allowed(addr, data, writable=None):
+    """1 where a host's write of ``data`` to engine address ``addr`` is one the engine takes:
+    ``addr`` one of ``writable`` (None: any) and, to CONTROL, a word ``control_accepted``
+    takes. The one rule: the engine's port applies it, the command decoder answers "refused"
+    by it before it sends a write, the AXI slave answers SLVERR by it."""
+    in_map = C(1) if writable is None else address_in(addr, writable)
+    return in_map & ((addr != CONTROL_ADDR) | control_accepted(data))
 
 
 def control_code(data):
@@ -97,9 +107,7 @@ class HostPort(wiring.Component):
         m.d.comb += [self.cfg.ready.eq(self.open), self.w_addr.eq(write.addr),
                      self.w_data.eq(write.data), self.r_addr.eq(self.cfg_read.payload)]
         allowed = Signal()
-        in_map = C(1) if self.writable is None else address_in(write.addr, self.writable)
-        m.d.comb += allowed.eq(in_map & ((write.addr != CONTROL_ADDR) |
-                                         control_accepted(write.data)))
+        m.d.comb += allowed.eq(write_allowed(write.addr, write.data, self.writable))
         with m.If(self.cfg.valid & self.open & ~allowed):
             with m.If(self.refused != 0xFFFF):
                 m.d.sync += self.refused.eq(self.refused + 1)

@@ -11,8 +11,7 @@ from ..contract.commands import REGMAP_VERSION
 from ..engine.attitude_isa import REG_BITS
 from ..engine.attitude_result import Attitude
 from ..engine.config_write import ConfigWrite
-from ..engine.host_port import address_in, control_accepted
-from ..engine.register_map import CONTROL_ADDR
+from ..engine.host_port import address_in, write_allowed
 from ..sensor.driver_status import DriverStatus
 from .frame_types import TelemetryCounters
 
@@ -60,7 +59,7 @@ class AXILiteSlave(wiring.Component):
         ``cfg`` (out, stream of ``ConfigWrite``), ``cfg_read`` (out, stream of addresses),
         ``cfg_read_data`` (in, stream of words): the engine's register port. Every engine
             write goes to the engine (which refuses and counts what it must); the answer is
-            SLVERR for one it refuses (``address_in``, ``control_accepted``: its own rule).
+            SLVERR for one it refuses (``write_allowed``: its own rule).
     Latency: a local word's read answers two cycles after its address is taken; an engine
     register's when the engine's port answers (a few cycles; the engine takes its port only
     between updates, so up to an update, ``report``'s ``cycles_per_update``).
@@ -101,10 +100,9 @@ class AXILiteSlave(wiring.Component):
         m = Module()
         pending = Signal()          # IRQ bit 0
         enable = Signal()           # IRQ_ENABLE bit 0
-        held = Signal()             # the result block held for a read
         m.d.comb += [self.irq.eq(pending & enable), self.result.ready.eq(1)]
         self._writes(m, pending, enable)
-        self._reads(m, pending, enable, held)
+        self._reads(m, pending, enable)
         with m.If(self.result.valid):       # after a clear: a result in its cycle raises it
             m.d.sync += pending.eq(1)
         return m
@@ -122,8 +120,7 @@ class AXILiteSlave(wiring.Component):
         engine = addr >= (AXI_ENGINE_BASE >> 2)
         reg = addr[:REG_BITS]
         m.d.comb += [self.cfg.payload.addr.eq(reg), self.cfg.payload.data.eq(wdata)]
-        allowed = address_in(reg, self.writable) & \
-            ((reg != CONTROL_ADDR) | control_accepted(wdata))
+        allowed = write_allowed(reg, wdata, self.writable)
         w_engine = self._w_engine
         with m.If(~w_engine):
             with m.If(aw_full & w_full & ~axi.bvalid):
@@ -155,8 +152,9 @@ class AXILiteSlave(wiring.Component):
         return address_in(addr[:8], [a >> 2 for a, _, _ in AXI_REGS.values()]) & \
             (addr < (AXI_ENGINE_BASE >> 2))
 
-    def _reads(self, m, pending, enable, held):
+    def _reads(self, m, pending, enable):
         axi = self.axi
+        held = Signal()             # the result block held for a read
         decode, waiting = self._r_decode, self._r_engine
         busy = decode | waiting     # an address taken, its answer not yet given
         addr = Signal(AXI_ADDR_BITS - 2)
@@ -206,4 +204,3 @@ class AXILiteSlave(wiring.Component):
                              axi.rresp.eq(RESP_OKAY), waiting.eq(0)]
         with m.If(axi.rvalid & axi.rready):
             m.d.sync += axi.rvalid.eq(0)
-        return m

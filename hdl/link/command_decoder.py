@@ -18,7 +18,7 @@ from ..contract.commands import (BOARD_REGS, COMMAND_FIFO_BYTES, COMMANDS,
 from ..engine.register_map import CONTROL_ADDR, CONTROL_KEEP, CONTROL_RESET, TELEMETRY_DIV_ADDR
 from ..contract.filter_registry import FILTER_CODES
 from .board_bus import BoardBusSignature
-from ..engine.host_port import address_in, control_accepted
+from ..engine.host_port import address_in, write_allowed
 from ..engine.config_write import ConfigWrite
 from ..sensor.driver_status import SelfTestStatus
 from .frame_types import CRC, SYNC, Reply
@@ -218,8 +218,7 @@ class CommandDecoder(wiring.Component):
         board_regs = self._board_regs()
         # an engine write the engine would refuse is answered "refused" here (the host learns
         # why): an address it may not write, or a CONTROL word with no meaning
-        writable = address_in(low, self.writable) & (
-            (low != CONTROL_ADDR) | control_accepted(value))
+        writable = write_allowed(low, value, self.writable)
         m.d.comb += [self.pwm.addr.eq(low), self.pwm.w_data.eq(value)]
 
         parsing = ("HUNT", "SYNC1", "TYPE", "SEQ", "LENGTH", "PAYLOAD", "CRC_HIGH", "CRC_LOW")

@@ -38,6 +38,11 @@ class StreamTap(wiring.Component):
             "dropped": Out(16),
         })
 
+    def watch(self, stream):
+        """The statements (comb) that make this tap watch ``stream``: its transfers and
+        payload."""
+        return [self.taken.eq(stream.valid & stream.ready), self.payload.eq(stream.payload)]
+
     def elaborate(self, platform):
         m = Module()
         waiting = (self.o.valid & ~self.o.ready) | self.hold

@@ -7,7 +7,7 @@ the core's top module is in it once: the clock and reset, the AXI4-Lite slave (`
 roles by the AMBA names), the interrupt (``irq``), and everything else in one conduit
 (``ahrs``, exported to the pins or to the user's logic)."""
 
-import re
+from .instantiation import top_ports
 
 __all__ = ["hw_tcl"]
 
@@ -17,18 +17,9 @@ _AXI_ROLES = {"awvalid", "awready", "awaddr", "awprot", "wvalid", "wready", "wda
               "rready", "rdata", "rresp"}
 
 
-def _ports(verilog, module):
-    top = re.search(rf"^module\s+\\?{re.escape(module)}\b.*?^endmodule", verilog, re.M | re.S)
-    if top is None:
-        raise ValueError(f"no module {module} in the Verilog")
-    found = re.findall(r"^\s*(input|output)\s+(?:wire\s+|reg\s+)?(?:\[(\d+):0\]\s+)?\\?(\w+)\s*;",
-                       top.group(0), re.M)
-    return [(direction, int(msb) + 1 if msb else 1, name) for direction, msb, name in found]
-
-
 def hw_tcl(verilog, *, clk_freq, module="mpu9250_ahrs_core"):
     """The ``_hw.tcl`` text for the core's Verilog (which must have ``s_axi__*`` and ``irq``)."""
-    ports = _ports(verilog, module)
+    ports = top_ports(verilog, module)
     names = {name for _, _, name in ports}
     if "irq" not in names or not any(n.startswith("s_axi__") for n in names):
         raise ValueError("the Platform Designer component needs the AXI4-Lite slave "

@@ -16,6 +16,8 @@ auto, "prefer") and makes the bench.
 
 from amaranth.lib import data
 
+from ...host.protocol import unpack
+
 
 __all__ = ["Bench", "simulator_name", "run_interruptible"]
 
@@ -72,7 +74,6 @@ class Bench:
         layout = self._layouts.get(name)
         if layout is None:
             return bits
-        from ...host.protocol import unpack
         return unpack(layout, bits)
 
     def _encode(self, name, value):

@@ -16,7 +16,7 @@ import importlib
 from dataclasses import dataclass
 from typing import Callable
 
-from ...contract.filter_registry import FILTERS
+from ...contract.filter_registry import FILTERS, module_name
 
 
 __all__ = ["FilterRoutine", "routines", "config_registers", "state_registers"]
@@ -32,8 +32,7 @@ class FilterRoutine:
 
 
 def _modules():
-    return [importlib.import_module(f.microcode if "." in f.microcode else
-                                    f"{__name__}.{f.microcode}") for f in FILTERS]
+    return [importlib.import_module(module_name(f.microcode, __name__)) for f in FILTERS]
 
 
 def routines():
