@@ -59,6 +59,7 @@ from ..sensor.i2c_controller import I2CPinsSignature
 from ..sensor.spi_controller import IO_BUDGET, SPIPinsSignature, SPITiming
 from ..engine.register_map import HOST_WRITABLE
 from ..link.command_decoder import CommandDecoder
+from ..link.register_executor import RegisterExecutor
 from ..engine.config_port_arbiter import ConfigPortArbiter
 from ..link.frame_arbiter import FrameArbiter
 from ..link.frame_types import ATTITUDE, REPLY, SENSOR
@@ -191,10 +192,9 @@ class AHRSCore(wiring.Component):
             and the counters (``report --attitude-port`` counts the build with it);
             unconnected in a board top, synthesis removes it.
         ``axi_lite`` (False): with ``s_axi`` (an AXI4-Lite slave, ``AXILiteSlave``: the
-            last result held coherently, status, counters, the engine's registers through
-            the command channel's rules; ``hdl/AXI_LITE.md``) and ``irq`` (out: a result came,
-            write-one-to-clear). The engine's register port is then the slave's: the ``cfg``
-            ports are left unconnected.
+            last result (read from the engine's registers: a sequence count says whether a
+            block of words is one result's), status, counters, the host's registers through the command channel's executor and rules;
+            ``hdl/AXI_LITE.md``) and ``irq`` (out: a result came, write-one-to-clear).
 
     With the engine, every sample the driver reads is filtered: the engine takes a sample as
     soon as its previous update is done (``WORST_UPDATE_CYCLES`` at most) and the
@@ -249,8 +249,9 @@ class AHRSCore(wiring.Component):
         if self.commands:
             self.receiver = UARTReceiver(divisor=UARTTransmitter.divisor_for(clk_freq, baud))
             # the time-out in the sample reader's ticks (``decoder.tick``, from the front end)
+            # with the AXI slave, the decoder's executor has a second front end: the slave
             self.decoder = CommandDecoder(
-                writable=HOST_WRITABLE, version=self.version,
+                writable=HOST_WRITABLE, version=self.version, ports=2 if axi_lite else 1,
                 timeout=cycles(command_timeout_s, clk_freq),
                 tick_cycles=tick_cycles(self.frontend.driver.period_cycles))
             # the two framers share a CRC processor (the arbiter never interleaves their
@@ -288,8 +289,10 @@ class AHRSCore(wiring.Component):
             ports["sample"] = Out(stream.Signature(Sample))
             ports["sample_dropped"] = Out(16)
         if axi_lite:
-            self.axi_tap = StreamTap(Attitude)
-            self.axi_slave = AXILiteSlave(HOST_WRITABLE)
+            self.axi_slave = AXILiteSlave()
+            if not self.commands:
+                self.axi_executor = RegisterExecutor(writable=HOST_WRITABLE,
+                                                     version=self.version)
             ports["s_axi"] = In(AXILiteSignature())
             ports["irq"] = Out(1)
         super().__init__(ports)
@@ -332,16 +335,27 @@ class AHRSCore(wiring.Component):
         with m.If(fe.samples.valid & fe.samples.ready):
             m.d.sync += held_status.eq(fe.status)
 
-        # the engine's first register port: the ``cfg`` ports, or the AXI slave's
-        cfg_port = self._axi(m, engine, sched, fe) if self.axi_lite else \
-            (flipped(self.cfg), flipped(self.cfg_read), flipped(self.cfg_read_data))
+        # the engine's first register port: the ``cfg`` ports; the second a register
+        # executor's (the command decoder's, or the AXI slave's own without one)
+        cfg_port = (flipped(self.cfg), flipped(self.cfg_read), flipped(self.cfg_read_data))
         if self.commands:
             self._command_channel(m, engine, framer, arbiter, fe, cfg_port)
         else:
-            connect(m, cfg_port[0], engine.cfg)
-            connect(m, cfg_port[1], engine.cfg_read)
-            connect(m, engine.cfg_read_data, cfg_port[2])
+            if self.axi_lite:
+                m.submodules.axi_executor = executor = self.axi_executor
+                m.d.comb += [executor.frames_sent.eq(arbiter.frames),
+                             executor.frames_stable.eq(arbiter.frames_stable),
+                             executor.early_sample.eq(fe.early_sample),
+                             executor.who_am_i.eq(fe.who_am_i),
+                             executor.self_test.eq(fe.self_test)]
+                self._cfg_arbiter(m, engine, cfg_port, executor)
+            else:
+                connect(m, cfg_port[0], engine.cfg)
+                connect(m, cfg_port[1], engine.cfg_read)
+                connect(m, engine.cfg_read_data, cfg_port[2])
             connect(m, framer.o_stream, arbiter.i0)
+        if self.axi_lite:
+            self._axi(m, engine, sched, fe)
         # the divider register: the engine keeps its copy for read-back
         divider = Signal(16, init=self.telemetry_divider)
         with m.If(engine.cfg.valid & engine.cfg.ready &
@@ -372,20 +386,35 @@ class AHRSCore(wiring.Component):
 
 
     def _axi(self, m, engine, sched, fe):
-        """The AXI4-Lite slave on its own tap of the results; returns its register port
-        (cfg, cfg_read, cfg_read_data) for the engine's first client."""
-        m.submodules.axi_tap = tap = self.axi_tap
+        """The AXI4-Lite slave (the result's words read from the engine's registers and its
+        payload: no copy), its host registers through the command decoder's executor (its
+        second port) or, without the command channel, one of its own."""
         m.submodules.axi_slave = axi = self.axi_slave
-        m.d.comb += [*tap.watch(engine.results), tap.hold.eq(axi.hold),
+        result = engine.results
+        m.d.comb += [axi.done.eq(result.valid & result.ready), axi.busy.eq(engine.busy),
+                     axi.counter.eq(result.payload.counter), axi.flags.eq(result.payload.flags),
                      axi.status.eq(fe.status), axi.counters.eq(sched.counters),
-                     axi.dropped.eq(tap.dropped), axi.refused.eq(engine.cfg_refused),
                      self.irq.eq(axi.irq)]
-        connect(m, tap.o, axi.result)
         connect(m, flipped(self.s_axi), axi.axi)
-        # the ``cfg`` ports left unconnected, their outputs driven (never ready, no word)
-        m.d.comb += [self.cfg.ready.eq(0), self.cfg_read.ready.eq(0),
-                     self.cfg_read_data.valid.eq(0)]
-        return axi.cfg, axi.cfg_read, axi.cfg_read_data
+        executor, port = (self.decoder.executor, 1) if self.commands else \
+            (self.axi_executor, 0)
+        connect(m, axi.request, executor.request[port])
+        connect(m, executor.response[port], axi.response)
+
+    def _cfg_arbiter(self, m, engine, cfg_port, client):
+        """The engine's register port: the ``cfg`` ports (a test bench, or tied off) first,
+        then ``client``'s (a decoder's or an executor's); a waiting transfer keeps its
+        client."""
+        m.submodules.cfg_arbiter = cfg_arbiter = ConfigPortArbiter()
+        connect(m, cfg_port[0], cfg_arbiter.first)
+        connect(m, client.cfg, cfg_arbiter.second)
+        connect(m, cfg_arbiter.cfg, engine.cfg)
+        connect(m, cfg_port[1], cfg_arbiter.first_read)
+        connect(m, client.cfg_read, cfg_arbiter.second_read)
+        connect(m, cfg_arbiter.cfg_read, engine.cfg_read)
+        connect(m, engine.cfg_read_data, cfg_arbiter.cfg_read_data)
+        connect(m, cfg_arbiter.first_read_data, cfg_port[2])
+        connect(m, cfg_arbiter.second_read_data, client.cfg_read_data)
 
     def _command_channel(self, m, engine, framer, arbiter, fe, cfg_port):
         """Host -> UART receiver -> command decoder (its FIFO inside) -> engine / board / PWM,
@@ -415,18 +444,7 @@ class AHRSCore(wiring.Component):
                      decoder.who_am_i.eq(fe.who_am_i), decoder.self_test.eq(fe.self_test),
                      self.raw_mode.eq(decoder.raw_mode),
                      framer.short.eq(decoder.raw_mode)]
-        # The engine's register port: the ``cfg`` ports (a test bench, or tied off) first,
-        # then the command decoder's; a waiting transfer keeps its client.
-        m.submodules.cfg_arbiter = cfg_arbiter = ConfigPortArbiter()
-        connect(m, cfg_port[0], cfg_arbiter.first)
-        connect(m, decoder.cfg, cfg_arbiter.second)
-        connect(m, cfg_arbiter.cfg, engine.cfg)
-        connect(m, cfg_port[1], cfg_arbiter.first_read)
-        connect(m, decoder.cfg_read, cfg_arbiter.second_read)
-        connect(m, cfg_arbiter.cfg_read, engine.cfg_read)
-        connect(m, engine.cfg_read_data, cfg_arbiter.cfg_read_data)
-        connect(m, cfg_arbiter.first_read_data, cfg_port[2])
-        connect(m, cfg_arbiter.second_read_data, decoder.cfg_read_data)
+        self._cfg_arbiter(m, engine, cfg_port, decoder)
         connect(m, reply_framer.o_stream, arbiter.i0)
         connect(m, framer.o_stream, arbiter.i1)
         m.d.comb += reply_framer.seq.eq(arbiter.seq)

@@ -19,10 +19,8 @@ class StreamTap(wiring.Component):
             ``payload`` (in, ``shape``): its payload then.
         ``o`` (out, stream of ``shape``): each transfer's payload, held until taken (the stream
             rules: ``valid`` stays up and the payload still until a cycle with ``ready``).
-        ``hold`` (in): while high, the copy stays whatever comes (a reader holds it: the AXI
-            slave's result block); a transfer then is not offered either.
         ``dropped`` (out, 16): transfers not offered because the one before was still waiting
-            or held (saturating at 0xFFFF; reset only with the design). A slow consumer therefore sees
+            (saturating at 0xFFFF; reset only with the design). A slow consumer therefore sees
             the oldest result it has not taken, then the next that comes after it: the
             payload's own counter shows the gap.
     Latency: the copy is offered the cycle after the watched transfer. Throughput: one a
@@ -33,7 +31,6 @@ class StreamTap(wiring.Component):
         super().__init__({
             "taken": In(1),
             "payload": In(shape),
-            "hold": In(1),
             "o": Out(stream.Signature(shape)),
             "dropped": Out(16),
         })
@@ -45,7 +42,7 @@ class StreamTap(wiring.Component):
 
     def elaborate(self, platform):
         m = Module()
-        waiting = (self.o.valid & ~self.o.ready) | self.hold
+        waiting = self.o.valid & ~self.o.ready
         with m.If(self.o.valid & self.o.ready):
             m.d.sync += self.o.valid.eq(0)
         with m.If(self.taken):

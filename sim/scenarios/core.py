@@ -179,10 +179,6 @@ def run_core(setup=None, *, n_results=None, n_frames=None, model=None, max_cycle
     ``keep_on_interrupt``: as ``run_frontend``'s (``CoreRun.interrupted``)."""
     if n_results is None and n_frames is None and until is None:
         raise ValueError("run_core needs n_results, n_frames or until")
-    if writes and (core_kwargs or {}).get("axi_lite"):
-        raise ValueError("run_core's writes go through the core's cfg ports, which an "
-                         "axi_lite core leaves unconnected (the AXI slave owns the engine's "
-                         "port)")
     setup = setup or SimSetup()
     core, harness, key = core_harness(setup, baud=baud, core_kwargs=core_kwargs)
     model = model or setup.model(magnetometer=setup.config.magnetometer)

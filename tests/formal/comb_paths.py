@@ -32,15 +32,22 @@ def stream_ports(component):
     component drives."""
     found = []
 
+    def names(name, dimensions):
+        """An array member's ports are named by index too (``request__0``)."""
+        if not dimensions:
+            return [name]
+        return [n for k in range(dimensions[0]) for n in names(f"{name}__{k}", dimensions[1:])]
+
     def walk(signature, flipped, prefix):
         for name, member in signature.members.items():
             outward = (member.flow == wiring.Out) != flipped
             if not member.is_signature:
                 continue
-            if isinstance(member.signature, stream.Signature):
-                found.append((f"{prefix}{name}", wiring.Out if outward else wiring.In))
-            else:
-                walk(member.signature, not outward, f"{prefix}{name}__")
+            for each in names(f"{prefix}{name}", member.dimensions):
+                if isinstance(member.signature, stream.Signature):
+                    found.append((each, wiring.Out if outward else wiring.In))
+                else:
+                    walk(member.signature, not outward, f"{each}__")
 
     walk(component.signature, False, "")
     return found

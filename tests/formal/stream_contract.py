@@ -63,20 +63,31 @@ def stream_input(m, s, name="in"):
     _rules(m, s, Assume, name, cover=False)
 
 
+def _elements(value, path, dimensions):
+    """A member's values with their paths: one, or each of an array member's (``.array(n)``)."""
+    if not dimensions:
+        return [(path, value)]
+    return [item for k, v in enumerate(value)
+            for item in _elements(v, f"{path}{k}", dimensions[1:])]
+
+
 def _walk(m, obj, signature, flipped, prefix, streams):
     for name, member in signature.members.items():
-        value = getattr(obj, name)
-        path = f"{prefix}{name}"
-        inward = (member.flow == wiring.In) != flipped
-        if member.is_signature:
-            if isinstance(member.signature, stream.Signature):
-                streams.append((path, value, inward))
-            else:
-                # an ``In`` member's signature comes flipped already: its flows are the
-                # component's own, as at this level
-                _walk(m, value, member.signature, flipped, f"{path}.", streams)
-        elif inward:
-            m.d.comb += value.eq(AnySeq(Shape.cast(member.shape).width))
+        for path, value in _elements(getattr(obj, name), f"{prefix}{name}", member.dimensions):
+            _member(m, value, member, flipped, path, streams)
+
+
+def _member(m, value, member, flipped, path, streams):
+    inward = (member.flow == wiring.In) != flipped
+    if member.is_signature:
+        if isinstance(member.signature, stream.Signature):
+            streams.append((path, value, inward))
+        else:
+            # an ``In`` member's signature comes flipped already: its flows are the
+            # component's own, as at this level
+            _walk(m, value, member.signature, flipped, f"{path}.", streams)
+    elif inward:
+        m.d.comb += value.eq(AnySeq(Shape.cast(member.shape).width))
 
 
 def _invariants(obj, seen=None):

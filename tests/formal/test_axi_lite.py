@@ -11,7 +11,6 @@ import pytest
 from amaranth import Cat
 from amaranth.hdl import Assert, Assume
 
-from mpu9250_ahrs.hdl.engine.register_map import HOST_WRITABLE
 from mpu9250_ahrs.hdl.link.axi_lite_slave import AXILiteSlave
 
 from .stream_contract import _rules, contract_harness
@@ -22,7 +21,7 @@ def _channel(valid, ready, *payload):
 
 
 def axi_harness():
-    dut = AXILiteSlave(HOST_WRITABLE)
+    dut = AXILiteSlave()
     m = contract_harness(dut)
     a = dut.axi
     for name, ch in (("aw", _channel(a.awvalid, a.awready, a.awaddr, a.awprot)),

@@ -37,6 +37,7 @@ from mpu9250_ahrs.hdl.sensor.register_port_arbiter import RegisterPortArbiter
 from mpu9250_ahrs.hdl.link.rewindable_fifo import RewindableFIFO
 from mpu9250_ahrs.hdl.link.stream_tap import StreamTap
 from mpu9250_ahrs.hdl.link.axi_lite_slave import AXILiteSlave
+from mpu9250_ahrs.hdl.link.register_executor import RegisterExecutor
 from mpu9250_ahrs.hdl.sensor.sample_reader import SampleReader
 from mpu9250_ahrs.hdl.sensor.sensor_frontend import SensorFrontEnd
 from mpu9250_ahrs.hdl.sensor.spi_controller import SPIController, SPITiming
@@ -87,7 +88,10 @@ COMPONENTS = {
     "host_port": HostPort,
     "rewindable_fifo": lambda: RewindableFIFO(depth=8),
     "stream_tap": lambda: StreamTap(8),
-    "axi_lite_slave": lambda: AXILiteSlave(HOST_WRITABLE),
+    "axi_lite_slave": AXILiteSlave,
+    # two front ends, as the core with the AXI slave builds it
+    "register_executor": lambda: RegisterExecutor(writable=HOST_WRITABLE, version=0x00020000,
+                                                  ports=2),
     "config_port_arbiter": ConfigPortArbiter,
     "command_decoder": lambda: CommandDecoder(writable=HOST_WRITABLE, version=0x00020000,
                                               timeout=50),
