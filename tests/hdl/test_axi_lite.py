@@ -22,7 +22,7 @@ def _run(tmp_path, transactions, **harness):
     return _cocotb(tmp_path, source, "axi_harness", "axi_lite_bench", transactions)
 
 
-def _cocotb(tmp_path, source, top, module, transactions=0):
+def _cocotb(tmp_path, source, top, module, transactions=0, env=None):
     pytest.importorskip("cocotb")
     pytest.importorskip("cocotbext.axi")
     require_tool("iverilog", "apt-get install iverilog")
@@ -37,7 +37,8 @@ def _cocotb(tmp_path, source, top, module, transactions=0):
     results = runner.test(hdl_toplevel=top, test_module=module,
                           build_dir=tmp_path / "build", test_dir=ROOT / "tests" / "cocotb",
                           results_xml=str(tmp_path / "results.xml"),
-                          extra_env={"MPU9250_AXI_TRANSACTIONS": str(transactions)})
+                          extra_env={"MPU9250_AXI_TRANSACTIONS": str(transactions),
+                                     **(env or {})})
     from cocotb_tools.runner import get_results
     return get_results(results)
 
@@ -49,6 +50,22 @@ def _cocotb(tmp_path, source, top, module, transactions=0):
 def test_axi_lite_slave_under_cocotbext_axi(tmp_path, transactions):
     tests, failed = _run(tmp_path, transactions)
     assert tests == 3 and failed == 0
+
+
+# about 19 s (the core's build, then Icarus): the slow step, the default run being over its
+# budget already
+@pytest.mark.slow
+def test_exported_core_under_cocotbext_axi(tmp_path):
+    """The Verilog a user instantiates (``build --verilog-only --axi-lite``): its AXI slave
+    reaches the engine, the board's registers (RAW_MODE on the core's pin) and the PWM block
+    through the command decoder's executor (``tests/cocotb/core_axi_bench.py``)."""
+    from mpu9250_ahrs.cli import main
+    from mpu9250_ahrs.hdl.board.top import AHRSCore
+    assert main(["build", "--verilog-only", "--axi-lite", "--out", str(tmp_path)]) == 0
+    version = AHRSCore(axi_lite=True).version
+    tests, failed = _cocotb(tmp_path, tmp_path / "mpu9250_ahrs_core.v", "mpu9250_ahrs_core",
+                            "core_axi_bench", 1_000, env={"MPU9250_CORE_VERSION": str(version)})
+    assert tests == 1 and failed == 0
 
 
 def test_the_documented_map_is_the_contracts():
