@@ -154,16 +154,26 @@ class RegisterExecutor(wiring.Component):
         idle = Signal()
         offered = Cat(r.valid for r in self.request).any()
         if self.ports == 1:
-            req = self.request[0].payload
+            incoming = self.request[0].payload
         else:
             pick = Signal.like(port)
             for k in reversed(range(self.ports)):
                 with m.If(self.request[k].valid):
                     m.d.comb += pick.eq(k)
-            chosen_port = Mux(idle, pick, port)
-            req = Signal(RegisterRequest)
-            m.d.comb += req.eq(Array(r.payload for r in self.request)[chosen_port])
-        space, low, value = req.space, req.addr, req.value
+            incoming = Signal(RegisterRequest)
+            m.d.comb += incoming.eq(Array(r.payload for r in self.request)[pick])
+        # The request is copied as it is taken up (IDLE): what EXECUTE decides starts from
+        # registers, not from a front end's logic (the command decoder makes its request from
+        # the command's type: that chain and the write check in series were the core's
+        # longest path, report --timing). The front end holds it still all the same.
+        req = Signal(RegisterRequest, reset_less=True)
+        with m.If(idle & offered):
+            m.d.sync += req.eq(incoming)
+            if self.ports > 1:
+                m.d.sync += port.eq(pick)
+        # the address a read-back is made from a cycle ahead (the counters', the PWM block's)
+        low = Mux(idle, incoming.addr, req.addr)
+        space, value = req.space, req.value
         response, fields, load_fields, load_result, result = self._response(
             m, req, counters.r_data)
         for r in self.response:
@@ -203,8 +213,6 @@ class RegisterExecutor(wiring.Component):
             with m.State("IDLE"):
                 m.d.comb += idle.eq(1)
                 with m.If(offered):
-                    if self.ports > 1:
-                        m.d.sync += port.eq(pick)
                     m.next = "EXECUTE"
             with m.State("EXECUTE"):
                 # while the frame count is not stable (``frames_stable``), every request
@@ -233,9 +241,10 @@ class RegisterExecutor(wiring.Component):
         # the counter a board read names is read the cycle before it is answered: as the
         # request comes (IDLE, any request), and each cycle it waits in EXECUTE for
         # ``frames_stable`` (the RAM's read port goes back to the counting otherwise)
-        board_read = (req.op == RegisterOp.READ) & (space == SPACES["board"])
-        self._counters(m, counters, low=low, read=board_read & (
-            (idle & offered) | (fsm.ongoing("EXECUTE") & ~self.frames_stable)))
+        def board_read(r):
+            return (r.op == RegisterOp.READ) & (r.space == SPACES["board"])
+        self._counters(m, counters, low=low, read=(idle & offered & board_read(incoming)) |
+                       (fsm.ongoing("EXECUTE") & ~self.frames_stable & board_read(req)))
         return m
 
     def _response(self, m, req, count):

@@ -9,7 +9,7 @@ import os
 import sys
 from pathlib import Path
 
-from . import gateware, host_verbs, simulation
+from . import gateware, host_verbs, simulation, twin_verb
 
 
 __all__ = ["build_parser", "main"]
@@ -28,6 +28,9 @@ VERBS_HELP = """verbs:
              counts: the float reference, the bit-exact model (--engine fixed) or the gateware
              in a compiled simulation (--engine gateware); print its errors against the optical
              truth as JSON
+  twin       a two-wheeled balancing robot's plant in a closed loop with the balance
+             controller (its fixed-point model; the gateware's is issue #57's next step),
+             pushed: upright, worst tilt, when it fell, pushes recovered, as JSON
   report     resources of the attitude datapath and of the whole design from Yosys (MAX10
              mapping), cycles per filter update, the clock, the co-simulated latency and the
              highest sample rate the design sustains, as JSON
@@ -90,6 +93,7 @@ def build_parser():
     gateware.add_build(sub, quiet)
     simulation.add_simulate(sub, quiet)
     simulation.add_replay(sub, quiet)
+    twin_verb.add_twin(sub, quiet)
     gateware.add_report(sub, quiet)
     host_verbs.add_host_verbs(sub, quiet)
     return parser

@@ -1,0 +1,274 @@
+"""The balance controller (issue #57): a self-balancing robot's loop closed on the chip, from
+the attitude to two H-bridge motors, with the trips that keep it safe without a host."""
+
+from amaranth import *
+from amaranth.lib import data, wiring
+from amaranth.lib.cdc import FFSynchronizer
+from amaranth.lib.wiring import In, Out
+
+from ..contract.balance_regs import (BALANCE_REGS, BALANCE_RESET, BALANCE_WIDTHS, CONTROL_BITS,
+                                     DUTY_BITS, GAIN_BITS, GAIN_SHIFT, INTEGRAL_SHIFT,
+                                     PWM_STEPS_MAX_HZ, TRIPS)
+from ..link.board_bus import BoardBusSignature
+
+
+__all__ = ["BalanceController"]
+
+GAINS = ("BAL_KP", "BAL_KD", "BAL_KI", "BAL_KV")
+
+
+class BalanceController(wiring.Component):
+    """A PID on the tilt with a term on the low-passed duty (``reference/balance_control.py``
+    states the law and every format; this block matches its ``BalanceFixed`` bit for bit),
+    driving two H-bridge motors alike: channel 0 forward and 1 reverse of motor A, 2 and 3 of
+    motor B (a DRV8833's inputs: one channel pulses, the other stays low).
+
+    Safety: disarmed at reset, and while disarmed every output is low (the outputs are AND-ed
+    with ``armed``) and the duty, integral and low-pass are 0. Armed by a write of
+    BAL_CONTROL bit 0 (the host: the watchdog applies) or by the arming pin's rising edge
+    (with BAL_CONTROL bit 3; its falling edge disarms). Disarmed at once, in the cycles after
+    the result that shows it: a tilt beyond BAL_CUTOFF ("fallen"), ``fault``; and at a sample
+    period's end: more than BAL_STALE periods without a result ("stale"), host-armed, more
+    than BAL_WATCHDOG without ``kick`` ("watchdog"). BAL_STATUS says which (``TRIPS``).
+
+    Parameters
+        ``clk_freq``: the clock; the motor PWM has 1024 steps of ``prescale`` cycles, the
+            fewest that keep it at most ``PWM_STEPS_MAX_HZ`` (23.4 kHz at 48 MHz).
+        ``kv_shift`` (8): the duty's low-pass: 2^-kv_shift of the way a sample (a build
+            constant: a shift by a register would cost a barrel shifter).
+        ``reset``: register values at reset, by name (``BALANCE_REGS``), over
+            ``BALANCE_RESET`` (the rest 0: no gain, the output limit 0).
+    Members
+        ``bus`` (in, ``BoardBusSignature`` flipped): the registers (``BALANCE_REGS``).
+        ``done`` (in): a result is taken: ``angles`` (in, roll and pitch, BAM32) and ``bias``
+            (in, x and y, Q16.16 counts) are its.
+        ``sample_taken`` (in): the engine takes a sample: ``gyro`` (in, x and y counts) is its
+            (held here for its result).
+        ``fault`` (in): the driver flags a fault (sampled with each result).
+        ``period`` (in): a pulse per sample period (the stale and watchdog counts).
+        ``kick`` (in): a pulse per accepted command.
+        ``arm_pin`` (in, asynchronous): the arming input (synchronised here).
+        ``pwm`` (out, 4), ``armed`` (out), ``duty`` (out, signed 11).
+    Latency: the duty is new 8 cycles after ``done``; a trip disarms 2 cycles after it.
+    Throughput: a result every 8 cycles.
+    """
+
+    def __init__(self, *, clk_freq, kv_shift=8, reset=None):
+        self.kv_shift = kv_shift
+        self.prescale = max(1, -(-int(clk_freq) // (1024 * PWM_STEPS_MAX_HZ)))
+        self.reset = {**BALANCE_RESET, **(reset or {})}
+        unknown = set(self.reset) - set(BALANCE_WIDTHS)
+        if unknown:
+            raise ValueError(f"no writable register {', '.join(sorted(unknown))}")
+        super().__init__({
+            "bus": In(BoardBusSignature()),
+            "done": In(1),
+            "angles": In(data.ArrayLayout(signed(32), 2)),
+            "bias": In(data.ArrayLayout(signed(32), 2)),
+            "sample_taken": In(1),
+            "gyro": In(data.ArrayLayout(signed(16), 2)),
+            "fault": In(1),
+            "period": In(1),
+            "kick": In(1),
+            "arm_pin": In(1),
+            "pwm": Out(4),
+            "armed": Out(1),
+            "duty": Out(signed(DUTY_BITS)),
+        })
+
+    def elaborate(self, platform):
+        m = Module()
+        regs = self._registers(m)
+        status = self._arming(m, regs)
+        self._step(m, regs, status)
+        self._outputs(m)
+        return m
+
+    def _registers(self, m):
+        """The registers (a ``Signal`` each, by name), their writes and read-back."""
+        bus = self.bus
+        regs = {}
+        for name, (bits, is_signed, _, _) in BALANCE_WIDTHS.items():
+            shape = signed(bits) if is_signed else unsigned(bits)
+            regs[name] = Signal(shape, init=self.reset.get(name, 0), name=name.lower())
+        addressed = {name: bus.addr == a for name, a in BALANCE_REGS.items()}
+        word = bus.w_data.as_signed()
+        in_range = Signal()
+        with m.Switch(bus.addr):
+            for name, (bits, is_signed, low, high) in BALANCE_WIDTHS.items():
+                with m.Case(BALANCE_REGS[name]):
+                    value = word if is_signed else bus.w_data
+                    m.d.comb += in_range.eq((value >= low) & (value <= high))
+        m.d.comb += [bus.exists.eq(Cat(*addressed.values()).any()), bus.ok.eq(in_range)]
+        with m.If(bus.w_en & bus.ok):
+            for name in BALANCE_WIDTHS:
+                if name == "BAL_CONTROL":
+                    continue                        # ``_arming``
+                with m.If(addressed[name]):
+                    m.d.sync += regs[name].eq(bus.w_data)
+        regs["write_control"] = bus.w_en & bus.ok & addressed["BAL_CONTROL"]
+        regs["addressed"] = addressed
+        return regs
+
+    def _arming(self, m, regs):
+        """Armed, by whom, the last trip; returns ``status`` (its fields, for the read-back and
+        the step), with ``trip`` (a dict of pulses by reason, set by the step and here)."""
+        control = regs["BAL_CONTROL"]
+        by_host = Signal()
+        tripped = Signal(len(TRIPS))
+        trip = {reason: Signal(name=f"trip_{reason}") for reason in TRIPS}
+        pin = Signal()
+        m.submodules.arm_sync = FFSynchronizer(self.arm_pin, pin)
+        pin_was = Signal()
+        m.d.sync += pin_was.eq(pin)
+        pin_arms = control[CONTROL_BITS["pin_arms"]]
+        w_data = self.bus.w_data
+        arm = Signal()                  # arms this cycle (from disarmed: its state cleared)
+        disarm = Signal()
+        with m.If(regs["write_control"]):
+            m.d.sync += control.eq(w_data[:4] & ~(1 << CONTROL_BITS["arm"]))
+            with m.If(w_data[CONTROL_BITS["arm"]]):
+                m.d.comb += arm.eq(~self.armed)
+                m.d.sync += by_host.eq(1)
+            with m.Else():
+                m.d.comb += disarm.eq(1)
+        with m.Elif(pin_arms & pin & ~pin_was):
+            m.d.comb += arm.eq(~self.armed)
+            m.d.sync += by_host.eq(0)
+        with m.Elif(pin_arms & ~pin & pin_was):
+            m.d.comb += disarm.eq(1)
+        tripping = Cat(*trip.values()).any()
+        with m.If(arm | disarm):
+            m.d.sync += tripped.eq(0)
+        with m.If(arm):
+            m.d.sync += self.armed.eq(1)
+        with m.If(disarm | tripping):
+            m.d.sync += [self.armed.eq(0), by_host.eq(0)]
+        with m.If(tripping & self.armed):
+            m.d.sync += tripped.eq(Cat(*trip.values()))
+        # the periods since the last result, and (host-armed) since the last command
+        # one bit more than their limits: a count can pass the largest
+        since = Signal(9)
+        idle = Signal(17)
+        with m.If(self.done | ~self.armed):
+            m.d.sync += since.eq(0)
+        with m.Elif(self.period & ~since.all()):
+            m.d.sync += since.eq(since + 1)
+        with m.If(self.kick | ~self.armed):
+            m.d.sync += idle.eq(0)
+        with m.Elif(self.period & ~idle.all()):
+            m.d.sync += idle.eq(idle + 1)
+        watchdog = regs["BAL_WATCHDOG"]
+        m.d.comb += [
+            trip["stale"].eq(self.armed & (since > regs["BAL_STALE"])),
+            trip["watchdog"].eq(self.armed & by_host & (watchdog != 0) & (idle > watchdog) &
+                                ~trip["stale"]),
+        ]
+        read = {"BAL_CONTROL": Cat(self.armed, control[1:]),
+                "BAL_STATUS": Cat(self.armed, by_host, C(0, 2), tripped),
+                "BAL_DUTY": self.duty}
+        self._read_back(m, regs, read)
+        return {"trip": trip, "arm": arm, "disarm": disarm}
+
+    def _read_back(self, m, regs, read):
+        bus = self.bus
+        sources = {**{name: regs[name] for name in BALANCE_WIDTHS if name != "BAL_CONTROL"},
+                   **read}
+        word = Signal(32)
+        with m.Switch(bus.addr):
+            for name, value in sources.items():
+                with m.Case(BALANCE_REGS[name]):
+                    m.d.comb += word.eq(value.as_signed() if value.shape().signed else value)
+        m.d.sync += bus.r_data.eq(word)
+
+    def _step(self, m, regs, status):
+        """One result's step: e and the rate latched with it, the trips, the integral and the
+        low-pass, four products through one multiplier, the duty (the reference's order)."""
+        roll = regs["BAL_CONTROL"][CONTROL_BITS["roll"]]
+        negate = regs["BAL_CONTROL"][CONTROL_BITS["rate_negate"]]
+        gyro = Signal(data.ArrayLayout(signed(16), 2))
+        with m.If(self.sample_taken):
+            m.d.sync += gyro.eq(self.gyro)
+        # e: the angle less the set-point·2^16, its high half (the set-point has no low half)
+        angle = Mux(roll, self.angles[0], self.angles[1])
+        bias = Mux(roll, self.bias[0], self.bias[1])
+        g = Mux(roll, gyro[0], gyro[1])
+        e = Signal(signed(16))
+        rate = Signal(signed(16))
+        fault = Signal()
+        d = Signal(signed(18))
+        m.d.comb += d.eq(g - bias[16:].as_signed())
+        rated = Mux(negate, -d, d)
+        with m.If(self.done):
+            m.d.sync += [e.eq(angle[16:] - regs["BAL_SETPOINT"]),
+                         rate.eq(Mux(rated > 32767, 32767, Mux(rated < -32768, -32768, rated))),
+                         fault.eq(self.fault)]
+        integral = Signal(signed(32))
+        w = Signal(signed(32))
+        acc = Signal(signed(GAIN_BITS * 2 + 2))
+        index = Signal(range(4))
+        operand = Signal(signed(GAIN_BITS))
+        gain = Signal(signed(GAIN_BITS))
+        with m.Switch(index):
+            for k, (name, x) in enumerate(zip(GAINS, self._operands(e, rate, integral, w))):
+                with m.Case(k):
+                    m.d.comb += [gain.eq(regs[name]), operand.eq(x)]
+        product = Signal(signed(GAIN_BITS * 2))
+        m.d.comb += product.eq(gain * operand)
+        trip = status["trip"]
+        with m.If(~self.armed | status["arm"]):
+            m.d.sync += [integral.eq(0), w.eq(0), self.duty.eq(0)]
+        with m.FSM():
+            with m.State("IDLE"):
+                with m.If(self.done):
+                    m.next = "CHECK"
+            with m.State("CHECK"):
+                magnitude = Mux(e < 0, -e, e)
+                m.d.comb += [trip["fault"].eq(self.armed & fault),
+                             trip["fallen"].eq(self.armed & ~fault &
+                                               (magnitude > regs["BAL_CUTOFF"]))]
+                with m.If(self.armed & ~fault & (magnitude <= regs["BAL_CUTOFF"])):
+                    limit = regs["BAL_I_LIMIT"]
+                    total = integral + e
+                    m.d.sync += [
+                        integral.eq(Mux(total > limit, limit, Mux(total < -limit, -limit, total))),
+                        w.eq(w + ((Cat(C(0, 16), self.duty).as_signed() - w) >> self.kv_shift)),
+                        index.eq(0), acc.eq(0)]
+                    m.next = "MAC"
+                with m.Else():
+                    m.next = "IDLE"
+            with m.State("MAC"):
+                m.d.sync += [acc.eq(acc + product), index.eq(index + 1)]
+                with m.If(index == 3):
+                    m.next = "DUTY"
+            with m.State("DUTY"):
+                limit = regs["BAL_OUT_LIMIT"]
+                scaled = acc >> GAIN_SHIFT
+                with m.If(self.armed):
+                    m.d.sync += self.duty.eq(Mux(scaled > limit, limit,
+                                                 Mux(scaled < -limit, -limit, scaled)))
+                m.next = "IDLE"
+
+    def _operands(self, e, rate, integral, w):
+        """The four products' variable operands, in the order of ``GAINS``."""
+        low, high = -(1 << (GAIN_BITS - 1)), (1 << (GAIN_BITS - 1)) - 1
+        scaled = integral >> INTEGRAL_SHIFT
+        return [e, rate, Mux(scaled > high, high, Mux(scaled < low, low, scaled)), w >> 16]
+
+    def _outputs(self, m):
+        """Motor A and B alike: forward on channels 0 and 2, reverse on 1 and 3, each high for
+        |duty| of a period's 1024 steps, all low while disarmed."""
+        step = Signal(range(self.prescale))
+        count = Signal(10)
+        with m.If(step == self.prescale - 1):
+            m.d.sync += [step.eq(0), count.eq(count + 1)]
+        with m.Else():
+            m.d.sync += step.eq(step + 1)
+        magnitude = Mux(self.duty < 0, -self.duty, self.duty)
+        on = self.armed & (count < magnitude)
+        forward, reverse = on & (self.duty > 0), on & (self.duty < 0)
+        # registered (no glitch on a pin), then AND-ed with ``armed`` again: low in the cycle
+        # it disarms
+        pulses = Signal(4)
+        m.d.sync += pulses.eq(Cat(forward, reverse, forward, reverse))
+        m.d.comb += self.pwm.eq(pulses & self.armed.replicate(4))

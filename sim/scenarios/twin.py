@@ -1,0 +1,139 @@
+"""The balance controller's digital twin (issue #57): the two-wheeled plant
+(``sim/models/balance_plant.py``) in a closed loop with a controller, pushed, and summarised.
+
+Loops (``run_twin``'s ``loop``):
+
+- ``off``: no controller (the duty stays 0): the negative control, the plant is unstable.
+- ``model``: the controller's fixed-point model (``reference/balance_control.BalanceFixed``),
+  one step per 1 kHz sample, on the plant's own tilt and rate quantised as the gateware sees
+  them (the tilt in BAM32, the rate in gyro counts at 16.4 LSB/°/s): the law and its numbers,
+  with a perfect attitude; the duty applied 40 µs after the sample (the core's data-ready to
+  attitude latency, ``report``'s ``latency_us``, rounded up to the plant's step).
+- ``float``: the same law in floating point (``BalanceFloat``).
+- ``chip`` (the gateware controller on the co-simulated board) and ``host`` (the law on the
+  host, through the simulated UART): not built yet (issue #57 is open); asking for them is an
+  error that says so.
+"""
+
+import math
+import time
+from dataclasses import dataclass, field
+
+from ..models.balance_plant import BalancePlant, PlantParams
+from ...reference.balance_control import (DUTY_FULL, E_PER_RAD, BalanceFixed,
+                                          BalanceFixedConfig, BalanceFloat, BalanceGains)
+
+
+__all__ = ["Push", "TwinTrace", "run_twin", "parse_push", "LOOPS"]
+
+LOOPS = ("off", "model", "float", "chip", "host")
+PUSH_SECONDS = 0.1
+GYRO_LSB_PER_DPS = 16.4             # the default build's ±2000 °/s
+SAMPLE_HZ = 1000.0
+LATENCY_S = 40e-6
+# a push is recovered from when the tilt is back within this, within RECOVER_S of its end
+RECOVERED_DEG, RECOVER_S = 2.0, 1.5
+
+
+@dataclass(frozen=True)
+class Push:
+    """A horizontal force ``newtons`` on the body's centre of mass for 100 ms from ``at_s``."""
+    newtons: float
+    at_s: float
+
+    def force(self, t):
+        return self.newtons if self.at_s <= t < self.at_s + PUSH_SECONDS else 0.0
+
+
+def parse_push(text):
+    """``F@T`` (newtons at seconds) as a ``Push``; a clear error otherwise."""
+    try:
+        force, at = text.split("@")
+        return Push(float(force), float(at))
+    except ValueError:
+        raise ValueError(f"--push {text!r}: expected F@T, a force in newtons at a time in "
+                         f"seconds (e.g. 2@3)") from None
+
+
+@dataclass
+class TwinTrace:
+    """Per sample: time, the plant's tilt (°), the controller's tilt (°: what it saw), duty
+    (−1 .. 1), push (N)."""
+    t: list = field(default_factory=list)
+    tilt_deg: list = field(default_factory=list)
+    seen_deg: list = field(default_factory=list)
+    duty: list = field(default_factory=list)
+    push: list = field(default_factory=list)
+
+
+def _controller(loop, gains):
+    if loop in ("chip", "host"):
+        raise NotImplementedError(
+            f"--loop {loop}: not built yet (issue #57 is open: the gateware controller and the "
+            f"host loop come next); --loop model runs the controller's fixed-point model")
+    if loop == "off":
+        return lambda tilt, rate: (0.0, tilt)
+    if loop == "float":
+        law = BalanceFloat(gains, dt=1 / SAMPLE_HZ)
+        return lambda tilt, rate: (law.step(tilt, rate), tilt)
+    config = BalanceFixedConfig.from_gains(gains, gyro_lsb_per_dps=GYRO_LSB_PER_DPS,
+                                           sample_hz=SAMPLE_HZ)
+    law = BalanceFixed(config)
+    law.arm()
+
+    def step(tilt, rate):
+        angle = round(tilt * E_PER_RAD) << 16               # BAM32 of the tilt
+        gyro = max(-32768, min(32767, round(math.degrees(rate) * GYRO_LSB_PER_DPS)))
+        return law.step(angle, gyro, 0) / DUTY_FULL, (angle >> 16) / E_PER_RAD
+    return step
+
+
+def run_twin(seconds, *, loop="model", pushes=(), gains=BalanceGains(), params=PlantParams(),
+             tilt_deg=1.0, dt=1e-4, trace=None, progress=None):
+    """The plant from ``tilt_deg`` for ``seconds`` under ``loop``, ``pushes`` (``Push``)
+    applied; returns the summary (a dict: upright, max_abs_pitch_deg, fell_at_s,
+    pushes_recovered, pushes, loop, travel_m, wall_s). It falls when its tilt passes the
+    controller's cut-off (``gains.cutoff_deg``): the run stops there. ``trace``: a
+    ``TwinTrace`` filled per sample; ``progress(fraction)``: called now and then."""
+    if loop not in LOOPS:
+        raise ValueError(f"--loop {loop}: one of {', '.join(LOOPS)}")
+    start = time.perf_counter()
+    controller = _controller(loop, gains)
+    plant = BalancePlant(params, tilt=math.radians(tilt_deg))
+    steps_per_sample = round(1 / (SAMPLE_HZ * dt))
+    delay = math.ceil(LATENCY_S / dt - 1e-9)
+    duty = pending = seen = 0.0
+    cutoff = math.radians(gains.cutoff_deg)
+    fell_at, worst, back_at = None, 0.0, {}
+    for k in range(round(seconds / dt)):
+        t = k * dt
+        if k % steps_per_sample == 0:
+            pending, seen = controller(plant.psi, plant.dpsi)
+            if trace is not None:
+                trace.t.append(t)
+                trace.tilt_deg.append(math.degrees(plant.psi))
+                trace.seen_deg.append(math.degrees(seen))
+                trace.duty.append(duty)
+                trace.push.append(sum(p.force(t) for p in pushes))
+            if progress and k % (steps_per_sample * 1000) == 0:
+                progress(t / seconds)
+        if k % steps_per_sample == delay:
+            duty = pending
+        plant.step(dt, duty, sum(p.force(t) for p in pushes))
+        worst = max(worst, abs(plant.psi))
+        for p in pushes:
+            if p not in back_at and t >= p.at_s + PUSH_SECONDS and \
+                    abs(plant.psi) < math.radians(RECOVERED_DEG):
+                back_at[p] = t
+        if abs(plant.psi) > cutoff:
+            fell_at = t + dt
+            break
+    recovered = sum(1 for p in pushes if p in back_at and
+                    back_at[p] <= p.at_s + PUSH_SECONDS + RECOVER_S and
+                    (fell_at is None or fell_at > back_at[p]))
+    return {"loop": loop, "upright": fell_at is None,
+            "max_abs_pitch_deg": round(math.degrees(worst), 3),
+            "fell_at_s": None if fell_at is None else round(fell_at, 4),
+            "pushes_recovered": recovered, "pushes": len(pushes),
+            "travel_m": round(plant.position, 3),
+            "wall_s": round(time.perf_counter() - start, 2)}
