@@ -26,7 +26,7 @@ import pytest
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 FOLDERS = {"hdl": ROOT / "hdl", "sim": ROOT / "sim", "reference": ROOT / "reference"}
 # hdl/'s wings, from the top (the boards) down: a wing imports its own and those after it
-WING_ORDER = ("board", "link", "engine", "sensor", "primitives", "contract")
+WING_ORDER = ("board", "control", "link", "engine", "sensor", "primitives", "contract")
 # where each folder may reach: a package, or (package, wing or module) for parts of one
 ALLOWED = {
     "hdl": {"hdl"},

@@ -68,6 +68,7 @@ from ..link.pwm import PWMOutputs
 from ..link.frame_types import (CRC, AttitudeFrame, Reply, SensorFrame, TelemetryCounters,
                                 frame_bytes)
 from ..link.axi_lite_slave import AXILiteSignature, AXILiteSlave
+from ..control.balance_controller import BalanceController
 from ..link.stream_tap import StreamTap
 from ..link.telemetry import TelemetryFramer
 from ..link.telemetry_scheduler import TelemetryScheduler
@@ -182,6 +183,11 @@ class AHRSCore(wiring.Component):
         ``pwm`` (default: as ``commands``): with the PWM outputs (the ``pwm`` port); without,
             the command channel answers ``bad_address`` for the PWM registers. Both options
             are for users who need the room (``report`` counts each build).
+        ``controller`` (None): "balance" adds the balance controller
+            (``BalanceController``: a self-balancing robot's loop on the chip, issue #57),
+            its registers in space 0x02 in place of the PWM block's (left out), the ``pwm``
+            port its two H-bridges, ``arm`` (in) its arming pin; ``controller_regs`` its
+            registers' values at reset, by name (``balance_regs.BALANCE_REGS``).
         ``attitude_port`` (False): with ``attitude`` (out, stream of ``Attitude``): every
             result the engine gives, for logic on the same chip, held until taken and never
             holding the engine or the telemetry up (``StreamTap``: a result that comes while
@@ -209,14 +215,23 @@ class AHRSCore(wiring.Component):
                  timing=DriverTiming(), baud=DEFAULT_BAUD, filter_config=None,
                  calibration=None, flagship_config=None, filter="flagship",
                  telemetry_divider=None, command_timeout_s=0.005, commands=True, pwm=None,
-                 attitude_port=False, axi_lite=False):
+                 attitude_port=False, axi_lite=False, controller=None, controller_regs=None):
+        if controller not in (None, "balance"):
+            raise ValueError(f"controller {controller!r}: None or 'balance'")
+        if controller and not commands:
+            raise ValueError("the balance controller's registers are set through the command "
+                             "channel: controller='balance' needs commands=True")
         if pwm is None:
-            pwm = commands
+            pwm = commands and not controller
         if pwm and not commands:
             raise ValueError("the PWM outputs are set through the command channel: "
                              "pwm=True needs commands=True")
+        if pwm and controller:
+            raise ValueError("the balance controller drives the PWM outputs: it leaves the "
+                             "PWM block out (pwm=False)")
         self.commands = commands
         self.has_pwm = pwm and self.commands
+        self.controller = controller
         self.attitude_port = attitude_port
         self.axi_lite = axi_lite
         self.clk_freq = clk_freq
@@ -244,6 +259,8 @@ class AHRSCore(wiring.Component):
         # so that the default build's word is as before
         left_out = {k: False for k, on in (("commands", self.commands),
                                            ("pwm", self.has_pwm)) if not on}
+        if controller:
+            left_out = {"controller": controller}     # the PWM block gives way to it
         self.version = version_word(clk_freq=clk_freq, baud=baud, config=repr(config),
                                     filter=filter, **left_out)
         if self.commands:
@@ -262,6 +279,8 @@ class AHRSCore(wiring.Component):
             self.arbiter = FrameArbiter(1)
         if self.has_pwm:
             self.pwm_block = PWMOutputs(clk_freq=clk_freq)
+        if controller:
+            self.balance = BalanceController(clk_freq=clk_freq, reset=controller_regs)
         self.uart = UARTTransmitter.for_baud(clk_freq, baud)
         ports = {
             "imu": Out(SPIPinsSignature() if config.wiring == "spi" else I2CPinsSignature()),
@@ -279,8 +298,10 @@ class AHRSCore(wiring.Component):
         if self.commands:
             ports["uart_rx"] = In(1, init=1)
             ports["raw_mode"] = Out(1)
-        if self.has_pwm:
+        if self.has_pwm or controller:
             ports["pwm"] = Out(PWM_CHANNELS)
+        if controller:
+            ports["arm"] = In(1)
         if attitude_port:
             self.attitude_tap = StreamTap(Attitude)
             self.sample_tap = StreamTap(Sample)
@@ -401,6 +422,31 @@ class AHRSCore(wiring.Component):
         connect(m, axi.request, executor.request[port])
         connect(m, executor.response[port], axi.response)
 
+    def _balance(self, m, engine, fe, decoder):
+        """The balance controller: its registers on the command channel's space 0x02 (the PWM
+        block's in other builds), the result and the sample the engine takes, the driver's
+        faults, a pulse per sample period, the arming pin; it drives the PWM outputs."""
+        m.submodules.balance = balance = self.balance
+        connect(m, decoder.pwm, balance.bus)
+        result, sample, status = engine.results, fe.samples, fe.status
+        # one pulse per sample period, for the controller's stale and watchdog counts
+        period = self.frontend.driver.period_cycles
+        count = Signal(range(period))
+        m.d.sync += count.eq(Mux(count == period - 1, 0, count + 1))
+        m.d.comb += [
+            balance.done.eq(result.valid & result.ready),
+            balance.angles.eq(Cat(result.payload.angles[0], result.payload.angles[1])),
+            balance.bias.eq(Cat(result.payload.bias[0], result.payload.bias[1])),
+            balance.sample_taken.eq(sample.valid & sample.ready),
+            balance.gyro.eq(Cat(sample.payload.gyro[0], sample.payload.gyro[1])),
+            balance.fault.eq(~status.streaming | status.no_response | status.int_timeout |
+                             status.bad_burst | status.self_test_fail.any()),
+            balance.period.eq(count == period - 1),
+            balance.kick.eq(decoder.kick),
+            balance.arm_pin.eq(self.arm),
+            self.pwm.eq(balance.pwm),
+        ]
+
     def _cfg_arbiter(self, m, engine, cfg_port, client):
         """The engine's register port: the ``cfg`` ports (a test bench, or tied off) first,
         then ``client``'s (a decoder's or an executor's); a waiting transfer keeps its
@@ -436,6 +482,8 @@ class AHRSCore(wiring.Component):
             m.submodules.pwm = pwm = self.pwm_block
             connect(m, decoder.pwm, pwm.bus)
             m.d.comb += [pwm.kick.eq(decoder.kick), self.pwm.eq(pwm.pwm)]
+        if self.controller:
+            self._balance(m, engine, fe, decoder)
         m.d.comb += [decoder.tick.eq(fe.tick), decoder.rx_framing_error.eq(rx.framing_error),
                      decoder.rx_overrun.eq(rx.overrun),
                      decoder.frames_sent.eq(arbiter.frames),
@@ -594,7 +642,7 @@ class BoardTop(Elaboratable):
         m.d.comb += uart_tx.o.eq(core.uart_tx)
         if core.commands:
             m.d.comb += core.uart_rx.eq(uart_rx.i)       # synchronised in the receiver
-        if core.has_pwm:
+        if core.has_pwm or core.controller:
             for i in range(len(core.pwm)):
                 pwm = io.Buffer("o", platform.request("pwm", i, dir="-"))
                 m.submodules[f"pwm{i}"] = pwm

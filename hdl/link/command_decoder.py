@@ -19,7 +19,7 @@ from ..engine.config_write import ConfigWrite
 from ..sensor.driver_status import SelfTestStatus
 from .frame_types import CRC, SYNC, Reply
 from .register_executor import (COMMAND_STATS, COUNTED, COUNTER_WORDS, RegisterExecutor,
-                                RegisterOp, counter_word)
+                                RegisterOp, RegisterRequest, counter_word)
 from .rewindable_fifo import RewindableFIFO
 
 
@@ -174,9 +174,16 @@ class CommandDecoder(wiring.Component):
 
         m.d.comb += [crc.data.eq(Mux(looked, byte[:4], byte[4:]))]
         request, response = executor.request[0], executor.response[0]
-        bad = self._request(m, request.payload, ctype=ctype, length=length, addr=addr,
-                            value=value)
+        # The request is made from the command's registers and registered itself as the
+        # command passes its CRC (``lost`` pulses then): the executor's decisions start from
+        # registers, not from the type's decode in series with them (that chain, into the
+        # write check and the PWM block's, was the core's longest path, report --timing)
+        asked = Signal(RegisterRequest)
+        bad_now = self._request(m, asked, ctype=ctype, length=length, addr=addr, value=value)
+        bad = Signal(reset_less=True)
         lost = self._reply(m, ctype, seq, response)
+        with m.If(lost):
+            m.d.sync += [request.payload.eq(asked), bad.eq(bad_now)]
 
         parsing = ("HUNT", "SYNC1", "TYPE", "SEQ", "LENGTH", "PAYLOAD", "CRC_HIGH", "CRC_LOW")
         in_frame = Signal()

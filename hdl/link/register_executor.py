@@ -150,30 +150,23 @@ class RegisterExecutor(wiring.Component):
         m.submodules.counters = counters = self.counters
         # the front end served (a one-port executor has no choice to make): in IDLE the lowest
         # waiting (``pick``), then the one chosen (``port``) until its response is taken
+        # (a front end holds its request still until it is taken; the command decoder's is
+        # registers, so that what EXECUTE decides starts from registers)
         port = Signal(range(max(self.ports, 2)))
         idle = Signal()
         offered = Cat(r.valid for r in self.request).any()
         if self.ports == 1:
-            incoming = self.request[0].payload
+            req = self.request[0].payload
         else:
             pick = Signal.like(port)
             for k in reversed(range(self.ports)):
                 with m.If(self.request[k].valid):
                     m.d.comb += pick.eq(k)
-            incoming = Signal(RegisterRequest)
-            m.d.comb += incoming.eq(Array(r.payload for r in self.request)[pick])
-        # The request is copied as it is taken up (IDLE): what EXECUTE decides starts from
-        # registers, not from a front end's logic (the command decoder makes its request from
-        # the command's type: that chain and the write check in series were the core's
-        # longest path, report --timing). The front end holds it still all the same.
-        req = Signal(RegisterRequest, reset_less=True)
-        with m.If(idle & offered):
-            m.d.sync += req.eq(incoming)
-            if self.ports > 1:
+            with m.If(idle & offered):
                 m.d.sync += port.eq(pick)
-        # the address a read-back is made from a cycle ahead (the counters', the PWM block's)
-        low = Mux(idle, incoming.addr, req.addr)
-        space, value = req.space, req.value
+            req = Signal(RegisterRequest)
+            m.d.comb += req.eq(Array(r.payload for r in self.request)[Mux(idle, pick, port)])
+        low, space, value = req.addr, req.space, req.value
         response, fields, load_fields, load_result, result = self._response(
             m, req, counters.r_data)
         for r in self.response:
@@ -243,8 +236,8 @@ class RegisterExecutor(wiring.Component):
         # ``frames_stable`` (the RAM's read port goes back to the counting otherwise)
         def board_read(r):
             return (r.op == RegisterOp.READ) & (r.space == SPACES["board"])
-        self._counters(m, counters, low=low, read=(idle & offered & board_read(incoming)) |
-                       (fsm.ongoing("EXECUTE") & ~self.frames_stable & board_read(req)))
+        self._counters(m, counters, low=low, read=board_read(req) & (
+            (idle & offered) | (fsm.ongoing("EXECUTE") & ~self.frames_stable)))
         return m
 
     def _response(self, m, req, count):

@@ -80,6 +80,10 @@ def _core_options(args):
         out["attitude_port"] = True
     if getattr(args, "axi_lite", False):
         out["axi_lite"] = True
+    if getattr(args, "controller", None):
+        if getattr(args, "no_pwm", False):
+            raise ValueError("--controller balance drives the PWM outputs: leave out --no-pwm")
+        out["controller"] = args.controller
     if getattr(args, "euler_rates", False):
         from ..hdl.engine.attitude_engine import default_filter_config
         from ..hdl.contract.numeric_contract import FilterRates
@@ -176,6 +180,11 @@ def _add_left_out_options(p, *, which=""):
                    help=f"with an AXI4-Lite slave for a soft CPU{which} (ports s_axi__*, irq; "
                         f"hdl/AXI_LITE.md): the last result, status, counters, the engine's "
                         f"registers")
+    p.add_argument("--controller", choices=("balance",), default=None,
+                   help=f"with the balance controller{which}: a self-balancing robot's loop on "
+                        f"the chip driving the four PWM outputs as two H-bridges, its registers "
+                        f"in the PWM block's place (space 0x02; hdl/contract/balance_regs.py), "
+                        f"an arming input (port arm); issue #57, in progress")
 
 
 def _clock(args):

@@ -365,7 +365,8 @@ def report(*, clk_freq=None, config=None, latency=True, core_options=None, sprea
     budget = rate_budget(config, clk_freq, baud, core_options.get("telemetry_divider"))
     return {
         "build": {"commands": core.commands, "pwm": core.has_pwm,
-                  "attitude_port": core.attitude_port, "axi_lite": core.axi_lite},
+                  "attitude_port": core.attitude_port, "axi_lite": core.axi_lite,
+                  "controller": core.controller},
         "clock_hz": clk_freq,
         "latency_us": latency_us,
         "max_sample_rate_hz": round(budget["max_sample_rate_hz"]),

@@ -19,6 +19,8 @@ import math
 import time
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from ..models.balance_plant import BalancePlant, PlantParams
 from ...reference.balance_control import (DUTY_FULL, E_PER_RAD, BalanceFixed,
                                           BalanceFixedConfig, BalanceFloat, BalanceGains)
@@ -66,11 +68,58 @@ class TwinTrace:
     push: list = field(default_factory=list)
 
 
+class _Watch:
+    """What a run saw: the worst tilt, when it fell (passed the cut-off), when it was back
+    upright after each push, the trace, the gateware's tilt against the plant's."""
+
+    def __init__(self, pushes, cutoff_deg, trace):
+        self.pushes, self.trace = pushes, trace
+        self.cutoff = math.radians(cutoff_deg)
+        self.fell_at, self.worst, self.back_at = None, 0.0, {}
+        self.errors = []
+
+    def see(self, t, tilt):
+        """The plant's tilt at ``t``; False once it has fallen."""
+        self.worst = max(self.worst, abs(tilt))
+        for p in self.pushes:
+            if p not in self.back_at and t >= p.at_s + PUSH_SECONDS and \
+                    abs(tilt) < math.radians(RECOVERED_DEG):
+                self.back_at[p] = t
+        if abs(tilt) > self.cutoff and self.fell_at is None:
+            self.fell_at = t
+        return self.fell_at is None
+
+    def sample(self, t, tilt, seen, duty, push, estimate=False):
+        if estimate:
+            self.errors.append(seen - tilt)
+        if self.trace is not None:
+            self.trace.t.append(t)
+            self.trace.tilt_deg.append(math.degrees(tilt))
+            self.trace.seen_deg.append(math.degrees(seen))
+            self.trace.duty.append(duty)
+            self.trace.push.append(push)
+
+    def summary(self, loop, plant, start):
+        recovered = sum(1 for p in self.pushes if p in self.back_at and
+                        self.back_at[p] <= p.at_s + PUSH_SECONDS + RECOVER_S and
+                        (self.fell_at is None or self.fell_at > self.back_at[p]))
+        out = {"loop": loop, "upright": self.fell_at is None,
+               "max_abs_pitch_deg": round(math.degrees(self.worst), 3),
+               "fell_at_s": None if self.fell_at is None else round(self.fell_at, 4),
+               "pushes_recovered": recovered, "pushes": len(self.pushes),
+               "travel_m": round(plant.position, 3)}
+        if self.errors:
+            e = np.asarray(self.errors)
+            out["estimate_rms_deg"] = round(math.degrees(float(np.sqrt(np.mean(e * e)))), 3)
+        out["wall_s"] = round(time.perf_counter() - start, 2)
+        return out
+
+
 def _controller(loop, gains):
-    if loop in ("chip", "host"):
+    if loop == "host":
         raise NotImplementedError(
-            f"--loop {loop}: not built yet (issue #57 is open: the gateware controller and the "
-            f"host loop come next); --loop model runs the controller's fixed-point model")
+            "--loop host: not built yet (issue #57 is open: the host loop comes next); --loop "
+            "chip runs the gateware, --loop model the controller's fixed-point model")
     if loop == "off":
         return lambda tilt, rate: (0.0, tilt)
     if loop == "float":
@@ -89,51 +138,44 @@ def _controller(loop, gains):
 
 
 def run_twin(seconds, *, loop="model", pushes=(), gains=BalanceGains(), params=PlantParams(),
-             tilt_deg=1.0, dt=1e-4, trace=None, progress=None):
+             tilt_deg=1.0, dt=1e-4, trace=None, progress=None, compiled=True, sign=1):
     """The plant from ``tilt_deg`` for ``seconds`` under ``loop``, ``pushes`` (``Push``)
     applied; returns the summary (a dict: upright, max_abs_pitch_deg, fell_at_s,
-    pushes_recovered, pushes, loop, travel_m, wall_s). It falls when its tilt passes the
-    controller's cut-off (``gains.cutoff_deg``): the run stops there. ``trace``: a
-    ``TwinTrace`` filled per sample; ``progress(fraction)``: called now and then."""
+    pushes_recovered, pushes, loop, travel_m, wall_s; the chip loop's
+    estimate_rms_deg, the gateware's pitch against the plant's, and its simulator and cycles).
+    It falls when its tilt passes the controller's cut-off (``gains.cutoff_deg``): the run
+    stops there. ``trace``: a ``TwinTrace`` filled per sample; ``progress(fraction)``: called
+    now and then. ``compiled``, ``sign``: the chip loop's (``twin_chip.run_chip_loop``)."""
     if loop not in LOOPS:
         raise ValueError(f"--loop {loop}: one of {', '.join(LOOPS)}")
     start = time.perf_counter()
-    controller = _controller(loop, gains)
     plant = BalancePlant(params, tilt=math.radians(tilt_deg))
+    watch = _Watch(pushes, gains.cutoff_deg, trace)
+    if loop == "chip":
+        from .twin_chip import run_chip_loop
+
+        def on_sample(t, duty, pitch):
+            watch.sample(t, plant.psi, pitch, duty, sum(p.force(t) for p in pushes),
+                         estimate=True)
+            return watch.see(t, plant.psi)
+        seen = run_chip_loop(plant, seconds, pushes=pushes, gains=gains, on_sample=on_sample,
+                             compiled=compiled, sign=sign, progress=progress)
+        return {**watch.summary(loop, plant, start), "simulator": seen["simulator"],
+                "cycles": seen["cycles"]}
+    controller = _controller(loop, gains)
     steps_per_sample = round(1 / (SAMPLE_HZ * dt))
     delay = math.ceil(LATENCY_S / dt - 1e-9)
     duty = pending = seen = 0.0
-    cutoff = math.radians(gains.cutoff_deg)
-    fell_at, worst, back_at = None, 0.0, {}
     for k in range(round(seconds / dt)):
         t = k * dt
         if k % steps_per_sample == 0:
             pending, seen = controller(plant.psi, plant.dpsi)
-            if trace is not None:
-                trace.t.append(t)
-                trace.tilt_deg.append(math.degrees(plant.psi))
-                trace.seen_deg.append(math.degrees(seen))
-                trace.duty.append(duty)
-                trace.push.append(sum(p.force(t) for p in pushes))
+            watch.sample(t, plant.psi, seen, duty, sum(p.force(t) for p in pushes))
             if progress and k % (steps_per_sample * 1000) == 0:
                 progress(t / seconds)
         if k % steps_per_sample == delay:
             duty = pending
         plant.step(dt, duty, sum(p.force(t) for p in pushes))
-        worst = max(worst, abs(plant.psi))
-        for p in pushes:
-            if p not in back_at and t >= p.at_s + PUSH_SECONDS and \
-                    abs(plant.psi) < math.radians(RECOVERED_DEG):
-                back_at[p] = t
-        if abs(plant.psi) > cutoff:
-            fell_at = t + dt
+        if not watch.see(t + dt, plant.psi):
             break
-    recovered = sum(1 for p in pushes if p in back_at and
-                    back_at[p] <= p.at_s + PUSH_SECONDS + RECOVER_S and
-                    (fell_at is None or fell_at > back_at[p]))
-    return {"loop": loop, "upright": fell_at is None,
-            "max_abs_pitch_deg": round(math.degrees(worst), 3),
-            "fell_at_s": None if fell_at is None else round(fell_at, 4),
-            "pushes_recovered": recovered, "pushes": len(pushes),
-            "travel_m": round(plant.position, 3),
-            "wall_s": round(time.perf_counter() - start, 2)}
+    return watch.summary(loop, plant, start)

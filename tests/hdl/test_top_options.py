@@ -49,3 +49,20 @@ def test_a_core_without_the_command_channel_still_streams_attitude():
     n = min(len(default.results), len(bare.results))
     assert n >= 1 and bare.results[:n] == default.results[:n]
     assert len(bare.frames) >= 1 and bare.frames[0] == default.frames[0]
+
+
+def test_the_balance_controller_takes_the_pwm_blocks_place():
+    """``controller="balance"`` (issue #57): the controller drives ``pwm``, an ``arm`` pin
+    comes in, the PWM block is left out; a build with both is refused, and the build word
+    says which it is."""
+    core = AHRSCore(clk_freq=12e6, controller="balance")
+    members = set(core.signature.members)
+    assert {"pwm", "arm", "uart_rx"} <= members and not core.has_pwm
+    assert core.version not in (AHRSCore(clk_freq=12e6).version,
+                                AHRSCore(clk_freq=12e6, pwm=False).version)
+    with pytest.raises(ValueError, match="leaves the PWM block out"):
+        AHRSCore(clk_freq=12e6, controller="balance", pwm=True)
+    with pytest.raises(ValueError, match="needs commands=True"):
+        AHRSCore(clk_freq=12e6, controller="balance", commands=False)
+    text = verilog.convert(core, name="core", emit_src=False)
+    assert "module \\core.balance " in text and "module \\core.pwm " not in text

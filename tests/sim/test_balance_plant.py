@@ -74,7 +74,7 @@ def test_push_syntax_and_loops_not_built():
     with pytest.raises(ValueError, match="F@T"):
         parse_push("2")
     with pytest.raises(NotImplementedError, match="not built yet"):
-        run_twin(1, loop="chip")
+        run_twin(1, loop="host")
 
 
 def test_twin_verb_prints_one_json_line_last(capsys):

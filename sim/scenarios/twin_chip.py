@@ -1,0 +1,157 @@
+"""The twin's ``chip`` loop (issue #57): the whole core with the balance controller
+(``AHRSCore(controller="balance")``) co-simulated, its MPU9250 and AK8963 models reading the
+plant (``sim/models/balance_plant.py``), its PWM pins moving the plant.
+
+Time: a 4 MHz clock and the sensor's real 1 kHz (4,000 cycles a sample, the sample period not
+scaled), so that the engine's, the controller's and the plant's seconds are one: only the
+clock is slower than the board's 48 MHz, which stretches the data-ready to duty latency in
+time (about 12 times: a few hundred µs rather than 40) and makes the motor PWM 3.9 kHz; the
+start-up delays are scaled by 10⁻³ (bring-up in a few ms). The plant is held upright at its
+start tilt (on its stand) until the core streams and its filter has settled (``SETTLE_S``),
+then the arming pin goes high and the plant is let go: the twin's t = 0.
+
+The PWM pins drive the plant as an H-bridge does, averaged over each plant step (0.1 ms, 400
+cycles): the duty of a step is the fraction of its cycles channel 0 (motor A forward) was high
+less the fraction channel 1 (reverse) was (the motor's electrical time constant is far below a
+step, ``BalancePlant`` neglects it). Motor B's channels (2, 3) are checked to match A's.
+"""
+
+import math
+
+import numpy as np
+
+from ...hdl.contract import ak8963_regs as A
+from ...hdl.contract.balance_regs import CONTROL_BITS
+from ...reference.balance_control import BalanceFixedConfig
+from ...reference.frames import body_to_mag
+from ..bench.harness import CosimHarness, PinModels
+from ..bench.open_bench import open_bench
+from ..models.balance_plant import G
+from ..models.sources import SensorSample
+from .core import core_key
+from .setup import SimSetup
+
+
+__all__ = ["run_chip_loop", "CHIP_CLOCK_HZ"]
+
+CHIP_CLOCK_HZ = 4e6
+STEP_CYCLES = 400                   # a plant step: 0.1 ms
+SETTLE_S = 0.3                      # after the first result, before arming
+GYRO_LSB_PER_DPS = 16.4             # the default ±2000 °/s
+ACCEL_LSB_PER_G = 2048              # the default ±16 g
+
+
+def controller_registers(gains, sign):
+    """The controller's registers at reset for ``gains`` (``BalanceGains``): the build's
+    ``controller_regs``. ``sign``: +1 if the attitude's pitch grows as the plant leans forward,
+    -1 if it falls (the gains and the rate then turn round); the arming pin arms it."""
+    c = BalanceFixedConfig.from_gains(gains, gyro_lsb_per_dps=GYRO_LSB_PER_DPS)
+    control = 1 << CONTROL_BITS["pin_arms"]
+    if sign < 0:
+        control |= 1 << CONTROL_BITS["rate_negate"]
+    return {"BAL_CONTROL": control, "BAL_KP": sign * c.kp, "BAL_KD": c.kd,
+            "BAL_KI": sign * c.ki, "BAL_KV": c.kv, "BAL_SETPOINT": sign * c.setpoint,
+            "BAL_CUTOFF": c.cutoff, "BAL_OUT_LIMIT": c.out_limit, "BAL_I_LIMIT": c.i_limit,
+            "BAL_STALE": c.stale}
+
+
+class _Sensor:
+    """The MPU9250 and AK8963 sources: what they measure on the plant's body now, with noise."""
+
+    def __init__(self, plant, rng, field_ut=50.0, inclination_deg=60.0):
+        self.plant, self.rng = plant, rng
+        inc = math.radians(inclination_deg)
+        self.earth = field_ut / 0.15 * np.array([0.0, math.cos(inc), -math.sin(inc)])
+        self.asa_factor = None
+
+    def sample(self, index, t):
+        rate, (fx, fz) = self.plant.imu()
+        gyro = (self.rng.normal(0, 2.0), math.degrees(rate) * GYRO_LSB_PER_DPS +
+                self.rng.normal(0, 2.0), self.rng.normal(0, 2.0))
+        accel = (fx / G * ACCEL_LSB_PER_G + self.rng.normal(0, 6.0), self.rng.normal(0, 6.0),
+                 fz / G * ACCEL_LSB_PER_G + self.rng.normal(0, 6.0))
+        clip = lambda v: tuple(int(np.clip(round(x), -32768, 32767)) for x in v)  # noqa: E731
+        return SensorSample(accel=clip(accel), temp=0, gyro=clip(gyro))
+
+    def field(self, index, t):
+        psi = self.plant.psi                        # the body turned about its y axis
+        c, s = math.cos(psi), math.sin(psi)
+        body = np.array([c * self.earth[0] - s * self.earth[2], self.earth[1],
+                         s * self.earth[0] + c * self.earth[2]])
+        body = body + self.rng.normal(0, 1.5, 3)
+        raw = body_to_mag(body) / self.asa_factor
+        return tuple(int(round(v)) for v in raw)
+
+
+def run_chip_loop(plant, seconds, *, pushes, gains, on_sample, sign=1, seed=1,
+                  compiled=True, progress=None):
+    """Runs the loop; ``on_sample(t, duty, pitch_rad)`` is called per plant step at each
+    sample period (1 ms) with the duty applied and the gateware's last pitch; it returns
+    False to stop (the plant fell). Returns the dict of what the run saw (cycles, when it was
+    armed, the simulator)."""
+    from ...hdl.board.top import AHRSCore
+    setup = SimSetup(clk_freq=CHIP_CLOCK_HZ, odr_scale=1.0, ak_clock_error=-0.55)
+    held_tilt = plant.psi
+    sensor = _Sensor(plant, np.random.default_rng(seed))
+    ak = setup.ak8963(source=sensor.field)
+    sensor.asa_factor = np.array([(a + 128) / 256 for a in ak.asa])
+    model = setup.model(source=sensor.sample, aux_devices={A.I2C_ADDRESS: ak})
+    core_kwargs = dict(clk_freq=setup.clk_freq, config=setup.config,
+                       timing=setup.driver_timing(), baud=setup.clk_freq / 4,
+                       controller="balance", attitude_port=True,
+                       controller_regs=controller_registers(gains, sign))
+    core = AHRSCore(**core_kwargs)
+    harness = CosimHarness(core, spi=core.imu, int_pin=core.imu_int)
+    inputs = {"uart_rx": core.uart_rx, "arm": core.arm, "attitude_ready": core.attitude.ready}
+    outputs = {"pwm": core.pwm, "attitude_valid": core.attitude.valid,
+               "attitude_payload": core.attitude.payload, "status": core.status}
+    bench = open_bench(harness, inputs, outputs, setup.clk_freq, compiled=compiled,
+                       name="twin", key=core_key("twin", **core_kwargs),
+                       models=PinModels(setup.clk_freq, mpu=model))
+    seen = {"armed_at_cycle": None, "simulator": "compiled" if bench.compiled else "python",
+            "motor_b_mismatch_steps": 0}
+    per_sample = round(setup.clk_freq / 1000 / STEP_CYCLES)
+    dt = STEP_CYCLES / setup.clk_freq
+
+    async def scenario(bench):
+        bench.set("uart_rx", 1)
+        bench.set("arm", 0)
+        bench.set("attitude_ready", 1)
+        # on the stand: results flowing, the filter settled
+        while not bench.get("attitude_valid"):
+            await bench.changed("attitude_valid", until=bench.cycle + 100_000)
+            if bench.cycle > 40_000_000:
+                raise RuntimeError("the core never gave a result (bring-up failed)")
+        await bench.tick(round(SETTLE_S * setup.clk_freq))
+        plant.psi = held_tilt
+        bench.set("arm", 1)
+        seen["armed_at_cycle"] = bench.cycle
+        steps = round(seconds / dt)
+        for k in range(steps):
+            t = k * dt
+            end = bench.cycle + STEP_CYCLES
+            last, levels = bench.cycle, bench.get("pwm")
+            high = [0, 0, 0, 0]
+            while True:
+                await bench.changed("pwm", until=end)
+                now = bench.cycle
+                for ch in range(4):
+                    if levels >> ch & 1:
+                        high[ch] += now - last
+                last, levels = now, bench.get("pwm")
+                if now >= end:
+                    break
+            if high[:2] != high[2:]:
+                seen["motor_b_mismatch_steps"] += 1
+            duty = (high[0] - high[1]) / STEP_CYCLES
+            plant.step(dt, duty, sum(p.force(t) for p in pushes))
+            if k % per_sample == 0:
+                pitch = bench.get("attitude_payload")["angles"][1]
+                if progress and k % (per_sample * 1000) == 0:
+                    progress(t / seconds)
+                if not on_sample(t, duty, sign * pitch * 2 * math.pi / 2 ** 32):
+                    break
+
+    bench.run(scenario)
+    seen["cycles"] = bench.cycle
+    return seen
