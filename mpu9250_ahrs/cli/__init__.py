@@ -29,8 +29,9 @@ VERBS_HELP = """verbs:
              in a compiled simulation (--engine gateware); print its errors against the optical
              truth as JSON
   twin       a two-wheeled balancing robot's plant in a closed loop with the balance
-             controller (its fixed-point model; the gateware's is issue #57's next step),
-             pushed: upright, worst tilt, when it fell, pushes recovered, as JSON
+             controller: its fixed-point model, or the gateware (--loop chip: the whole
+             core co-simulated, its sensor models reading the plant, its PWM pins moving
+             it), pushed: upright, worst tilt, when it fell, pushes recovered, as JSON
   report     resources of the attitude datapath and of the whole design from Yosys (MAX10
              mapping), cycles per filter update, the clock, the co-simulated latency and the
              highest sample rate the design sustains, as JSON

@@ -10,9 +10,10 @@ Loops (``run_twin``'s ``loop``):
   with a perfect attitude; the duty applied 40 µs after the sample (the core's data-ready to
   attitude latency, ``report``'s ``latency_us``, rounded up to the plant's step).
 - ``float``: the same law in floating point (``BalanceFloat``).
-- ``chip`` (the gateware controller on the co-simulated board) and ``host`` (the law on the
-  host, through the simulated UART): not built yet (issue #57 is open); asking for them is an
-  error that says so.
+- ``chip``: the gateware, the whole core with the balance controller co-simulated (compiled),
+  its sensor models reading the plant, its PWM pins driving it (``twin_chip``).
+- ``host``: the same law on a PC reading the co-simulated board's frames through its UART and
+  writing the PWM block's registers back, a stated USB latency late (``twin_host``).
 """
 
 import math
@@ -116,10 +117,6 @@ class _Watch:
 
 
 def _controller(loop, gains):
-    if loop == "host":
-        raise NotImplementedError(
-            "--loop host: not built yet (issue #57 is open: the host loop comes next); --loop "
-            "chip runs the gateware, --loop model the controller's fixed-point model")
     if loop == "off":
         return lambda tilt, rate: (0.0, tilt)
     if loop == "float":
@@ -138,30 +135,37 @@ def _controller(loop, gains):
 
 
 def run_twin(seconds, *, loop="model", pushes=(), gains=BalanceGains(), params=PlantParams(),
-             tilt_deg=1.0, dt=1e-4, trace=None, progress=None, compiled=True, sign=1):
+             tilt_deg=1.0, dt=1e-4, trace=None, progress=None, compiled=True, sign=1,
+             host_latency_ms=1.0):
     """The plant from ``tilt_deg`` for ``seconds`` under ``loop``, ``pushes`` (``Push``)
     applied; returns the summary (a dict: upright, max_abs_pitch_deg, fell_at_s,
     pushes_recovered, pushes, loop, travel_m, wall_s; the chip loop's
     estimate_rms_deg, the gateware's pitch against the plant's, and its simulator and cycles).
     It falls when its tilt passes the controller's cut-off (``gains.cutoff_deg``): the run
     stops there. ``trace``: a ``TwinTrace`` filled per sample; ``progress(fraction)``: called
-    now and then. ``compiled``, ``sign``: the chip loop's (``twin_chip.run_chip_loop``)."""
+    now and then. ``compiled``, ``sign``: the chip loop's (``twin_chip.run_chip_loop``);
+    ``host_latency_ms``: the host loop's (``twin_host.run_host_loop``)."""
     if loop not in LOOPS:
         raise ValueError(f"--loop {loop}: one of {', '.join(LOOPS)}")
     start = time.perf_counter()
     plant = BalancePlant(params, tilt=math.radians(tilt_deg))
     watch = _Watch(pushes, gains.cutoff_deg, trace)
-    if loop == "chip":
-        from .twin_chip import run_chip_loop
-
+    if loop in ("chip", "host"):
         def on_sample(t, duty, pitch):
             watch.sample(t, plant.psi, pitch, duty, sum(p.force(t) for p in pushes),
                          estimate=True)
             return watch.see(t, plant.psi)
-        seen = run_chip_loop(plant, seconds, pushes=pushes, gains=gains, on_sample=on_sample,
-                             compiled=compiled, sign=sign, progress=progress)
-        return {**watch.summary(loop, plant, start), "simulator": seen["simulator"],
-                "cycles": seen["cycles"]}
+        if loop == "chip":
+            from .twin_chip import run_chip_loop
+            seen = run_chip_loop(plant, seconds, pushes=pushes, gains=gains,
+                                 on_sample=on_sample, compiled=compiled, sign=sign,
+                                 progress=progress)
+        else:
+            from .twin_host import run_host_loop
+            seen = run_host_loop(plant, seconds, pushes=pushes, gains=gains,
+                                 on_sample=on_sample, latency_ms=host_latency_ms,
+                                 compiled=compiled, progress=progress)
+        return {**watch.summary(loop, plant, start), **seen}
     controller = _controller(loop, gains)
     steps_per_sample = round(1 / (SAMPLE_HZ * dt))
     delay = math.ceil(LATENCY_S / dt - 1e-9)

@@ -85,10 +85,10 @@ class _Sensor:
 
 def run_chip_loop(plant, seconds, *, pushes, gains, on_sample, sign=1, seed=1,
                   compiled=True, progress=None):
-    """Runs the loop; ``on_sample(t, duty, pitch_rad)`` is called per plant step at each
-    sample period (1 ms) with the duty applied and the gateware's last pitch; it returns
-    False to stop (the plant fell). Returns the dict of what the run saw (cycles, when it was
-    armed, the simulator)."""
+    """Runs the loop; ``on_sample(t, duty, pitch_rad)`` is called once a sample period (1 ms)
+    with the duty applied over it (the mean of its plant steps: a PWM period, 1,024 cycles,
+    is longer than a step) and the gateware's last pitch; it returns False to stop (the plant
+    fell). Returns the dict of what the run saw (cycles, when it was armed, the simulator)."""
     from ...hdl.board.top import AHRSCore
     setup = SimSetup(clk_freq=CHIP_CLOCK_HZ, odr_scale=1.0, ak_clock_error=-0.55)
     held_tilt = plant.psi
@@ -127,6 +127,7 @@ def run_chip_loop(plant, seconds, *, pushes, gains, on_sample, sign=1, seed=1,
         bench.set("arm", 1)
         seen["armed_at_cycle"] = bench.cycle
         steps = round(seconds / dt)
+        duties = []
         for k in range(steps):
             t = k * dt
             end = bench.cycle + STEP_CYCLES
@@ -145,12 +146,15 @@ def run_chip_loop(plant, seconds, *, pushes, gains, on_sample, sign=1, seed=1,
                 seen["motor_b_mismatch_steps"] += 1
             duty = (high[0] - high[1]) / STEP_CYCLES
             plant.step(dt, duty, sum(p.force(t) for p in pushes))
-            if k % per_sample == 0:
+            duties.append(duty)
+            if len(duties) == per_sample:
                 pitch = bench.get("attitude_payload")["angles"][1]
-                if progress and k % (per_sample * 1000) == 0:
+                if progress and k % (per_sample * 1000) == per_sample - 1:
                     progress(t / seconds)
-                if not on_sample(t, duty, sign * pitch * 2 * math.pi / 2 ** 32):
+                if not on_sample(t, sum(duties) / per_sample,
+                                 sign * pitch * 2 * math.pi / 2 ** 32):
                     break
+                duties.clear()
 
     bench.run(scenario)
     seen["cycles"] = bench.cycle
