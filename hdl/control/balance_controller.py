@@ -10,6 +10,7 @@ from ..contract.balance_regs import (BALANCE_REGS, BALANCE_RESET, BALANCE_WIDTHS
                                      DUTY_BITS, GAIN_BITS, GAIN_SHIFT, INTEGRAL_SHIFT,
                                      PWM_STEPS_MAX_HZ, TRIPS)
 from ..link.board_bus import BoardBusSignature
+from ..primitives.multiplier import BLACKBOX_NAME
 
 
 __all__ = ["BalanceController"]
@@ -53,6 +54,8 @@ class BalanceController(wiring.Component):
     Throughput: a result every 8 cycles.
     """
 
+    blackbox = False        # ``report``: the multiplier as an empty 18 x 18 block
+
     def __init__(self, *, clk_freq, kv_shift=8, reset=None):
         self.kv_shift = kv_shift
         self.prescale = max(1, -(-int(clk_freq) // (1024 * PWM_STEPS_MAX_HZ)))
@@ -92,13 +95,11 @@ class BalanceController(wiring.Component):
             shape = signed(bits) if is_signed else unsigned(bits)
             regs[name] = Signal(shape, init=self.reset.get(name, 0), name=name.lower())
         addressed = {name: bus.addr == a for name, a in BALANCE_REGS.items()}
-        word = bus.w_data.as_signed()
         in_range = Signal()
         with m.Switch(bus.addr):
-            for name, (bits, is_signed, low, high) in BALANCE_WIDTHS.items():
+            for name in BALANCE_WIDTHS:
                 with m.Case(BALANCE_REGS[name]):
-                    value = word if is_signed else bus.w_data
-                    m.d.comb += in_range.eq((value >= low) & (value <= high))
+                    m.d.comb += in_range.eq(self._fits(bus.w_data, name))
         m.d.comb += [bus.exists.eq(Cat(*addressed.values()).any()), bus.ok.eq(in_range)]
         with m.If(bus.w_en & bus.ok):
             for name in BALANCE_WIDTHS:
@@ -109,6 +110,21 @@ class BalanceController(wiring.Component):
         regs["write_control"] = bus.w_en & bus.ok & addressed["BAL_CONTROL"]
         regs["addressed"] = addressed
         return regs
+
+    @staticmethod
+    def _fits(word, name):
+        """1 where ``word`` is in ``name``'s range (``BALANCE_WIDTHS``): every range is a
+        field's whole span (signed: the bits above it copies of its sign bit; unsigned: 0), but
+        BAL_STALE's, which leaves out 0: bit patterns, no 32-bit comparators."""
+        bits, is_signed, low, high = BALANCE_WIDTHS[name]
+        if is_signed:
+            assert (low, high) == (-(1 << (bits - 1)), (1 << (bits - 1)) - 1)
+            above = word[bits - 1:]
+            fits = (above == 0) | above.all()
+        else:
+            assert high == (1 << bits) - 1 and low in (0, 1)
+            fits = word[bits:] == 0
+        return fits & (word[:bits] != 0) if low == 1 else fits
 
     def _arming(self, m, regs):
         """Armed, by whom, the last trip; returns ``status`` (its fields, for the read-back and
@@ -213,8 +229,12 @@ class BalanceController(wiring.Component):
             for k, (name, x) in enumerate(zip(GAINS, self._operands(e, rate, integral, w))):
                 with m.Case(k):
                     m.d.comb += [gain.eq(regs[name]), operand.eq(x)]
+        # one 18 x 18 block for the four products; ``report`` counts it apart (``blackbox``)
         product = Signal(signed(GAIN_BITS * 2))
-        m.d.comb += product.eq(gain * operand)
+        if self.blackbox:
+            m.submodules.mul = Instance(BLACKBOX_NAME, i_a=gain, i_b=operand, o_p=product)
+        else:
+            m.d.comb += product.eq(gain * operand)
         trip = status["trip"]
         with m.If(~self.armed | status["arm"]):
             m.d.sync += [integral.eq(0), w.eq(0), self.duty.eq(0)]

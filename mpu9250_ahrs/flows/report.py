@@ -353,7 +353,8 @@ def report(*, clk_freq=None, config=None, latency=True, core_options=None, sprea
                                 if core.commands else []),
                               *([core.pwm_block.shadow] if core.has_pwm else []),
                               *([self_test.sums, self_test.table] if self_test else [])],
-                        others=[self_test] if self_test else [], blocks=True,
+                        others=[*([self_test] if self_test else []),
+                                *([core.balance] if core.controller else [])], blocks=True,
                         ports=wrapped.ports(), spread=spread)
     design["room_left_les"] = DEVICE["logic_elements"] - design["logic_elements"]
     shown.next("cycles per update (simulated, every filter)")
