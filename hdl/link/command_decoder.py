@@ -114,6 +114,7 @@ class CommandDecoder(wiring.Component):
         self.fifo = RewindableFIFO(FIFO_DEPTH)
         self.executor = RegisterExecutor(writable=writable, version=version, ports=ports)
         self.counters = self.executor.counters
+        self._executing = Signal()          # the parser offers its request (EXECUTE)
         super().__init__({
             "i_stream": In(stream.Signature(8)),
             "cfg": Out(stream.Signature(ConfigWrite)),
@@ -132,6 +133,12 @@ class CommandDecoder(wiring.Component):
             "self_test": In(SelfTestStatus),
             "tick": In(1, init=1),
         })
+
+    def invariant(self):
+        """What holds in every state a reset reaches: the executor serves this decoder's
+        request (port 0) only while the decoder offers it."""
+        ex = self.executor
+        return ex._idle | (ex._port != 0) | self._executing
 
     def elaborate(self, platform):
         m = Module()
@@ -199,7 +206,8 @@ class CommandDecoder(wiring.Component):
             with m.State("EXECUTE"):
                 # the request, held until the executor is done; its response goes out as the
                 # reply (the request is taken as the reply is)
-                m.d.comb += [request.valid.eq(1), self.replies.valid.eq(response.valid),
+                m.d.comb += [request.valid.eq(1), self._executing.eq(1),
+                             self.replies.valid.eq(response.valid),
                              response.ready.eq(self.replies.ready)]
                 with m.If(request.ready):
                     with m.If(bad):

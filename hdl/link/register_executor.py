@@ -124,6 +124,10 @@ class RegisterExecutor(wiring.Component):
         self.version = version
         self.ports = ports
         self.counters = EventCounters(COUNTER_WORDS)
+        # the front end served and whether a request is being served, named here so that
+        # ``documented_use`` can state what a front end must do
+        self._port = Signal(range(max(ports, 2)))
+        self._idle = Signal()
         super().__init__({
             "request": In(stream.Signature(RegisterRequest)).array(ports),
             "response": Out(stream.Signature(RegisterResponse)).array(ports),
@@ -145,6 +149,14 @@ class RegisterExecutor(wiring.Component):
             "self_test": In(SelfTestStatus),
         })
 
+    def documented_use(self):
+        """What a front end must do: keep its request valid (and still) until it is taken;
+        the stream rule, stated for every state the executor reaches (its response's address
+        and the engine's addresses are the request's)."""
+        valid = Array(r.valid for r in self.request)[self._port] if self.ports > 1 else \
+            self.request[0].valid
+        return self._idle | valid
+
     def elaborate(self, platform):
         m = Module()
         m.submodules.counters = counters = self.counters
@@ -152,8 +164,8 @@ class RegisterExecutor(wiring.Component):
         # waiting (``pick``), then the one chosen (``port``) until its response is taken
         # (a front end holds its request still until it is taken; the command decoder's is
         # registers, so that what EXECUTE decides starts from registers)
-        port = Signal(range(max(self.ports, 2)))
-        idle = Signal()
+        port = self._port
+        idle = self._idle
         offered = Cat(r.valid for r in self.request).any()
         if self.ports == 1:
             req = self.request[0].payload
@@ -169,11 +181,14 @@ class RegisterExecutor(wiring.Component):
         low, space, value = req.addr, req.space, req.value
         response, fields, load_fields, load_result, result = self._response(
             m, req, counters.r_data)
+        # the response's address is the request's (held until the response is taken), not a
+        # register of its own; so are the engine's addresses
         for r in self.response:
-            m.d.comb += r.payload.eq(response)
-        m.d.comb += [self.cfg.payload.addr.eq(response.addr[:8]),
+            m.d.comb += [r.payload.result.eq(response.result), r.payload.value.eq(response.value),
+                         r.payload.addr.eq(Cat(req.addr, req.space))]
+        m.d.comb += [self.cfg.payload.addr.eq(req.addr),
                      self.cfg.payload.data.eq(response.value),
-                     self.cfg_read.payload.eq(response.addr[:8]),
+                     self.cfg_read.payload.eq(req.addr),
                      self.pwm.addr.eq(low), self.pwm.w_data.eq(value)]
 
         def count(name):
@@ -241,12 +256,11 @@ class RegisterExecutor(wiring.Component):
         return m
 
     def _response(self, m, req, count):
-        """The response register (returned, with ``fields``, the FSM's way to choose what its
-        address and value are loaded with (``load_fields``: now), ``load_result`` and
-        ``result``): an engine access's fields are loaded before it is sent (``cfg``'s and
-        ``cfg_read``'s payloads are theirs, registers: they hold still whatever the request
-        does), its result once the engine took it."""
-        response = Signal(RegisterResponse, reset_less=True)
+        """The response's registers, its result and value (returned, with ``fields``, the
+        FSM's way to choose what the value is loaded with (``load_fields``: now),
+        ``load_result`` and ``result``): an engine write's value is loaded before it is sent
+        (``cfg``'s data is it), its result once the engine took it."""
+        response = Signal(RegisterResponse, reset_less=True)     # its ``addr`` unused
         # What the response's value is loaded with: each source an AND with its own select,
         # OR-ed, the selects set by the FSM's branches (``fields``), so that the decisions are
         # made once for all the bits rather than a multiplexer's per bit. The request's own
@@ -265,7 +279,6 @@ class RegisterExecutor(wiring.Component):
             m.d.sync += response.result.eq(result)
         with m.If(load_fields):
             m.d.sync += [
-                response.addr.eq(Cat(req.addr, req.space)),
                 response.value.eq(reduce(operator.or_, (
                     Mux(chosen[name], source.as_unsigned(), 0)
                     for name, source in sources.items()), value_const | Mux(echo, req.value, 0)))]

@@ -103,8 +103,10 @@ COMPONENTS = {
 HELD = {"telemetry_scheduler": {"sample": "results", "status": "results"}}
 # What a component's documentation asks of its user in every cycle: the rewindable FIFO is
 # rewound only with the byte it offers taken, or none offered; the engine's port (behind the
-# config-port arbiter) takes no read address while a word waits.
-ASSUME = {"rewindable_fifo":
+# config-port arbiter) takes no read address while a word waits; a register executor's front
+# end keeps its request until it is taken (``documented_use``).
+ASSUME = {"register_executor": lambda c: c.documented_use(),
+          "rewindable_fifo":
           lambda c: ~(c.rewind & c.r_stream.valid & ~c.r_stream.ready),
           "config_port_arbiter":
           lambda c: ~(c.cfg_read.ready & c.cfg_read_data.valid)}
