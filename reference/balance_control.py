@@ -25,11 +25,11 @@ Fixed point, per result (``BalanceFixed.step``: every format, rounding and satur
   low-pass and the last duty are 0. A trip (the same result: ``step`` returns the duty 0):
   |e| > cutoff (fallen over), a driver fault, or more than ``stale`` sample periods without a
   new result (``BalanceFixed.period``).
-- i = clamp(i + e, ±i_limit) (32 bits).
+- i = clamp(i + e, ±i_limit), i_limit < 2²³ (24 bits).
 - w = w + ((u₋₁·2¹⁶ − w) >> kv_shift) (arithmetic shift, 32 bits: u₋₁ the duty of the
   previous result, applied since).
-- a = Kp·e + Kd·ω + Ki·sat18(i >> 8) + Kv·sat18(w >> 16): gains signed 18 bits, each product
-  exact (36 bits), the sum exact.
+- a = Kp·e + Kd·ω + Ki·(i >> 8) + Kv·(w >> 16): gains signed 18 bits, the operands 16 bits
+  (|w| < 2²⁶: w >> 16 is the duty's 11 bits), each product exact (36 bits), the sum exact.
 - u = clamp(a >> 8, ±out_limit) (arithmetic shift: towards −∞), |u| ≤ 1023: the duty in
   1/1024.
 """
@@ -37,8 +37,8 @@ Fixed point, per result (``BalanceFixed.step``: every format, rounding and satur
 import math
 from dataclasses import dataclass
 
-from ..hdl.contract.balance_regs import (DUTY_FULL, GAIN_BITS, GAIN_SHIFT, INTEGRAL_SHIFT,
-                                         TRIPS)
+from ..hdl.contract.balance_regs import (DUTY_FULL, GAIN_BITS, GAIN_SHIFT, INTEGRAL_BITS,
+                                         INTEGRAL_SHIFT, TRIPS)
 from .fixed_point import sat, wrap32
 
 
@@ -91,6 +91,8 @@ class BalanceFixedConfig:
             raise ValueError(f"out_limit {self.out_limit} is not in 0 .. {DUTY_FULL - 1}")
         if not 1 <= self.kv_shift <= 24:
             raise ValueError(f"kv_shift {self.kv_shift} is not in 1 .. 24")
+        if not 0 <= self.i_limit < 1 << (INTEGRAL_BITS - 1):
+            raise ValueError(f"i_limit {self.i_limit} is not in 0 .. 2^{INTEGRAL_BITS - 1} - 1")
 
     @classmethod
     def from_gains(cls, gains=BalanceGains(), *, gyro_lsb_per_dps=16.4, sample_hz=1000.0,
@@ -109,7 +111,8 @@ class BalanceFixedConfig:
             setpoint=round(math.radians(gains.setpoint_deg) * E_PER_RAD),
             cutoff=round(math.radians(gains.cutoff_deg) * E_PER_RAD),
             out_limit=min(DUTY_FULL - 1, round(gains.out_limit * DUTY_FULL)),
-            i_limit=min((1 << 31) - 1, round(gains.i_limit * sample_hz * E_PER_RAD)),
+            i_limit=min((1 << (INTEGRAL_BITS - 1)) - 1,
+                        round(gains.i_limit * sample_hz * E_PER_RAD)),
             stale=stale, rate_negate=rate_negate)
 
 
@@ -176,8 +179,8 @@ class BalanceFixed:
         self.since = 0
         self.integral = max(-c.i_limit, min(c.i_limit, self.integral + e))
         self.w = wrap32(self.w + (((self.duty << 16) - self.w) >> c.kv_shift))
-        a = c.kp * e + c.kd * rate + c.ki * sat(self.integral >> INTEGRAL_SHIFT, GAIN_BITS) + \
-            c.kv * sat(self.w >> 16, GAIN_BITS)
+        a = c.kp * e + c.kd * rate + c.ki * (self.integral >> INTEGRAL_SHIFT) + \
+            c.kv * (self.w >> 16)
         self.duty = max(-c.out_limit, min(c.out_limit, a >> GAIN_SHIFT))
         return self.duty
 

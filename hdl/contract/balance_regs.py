@@ -4,7 +4,7 @@ gateware, the fixed-point reference (``reference/balance_control.py``) and the t
 same tables."""
 
 __all__ = ["BALANCE_REGS", "BALANCE_WIDTHS", "BALANCE_RESET", "TRIPS", "CONTROL_BITS",
-           "GAIN_BITS", "GAIN_SHIFT", "INTEGRAL_SHIFT", "DUTY_BITS", "DUTY_FULL",
+           "GAIN_BITS", "GAIN_SHIFT", "INTEGRAL_SHIFT", "INTEGRAL_BITS", "DUTY_BITS", "DUTY_FULL",
            "PWM_STEPS_MAX_HZ"]
 
 
@@ -13,7 +13,8 @@ DUTY_BITS = 11
 DUTY_FULL = 1 << (DUTY_BITS - 1)
 GAIN_BITS = 18                  # the gains: signed, an 18x18 multiplier's operand
 GAIN_SHIFT = 8                  # the products' sum >> 8 is the duty
-INTEGRAL_SHIFT = 8              # the integral's word in the sum: i >> 8 (saturated to 18 bits)
+INTEGRAL_SHIFT = 8              # the integral's word in the sum: i >> 8
+INTEGRAL_BITS = 24              # the integral: |i| <= BAL_I_LIMIT < 2^23
 PWM_STEPS_MAX_HZ = 25_000       # the motor PWM's frequency at most (1024 steps a period)
 
 # BAL_CONTROL's bits
@@ -34,7 +35,7 @@ BALANCE_REGS = {
     "BAL_KI": 0x05,
     "BAL_KV": 0x06,
     "BAL_OUT_LIMIT": 0x07,   # the largest |duty|: 0 .. 1023
-    "BAL_I_LIMIT": 0x08,     # the integral's bound: 0 .. 2^31 - 1 (e units x samples)
+    "BAL_I_LIMIT": 0x08,     # the integral's bound: 0 .. 2^23 - 1 (e units x samples)
     "BAL_CUTOFF": 0x09,      # |e| beyond it trips "fallen": 0 .. 32767
     "BAL_STALE": 0x0A,       # sample periods without a result before "stale": 1 .. 255
     "BAL_WATCHDOG": 0x0B,    # host-armed: sample periods without an accepted command before
@@ -48,7 +49,7 @@ BALANCE_WIDTHS = {
     **{name: (GAIN_BITS, True, -(1 << (GAIN_BITS - 1)), (1 << (GAIN_BITS - 1)) - 1)
        for name in ("BAL_KP", "BAL_KD", "BAL_KI", "BAL_KV")},
     "BAL_OUT_LIMIT": (10, False, 0, DUTY_FULL - 1),
-    "BAL_I_LIMIT": (31, False, 0, (1 << 31) - 1),
+    "BAL_I_LIMIT": (INTEGRAL_BITS - 1, False, 0, (1 << (INTEGRAL_BITS - 1)) - 1),
     "BAL_CUTOFF": (15, False, 0, (1 << 15) - 1),
     "BAL_STALE": (8, False, 1, 255),
     "BAL_WATCHDOG": (16, False, 0, 65535),

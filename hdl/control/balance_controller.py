@@ -7,8 +7,8 @@ from amaranth.lib.cdc import FFSynchronizer
 from amaranth.lib.wiring import In, Out
 
 from ..contract.balance_regs import (BALANCE_REGS, BALANCE_RESET, BALANCE_WIDTHS, CONTROL_BITS,
-                                     DUTY_BITS, GAIN_BITS, GAIN_SHIFT, INTEGRAL_SHIFT,
-                                     PWM_STEPS_MAX_HZ, TRIPS)
+                                     DUTY_BITS, GAIN_BITS, GAIN_SHIFT, INTEGRAL_BITS,
+                                     INTEGRAL_SHIFT, PWM_STEPS_MAX_HZ, TRIPS)
 from ..link.board_bus import BoardBusSignature
 from ..primitives.multiplier import BLACKBOX_NAME
 
@@ -219,8 +219,10 @@ class BalanceController(wiring.Component):
             m.d.sync += [e.eq(angle[16:] - regs["BAL_SETPOINT"]),
                          rate.eq(Mux(rated > 32767, 32767, Mux(rated < -32768, -32768, rated))),
                          fault.eq(self.fault)]
-        integral = Signal(signed(32))
-        w = Signal(signed(32))
+        # the integral within ±BAL_I_LIMIT (< 2^23): 24 bits; the low-pass of the duty·2^16
+        # (|duty| < 1024): within ±2^26, 27 bits (the reference's 32-bit words never wrap)
+        integral = Signal(signed(INTEGRAL_BITS))
+        w = Signal(signed(DUTY_BITS + 16))
         acc = Signal(signed(GAIN_BITS * 2 + 2))
         index = Signal(range(4))
         operand = Signal(signed(GAIN_BITS))
@@ -264,16 +266,21 @@ class BalanceController(wiring.Component):
             with m.State("DUTY"):
                 limit = regs["BAL_OUT_LIMIT"]
                 scaled = acc >> GAIN_SHIFT
+                # saturated to the duty's 11 bits first (a bit pattern, not a comparator
+                # of 30 bits), then clamped to the limit (< 1024: the same result)
+                short = Signal(signed(DUTY_BITS))
+                fits = (scaled[DUTY_BITS - 1:] == 0) | scaled[DUTY_BITS - 1:].all()
+                m.d.comb += short.eq(Mux(fits, scaled, Mux(scaled < 0, -(1 << (DUTY_BITS - 1)),
+                                                           (1 << (DUTY_BITS - 1)) - 1)))
                 with m.If(self.armed):
-                    m.d.sync += self.duty.eq(Mux(scaled > limit, limit,
-                                                 Mux(scaled < -limit, -limit, scaled)))
+                    m.d.sync += self.duty.eq(Mux(short > limit, limit,
+                                                 Mux(short < -limit, -limit, short)))
                 m.next = "IDLE"
 
     def _operands(self, e, rate, integral, w):
-        """The four products' variable operands, in the order of ``GAINS``."""
-        low, high = -(1 << (GAIN_BITS - 1)), (1 << (GAIN_BITS - 1)) - 1
-        scaled = integral >> INTEGRAL_SHIFT
-        return [e, rate, Mux(scaled > high, high, Mux(scaled < low, low, scaled)), w >> 16]
+        """The four products' variable operands, in the order of ``GAINS`` (the integral's
+        word, 24 - 8 bits, fits 18 without saturating)."""
+        return [e, rate, integral >> INTEGRAL_SHIFT, w >> 16]
 
     def _outputs(self, m):
         """Motor A and B alike: forward on channels 0 and 2, reverse on 1 and 3, each high for
