@@ -10,6 +10,7 @@ from ..contract.balance_regs import (BALANCE_REGS, BALANCE_RESET, BALANCE_WIDTHS
                                      DUTY_BITS, GAIN_BITS, GAIN_SHIFT, INTEGRAL_BITS,
                                      INTEGRAL_SHIFT, PWM_STEPS_MAX_HZ, TRIPS)
 from ..link.board_bus import BoardBusSignature
+from ..primitives.memories import FrameRAM
 from ..primitives.multiplier import BLACKBOX_NAME
 
 
@@ -63,6 +64,13 @@ class BalanceController(wiring.Component):
         unknown = set(self.reset) - set(BALANCE_WIDTHS)
         if unknown:
             raise ValueError(f"no writable register {', '.join(sorted(unknown))}")
+        # the read-back of the registers a write sets: a copy of each accepted write in a block
+        # RAM (``_read_back``), its words at configuration the reset values
+        self.stored = [name for name in BALANCE_WIDTHS if name != "BAL_CONTROL"]
+        init = [0] * 16
+        for name in self.stored:
+            init[BALANCE_REGS[name]] = self.reset.get(name, 0) & 0xFFFFFFFF
+        self.shadow = FrameRAM(16, 32, init=init)
         super().__init__({
             "bus": In(BoardBusSignature()),
             "done": In(1),
@@ -187,15 +195,38 @@ class BalanceController(wiring.Component):
         return {"trip": trip, "arm": arm, "disarm": disarm}
 
     def _read_back(self, m, regs, read):
+        """The bus's reads, a cycle after the address: a register a write sets from the
+        shadow RAM (every accepted write is copied there: its word is the register's, sign
+        extended), or its reset value until written after a reset (the RAM keeps its words
+        through a reset: a bit each, ``written``); CONTROL, STATUS and DUTY live. What a read
+        returns is chosen with the address, as the RAM's word is read: no multiplexer of the
+        registers' 250 bits."""
         bus = self.bus
-        sources = {**{name: regs[name] for name in BALANCE_WIDTHS if name != "BAL_CONTROL"},
-                   **read}
-        word = Signal(32)
+        m.submodules.shadow = shadow = self.shadow
+        stored = {name: bus.addr == BALANCE_REGS[name] for name in self.stored}
+        written = Signal(len(self.stored))
+        index = Cat(*stored.values())
+        m.d.comb += [shadow.r_en.eq(1), shadow.r_addr.eq(bus.addr[:4]),
+                     shadow.w_addr.eq(bus.addr[:4]), shadow.w_data.eq(bus.w_data),
+                     shadow.w_en.eq(bus.w_en & bus.ok & index.any())]
+        with m.If(bus.w_en & bus.ok):
+            m.d.sync += written.eq(written | index)
+        from_ram = Signal()
+        constant, constant_next = Signal(32), Signal(32)
+        live, live_next = Signal(32), Signal(32)
         with m.Switch(bus.addr):
-            for name, value in sources.items():
+            for name in self.stored:
+                if self.reset.get(name, 0):
+                    with m.Case(BALANCE_REGS[name]):
+                        m.d.comb += constant_next.eq(self.reset[name] & 0xFFFFFFFF)
+            for name, value in read.items():
                 with m.Case(BALANCE_REGS[name]):
-                    m.d.comb += word.eq(value.as_signed() if value.shape().signed else value)
-        m.d.sync += bus.r_data.eq(word)
+                    m.d.comb += live_next.eq(value.as_signed() if value.shape().signed
+                                             else value)
+        chosen_written = (index & written).any()
+        m.d.sync += [from_ram.eq(chosen_written), live.eq(live_next),
+                     constant.eq(Mux(chosen_written, 0, constant_next))]
+        m.d.comb += bus.r_data.eq(Mux(from_ram, shadow.r_data, 0) | constant | live)
 
     def _step(self, m, regs, status):
         """One result's step: e and the rate latched with it, the trips, the integral and the
