@@ -131,7 +131,8 @@ class BalanceFixed:
         self.integral = 0
         self.w = 0
         self.duty = 0
-        self.since = self.idle = 0
+        # the sample periods left before a trip, from the registers' values then
+        self.stale_left, self.idle_left = self.config.stale, self.config.watchdog
 
     def arm(self, by_host=False):
         if not self.armed:
@@ -144,20 +145,24 @@ class BalanceFixed:
         self._clear()
 
     def kick(self):
-        """A command accepted: the watchdog starts again."""
-        self.idle = 0
+        """A command accepted: the watchdog starts again (from ``watchdog`` as it is now)."""
+        self.idle_left = self.config.watchdog
 
     def period(self):
         """A sample period passed: more than ``stale`` in a row without a result trip it
         ("stale"), and, armed by the host, more than ``watchdog`` without a command
-        ("watchdog"; 0: never)."""
-        if self.armed:
-            self.since += 1
-            self.idle += 1
-            if self.since > self.config.stale:
-                self.disarm("stale")
-            elif self.by_host and self.config.watchdog and self.idle > self.config.watchdog:
-                self.disarm("watchdog")
+        ("watchdog"; 0: never). Each counts down from its value at the last result (command)
+        or arming: a trip in the period that finds 0."""
+        if not self.armed:
+            self._clear()                   # the counts follow the registers while disarmed
+            return self.duty
+        if self.stale_left == 0:
+            self.disarm("stale")
+        elif self.by_host and self.config.watchdog and self.idle_left == 0:
+            self.disarm("watchdog")
+        else:
+            self.stale_left -= 1
+            self.idle_left = max(0, self.idle_left - 1)
         return self.duty
 
     def step(self, angle, gyro, bias_q16, fault=False):
@@ -176,7 +181,7 @@ class BalanceFixed:
         if abs(e) > c.cutoff:
             self.disarm("fallen")
             return 0
-        self.since = 0
+        self.stale_left = c.stale
         self.integral = max(-c.i_limit, min(c.i_limit, self.integral + e))
         self.w = wrap32(self.w + (((self.duty << 16) - self.w) >> c.kv_shift))
         a = c.kp * e + c.kd * rate + c.ki * (self.integral >> INTEGRAL_SHIFT) + \

@@ -31,7 +31,8 @@ class BalanceController(wiring.Component):
     (with BAL_CONTROL bit 3; its falling edge disarms). Disarmed at once, in the cycles after
     the result that shows it: a tilt beyond BAL_CUTOFF ("fallen"), ``fault``; and at a sample
     period's end: more than BAL_STALE periods without a result ("stale"), host-armed, more
-    than BAL_WATCHDOG without ``kick`` ("watchdog"). BAL_STATUS says which (``TRIPS``).
+    than BAL_WATCHDOG without ``kick`` ("watchdog"; each counts from its register's value
+    at the last result, command or arming). BAL_STATUS says which (``TRIPS``).
 
     Parameters
         ``clk_freq``: the clock; the motor PWM has 1024 steps of ``prescale`` cycles, the
@@ -170,23 +171,25 @@ class BalanceController(wiring.Component):
             m.d.sync += [self.armed.eq(0), by_host.eq(0)]
         with m.If(tripping & self.armed):
             m.d.sync += tripped.eq(Cat(*trip.values()))
-        # the periods since the last result, and (host-armed) since the last command
-        # one bit more than their limits: a count can pass the largest
-        since = Signal(9)
-        idle = Signal(17)
+        # The sample periods left before a trip: BAL_STALE's at each result, BAL_WATCHDOG's at
+        # each command, and both while disarmed (so at arming); counted down each period, a
+        # trip in the period that finds 0 (down counters with a load: no comparator of a count
+        # with a register)
+        stale_left = Signal(8)
+        idle_left = Signal(16)
         with m.If(self.done | ~self.armed):
-            m.d.sync += since.eq(0)
-        with m.Elif(self.period & ~since.all()):
-            m.d.sync += since.eq(since + 1)
+            m.d.sync += stale_left.eq(regs["BAL_STALE"])
+        with m.Elif(self.period & (stale_left != 0)):
+            m.d.sync += stale_left.eq(stale_left - 1)
         with m.If(self.kick | ~self.armed):
-            m.d.sync += idle.eq(0)
-        with m.Elif(self.period & ~idle.all()):
-            m.d.sync += idle.eq(idle + 1)
+            m.d.sync += idle_left.eq(regs["BAL_WATCHDOG"])
+        with m.Elif(self.period & (idle_left != 0)):
+            m.d.sync += idle_left.eq(idle_left - 1)
         watchdog = regs["BAL_WATCHDOG"]
         m.d.comb += [
-            trip["stale"].eq(self.armed & (since > regs["BAL_STALE"])),
-            trip["watchdog"].eq(self.armed & by_host & (watchdog != 0) & (idle > watchdog) &
-                                ~trip["stale"]),
+            trip["stale"].eq(self.armed & self.period & ~self.done & (stale_left == 0)),
+            trip["watchdog"].eq(self.armed & by_host & self.period & ~self.kick &
+                                (watchdog != 0) & (idle_left == 0) & ~trip["stale"]),
         ]
         read = {"BAL_CONTROL": Cat(self.armed, control[1:]),
                 "BAL_STATUS": Cat(self.armed, by_host, C(0, 2), tripped),
