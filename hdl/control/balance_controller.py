@@ -72,6 +72,13 @@ class BalanceController(wiring.Component):
         for name in self.stored:
             init[BALANCE_REGS[name]] = self.reset.get(name, 0) & 0xFFFFFFFF
         self.shadow = FrameRAM(16, 32, init=init)
+        # the gains, for the multiplier: a block RAM of their own, read by the products' index
+        # (no multiplexer of four 18-bit registers); their reset values until written
+        assert [BALANCE_REGS[name] for name in GAINS] == \
+            list(range(BALANCE_REGS[GAINS[0]], BALANCE_REGS[GAINS[0]] + len(GAINS)))
+        self.gains = FrameRAM(len(GAINS), GAIN_BITS,
+                              init=[self.reset.get(name, 0) & ((1 << GAIN_BITS) - 1)
+                                    for name in GAINS])
         super().__init__({
             "bus": In(BoardBusSignature()),
             "done": In(1),
@@ -101,6 +108,8 @@ class BalanceController(wiring.Component):
         bus = self.bus
         regs = {}
         for name, (bits, is_signed, _, _) in BALANCE_WIDTHS.items():
+            if name in GAINS:
+                continue                            # in ``gains``, a block RAM (``_step``)
             shape = signed(bits) if is_signed else unsigned(bits)
             regs[name] = Signal(shape, init=self.reset.get(name, 0), name=name.lower())
         addressed = {name: bus.addr == a for name, a in BALANCE_REGS.items()}
@@ -112,8 +121,8 @@ class BalanceController(wiring.Component):
         m.d.comb += [bus.exists.eq(Cat(*addressed.values()).any()), bus.ok.eq(in_range)]
         with m.If(bus.w_en & bus.ok):
             for name in BALANCE_WIDTHS:
-                if name == "BAL_CONTROL":
-                    continue                        # ``_arming``
+                if name == "BAL_CONTROL" or name in GAINS:
+                    continue                        # ``_arming``, ``_gains``
                 with m.If(addressed[name]):
                     m.d.sync += regs[name].eq(bus.w_data)
         regs["write_control"] = bus.w_en & bus.ok & addressed["BAL_CONTROL"]
@@ -260,11 +269,12 @@ class BalanceController(wiring.Component):
         acc = Signal(signed(GAIN_BITS * 2 + 2))
         index = Signal(range(4))
         operand = Signal(signed(GAIN_BITS))
-        gain = Signal(signed(GAIN_BITS))
         with m.Switch(index):
-            for k, (name, x) in enumerate(zip(GAINS, self._operands(e, rate, integral, w))):
+            for k, x in enumerate(self._operands(e, rate, integral, w)):
                 with m.Case(k):
-                    m.d.comb += [gain.eq(regs[name]), operand.eq(x)]
+                    m.d.comb += operand.eq(x)
+        read_next = Signal(range(4))            # the gain the next cycle multiplies by
+        gain = self._gains(m, read_next, index)
         # one 18 x 18 block for the four products; ``report`` counts it apart (``blackbox``)
         product = Signal(signed(GAIN_BITS * 2))
         if self.blackbox:
@@ -290,10 +300,12 @@ class BalanceController(wiring.Component):
                         integral.eq(Mux(total > limit, limit, Mux(total < -limit, -limit, total))),
                         w.eq(w + ((Cat(C(0, 16), self.duty).as_signed() - w) >> self.kv_shift)),
                         index.eq(0), acc.eq(0)]
+                    m.d.comb += read_next.eq(0)
                     m.next = "MAC"
                 with m.Else():
                     m.next = "IDLE"
             with m.State("MAC"):
+                m.d.comb += read_next.eq(index + 1)
                 m.d.sync += [acc.eq(acc + product), index.eq(index + 1)]
                 with m.If(index == 3):
                     m.next = "DUTY"
@@ -310,6 +322,27 @@ class BalanceController(wiring.Component):
                     m.d.sync += self.duty.eq(Mux(short > limit, limit,
                                                  Mux(short < -limit, -limit, short)))
                 m.next = "IDLE"
+
+    def _gains(self, m, read_next, index):
+        """The gain of product ``index`` (signed 18): the gains' RAM read the cycle before at
+        ``read_next``, or a gain's reset value until it is written after a reset (the RAM
+        keeps its words through one: a bit each)."""
+        bus = self.bus
+        m.submodules.gains = ram = self.gains
+        first = BALANCE_REGS[GAINS[0]]
+        is_gain = (bus.addr >= first) & (bus.addr < first + len(GAINS))
+        slot = (bus.addr - first)[:2]
+        written = Signal(len(GAINS))
+        m.d.comb += [ram.r_en.eq(1), ram.r_addr.eq(read_next), ram.w_addr.eq(slot),
+                     ram.w_data.eq(bus.w_data[:GAIN_BITS]),
+                     ram.w_en.eq(bus.w_en & bus.ok & is_gain)]
+        with m.If(bus.w_en & bus.ok & is_gain):
+            m.d.sync += written.eq(written | (1 << slot))
+        at_reset = Array(C(self.reset.get(name, 0), signed(GAIN_BITS)) for name in GAINS)
+        gain = Signal(signed(GAIN_BITS))
+        m.d.comb += gain.eq(Mux(written.bit_select(index, 1), ram.r_data.as_signed(),
+                                at_reset[index]))
+        return gain
 
     def _operands(self, e, rate, integral, w):
         """The four products' variable operands, in the order of ``GAINS`` (the integral's

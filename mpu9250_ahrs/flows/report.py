@@ -352,7 +352,8 @@ def report(*, clk_freq=None, config=None, latency=True, core_options=None, sprea
                               *([core.decoder.fifo.ram, core.decoder.counters.ram]
                                 if core.commands else []),
                               *([core.pwm_block.shadow] if core.has_pwm else []),
-                              *([core.balance.shadow] if core.controller else []),
+                              *([core.balance.shadow, core.balance.gains]
+                                if core.controller else []),
                               *([self_test.sums, self_test.table] if self_test else [])],
                         others=[*([self_test] if self_test else []),
                                 *([core.balance] if core.controller else [])], blocks=True,
