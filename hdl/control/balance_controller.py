@@ -224,8 +224,8 @@ class BalanceController(wiring.Component):
         with m.If(bus.w_en & bus.ok):
             m.d.sync += written.eq(written | index)
         from_ram = Signal()
-        constant, constant_next = Signal(32), Signal(32)
-        live, live_next = Signal(32), Signal(32)
+        other = Signal(32)                  # a reset value, or a live register's word
+        constant_next, live_next = Signal(32), Signal(32)
         with m.Switch(bus.addr):
             for name in self.stored:
                 if self.reset.get(name, 0):
@@ -236,22 +236,22 @@ class BalanceController(wiring.Component):
                     m.d.comb += live_next.eq(value.as_signed() if value.shape().signed
                                              else value)
         chosen_written = (index & written).any()
-        m.d.sync += [from_ram.eq(chosen_written), live.eq(live_next),
-                     constant.eq(Mux(chosen_written, 0, constant_next))]
-        m.d.comb += bus.r_data.eq(Mux(from_ram, shadow.r_data, 0) | constant | live)
+        m.d.sync += [from_ram.eq(chosen_written),
+                     other.eq(Mux(chosen_written, 0, constant_next) | live_next)]
+        m.d.comb += bus.r_data.eq(Mux(from_ram, shadow.r_data, 0) | other)
 
     def _step(self, m, regs, status):
         """One result's step: e and the rate latched with it, the trips, the integral and the
         low-pass, four products through one multiplier, the duty (the reference's order)."""
         roll = regs["BAL_CONTROL"][CONTROL_BITS["roll"]]
         negate = regs["BAL_CONTROL"][CONTROL_BITS["rate_negate"]]
-        gyro = Signal(data.ArrayLayout(signed(16), 2))
+        # the gyro count of the axis chosen, as the engine takes the sample
+        g = Signal(signed(16))
         with m.If(self.sample_taken):
-            m.d.sync += gyro.eq(self.gyro)
+            m.d.sync += g.eq(Mux(roll, self.gyro[0], self.gyro[1]))
         # e: the angle less the set-point·2^16, its high half (the set-point has no low half)
         angle = Mux(roll, self.angles[0], self.angles[1])
         bias = Mux(roll, self.bias[0], self.bias[1])
-        g = Mux(roll, gyro[0], gyro[1])
         e = Signal(signed(16))
         rate = Signal(signed(16))
         fault = Signal()
