@@ -185,7 +185,7 @@ class AHRSCore(wiring.Component):
             are for users who need the room (``report`` counts each build).
         ``controller`` (None): "balance" adds the balance controller
             (``BalanceController``: a self-balancing robot's loop on the chip, issue #57),
-            its registers in space 0x02 in place of the PWM block's (left out), the ``pwm``
+            its registers in space 0x03, the PWM block left out (space 0x02), the ``pwm``
             port its two H-bridges, ``arm`` (in) its arming pin; ``controller_regs`` its
             registers' values at reset, by name (``balance_regs.BALANCE_REGS``).
         ``attitude_port`` (False): with ``attitude`` (out, stream of ``Attitude``): every
@@ -423,11 +423,12 @@ class AHRSCore(wiring.Component):
         connect(m, executor.response[port], axi.response)
 
     def _balance(self, m, engine, fe, decoder):
-        """The balance controller: its registers on the command channel's space 0x02 (the PWM
-        block's in other builds), the result and the sample the engine takes, the driver's
-        faults, a pulse per sample period, the arming pin; it drives the PWM outputs."""
+        """The balance controller: its registers on the command channel's space 0x03, the
+        result and the sample the engine takes, the driver's faults, a pulse per sample period,
+        the arming pin; it drives the PWM outputs (the PWM block is left out: space 0x02
+        answers bad_address)."""
         m.submodules.balance = balance = self.balance
-        connect(m, decoder.pwm, balance.bus)
+        connect(m, decoder.control, balance.bus)
         result, sample, status = engine.results, fe.samples, fe.status
         # one pulse per sample period, for the controller's stale and watchdog counts
         period = self.frontend.driver.period_cycles

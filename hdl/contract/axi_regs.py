@@ -45,7 +45,7 @@ AXI_REGS = {
 # The host's registers, as the command channel names them (``commands.SPACES``: a space and an
 # address): register ``a`` of space ``s`` at AXI_REGISTER_BASE + 0x400·s + 4·a
 AXI_REGISTER_BASE = 0x400
-AXI_ADDR_BITS = 12                 # 0x000 .. 0xFFF
+AXI_ADDR_BITS = 13                 # 0x0000 .. 0x1FFF
 AXI_IRQ_RESULT = 1 << 0
 
 
@@ -61,14 +61,16 @@ def markdown_table():
     """The map as a Markdown table (``hdl/AXI_LITE.md`` holds it; a test compares)."""
     lines = ["| Address | Name | Access | Holds |", "|---|---|---|---|"]
     for name, (address, access, text) in AXI_REGS.items():
-        lines.append(f"| 0x{address:03X} | {name} | {access} | {text} |")
+        lines.append(f"| 0x{address:04X} | {name} | {access} | {text} |")
     held = {"engine": "the engine's register map (``hdl/engine/register_map.py``): CONTROL "
                       "at a = 0xFF",
             "board": "the board's registers (``commands.BOARD_REGS``: RAW_MODE, VERSION, the "
                      "counters, FRAMES_SENT, WHO_AM_I, SELF_TEST)",
             "pwm": "the PWM block's registers (``pwm_regs.PWM_REGS``; DECERR in a build "
-                   "without it)"}
+                   "without it)",
+            "control": "the balance controller's registers (``balance_regs.BALANCE_REGS``; "
+                       "DECERR in a build without it)"}
     for space, code in SPACES.items():
-        lines.append(f"| 0x{axi_register_address(code, 0):03X} + 4·a | {space} register a "
+        lines.append(f"| 0x{axi_register_address(code, 0):04X} + 4·a | {space} register a "
                      f"(0..255) | r/w | {held[space]} |")
     return "\n".join(lines)

@@ -33,8 +33,9 @@ RESULTS = {"ok": 0, "refused": 1, "bad_address": 2, "bad_command": 3}
 # OR-ed into a reply's result: bytes from the host were dropped (the input FIFO full) since
 # the last reply was made; commands sent since then may have had no reply (send them again)
 RESULT_INPUT_LOST = 0x80
-# The high byte of a register address: which block it is in.
-SPACES = {"engine": 0x00, "board": 0x01, "pwm": 0x02}
+# The high byte of a register address: which block it is in ("control": the balance
+# controller's, ``balance_regs``, in a build with it).
+SPACES = {"engine": 0x00, "board": 0x01, "pwm": 0x02, "control": 0x03}
 # The board's own registers (space 0x01): all read-only but RAW_MODE.
 BOARD_REGS = {
     "RAW_MODE": 0x00, "VERSION": 0x01, "REGMAP_VERSION": 0x02,

@@ -80,7 +80,8 @@ class CommandDecoder(wiring.Component):
         ``i_stream`` (in, byte stream): from the UART receiver; taken while the FIFO has room
             (bytes that arrive while a command executes wait there).
         ``cfg``, ``cfg_read``, ``cfg_read_data``: to the engine's register port.
-        ``pwm`` (out, ``BoardBusSignature``): the PWM block's registers (space 0x02).
+        ``pwm`` (out, ``BoardBusSignature``): the PWM block's registers (space 0x02);
+        ``control`` (out, likewise): the balance controller's (space 0x03).
         ``replies`` (out, stream of ``Reply``): to an unbuffered framer (held until sent).
         ``raw_mode`` (out): RAW_MODE bit 0.
         ``kick`` (out): a pulse per accepted command (result ``ok``; the PWM watchdog).
@@ -121,6 +122,7 @@ class CommandDecoder(wiring.Component):
             "cfg_read": Out(stream.Signature(REG_BITS)),
             "cfg_read_data": In(stream.Signature(signed(32))),
             "pwm": Out(BoardBusSignature()),
+            "control": Out(BoardBusSignature()),
             "replies": Out(stream.Signature(Reply)),
             "raw_mode": Out(1),
             "kick": Out(1),
@@ -231,6 +233,7 @@ class CommandDecoder(wiring.Component):
         wiring.connect(m, executor.cfg_read, wiring.flipped(self.cfg_read))
         wiring.connect(m, wiring.flipped(self.cfg_read_data), executor.cfg_read_data)
         wiring.connect(m, executor.pwm, wiring.flipped(self.pwm))
+        wiring.connect(m, executor.control, wiring.flipped(self.control))
         m.d.comb += [self.raw_mode.eq(executor.raw_mode), self.kick.eq(executor.kick),
                      *(getattr(executor, name).eq(getattr(self, name)) for name in (
                          "rx_framing_error", "rx_overrun", "early_sample", "frames_sent",

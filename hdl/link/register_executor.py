@@ -87,7 +87,8 @@ class RegisterExecutor(wiring.Component):
     without being sent; an engine read or write waits for the engine's port. The board's
     registers (space 0x01, ``BOARD_REGS``) read their sources; RAW_MODE alone is written; the
     others refuse a write; an address outside the map is ``bad_address``. The PWM block's
-    (space 0x02): through its bus, refused as it says (``pwm.ok``), ``bad_address`` if the
+    (space 0x02) and the balance controller's (0x03): through their buses, refused as they
+    say (``ok``), ``bad_address`` if the
     build has none. Each answer counts in CMD_OK or CMD_REFUSED (any result but ``ok``), and
     an ``ok`` pulses ``kick`` (the PWM watchdog: a front end stuck sending refused requests is
     as good as a silent one).
@@ -103,7 +104,8 @@ class RegisterExecutor(wiring.Component):
             stream rule).
         ``response`` (out, ``ports`` streams of ``RegisterResponse``): held until taken.
         ``cfg``, ``cfg_read``, ``cfg_read_data``: to the engine's register port.
-        ``pwm`` (out, ``BoardBusSignature``): the PWM block's registers.
+        ``pwm``, ``control`` (out, ``BoardBusSignature``): the PWM block's registers (space
+            0x02) and the balance controller's (0x03).
         ``raw_mode`` (out): RAW_MODE bit 0. ``kick`` (out): a pulse per ``ok``.
         ``discarded``, ``crc_errors``, ``malformed`` (in): the command decoder's pulses;
         ``rx_framing_error``, ``rx_overrun`` (in): the receiver's; ``early_sample`` (in): the
@@ -135,6 +137,7 @@ class RegisterExecutor(wiring.Component):
             "cfg_read": Out(stream.Signature(REG_BITS)),
             "cfg_read_data": In(stream.Signature(signed(32))),
             "pwm": Out(BoardBusSignature()),
+            "control": Out(BoardBusSignature()),
             "raw_mode": Out(1),
             "kick": Out(1),
             "discarded": In(1),
@@ -189,7 +192,8 @@ class RegisterExecutor(wiring.Component):
         m.d.comb += [self.cfg.payload.addr.eq(req.addr),
                      self.cfg.payload.data.eq(response.value),
                      self.cfg_read.payload.eq(req.addr),
-                     self.pwm.addr.eq(low), self.pwm.w_data.eq(value)]
+                     *(bus.addr.eq(low) for bus in self._blocks().values()),
+                     *(bus.w_data.eq(value) for bus in self._blocks().values())]
 
         def count(name):
             m.d.comb += counters.events[counter_word(f"CMD_{name.upper()}")].eq(1)
@@ -266,7 +270,8 @@ class RegisterExecutor(wiring.Component):
         # made once for all the bits rather than a multiplexer's per bit. The request's own
         # value is one source (a write's, echoed)
         sources = {
-            "engine": self.cfg_read_data.payload, "pwm": self.pwm.r_data,
+            "engine": self.cfg_read_data.payload,
+            **{name: bus.r_data for name, bus in self._blocks().items()},
             **self._board_sources(count),
         }
         load_fields = Signal()
@@ -295,6 +300,11 @@ class RegisterExecutor(wiring.Component):
                 m.d.comb += value_const.eq(value_)
 
         return response, fields, load_fields, load_result, result
+
+    def _blocks(self):
+        """The register blocks on a bus, by their space's name: the PWM block's, the balance
+        controller's (``exists`` low where a build has none: ``bad_address``)."""
+        return {"pwm": self.pwm, "control": self.control}
 
     def _counters(self, m, counters, *, read, low):
         """The events into the counters, and the read of the counter a board read names
@@ -353,14 +363,15 @@ class RegisterExecutor(wiring.Component):
                     answer(RESULTS["refused"])
                 with m.Else():
                     answer(RESULTS["bad_address"])
-            with m.Elif(space == SPACES["pwm"]):
-                with m.If(self.pwm.exists & self.pwm.ok):
-                    m.d.comb += self.pwm.w_en.eq(1)
-                    answer(RESULTS["ok"])
-                with m.Elif(self.pwm.exists):
-                    answer(RESULTS["refused"])
-                with m.Else():
-                    answer(RESULTS["bad_address"])
+            for name, bus in self._blocks().items():
+                with m.Elif(space == SPACES[name]):
+                    with m.If(bus.exists & bus.ok):
+                        m.d.comb += bus.w_en.eq(1)
+                        answer(RESULTS["ok"])
+                    with m.Elif(bus.exists):
+                        answer(RESULTS["refused"])
+                    with m.Else():
+                        answer(RESULTS["bad_address"])
             with m.Else():
                 answer(RESULTS["bad_address"])
         with m.Else():                                  # READ
@@ -374,10 +385,11 @@ class RegisterExecutor(wiring.Component):
                             answer(RESULTS["ok"], value_=signal)
                     with m.Default():
                         answer(RESULTS["bad_address"], value_=0)
-            with m.Elif(space == SPACES["pwm"]):
-                with m.If(self.pwm.exists):
-                    answer(RESULTS["ok"], value_="pwm")
-                with m.Else():
-                    answer(RESULTS["bad_address"], value_=0)
+            for name, bus in self._blocks().items():
+                with m.Elif(space == SPACES[name]):
+                    with m.If(bus.exists):
+                        answer(RESULTS["ok"], value_=name)
+                    with m.Else():
+                        answer(RESULTS["bad_address"], value_=0)
             with m.Else():
                 answer(RESULTS["bad_address"], value_=0)

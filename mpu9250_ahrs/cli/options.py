@@ -182,8 +182,8 @@ def _add_left_out_options(p, *, which=""):
                         f"registers")
     p.add_argument("--controller", choices=("balance",), default=None,
                    help=f"with the balance controller{which}: a self-balancing robot's loop on "
-                        f"the chip driving the four PWM outputs as two H-bridges, its registers "
-                        f"in the PWM block's place (space 0x02; hdl/contract/balance_regs.py), "
+                        f"the chip driving the four PWM outputs as two H-bridges (the PWM block "
+                        f"left out), its registers in space 0x03 (hdl/contract/balance_regs.py), "
                         f"an arming input (port arm); issue #57, in progress")
 
 

@@ -2,7 +2,8 @@
 register words and back (``config get`` / ``config set``).
 
 Names are those of ``hdl/engine/register_map.py`` (engine, space 0x00), ``BOARD_REGS`` (space
-0x01) and ``PWM_REGS`` (space 0x02); ``hdl/FRAMES.md`` lists them.
+0x01), ``PWM_REGS`` (space 0x02) and ``BALANCE_REGS`` (space 0x03, a build with the balance
+controller: others answer bad_address); ``hdl/FRAMES.md`` lists them.
 """
 
 import math
@@ -11,6 +12,7 @@ from dataclasses import dataclass
 from ..hdl.engine.register_map import CONFIG_REGS, CONTROL_ADDR, HOST_WRITABLE
 from ..hdl.contract.commands import BOARD_REGS
 from ..hdl.contract.pwm_regs import PWM_REGS
+from ..hdl.contract.balance_regs import BALANCE_REGS, BALANCE_WIDTHS
 
 
 __all__ = ["Register", "REGISTERS", "lookup", "to_word", "from_word", "value_range"]
@@ -19,7 +21,7 @@ __all__ = ["Register", "REGISTERS", "lookup", "to_word", "from_word", "value_ran
 @dataclass(frozen=True)
 class Register:
     name: str
-    space: str             # "engine", "board", "pwm"
+    space: str             # "engine", "board", "pwm", "control"
     addr: int
     format: str            # "int", "Q8.24", "Q0.24", "Q2.14", "Q0.30", "BAM32"
     unit: str
@@ -58,6 +60,8 @@ def _registers():
                 "PWM_MOTOR_PERIOD": "cycles"}.get(name, "µs (servo) or cycles (motor)"
                                                    if name.startswith("PWM_HIGH") else "")
         regs[name] = Register(name, "pwm", addr, "int", unit, name != "PWM_STATUS")
+    for name, addr in BALANCE_REGS.items():
+        regs[name] = Register(name, "control", addr, "int", "", name in BALANCE_WIDTHS)
     return regs
 
 
@@ -90,6 +94,8 @@ _RANGES = {
 
 def value_range(reg):
     """(lowest, highest) physical value ``reg`` takes (None: no bound but its format's)."""
+    if reg.space == "control" and reg.name in BALANCE_WIDTHS:
+        return BALANCE_WIDTHS[reg.name][2:]                 # the controller's own ranges
     if reg.space != "engine":
         return 0, 2 ** 32 - 1
     if reg.format == "int":
@@ -140,6 +146,8 @@ def to_word(reg, value):
 def from_word(reg, word):
     """A register word (as read: signed 32 from the engine) -> the physical value."""
     word = int(word)
+    if reg.space == "control" and BALANCE_WIDTHS.get(reg.name, (0, False))[1]:
+        return word - 2 ** 32 if word >= 2 ** 31 else word      # a signed register, extended
     if reg.format == "int":
         return word
     signed = word - 2 ** 32 if word >= 2 ** 31 else word
