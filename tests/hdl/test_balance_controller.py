@@ -208,3 +208,44 @@ def test_registers_read_back_and_reset():
         assert seen[("before", name)] == expected[name], name
         assert seen[("after", name)] == seen[("wrote", name)], name
         assert seen[("reset", name)] == expected[name], name
+
+
+def test_the_command_channel_reaches_its_registers():
+    """Space 0x03 through the command decoder's executor: a gain written and read back, a
+    value out of range refused, a read-only register refused."""
+    from amaranth.hdl import Module
+    from amaranth.lib import wiring
+    from mpu9250_ahrs.hdl.contract.commands import RESULTS
+    from mpu9250_ahrs.hdl.engine.register_map import HOST_WRITABLE
+    from mpu9250_ahrs.hdl.link.command_decoder import CommandDecoder
+    from mpu9250_ahrs.host.protocol import encode_command, to_python
+    dec = CommandDecoder(writable=HOST_WRITABLE, version=1, timeout=200)
+    dut = BalanceController(clk_freq=4e6)
+    top = Module()
+    top.submodules.dec, top.submodules.dut = dec, dut
+    wiring.connect(top, dec.control, dut.bus)
+    commands = [("write", BALANCE_REGS["BAL_KP"], -7), ("read", BALANCE_REGS["BAL_KP"], None),
+                ("write", BALANCE_REGS["BAL_STALE"], 0), ("write", BALANCE_REGS["BAL_DUTY"], 1)]
+    replies = []
+
+    async def bench(ctx):
+        ctx.set(dec.replies.ready, 1)
+        for k, (name, addr, value) in enumerate(commands):
+            for byte in encode_command(name, k, addr=addr, value=value, space="control"):
+                ctx.set(dec.i_stream.valid, 1)
+                ctx.set(dec.i_stream.payload, byte)
+                await ctx.tick().until(dec.i_stream.ready)
+            ctx.set(dec.i_stream.valid, 0)
+            while not ctx.get(dec.replies.valid):
+                await ctx.tick()
+            replies.append(to_python(ctx.get(dec.replies.payload)))
+            await ctx.tick()
+
+    sim = Simulator(top)
+    sim.add_clock(1e-6)
+    sim.add_testbench(bench)
+    sim.run()
+    assert [r["result"] for r in replies] == [RESULTS["ok"], RESULTS["ok"], RESULTS["refused"],
+                                              RESULTS["refused"]]
+    assert replies[1]["value"] == (-7) & 0xFFFFFFFF
+    assert replies[0]["addr"] == 0x0300 | BALANCE_REGS["BAL_KP"]

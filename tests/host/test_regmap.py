@@ -44,3 +44,18 @@ def test_every_register_round_trips_its_range_ends():
             step = 360 / 2 ** 32 if reg.format == "BAM32" else (
                 1 if reg.format == "int" else 2.0 ** -int(reg.format.split(".")[1]))
             assert abs(back - value) <= step, (reg.name, value, back)
+
+
+def test_the_balance_controllers_registers_by_name():
+    """Space 0x03 (issue #57): each BAL_ register by name with the controller's own range; a
+    signed one written as its two's complement and read back signed; the read-only ones (status,
+    duty) not writable."""
+    from mpu9250_ahrs.hdl.contract.balance_regs import BALANCE_REGS, BALANCE_WIDTHS
+    for name, addr in BALANCE_REGS.items():
+        reg = lookup(name)
+        assert (reg.space, reg.addr, reg.writable) == ("control", addr, name in BALANCE_WIDTHS)
+    kp = lookup("BAL_KP")
+    assert value_range(kp) == (-(1 << 17), (1 << 17) - 1)
+    assert to_word(kp, "-5") == -5 and from_word(kp, 2 ** 32 - 5) == -5
+    with pytest.raises(ValueError, match="BAL_STALE: 0 is out of range 1 .. 255"):
+        to_word(lookup("BAL_STALE"), "0")
