@@ -36,6 +36,12 @@ def add_twin(sub, quiet):
                    metavar="L", help="with --loop host: how long after its last byte the host "
                                      "has a frame (an FTDI adapter's latency timer: 16 ms by "
                                      "default, 1 at best; default 1)")
+    p.add_argument("--fault", default=None, metavar="NAME",
+                   help="with --loop chip: a fault of the catalogue (simulate --fault list) "
+                        "injected with the controller armed, for good: the summary says when "
+                        "the motors were off (disarmed_after_ms)")
+    p.add_argument("--fault-at", type=_positive, default=1.0, metavar="S",
+                   help="the fault's time after arming (default 1 s)")
     p.add_argument("--plot", default=None, metavar="FILE",
                    help="an image of the tilt, the controller's tilt, the duty and the pushes")
     p.add_argument("--vcd", default=None, metavar="FILE",
@@ -57,7 +63,8 @@ def cmd_twin(args):
     with bar(total=round(args.seconds), desc="twin", unit="s") as shown:
         summary = run_twin(args.seconds, loop=args.loop, pushes=pushes, tilt_deg=args.tilt,
                            trace=trace, progress=lambda t: shown.update(1) if t else None,
-                           host_latency_ms=args.host_latency_ms or 1.0)
+                           host_latency_ms=args.host_latency_ms or 1.0, fault=args.fault,
+                           fault_at_s=args.fault_at)
     if args.plot:
         _plot(trace, args.plot, summary)
     print(json.dumps(summary), file=sys.stdout)

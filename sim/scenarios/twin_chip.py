@@ -84,11 +84,14 @@ class _Sensor:
 
 
 def run_chip_loop(plant, seconds, *, pushes, gains, on_sample, sign=1, seed=1,
-                  compiled=True, progress=None):
+                  compiled=True, progress=None, fault=None, fault_at_s=1.0):
     """Runs the loop; ``on_sample(t, duty, pitch_rad)`` is called once a sample period (1 ms)
     with the duty applied over it (the mean of its plant steps: a PWM period, 1,024 cycles,
     is longer than a step) and the gateware's last pitch; it returns False to stop (the plant
-    fell). Returns the dict of what the run saw (cycles, when it was armed, the simulator)."""
+    fell). ``fault``: a name of the fault catalogue (``sim/scenarios/faults.py``) switched on
+    ``fault_at_s`` after arming, for good: the controller must disarm (``disarmed_after_ms``:
+    from the fault to the PWM pins low for the rest of the run, None if they were not).
+    Returns the dict of what the run saw (cycles, when it was armed, the simulator)."""
     from ...hdl.board.top import AHRSCore
     setup = SimSetup(clk_freq=CHIP_CLOCK_HZ, odr_scale=1.0, ak_clock_error=-0.55)
     held_tilt = plant.psi
@@ -96,6 +99,15 @@ def run_chip_loop(plant, seconds, *, pushes, gains, on_sample, sign=1, seed=1,
     ak = setup.ak8963(source=sensor.field)
     sensor.asa_factor = np.array([(a + 128) / 256 for a in ak.asa])
     model = setup.model(source=sensor.sample, aux_devices={A.I2C_ADDRESS: ak})
+    injector = None
+    if fault is not None:
+        from .faults import FAULTS, FaultInjector
+        if fault not in FAULTS:
+            raise ValueError(f"no fault {fault!r} in the catalogue")
+        # armed after the settling; the fault that many samples later (``at`` counts the
+        # samples the design read: set when the loop starts)
+        injector = FaultInjector(FAULTS[fault], at=1 << 40, duration=None,
+                                 period_s=1 / setup.config.output_data_rate, mpu=model)
     core_kwargs = dict(clk_freq=setup.clk_freq, config=setup.config,
                        timing=setup.driver_timing(), baud=setup.clk_freq / 4,
                        controller="balance", attitude_port=True,
@@ -107,9 +119,10 @@ def run_chip_loop(plant, seconds, *, pushes, gains, on_sample, sign=1, seed=1,
                "attitude_payload": core.attitude.payload, "status": core.status}
     bench = open_bench(harness, inputs, outputs, setup.clk_freq, compiled=compiled,
                        name="twin", key=core_key("twin", **core_kwargs),
-                       models=PinModels(setup.clk_freq, mpu=model))
+                       models=PinModels(setup.clk_freq, mpu=model, injector=injector))
     seen = {"armed_at_cycle": None, "simulator": "compiled" if bench.compiled else "python",
             "motor_b_mismatch_steps": 0}
+    last_on = [None]                    # the last cycle a PWM pin was high
     per_sample = round(setup.clk_freq / 1000 / STEP_CYCLES)
     dt = STEP_CYCLES / setup.clk_freq
 
@@ -126,6 +139,8 @@ def run_chip_loop(plant, seconds, *, pushes, gains, on_sample, sign=1, seed=1,
         plant.psi = held_tilt
         bench.set("arm", 1)
         seen["armed_at_cycle"] = bench.cycle
+        if injector is not None:
+            injector.at = len(model.sample_reads) + round(fault_at_s * 1000)
         steps = round(seconds / dt)
         duties = []
         for k in range(steps):
@@ -139,6 +154,8 @@ def run_chip_loop(plant, seconds, *, pushes, gains, on_sample, sign=1, seed=1,
                 for ch in range(4):
                     if levels >> ch & 1:
                         high[ch] += now - last
+                if levels:
+                    last_on[0] = now
                 last, levels = now, bench.get("pwm")
                 if now >= end:
                     break
@@ -158,4 +175,11 @@ def run_chip_loop(plant, seconds, *, pushes, gains, on_sample, sign=1, seed=1,
 
     bench.run(scenario)
     seen["cycles"] = bench.cycle
+    if injector is not None:
+        seen["fault"] = fault
+        seen["fault_injected"] = injector.injected_at is not None
+        if injector.injected_at is not None:
+            at_cycle = injector.injected_at * setup.clk_freq
+            off = max(at_cycle, last_on[0] or 0)
+            seen["disarmed_after_ms"] = round((off - at_cycle) / setup.clk_freq * 1e3, 3)
     return seen

@@ -103,3 +103,13 @@ def test_the_host_loop_runs_through_the_uart():
     than the samples."""
     summary = run_twin(1, loop="host", host_latency_ms=1.0)
     assert summary["upright"] and 300 < summary["updates"] < 1000, summary
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("fault", ["cipo_stuck_high", "int_stuck_low"])
+def test_a_sensor_fault_stops_the_motors(fault):
+    """The fault catalogue with the controller armed (issue #57): the sensor's data go bad or
+    stop; no result comes, the controller trips (stale) and every PWM pin stays low from then
+    on, within BAL_STALE's periods (5 ms); the robot then falls, motors off."""
+    summary = run_twin(1.2, loop="chip", fault=fault, fault_at_s=0.5)
+    assert summary["fault_injected"] and summary["disarmed_after_ms"] <= 6.0, summary
