@@ -19,17 +19,17 @@ Fixed point, per result (``BalanceFixed.step``: every format, rounding and satur
 
 - e = (angle − set-point·2¹⁶) mod 2³² >> 16 (arithmetic): signed 16 bits, 2¹⁶ = 360°
   (the angle is BAM32, the set-point in e's units).
-- ω = sat16(g − ⌊b / 2¹⁶⌋), negated first if ``rate_negate``: g the gyro's raw count of the
+- ω = sat16(g − ⌊b / 2¹⁶⌋) (a rate of the other sign: Kd's sign): g the gyro's raw count of the
   axis, b the engine's bias estimate of it (Q16.16 counts).
 - Disarmed (at reset, by a command, or by a trip): u = 0, and the integral, the duty's
   low-pass and the last duty are 0. A trip (the same result: ``step`` returns the duty 0):
   |e| > cutoff (fallen over), a driver fault, or more than ``stale`` sample periods without a
   new result (``BalanceFixed.period``).
 - i = clamp(i + e, ±i_limit), i_limit < 2²³ (24 bits).
-- w = w + ((u₋₁·2¹⁶ − w) >> kv_shift) (arithmetic shift, 32 bits: u₋₁ the duty of the
-  previous result, applied since).
-- a = Kp·e + Kd·ω + Ki·(i >> 8) + Kv·(w >> 16): gains signed 18 bits, the operands 16 bits
-  (|w| < 2²⁶: w >> 16 is the duty's 11 bits), each product exact (36 bits), the sum exact.
+- w = w + ((u₋₁·2⁸ − w) >> kv_shift) (arithmetic shift; |w| < 2¹⁸, 19 bits: u₋₁ the duty
+  of the previous result, applied since).
+- a = Kp·e + Kd·ω + Ki·(i >> 8) + Kv·(w >> 8): gains signed 18 bits, the operands 16 bits
+  (w >> 8 is the duty's 11 bits), each product exact (36 bits), the sum exact.
 - u = clamp(a >> 8, ±out_limit) (arithmetic shift: towards −∞), |u| ≤ 1023: the duty in
   1/1024.
 """
@@ -38,7 +38,7 @@ import math
 from dataclasses import dataclass
 
 from ..hdl.contract.balance_regs import (DUTY_FULL, GAIN_BITS, GAIN_SHIFT, INTEGRAL_BITS,
-                                         INTEGRAL_SHIFT, TRIPS)
+                                         INTEGRAL_SHIFT, W_FRACTION)
 from .fixed_point import sat, wrap32
 
 
@@ -80,7 +80,6 @@ class BalanceFixedConfig:
     i_limit: int = 0
     stale: int = 5
     watchdog: int = 500
-    rate_negate: bool = False
 
     def __post_init__(self):
         for name in ("kp", "kd", "ki", "kv"):
@@ -96,7 +95,7 @@ class BalanceFixedConfig:
 
     @classmethod
     def from_gains(cls, gains=BalanceGains(), *, gyro_lsb_per_dps=16.4, sample_hz=1000.0,
-                   stale=5, rate_negate=False):
+                   stale=5):
         scale = DUTY_FULL << GAIN_SHIFT                  # a duty of 1 in the sum's units
         rad_per_lsb = math.radians(1.0 / gyro_lsb_per_dps)
         dt = 1.0 / sample_hz
@@ -113,13 +112,13 @@ class BalanceFixedConfig:
             out_limit=min(DUTY_FULL - 1, round(gains.out_limit * DUTY_FULL)),
             i_limit=min((1 << (INTEGRAL_BITS - 1)) - 1,
                         round(gains.i_limit * sample_hz * E_PER_RAD)),
-            stale=stale, rate_negate=rate_negate)
+            stale=stale)
 
 
 class BalanceFixed:
     """The fixed-point controller, one ``step`` per attitude result, ``period`` per sample
     period. ``armed`` (``by_host``: the watchdog applies); ``tripped``: the reason of the last
-    trip (``TRIPS``) or None; ``duty``: the last duty (signed, 1/1024)."""
+    trip (``balance_regs.TRIPS``) or None; ``duty``: the last duty (signed, 1/1024)."""
 
     def __init__(self, config):
         self.config = config
@@ -171,8 +170,6 @@ class BalanceFixed:
         c = self.config
         e = wrap32(angle - (c.setpoint << 16)) >> 16
         rate = sat(gyro - (bias_q16 >> 16), 16)
-        if c.rate_negate:
-            rate = sat(-gyro + (bias_q16 >> 16), 16)
         if not self.armed:
             return 0
         if fault:
@@ -183,9 +180,9 @@ class BalanceFixed:
             return 0
         self.stale_left = c.stale
         self.integral = max(-c.i_limit, min(c.i_limit, self.integral + e))
-        self.w = wrap32(self.w + (((self.duty << 16) - self.w) >> c.kv_shift))
+        self.w = self.w + (((self.duty << W_FRACTION) - self.w) >> c.kv_shift)
         a = c.kp * e + c.kd * rate + c.ki * (self.integral >> INTEGRAL_SHIFT) + \
-            c.kv * (self.w >> 16)
+            c.kv * (self.w >> W_FRACTION)
         self.duty = max(-c.out_limit, min(c.out_limit, a >> GAIN_SHIFT))
         return self.duty
 

@@ -4,7 +4,7 @@ gateware, the fixed-point reference (``reference/balance_control.py``) and the t
 same tables."""
 
 __all__ = ["BALANCE_REGS", "BALANCE_WIDTHS", "BALANCE_RESET", "TRIPS", "CONTROL_BITS",
-           "GAIN_BITS", "GAIN_SHIFT", "INTEGRAL_SHIFT", "INTEGRAL_BITS", "DUTY_BITS", "DUTY_FULL",
+           "GAIN_BITS", "GAIN_SHIFT", "INTEGRAL_SHIFT", "INTEGRAL_BITS", "W_FRACTION", "DUTY_BITS", "DUTY_FULL",
            "PWM_STEPS_MAX_HZ"]
 
 
@@ -15,17 +15,19 @@ GAIN_BITS = 18                  # the gains: signed, an 18x18 multiplier's opera
 GAIN_SHIFT = 8                  # the products' sum >> 8 is the duty
 INTEGRAL_SHIFT = 8              # the integral's word in the sum: i >> 8
 INTEGRAL_BITS = 24              # the integral: |i| <= BAL_I_LIMIT < 2^23
+W_FRACTION = 8                  # the duty's low-pass: the duty's units · 2^8
 PWM_STEPS_MAX_HZ = 25_000       # the motor PWM's frequency at most (1024 steps a period)
 
 # BAL_CONTROL's bits
-CONTROL_BITS = {"arm": 0, "roll": 1, "rate_negate": 2, "pin_arms": 3}
+CONTROL_BITS = {"arm": 0, "roll": 1, "pin_arms": 3}       # bit 2 reserved
 # why the controller disarmed itself (BAL_STATUS bits 4.., one-hot, the last trip's)
 TRIPS = ("fallen", "fault", "stale", "watchdog")
 
 # name: address (in the controller's register space)
 BALANCE_REGS = {
     "BAL_CONTROL": 0x00,     # bit 0 arm (1 arms, 0 disarms; reads 1 while armed), bit 1 the
-                             # axis (0 pitch, 1 roll), bit 2 negate the gyro rate, bit 3 the
+                             # axis (0 pitch, 1 roll), bit 2 reserved (a rate of the other sign:
+                             # BAL_KD's sign), bit 3 the
                              # arming pin arms (its rising edge) and disarms (its falling)
     "BAL_STATUS": 0x01,      # read only: bit 0 armed, bit 1 armed by the host (the watchdog
                              # applies), bits 7:4 the last trip (TRIPS, one-hot)

@@ -8,7 +8,7 @@ from amaranth.lib.wiring import In, Out
 
 from ..contract.balance_regs import (BALANCE_REGS, BALANCE_RESET, BALANCE_WIDTHS, CONTROL_BITS,
                                      DUTY_BITS, GAIN_BITS, GAIN_SHIFT, INTEGRAL_BITS,
-                                     INTEGRAL_SHIFT, PWM_STEPS_MAX_HZ, TRIPS)
+                                     INTEGRAL_SHIFT, PWM_STEPS_MAX_HZ, TRIPS, W_FRACTION)
 from ..link.board_bus import BoardBusSignature
 from ..primitives.memories import FrameRAM
 from ..primitives.multiplier import BLACKBOX_NAME
@@ -244,7 +244,6 @@ class BalanceController(wiring.Component):
         """One result's step: e and the rate latched with it, the trips, the integral and the
         low-pass, four products through one multiplier, the duty (the reference's order)."""
         roll = regs["BAL_CONTROL"][CONTROL_BITS["roll"]]
-        negate = regs["BAL_CONTROL"][CONTROL_BITS["rate_negate"]]
         # the gyro count of the axis chosen, as the engine takes the sample
         g = Signal(signed(16))
         with m.If(self.sample_taken):
@@ -257,15 +256,15 @@ class BalanceController(wiring.Component):
         fault = Signal()
         d = Signal(signed(18))
         m.d.comb += d.eq(g - bias[16:].as_signed())
-        rated = Mux(negate, -d, d)
+        rated = d
         with m.If(self.done):
             m.d.sync += [e.eq(angle[16:] - regs["BAL_SETPOINT"]),
                          rate.eq(Mux(rated > 32767, 32767, Mux(rated < -32768, -32768, rated))),
                          fault.eq(self.fault)]
-        # the integral within ±BAL_I_LIMIT (< 2^23): 24 bits; the low-pass of the duty·2^16
-        # (|duty| < 1024): within ±2^26, 27 bits (the reference's 32-bit words never wrap)
+        # the integral within ±BAL_I_LIMIT (< 2^23): 24 bits; the low-pass of the duty·2^8
+        # (|duty| < 1024): within ±2^18, 19 bits
         integral = Signal(signed(INTEGRAL_BITS))
-        w = Signal(signed(DUTY_BITS + 16))
+        w = Signal(signed(DUTY_BITS + W_FRACTION))
         acc = Signal(signed(GAIN_BITS * 2 + 2))
         index = Signal(range(4))
         operand = Signal(signed(GAIN_BITS))
@@ -298,7 +297,8 @@ class BalanceController(wiring.Component):
                     total = integral + e
                     m.d.sync += [
                         integral.eq(Mux(total > limit, limit, Mux(total < -limit, -limit, total))),
-                        w.eq(w + ((Cat(C(0, 16), self.duty).as_signed() - w) >> self.kv_shift)),
+                        w.eq(w + ((Cat(C(0, W_FRACTION), self.duty).as_signed() - w) >>
+                                  self.kv_shift)),
                         index.eq(0), acc.eq(0)]
                     m.d.comb += read_next.eq(0)
                     m.next = "MAC"
@@ -347,7 +347,7 @@ class BalanceController(wiring.Component):
     def _operands(self, e, rate, integral, w):
         """The four products' variable operands, in the order of ``GAINS`` (the integral's
         word, 24 - 8 bits, fits 18 without saturating)."""
-        return [e, rate, integral >> INTEGRAL_SHIFT, w >> 16]
+        return [e, rate, integral >> INTEGRAL_SHIFT, w >> W_FRACTION]
 
     def _outputs(self, m):
         """Motor A and B alike: forward on channels 0 and 2, reverse on 1 and 3, each high for

@@ -44,12 +44,11 @@ ACCEL_LSB_PER_G = 2048              # the default ±16 g
 def controller_registers(gains, sign):
     """The controller's registers at reset for ``gains`` (``BalanceGains``): the build's
     ``controller_regs``. ``sign``: +1 if the attitude's pitch grows as the plant leans forward,
-    -1 if it falls (the gains and the rate then turn round); the arming pin arms it."""
+    -1 if it falls (the tilt's gains then turn round, and the rate's: the gyro's rate keeps its
+    sign); the arming pin arms it."""
     c = BalanceFixedConfig.from_gains(gains, gyro_lsb_per_dps=GYRO_LSB_PER_DPS)
     control = 1 << CONTROL_BITS["pin_arms"]
-    if sign < 0:
-        control |= 1 << CONTROL_BITS["rate_negate"]
-    return {"BAL_CONTROL": control, "BAL_KP": sign * c.kp, "BAL_KD": c.kd,
+    return {"BAL_CONTROL": control, "BAL_KP": sign * c.kp, "BAL_KD": sign * c.kd,
             "BAL_KI": sign * c.ki, "BAL_KV": c.kv, "BAL_SETPOINT": sign * c.setpoint,
             "BAL_CUTOFF": c.cutoff, "BAL_OUT_LIMIT": c.out_limit, "BAL_I_LIMIT": c.i_limit,
             "BAL_STALE": c.stale}

@@ -76,11 +76,9 @@ def _run(seed, events=1200):
                     continue
                 assert await _write(ctx, dut, name, value)
                 ref.config = dataclasses.replace(ref.config, **{FIELDS[name]: value})
-            elif kind < 0.22:                           # arm, disarm, the axis, the rate's sign
+            elif kind < 0.22:                           # arm, disarm, the axis
                 control = rng.randrange(8)
                 assert await _write(ctx, dut, "BAL_CONTROL", control)
-                ref.config = dataclasses.replace(
-                    ref.config, rate_negate=bool(control >> CONTROL_BITS["rate_negate"] & 1))
                 if control & 1:
                     ref.arm(by_host=True)
                 else:
