@@ -189,9 +189,15 @@ class RegisterExecutor(wiring.Component):
         for r in self.response:
             m.d.comb += [r.payload.result.eq(response.result), r.payload.value.eq(response.value),
                          r.payload.addr.eq(Cat(req.addr, req.space))]
-        m.d.comb += [self.cfg.payload.addr.eq(req.addr),
+        # the engine's address, registered with the response's value (as an engine access is
+        # set up): from a register, not through the front ends' multiplexer (with the AXI
+        # slave's port, that path into the engine's register file was the core's longest)
+        engine_addr = Signal(8, reset_less=True)
+        with m.If(load_fields):
+            m.d.sync += engine_addr.eq(req.addr)
+        m.d.comb += [self.cfg.payload.addr.eq(engine_addr),
                      self.cfg.payload.data.eq(response.value),
-                     self.cfg_read.payload.eq(req.addr),
+                     self.cfg_read.payload.eq(engine_addr),
                      *(bus.addr.eq(low) for bus in self._blocks().values()),
                      *(bus.w_data.eq(value) for bus in self._blocks().values())]
 
