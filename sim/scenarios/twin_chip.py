@@ -32,7 +32,7 @@ from .core import core_key
 from .setup import SimSetup
 
 
-__all__ = ["run_chip_loop", "CHIP_CLOCK_HZ"]
+__all__ = ["run_chip_loop", "plant_models", "CHIP_CLOCK_HZ"]
 
 CHIP_CLOCK_HZ = 4e6
 STEP_CYCLES = 400                   # a plant step: 0.1 ms
@@ -82,6 +82,17 @@ class _Sensor:
         return tuple(int(round(v)) for v in raw)
 
 
+def plant_models(plant, seed):
+    """The twin's set-up (4 MHz, the sensor's real 1 kHz) and its MPU9250 model with an
+    AK8963 behind it, both reading ``plant`` (``_Sensor``, noise from ``seed``): the chip
+    loop's and the host loop's."""
+    setup = SimSetup(clk_freq=CHIP_CLOCK_HZ, odr_scale=1.0, ak_clock_error=-0.55)
+    sensor = _Sensor(plant, np.random.default_rng(seed))
+    ak = setup.ak8963(source=sensor.field)
+    sensor.asa_factor = np.array([(a + 128) / 256 for a in ak.asa])
+    return setup, setup.model(source=sensor.sample, aux_devices={A.I2C_ADDRESS: ak})
+
+
 def run_chip_loop(plant, seconds, *, pushes, gains, on_sample, sign=1, seed=1,
                   compiled=True, progress=None, fault=None, fault_at_s=1.0):
     """Runs the loop; ``on_sample(t, duty, pitch_rad)`` is called once a sample period (1 ms)
@@ -92,12 +103,8 @@ def run_chip_loop(plant, seconds, *, pushes, gains, on_sample, sign=1, seed=1,
     from the fault to the PWM pins low for the rest of the run, None if they were not).
     Returns the dict of what the run saw (cycles, when it was armed, the simulator)."""
     from ...hdl.board.top import AHRSCore
-    setup = SimSetup(clk_freq=CHIP_CLOCK_HZ, odr_scale=1.0, ak_clock_error=-0.55)
+    setup, model = plant_models(plant, seed)
     held_tilt = plant.psi
-    sensor = _Sensor(plant, np.random.default_rng(seed))
-    ak = setup.ak8963(source=sensor.field)
-    sensor.asa_factor = np.array([(a + 128) / 256 for a in ak.asa])
-    model = setup.model(source=sensor.sample, aux_devices={A.I2C_ADDRESS: ak})
     injector = None
     if fault is not None:
         from .faults import FAULTS, FaultInjector

@@ -17,9 +17,6 @@ is for.
 
 import math
 
-import numpy as np
-
-from ...hdl.contract import ak8963_regs as A
 from ...hdl.contract.pwm_regs import PWM_REGS
 from ...hdl.link.frame_types import ATTITUDE
 from ...host.protocol import FrameDecoder, encode_command
@@ -28,8 +25,7 @@ from ..bench.harness import CosimHarness, PinModels
 from ..bench.open_bench import open_bench
 from .board import line_segments
 from .core import core_key
-from .setup import SimSetup
-from .twin_chip import CHIP_CLOCK_HZ, GYRO_LSB_PER_DPS, SETTLE_S, STEP_CYCLES, _Sensor
+from .twin_chip import GYRO_LSB_PER_DPS, SETTLE_S, STEP_CYCLES, plant_models
 
 
 __all__ = ["run_host_loop"]
@@ -83,12 +79,8 @@ def run_host_loop(plant, seconds, *, pushes, gains, on_sample, latency_ms=1.0, s
     duty and the host's last pitch); the host sees each frame ``latency_ms`` after its last
     byte. Returns what the run saw (cycles, updates, the simulator)."""
     from ...hdl.board.top import AHRSCore
-    setup = SimSetup(clk_freq=CHIP_CLOCK_HZ, odr_scale=1.0, ak_clock_error=-0.55)
+    setup, model = plant_models(plant, seed)
     held_tilt = plant.psi
-    sensor = _Sensor(plant, np.random.default_rng(seed))
-    ak = setup.ak8963(source=sensor.field)
-    sensor.asa_factor = np.array([(a + 128) / 256 for a in ak.asa])
-    model = setup.model(source=sensor.sample, aux_devices={A.I2C_ADDRESS: ak})
     core_kwargs = dict(clk_freq=setup.clk_freq, config=setup.config,
                        timing=setup.driver_timing(), baud=setup.clk_freq / 4)
     core = AHRSCore(**core_kwargs)
