@@ -17,7 +17,10 @@ PORT_NOTES = (
     ("uart_tx", "telemetry and replies out, 8N1 (hdl/FRAMES.md)"),
     ("uart_rx", "commands in, 8N1 (idle high)"),
     ("raw_mode", "high while the host asked for raw sensor frames"),
-    ("pwm", "the four PWM outputs (commands set them)"),
+    ("pwm", "the four PWM outputs (commands set them; with --controller balance, its two "
+            "H-bridges: 0/1 motor A forward/reverse, 2/3 motor B)"),
+    ("arm", "the balance controller's arming input (BAL_CONTROL bit 3: its rising edge arms, "
+            "its falling edge disarms; tie low if unused)"),
     ("status", "the driver's DriverStatus, live (bit 0 streaming)"),
     ("asa", "the AK8963's sensitivity adjustment bytes, read at bring-up"),
     ("samples_seen", "samples read, wrapping: a heartbeat for an LED"),
