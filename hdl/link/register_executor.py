@@ -117,7 +117,8 @@ class RegisterExecutor(wiring.Component):
             arbiter's): a request waits until it does (24 cycles at most, after every 256th
             frame), so that a read of FRAMES_SENT gets the count.
     Latency: a board, PWM or ANSWER request is answered (its response valid, its request
-    taken) two cycles after it is offered, or once ``frames_stable`` rises; an engine access
+    taken) two cycles after it is offered (three with more than one port: the request is
+    copied first), or once ``frames_stable`` rises; an engine access
     waits in addition until the engine takes it (``WORST_UPDATE_CYCLES`` at most) and, for a
     read, its word (one cycle). Throughput: a request at a time.
     """
@@ -154,8 +155,8 @@ class RegisterExecutor(wiring.Component):
 
     def documented_use(self):
         """What a front end must do: keep its request valid (and still) until it is taken;
-        the stream rule, stated for every state the executor reaches (its response's address
-        and the engine's addresses are the request's)."""
+        the stream rule, stated for every state the executor reaches (with one port its
+        response's address is the request's)."""
         valid = Array(r.valid for r in self.request)[self._port] if self.ports > 1 else \
             self.request[0].valid
         return self._idle | valid
@@ -177,10 +178,15 @@ class RegisterExecutor(wiring.Component):
             for k in reversed(range(self.ports)):
                 with m.If(self.request[k].valid):
                     m.d.comb += pick.eq(k)
+            # the chosen request copied as it is taken up (LOAD follows IDLE): what the
+            # register blocks and EXECUTE see starts from registers, not from the ports'
+            # multiplexer (in the AXI build that path into the PWM block's registers was the
+            # core's longest, report --timing)
+            req = Signal(RegisterRequest, reset_less=True)
             with m.If(idle & offered):
-                m.d.sync += port.eq(pick)
-            req = Signal(RegisterRequest)
-            m.d.comb += req.eq(Array(r.payload for r in self.request)[Mux(idle, pick, port)])
+                m.d.sync += [port.eq(pick),
+                             req.eq(Array(r.payload for r in self.request)[pick])]
+        loading = Signal()                  # the cycle before EXECUTE's first
         low, space, value = req.addr, req.space, req.value
         response, fields, load_fields, load_result, result = self._response(
             m, req, counters.r_data)
@@ -231,6 +237,10 @@ class RegisterExecutor(wiring.Component):
             with m.State("IDLE"):
                 m.d.comb += idle.eq(1)
                 with m.If(offered):
+                    m.next = "EXECUTE" if self.ports == 1 else "LOAD"
+            if self.ports > 1:
+                with m.State("LOAD"):
+                    m.d.comb += loading.eq(1)
                     m.next = "EXECUTE"
             with m.State("EXECUTE"):
                 # while the frame count is not stable (``frames_stable``), every request
@@ -261,8 +271,9 @@ class RegisterExecutor(wiring.Component):
         # ``frames_stable`` (the RAM's read port goes back to the counting otherwise)
         def board_read(r):
             return (r.op == RegisterOp.READ) & (r.space == SPACES["board"])
+        first = (idle & offered) if self.ports == 1 else loading
         self._counters(m, counters, low=low, read=board_read(req) & (
-            (idle & offered) | (fsm.ongoing("EXECUTE") & ~self.frames_stable)))
+            first | (fsm.ongoing("EXECUTE") & ~self.frames_stable)))
         return m
 
     def _response(self, m, req, count):
