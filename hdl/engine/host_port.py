@@ -36,8 +36,8 @@ def control_accepted(data):
 def write_allowed(addr, data, writable=None):
     """1 where a host's write of ``data`` to engine address ``addr`` is one the engine takes:
     ``addr`` one of ``writable`` (None: any) and, to CONTROL, a word ``control_accepted``
-    takes. The one rule: the engine's port applies it, the command decoder answers "refused"
-    by it before it sends a write, the AXI slave answers SLVERR by it."""
+    takes. The one rule: the engine's port applies it, and the register executor refuses a
+    write by it before sending it (the command decoder's "refused", the AXI slave's SLVERR)."""
     in_map = C(1) if writable is None else address_in(addr, writable)
     return in_map & ((addr != CONTROL_ADDR) | control_accepted(data))
 
