@@ -32,7 +32,7 @@ from .core import core_key
 from .setup import SimSetup
 
 
-__all__ = ["run_chip_loop", "plant_models", "CHIP_CLOCK_HZ"]
+__all__ = ["run_chip_loop", "plant_models", "PwmMeter", "SampleFeed", "CHIP_CLOCK_HZ"]
 
 CHIP_CLOCK_HZ = 4e6
 STEP_CYCLES = 400                   # a plant step: 0.1 ms
@@ -82,6 +82,50 @@ class _Sensor:
         return tuple(int(round(v)) for v in raw)
 
 
+class PwmMeter:
+    """The PWM pins' high cycles, counted edge by edge as the bench clocks (the chip and host
+    loops'): ``levels`` the pins now, ``last`` the cycle they were last looked at,
+    ``last_on`` the last cycle any pin was high."""
+
+    def __init__(self, bench):
+        self.levels, self.last, self.last_on = bench.get("pwm"), bench.cycle, None
+
+    async def until(self, bench, stop, high):
+        """Clocks to ``stop``, adding to ``high[ch]`` the cycles pin ``ch`` was high (the
+        first ``len(high)`` pins)."""
+        while bench.cycle < stop:
+            await bench.changed("pwm", until=stop)
+            now = bench.cycle
+            for ch in range(len(high)):
+                if self.levels >> ch & 1:
+                    high[ch] += now - self.last
+            if self.levels:
+                self.last_on = now
+            self.last, self.levels = now, bench.get("pwm")
+
+
+class SampleFeed:
+    """The plant steps' duties averaged over each sample period, handed on with the pitch the
+    loop saw (``on_sample(t, duty, pitch)``, False to stop), progress every 1,000 samples."""
+
+    def __init__(self, per_sample, on_sample, progress, seconds):
+        self.per_sample, self.on_sample = per_sample, on_sample
+        self.progress, self.seconds = progress, seconds
+        self.duties = []
+
+    def step(self, k, t, duty, pitch):
+        """Plant step ``k`` at ``t`` applied ``duty``; ``pitch()`` the loop's pitch (rad).
+        False once ``on_sample`` says stop."""
+        self.duties.append(duty)
+        if len(self.duties) < self.per_sample:
+            return True
+        if self.progress and k % (self.per_sample * 1000) == self.per_sample - 1:
+            self.progress(t / self.seconds)
+        mean = sum(self.duties) / self.per_sample
+        self.duties.clear()
+        return self.on_sample(t, mean, pitch())
+
+
 def plant_models(plant, seed):
     """The twin's set-up (4 MHz, the sensor's real 1 kHz) and its MPU9250 model with an
     AK8963 behind it, both reading ``plant`` (``_Sensor``, noise from ``seed``): the chip
@@ -128,8 +172,9 @@ def run_chip_loop(plant, seconds, *, pushes, gains, on_sample, sign=1, seed=1,
                        models=PinModels(setup.clk_freq, mpu=model, injector=injector))
     seen = {"armed_at_cycle": None, "simulator": "compiled" if bench.compiled else "python",
             "motor_b_mismatch_steps": 0}
-    last_on = [None]                    # the last cycle a PWM pin was high
-    per_sample = round(setup.clk_freq / 1000 / STEP_CYCLES)
+    feed = SampleFeed(round(setup.clk_freq / 1000 / STEP_CYCLES), on_sample, progress,
+                      seconds)
+    meter = []
     dt = STEP_CYCLES / setup.clk_freq
 
     async def scenario(bench):
@@ -147,37 +192,20 @@ def run_chip_loop(plant, seconds, *, pushes, gains, on_sample, sign=1, seed=1,
         seen["armed_at_cycle"] = bench.cycle
         if injector is not None:
             injector.at = len(model.sample_reads) + round(fault_at_s * 1000)
-        steps = round(seconds / dt)
-        duties = []
-        for k in range(steps):
+        meter.append(PwmMeter(bench))
+
+        def pitch():
+            return sign * bench.get("attitude_payload")["angles"][1] * 2 * math.pi / 2 ** 32
+        for k in range(round(seconds / dt)):
             t = k * dt
-            end = bench.cycle + STEP_CYCLES
-            last, levels = bench.cycle, bench.get("pwm")
             high = [0, 0, 0, 0]
-            while True:
-                await bench.changed("pwm", until=end)
-                now = bench.cycle
-                for ch in range(4):
-                    if levels >> ch & 1:
-                        high[ch] += now - last
-                if levels:
-                    last_on[0] = now
-                last, levels = now, bench.get("pwm")
-                if now >= end:
-                    break
+            await meter[0].until(bench, bench.cycle + STEP_CYCLES, high)
             if high[:2] != high[2:]:
                 seen["motor_b_mismatch_steps"] += 1
             duty = (high[0] - high[1]) / STEP_CYCLES
             plant.step(dt, duty, sum(p.force(t) for p in pushes))
-            duties.append(duty)
-            if len(duties) == per_sample:
-                pitch = bench.get("attitude_payload")["angles"][1]
-                if progress and k % (per_sample * 1000) == per_sample - 1:
-                    progress(t / seconds)
-                if not on_sample(t, sum(duties) / per_sample,
-                                 sign * pitch * 2 * math.pi / 2 ** 32):
-                    break
-                duties.clear()
+            if not feed.step(k, t, duty, pitch):
+                break
 
     bench.run(scenario)
     seen["cycles"] = bench.cycle
@@ -186,6 +214,6 @@ def run_chip_loop(plant, seconds, *, pushes, gains, on_sample, sign=1, seed=1,
         seen["fault_injected"] = injector.injected_at is not None
         if injector.injected_at is not None:
             at_cycle = injector.injected_at * setup.clk_freq
-            off = max(at_cycle, last_on[0] or 0)
+            off = max(at_cycle, (meter[0].last_on if meter else None) or 0)
             seen["disarmed_after_ms"] = round((off - at_cycle) / setup.clk_freq * 1e3, 3)
     return seen

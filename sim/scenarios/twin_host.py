@@ -25,7 +25,8 @@ from ..bench.harness import CosimHarness, PinModels
 from ..bench.open_bench import open_bench
 from .board import line_segments
 from .core import core_key
-from .twin_chip import GYRO_LSB_PER_DPS, SETTLE_S, STEP_CYCLES, plant_models
+from .twin_chip import (GYRO_LSB_PER_DPS, SETTLE_S, STEP_CYCLES, PwmMeter, SampleFeed,
+                        plant_models)
 
 
 __all__ = ["run_host_loop"]
@@ -95,7 +96,8 @@ def run_host_loop(plant, seconds, *, pushes, gains, on_sample, latency_ms=1.0, s
     host = _Host(gains, round(latency_ms * 1e-3 * setup.clk_freq), core.uart.divisor,
                  rate_hz=setup.config.output_data_rate / core.telemetry_divider)
     seen = {"simulator": "compiled" if bench.compiled else "python"}
-    per_sample = round(setup.clk_freq / 1000 / STEP_CYCLES)
+    feed = SampleFeed(round(setup.clk_freq / 1000 / STEP_CYCLES), on_sample, progress,
+                      seconds)
     dt = STEP_CYCLES / setup.clk_freq
 
     async def scenario(bench):
@@ -114,25 +116,18 @@ def run_host_loop(plant, seconds, *, pushes, gains, on_sample, latency_ms=1.0, s
         plant.psi = held_tilt
         sent.clear()
         host.decoder.drop()
-        duties = []
-        levels, last = bench.get("pwm"), bench.cycle
+        meter = PwmMeter(bench)
         for k in range(round(seconds / dt)):
             t = k * dt
-            end = bench.cycle + STEP_CYCLES
             high = [0, 0]
-            levels, last = await _step(bench, host, end, levels, high, last)
+            await _step(bench, host, bench.cycle + STEP_CYCLES, meter, high)
             host.received(bytes(sent), bench.cycle)
             sent.clear()
             host.run_due(bench.cycle)
             duty = (high[0] - high[1]) / STEP_CYCLES
             plant.step(dt, duty, sum(p.force(t) for p in pushes))
-            duties.append(duty)
-            if len(duties) == per_sample:
-                if progress and k % (per_sample * 1000) == per_sample - 1:
-                    progress(t / seconds)
-                if not on_sample(t, sum(duties) / per_sample, host.pitch):
-                    break
-                duties.clear()
+            if not feed.step(k, t, duty, lambda: host.pitch):
+                break
 
     bench.run(scenario)
     seen.update(cycles=bench.cycle, updates=host.updates)
@@ -148,9 +143,9 @@ async def _play(bench, host):
     bench.set("uart_rx", 1)
 
 
-async def _step(bench, host, end, levels, high, last):
+async def _step(bench, host, end, meter, high):
     """Clocks to ``end``: the host's line put on ``uart_rx`` edge by edge, the PWM pins'
-    high cycles (motor A's two channels) counted between their edges."""
+    high cycles (motor A's two channels, ``high``) counted by ``meter`` between them."""
     while bench.cycle < end:
         if host.line:
             level, cycles = host.line[0]
@@ -160,13 +155,7 @@ async def _step(bench, host, end, levels, high, last):
             bench.set("uart_rx", 1)
             stop = end
         start = bench.cycle
-        while bench.cycle < stop:
-            await bench.changed("pwm", until=stop)
-            now = bench.cycle
-            for ch in range(2):
-                if levels >> ch & 1:
-                    high[ch] += now - last
-            last, levels = now, bench.get("pwm")
+        await meter.until(bench, stop, high)
         if host.line:
             level, cycles = host.line[0]
             left = cycles - (bench.cycle - start)
@@ -174,4 +163,3 @@ async def _step(bench, host, end, levels, high, last):
                 host.line[0] = (level, left)
             else:
                 host.line.pop(0)
-    return levels, last
