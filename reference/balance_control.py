@@ -19,21 +19,25 @@ Fixed point, per result (``BalanceFixed.step``: every format, rounding and satur
 
 - e = (angle − set-point·2¹⁶) mod 2³² >> 16 (arithmetic): signed 16 bits, 2¹⁶ = 360°
   (the angle is BAM32, the set-point in e's units).
-- ω = sat16(g − ⌊b / 2¹⁶⌋) (a rate of the other sign: Kd's sign): g the gyro's raw count of the
-  axis, b the engine's bias estimate of it (Q16.16 counts).
+- ω = g − ⌊b / 2¹⁶⌋, signed 17 bits (no saturation: the multiplier's operand has 18; a rate
+  of the other sign: Kd's sign): g the gyro's raw count of the axis, b the engine's bias
+  estimate of it (Q16.16 counts).
 - Disarmed (at reset, by a command, or by a trip): u = 0, and the integral, the duty's
   low-pass and the last duty are 0. A trip (the same result: ``step`` returns the duty 0):
   |e| > cutoff (fallen over), a driver fault, or more than ``stale`` sample periods without a
   new result (``BalanceFixed.period``).
-- i = clamp(i + e, ±i_limit), i_limit < 2²³ (24 bits).
+- i = i + e if |i + e| ≤ i_limit, else i (conditional integration: the anti-windup of a clamp
+  without the clamp's bound), i_limit < 2²³ (24 bits). A write of i_limit sets i to 0
+  (``BalanceFixed.write``: a limit lowered below |i| would hold it there).
 - w = w + ((u₋₁·2⁸ − w) >> kv_shift) (arithmetic shift; |w| < 2¹⁸, 19 bits: u₋₁ the duty
   of the previous result, applied since).
 - a = Kp·e + Kd·ω + Ki·(i >> 8) + Kv·(w >> 8): gains signed 18 bits, the operands 16 bits
-  (w >> 8 is the duty's 11 bits), each product exact (36 bits), the sum exact.
+  (ω 17, w >> 8 the duty's 11 bits), each product exact, the sum exact.
 - u = clamp(a >> 8, ±out_limit) (arithmetic shift: towards −∞), |u| ≤ 1023: the duty in
   1/1024.
 """
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -143,6 +147,13 @@ class BalanceFixed:
         self.tripped = reason
         self._clear()
 
+    def write(self, **fields):
+        """Registers written (``BalanceFixedConfig``'s fields): the integral restarts at 0 when
+        ``i_limit`` is among them."""
+        self.config = dataclasses.replace(self.config, **fields)
+        if "i_limit" in fields:
+            self.integral = 0
+
     def kick(self):
         """A command accepted: the watchdog starts again (from ``watchdog`` as it is now)."""
         self.idle_left = self.config.watchdog
@@ -169,7 +180,7 @@ class BalanceFixed:
         ``fault``: the driver flags one. Returns the duty (0 while disarmed)."""
         c = self.config
         e = wrap32(angle - (c.setpoint << 16)) >> 16
-        rate = sat(gyro - (bias_q16 >> 16), 16)
+        rate = gyro - (bias_q16 >> 16)
         if not self.armed:
             return 0
         if fault:
@@ -179,7 +190,8 @@ class BalanceFixed:
             self.disarm("fallen")
             return 0
         self.stale_left = c.stale
-        self.integral = max(-c.i_limit, min(c.i_limit, self.integral + e))
+        if abs(self.integral + e) <= c.i_limit:
+            self.integral += e
         self.w = self.w + (((self.duty << W_FRACTION) - self.w) >> c.kv_shift)
         a = c.kp * e + c.kd * rate + c.ki * (self.integral >> INTEGRAL_SHIFT) + \
             c.kv * (self.w >> W_FRACTION)
@@ -198,7 +210,8 @@ class BalanceFloat:
     def step(self, tilt, rate):
         g = self.g
         e = tilt - math.radians(g.setpoint_deg)
-        self.integral = max(-g.i_limit, min(g.i_limit, self.integral + e * self.dt))
+        if abs(self.integral + e * self.dt) <= g.i_limit:     # as BalanceFixed
+            self.integral += e * self.dt
         self.w += self.dt / (g.tau_v + self.dt) * (self.u - self.w)
         u = g.kp * e + g.kd * rate + g.ki * self.integral + g.kv * self.w
         self.u = max(-g.out_limit, min(g.out_limit, u))

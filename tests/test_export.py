@@ -98,6 +98,22 @@ def test_build_i2c_wiring(tmp_path):
     assert 'set_location_assignment -to "imu_i2c_0__sda__io" PIN_L3' in qsf
 
 
+def test_the_controller_build_has_its_arming_pin(tmp_path):
+    """Issue #57: a robot runs with no host: the arming input is a pin of the board (Arduino
+    D2 on the MAX10 board; on the ULX3S GP11, pulled down so an open header never arms)."""
+    from mpu9250_ahrs.hdl.board.top import BoardTop
+    from mpu9250_ahrs.hdl.board.ulx3s import ULX3SPlatform
+    assert main(["build", "--out", str(tmp_path), "--controller", "balance"]) == 0
+    qsf = (tmp_path / "top.qsf").read_text()
+    assert 'set_location_assignment -to "arm_0__io" PIN_H5' in qsf
+    assert 'set_location_assignment -to "pwm_0__io" PIN_H4' in qsf
+    assert main(["build", "--out", str(tmp_path / "default")]) == 0
+    assert "arm_0__io" not in (tmp_path / "default" / "top.qsf").read_text()
+    lpf = ULX3SPlatform().build(BoardTop(clk_freq=48e6, controller="balance"), name="top",
+                                do_build=False).files["top.lpf"]
+    assert 'IOBUF PORT "arm_0__io" IO_TYPE=LVCMOS33 PULLMODE=DOWN;' in lpf
+
+
 def test_build_pin_override(tmp_path):
     assert main(["build", "--out", str(tmp_path), "--pin", "imu_sclk=J1"]) == 0
     assert 'set_location_assignment -to "imu_spi_0__clk__io" PIN_J1' in \

@@ -21,6 +21,10 @@ imu_sclk                  M1     PMOD pin 4: MPU9250 SCLK/SCL
 imu_int                   N3     PMOD pin 5: MPU9250 INT
 pwm0 .. pwm3              H4 J2 L12 K11  Arduino header D3 D5 D6 D9: PWM outputs (servo or
                                  motor style, low until enabled; ``hdl/link/pwm.py``)
+arm                       H5     Arduino header D2: the balance controller's arming input
+                                 (``build --controller balance`` only; active high, its
+                                 rising edge arms where BAL_CONTROL bit 3 allows; give it an
+                                 external pull-down: the MAX10 has only weak pull-ups)
 ========================  =====  ====================================================
 
 An I2C-wired MPU9250 board uses the same header: SCL on ``imu_sclk``, SDA on ``imu_copi``
@@ -50,6 +54,7 @@ DEFAULT_PINOUT = {
     "imu_sclk": "M1",
     "imu_int": "N3",
     **{f"pwm{i}": pin for i, pin in enumerate("H4 J2 L12 K11".split())},
+    "arm": "H5",
 }
 
 
@@ -98,6 +103,7 @@ class MAX10Platform(AlteraPlatform):
                      Subsignal("tx", Pins(pinout["uart_tx"], dir="o")),
                      Subsignal("rx", Pins(pinout["uart_rx"], dir="i")), io),
             *[Resource("pwm", i, Pins(pinout[f"pwm{i}"], dir="o"), io) for i in range(4)],
+            Resource("arm", 0, Pins(pinout["arm"], dir="i"), io),
             Resource("imu_spi", 0,
                      Subsignal("cs", PinsN(pinout["imu_cs_n"], dir="o")),
                      Subsignal("clk", Pins(pinout["imu_sclk"], dir="o")),

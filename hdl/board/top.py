@@ -648,6 +648,10 @@ class BoardTop(Elaboratable):
                 pwm = io.Buffer("o", platform.request("pwm", i, dir="-"))
                 m.submodules[f"pwm{i}"] = pwm
                 m.d.comb += pwm.o.eq(core.pwm[i])
+        if core.controller:
+            # the arming input (synchronised in the controller), from a pin of its own
+            m.submodules.arm = arm = io.Buffer("i", platform.request("arm", 0, dir="-"))
+            m.d.comb += core.arm.eq(arm.i)
 
         if config.wiring == "spi":
             imu = platform.request("imu_spi", 0, dir="-")

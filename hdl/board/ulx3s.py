@@ -18,6 +18,8 @@ imu_copi                  GP2     A9           SDI (I2C wiring: SDA, open drain)
 imu_cipo                  GP3     B9           SDO (I2C wiring: AD0, driven)
 imu_int                   GP4     A7           INT
 pwm0 .. pwm3              GP7-10  A6 A4 A2 C4  PWM outputs (low until enabled)
+arm                       GP11    F4           the balance controller's arming input
+                                               (``--controller balance``; pulled down)
 uart_tx / uart_rx         (FTDI)  L4 / M1      the USB serial port (``/dev/ttyUSB0``)
 led0 .. led7              (LEDs)  B2 ... H3    status LEDs, as on the MAX10 board
 ========================  ======  ===========  =========================================
@@ -37,7 +39,8 @@ __all__ = ["ULX3SPlatform", "ULX3S_PINS"]
 
 # name: the GPIO header's connector pin (``gpio 0``: "n+" is GPn)
 ULX3S_PINS = {"imu_cs_n": "0+", "imu_sclk": "1+", "imu_copi": "2+", "imu_cipo": "3+",
-              "imu_int": "4+", "pwm0": "7+", "pwm1": "8+", "pwm2": "9+", "pwm3": "10+"}
+              "imu_int": "4+", "pwm0": "7+", "pwm1": "8+", "pwm2": "9+", "pwm3": "10+",
+              "arm": "11+"}
 
 
 class ULX3SPlatform(ULX3S_25F_Platform):
@@ -57,6 +60,9 @@ class ULX3SPlatform(ULX3S_25F_Platform):
 
         self.resources = [*self.resources,
             *[Resource("pwm", i, pin(f"pwm{i}", "o"), io) for i in range(4)],
+            # the balance controller's arming input: pulled down, so a header left open
+            # never arms it
+            Resource("arm", 0, pin("arm", "i"), Attrs(IO_TYPE="LVCMOS33", PULLMODE="DOWN")),
             Resource("imu_spi", 0,
                      Subsignal("cs", pin("imu_cs_n", "o", inverted=True)),
                      Subsignal("clk", pin("imu_sclk", "o")),

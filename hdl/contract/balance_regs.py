@@ -37,7 +37,8 @@ BALANCE_REGS = {
     "BAL_KI": 0x05,
     "BAL_KV": 0x06,
     "BAL_OUT_LIMIT": 0x07,   # the largest |duty|: 0 .. 1023
-    "BAL_I_LIMIT": 0x08,     # the integral's bound: 0 .. 2^23 - 1 (e units x samples)
+    "BAL_I_LIMIT": 0x08,     # the integral's bound: 0 .. 2^23 - 1 (e units x samples): it
+                             # integrates only while it stays within; a write sets it to 0
     "BAL_CUTOFF": 0x09,      # |e| beyond it trips "fallen": 0 .. 32767
     "BAL_STALE": 0x0A,       # sample periods without a result before "stale": 1 .. 255
     "BAL_WATCHDOG": 0x0B,    # host-armed: sample periods without an accepted command before

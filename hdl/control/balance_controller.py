@@ -252,16 +252,15 @@ class BalanceController(wiring.Component):
         angle = Mux(roll, self.angles[0], self.angles[1])
         bias = Mux(roll, self.bias[0], self.bias[1])
         e = Signal(signed(16))
-        rate = Signal(signed(16))
+        rate = Signal(signed(17))               # 17 bits: no saturation (the operand has 18)
         fault = Signal()
-        d = Signal(signed(18))
-        m.d.comb += d.eq(g - bias[16:].as_signed())
-        rated = d
         with m.If(self.done):
             m.d.sync += [e.eq(angle[16:] - regs["BAL_SETPOINT"]),
-                         rate.eq(Mux(rated > 32767, 32767, Mux(rated < -32768, -32768, rated))),
+                         rate.eq(g - bias[16:].as_signed()),
                          fault.eq(self.fault)]
-        # the integral within ±BAL_I_LIMIT (< 2^23): 24 bits; the low-pass of the duty·2^8
+        # the integral within ±BAL_I_LIMIT (< 2^23): 24 bits, 0 again when the limit is
+        # written (it integrates only within the limit: one it passes would hold it); the
+        # low-pass of the duty·2^8
         # (|duty| < 1024): within ±2^18, 19 bits
         integral = Signal(signed(INTEGRAL_BITS))
         w = Signal(signed(DUTY_BITS + W_FRACTION))
@@ -288,15 +287,18 @@ class BalanceController(wiring.Component):
                 with m.If(self.done):
                     m.next = "CHECK"
             with m.State("CHECK"):
-                magnitude = Mux(e < 0, -e, e)
+                fallen, _ = self._beyond(m, e, regs["BAL_CUTOFF"], "cutoff")
                 m.d.comb += [trip["fault"].eq(self.armed & fault),
-                             trip["fallen"].eq(self.armed & ~fault &
-                                               (magnitude > regs["BAL_CUTOFF"]))]
-                with m.If(self.armed & ~fault & (magnitude <= regs["BAL_CUTOFF"])):
-                    limit = regs["BAL_I_LIMIT"]
-                    total = integral + e
+                             trip["fallen"].eq(self.armed & ~fault & fallen)]
+                with m.If(self.armed & ~fault & ~fallen):
+                    total = Signal(signed(INTEGRAL_BITS + 1))
+                    m.d.comb += total.eq(integral + e)
+                    # conditional integration: i + e if it is within the limit, else i held
+                    # (the anti-windup of a clamp without its bound's negation and multiplexer)
+                    over, _ = self._beyond(m, total, regs["BAL_I_LIMIT"], "i_limit")
+                    with m.If(~over):
+                        m.d.sync += integral.eq(total)
                     m.d.sync += [
-                        integral.eq(Mux(total > limit, limit, Mux(total < -limit, -limit, total))),
                         w.eq(w + ((Cat(C(0, W_FRACTION), self.duty).as_signed() - w) >>
                                   self.kv_shift)),
                         index.eq(0), acc.eq(0)]
@@ -318,10 +320,29 @@ class BalanceController(wiring.Component):
                 fits = (scaled[DUTY_BITS - 1:] == 0) | scaled[DUTY_BITS - 1:].all()
                 m.d.comb += short.eq(Mux(fits, scaled, Mux(scaled < 0, -(1 << (DUTY_BITS - 1)),
                                                            (1 << (DUTY_BITS - 1)) - 1)))
+                over, bound = self._beyond(m, short, limit, "out_limit")
                 with m.If(self.armed):
-                    m.d.sync += self.duty.eq(Mux(short > limit, limit,
-                                                 Mux(short < -limit, -limit, short)))
+                    m.d.sync += self.duty.eq(Mux(over, bound, short))
                 m.next = "IDLE"
+        # after the step's own assignment: a write of the limit always leaves the integral 0
+        with m.If(self.bus.w_en & self.bus.ok & regs["addressed"]["BAL_I_LIMIT"]):
+            m.d.sync += integral.eq(0)
+
+    @staticmethod
+    def _beyond(m, x, limit, name):
+        """Whether |``x``| > ``limit`` (unsigned), and the bound on ``x``'s side (±``limit``):
+        a clamp to ±limit with one carry chain and one negation, not two comparators, a
+        negation and a three-way multiplexer. With s the sign of x and x' = x XOR s (|x| - s),
+        x' + ~limit + s carries out of x's width exactly when |x| > limit."""
+        width = len(x)
+        assert len(limit) < width and not limit.shape().signed
+        sign = x[-1]
+        chain = Signal(width + 1, name=f"{name}_chain")
+        bound = Signal(signed(len(limit) + 1), name=f"{name}_bound")
+        wide = Cat(limit, C(0, width - len(limit)))         # zero-extended, then inverted
+        m.d.comb += [chain.eq((x.as_unsigned() ^ sign.replicate(width)) + ~wide + sign),
+                     bound.eq((Cat(limit, C(0, 1)) ^ sign.replicate(len(limit) + 1)) + sign)]
+        return chain[width], bound
 
     def _gains(self, m, read_next, index):
         """The gain of product ``index`` (signed 18): the gains' RAM read the cycle before at

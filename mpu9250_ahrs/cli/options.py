@@ -184,7 +184,8 @@ def _add_left_out_options(p, *, which=""):
                    help=f"with the balance controller{which}: a self-balancing robot's loop on "
                         f"the chip driving the four PWM outputs as two H-bridges (the PWM block "
                         f"left out), its registers in space 0x03 (hdl/contract/balance_regs.py), "
-                        f"an arming input (port arm); issue #57, in progress")
+                        f"an arming input (port arm; pin arm on the boards: Arduino D2 on the "
+                        f"MAX10 board, GP11 on the ULX3S)")
 
 
 def _clock(args):

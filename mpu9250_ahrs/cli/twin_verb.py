@@ -38,14 +38,25 @@ def add_twin(sub, quiet):
                                      "default, 1 at best; default 1)")
     p.add_argument("--fault", default=None, metavar="NAME",
                    help="with --loop chip: a fault of the catalogue (simulate --fault list) "
-                        "injected with the controller armed, for good: the summary says when "
-                        "the motors were off (disarmed_after_ms)")
+                        "injected with the controller armed, for its catalogue duration: the "
+                        "summary says when the motors were off (disarmed_after_ms) or that "
+                        "they ran on (motors_ran_on); the mid-run SPI faults "
+                        "(hdl/FAULTS.md)")
     p.add_argument("--fault-at", type=_positive, default=1.0, metavar="S",
                    help="the fault's time after arming (default 1 s)")
     p.add_argument("--plot", default=None, metavar="FILE",
                    help="an image of the tilt, the controller's tilt, the duty and the pushes")
     p.add_argument("--vcd", default=None, metavar="FILE",
-                   help="with --loop chip: the gateware's waveform (not built yet)")
+                   help="with --loop chip: the gateware's waveform (every signal of the core, "
+                        "traced by the compiled design: a build of its own) and a GTKWave "
+                        ".gtkw beside it; FILE ending in .fst: GTKWave's compressed format. "
+                        "The window: --trace-from/--trace-to, times from the arming; default "
+                        "its first 50 ms")
+    p.add_argument("--trace-from", default=None, metavar="WHEN",
+                   help="with --vcd: trace from WHEN after the arming (10ms, 2.9s); default 0")
+    p.add_argument("--trace-to", default=None, metavar="WHEN",
+                   help="with --vcd: trace until WHEN after the arming; default 50 ms after "
+                        "the start of the window")
     p.set_defaults(func=cmd_twin)
 
 
@@ -55,8 +66,8 @@ def cmd_twin(args):
     pushes = [parse_push(text) for text in args.push]
     if args.vcd and args.loop != "chip":
         raise ValueError("--vcd needs --loop chip: the waveform is the gateware's")
-    if args.vcd:
-        raise ValueError("--vcd: the chip loop's waveform is not built yet (issue #57 is open)")
+    from .simulation import _waveform
+    wave = _waveform(args)
     if args.host_latency_ms is not None and args.loop != "host":
         raise ValueError("--host-latency-ms needs --loop host")
     trace = TwinTrace() if args.plot else None
@@ -64,7 +75,7 @@ def cmd_twin(args):
         summary = run_twin(args.seconds, loop=args.loop, pushes=pushes, tilt_deg=args.tilt,
                            trace=trace, progress=lambda t: shown.update(1) if t else None,
                            host_latency_ms=args.host_latency_ms or 1.0, fault=args.fault,
-                           fault_at_s=args.fault_at)
+                           fault_at_s=args.fault_at, vcd=wave)
     if args.plot:
         _plot(trace, args.plot, summary)
     print(json.dumps(summary), file=sys.stdout)

@@ -136,7 +136,7 @@ def _controller(loop, gains):
 
 def run_twin(seconds, *, loop="model", pushes=(), gains=BalanceGains(), params=PlantParams(),
              tilt_deg=1.0, dt=1e-4, trace=None, progress=None, compiled=True, sign=1,
-             host_latency_ms=1.0, fault=None, fault_at_s=1.0):
+             host_latency_ms=1.0, fault=None, fault_at_s=1.0, vcd=None):
     """The plant from ``tilt_deg`` for ``seconds`` under ``loop``, ``pushes`` (``Push``)
     applied; returns the summary (a dict: upright, max_abs_pitch_deg, fell_at_s,
     pushes_recovered, pushes, loop, travel_m, wall_s; the chip loop's
@@ -146,7 +146,9 @@ def run_twin(seconds, *, loop="model", pushes=(), gains=BalanceGains(), params=P
     now and then. ``compiled``, ``sign``: the chip loop's (``twin_chip.run_chip_loop``);
     ``host_latency_ms``: the host loop's (``twin_host.run_host_loop``); ``fault``,
     ``fault_at_s``: the chip loop's, a fault of the catalogue injected with the controller
-    armed."""
+    armed; ``vcd``: the chip loop's waveform (a ``Waveform``: ``twin_chip.run_chip_loop``)."""
+    if vcd is not None and loop != "chip":
+        raise ValueError("a waveform is the gateware's: --loop chip")
     if fault is not None and loop != "chip":
         raise ValueError("a fault is injected into the co-simulated board: --loop chip")
     if loop not in LOOPS:
@@ -163,7 +165,8 @@ def run_twin(seconds, *, loop="model", pushes=(), gains=BalanceGains(), params=P
             from .twin_chip import run_chip_loop
             seen = run_chip_loop(plant, seconds, pushes=pushes, gains=gains,
                                  on_sample=on_sample, compiled=compiled, sign=sign,
-                                 progress=progress, fault=fault, fault_at_s=fault_at_s)
+                                 progress=progress, fault=fault, fault_at_s=fault_at_s,
+                                 vcd=vcd)
         else:
             from .twin_host import run_host_loop
             seen = run_host_loop(plant, seconds, pushes=pushes, gains=gains,

@@ -37,6 +37,8 @@ __all__ = ["run_chip_loop", "plant_models", "PwmMeter", "SampleFeed", "CHIP_CLOC
 CHIP_CLOCK_HZ = 4e6
 STEP_CYCLES = 400                   # a plant step: 0.1 ms
 SETTLE_S = 0.3                      # after the first result, before arming
+MOTORS_RUNNING_S = 0.05             # a fault's run: pins high this near its end: running
+DEFAULT_TRACE_S = 0.05              # --vcd without --trace-to: 50 ms from the arming
 GYRO_LSB_PER_DPS = 16.4             # the default ±2000 °/s
 ACCEL_LSB_PER_G = 2048              # the default ±16 g
 
@@ -137,14 +139,53 @@ def plant_models(plant, seed):
     return setup, setup.model(source=sensor.sample, aux_devices={A.I2C_ADDRESS: ak})
 
 
+# The catalogue's faults the twin runs (SPI-wired, mid-run, injected into the sensor models): the
+# controller stops the motors on the first group and rides through the second
+# (``tests/sim/test_balance_plant.py``)
+TWIN_FAULTS_STOP = ("cipo_stuck_high", "cipo_stuck_low", "int_stuck_low", "int_stuck_high",
+                    "mpu_reset")
+TWIN_FAULTS_RIDE = ("ak8963_lost", "ak8963_reset", "mag_overflow", "aux_stall", "rate_change",
+                    "data_bit_flip", "spurious_int")
+TWIN_FAULTS = TWIN_FAULTS_STOP + TWIN_FAULTS_RIDE
+_NOT_IN_TWIN = ("the twin is SPI-wired and arms after bring-up (no I2C or power-up fault), "
+                "and runs no host writer or stalled consumer (host_garbage, sensor_overrun)")
+
+
+def twin_trace(wave, core, clk_freq, wiring):
+    """The chip loop's ``RunTrace`` for ``wave`` (a ``Waveform`` whose time bounds count from
+    the arming, ``trace_window_at_arming``): the core's groups and the controller's."""
+    from ..bench.waveforms import RunTrace
+    from .frontend import status_fields
+    trace = RunTrace(wave, clk_freq, "core", wiring, status_fields(core.status))
+    trace.window.start = trace.window.stop = None       # until armed: nothing traced
+    trace.groups.append(("controller", [("dut.arm", 1, "arm"), ("dut.pwm", 4, "pwm"),
+                                        ("dut.balance.armed", 1, "armed"),
+                                        ("dut.balance.duty", 11, "duty")]))
+    return trace
+
+
+def trace_window_at_arming(trace, armed_cycle, clk_freq):
+    """The window, ``trace.wave``'s bounds counted from ``armed_cycle``: from the arming (or
+    ``start``) for ``DEFAULT_TRACE_S`` (or to ``stop``): a whole 10 s run would be gigabytes."""
+    wave = trace.wave
+    start_s = wave.start[1] if wave.start else 0.0
+    stop_s = wave.stop[1] if wave.stop else start_s + DEFAULT_TRACE_S
+    trace.window.start = armed_cycle + round(start_s * clk_freq)
+    trace.window.stop = armed_cycle + round(stop_s * clk_freq)
+    trace.window.on_change(*trace.window.cycles())
+
+
 def run_chip_loop(plant, seconds, *, pushes, gains, on_sample, sign=1, seed=1,
-                  compiled=True, progress=None, fault=None, fault_at_s=1.0):
+                  compiled=True, progress=None, fault=None, fault_at_s=1.0, vcd=None):
     """Runs the loop; ``on_sample(t, duty, pitch_rad)`` is called once a sample period (1 ms)
     with the duty applied over it (the mean of its plant steps: a PWM period, 1,024 cycles,
     is longer than a step) and the gateware's last pitch; it returns False to stop (the plant
     fell). ``fault``: a name of the fault catalogue (``sim/scenarios/faults.py``) switched on
-    ``fault_at_s`` after arming, for good: the controller must disarm (``disarmed_after_ms``:
-    from the fault to the PWM pins low for the rest of the run, None if they were not).
+    ``fault_at_s`` after arming, for the catalogue's duration (``disarmed_after_ms``: from the fault to the PWM
+    pins low for the rest of the run; None with ``motors_ran_on``, pins high in the run's
+    last 50 ms: a fault the controller rides through, the magnetometer's for one).
+    ``vcd``: a ``Waveform`` (time bounds from the arming; ``trace_window_at_arming``): the
+    compiled design traces it (a build of its own), a GTKWave save file beside it.
     Returns the dict of what the run saw (cycles, when it was armed, the simulator)."""
     from ...hdl.board.top import AHRSCore
     setup, model = plant_models(plant, seed)
@@ -156,7 +197,11 @@ def run_chip_loop(plant, seconds, *, pushes, gains, on_sample, sign=1, seed=1,
             raise ValueError(f"no fault {fault!r} in the catalogue")
         # armed after the settling; the fault that many samples later (``at`` counts the
         # samples the design read: set when the loop starts)
-        injector = FaultInjector(FAULTS[fault], at=1 << 40, duration=None,
+        if fault not in TWIN_FAULTS:
+            raise ValueError(f"the twin does not run the fault {fault!r}: {_NOT_IN_TWIN}; "
+                             f"it runs {', '.join(TWIN_FAULTS)}")
+        # for the catalogue's duration: a pulse stays a pulse, a line freed later is freed
+        injector = FaultInjector(FAULTS[fault], at=1 << 40, duration=FAULTS[fault].duration,
                                  period_s=1 / setup.config.output_data_rate, mpu=model)
     core_kwargs = dict(clk_freq=setup.clk_freq, config=setup.config,
                        timing=setup.driver_timing(), baud=setup.clk_freq / 4,
@@ -167,9 +212,18 @@ def run_chip_loop(plant, seconds, *, pushes, gains, on_sample, sign=1, seed=1,
     inputs = {"uart_rx": core.uart_rx, "arm": core.arm, "attitude_ready": core.attitude.ready}
     outputs = {"pwm": core.pwm, "attitude_valid": core.attitude.valid,
                "attitude_payload": core.attitude.payload, "status": core.status}
+    trace = None
+    if vcd is not None:
+        if any(bound and bound[0] != "s" for bound in (vcd.start, vcd.stop)):
+            raise ValueError("the twin's waveform window is in time from the arming (10ms, "
+                             "0.5s), not in samples")
+        if not compiled:
+            raise ValueError("the twin's waveform is traced by the compiled design")
+        trace = twin_trace(vcd, core, setup.clk_freq, setup.config.wiring)
     bench = open_bench(harness, inputs, outputs, setup.clk_freq, compiled=compiled,
                        name="twin", key=core_key("twin", **core_kwargs),
-                       models=PinModels(setup.clk_freq, mpu=model, injector=injector))
+                       models=PinModels(setup.clk_freq, mpu=model, injector=injector),
+                       trace=trace)
     seen = {"armed_at_cycle": None, "simulator": "compiled" if bench.compiled else "python",
             "motor_b_mismatch_steps": 0}
     feed = SampleFeed(round(setup.clk_freq / 1000 / STEP_CYCLES), on_sample, progress,
@@ -190,6 +244,8 @@ def run_chip_loop(plant, seconds, *, pushes, gains, on_sample, sign=1, seed=1,
         plant.psi = held_tilt
         bench.set("arm", 1)
         seen["armed_at_cycle"] = bench.cycle
+        if trace is not None:
+            trace_window_at_arming(trace, bench.cycle, setup.clk_freq)
         if injector is not None:
             injector.at = len(model.sample_reads) + round(fault_at_s * 1000)
         meter.append(PwmMeter(bench))
@@ -207,13 +263,21 @@ def run_chip_loop(plant, seconds, *, pushes, gains, on_sample, sign=1, seed=1,
             if not feed.step(k, t, duty, pitch):
                 break
 
-    bench.run(scenario)
+    bench.run(scenario, trace=trace)
     seen["cycles"] = bench.cycle
+    if trace is not None:
+        trace.finish(model, None, bench.cycle, len(model.sample_reads))
+        seen["vcd"] = vcd.path
     if injector is not None:
         seen["fault"] = fault
         seen["fault_injected"] = injector.injected_at is not None
         if injector.injected_at is not None:
             at_cycle = injector.injected_at * setup.clk_freq
-            off = max(at_cycle, (meter[0].last_on if meter else None) or 0)
-            seen["disarmed_after_ms"] = round((off - at_cycle) / setup.clk_freq * 1e3, 3)
+            last_on = (meter[0].last_on if meter else None) or 0
+            # pins high in the run's last MOTORS_RUNNING_S: the motors ran on (a fault the
+            # controller rides through), not disarmed
+            running = bench.cycle - last_on < MOTORS_RUNNING_S * setup.clk_freq
+            seen["motors_ran_on"] = running
+            seen["disarmed_after_ms"] = None if running else \
+                round((max(at_cycle, last_on) - at_cycle) / setup.clk_freq * 1e3, 3)
     return seen
