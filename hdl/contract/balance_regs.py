@@ -42,7 +42,7 @@ BALANCE_REGS = {
     "BAL_CUTOFF": 0x09,      # |e| beyond it trips "fallen": 0 .. 32767
     "BAL_STALE": 0x0A,       # sample periods without a result before "stale": 1 .. 255
     "BAL_WATCHDOG": 0x0B,    # host-armed: sample periods without an accepted command before
-                             # "watchdog": 0 (off) .. 65535
+                             # "watchdog": 0 (off) .. 4095 (4 s at 1 kHz)
     "BAL_DUTY": 0x0C,        # read only: the duty now (signed, 1/1024)
 }
 # writable registers: (bits, signed, lowest, highest)
@@ -55,7 +55,7 @@ BALANCE_WIDTHS = {
     "BAL_I_LIMIT": (INTEGRAL_BITS - 1, False, 0, (1 << (INTEGRAL_BITS - 1)) - 1),
     "BAL_CUTOFF": (15, False, 0, (1 << 15) - 1),
     "BAL_STALE": (8, False, 1, 255),
-    "BAL_WATCHDOG": (16, False, 0, 65535),
+    "BAL_WATCHDOG": (12, False, 0, 4095),
 }
 # the values at reset (a build may set others: ``BalanceController(config=...)``)
 BALANCE_RESET = {"BAL_CONTROL": 0, "BAL_STALE": 5, "BAL_WATCHDOG": 500}

@@ -52,7 +52,7 @@ class BalanceController(wiring.Component):
         ``kick`` (in): a pulse per accepted command.
         ``arm_pin`` (in, asynchronous): the arming input (synchronised here).
         ``pwm`` (out, 4), ``armed`` (out), ``duty`` (out, signed 11).
-    Latency: the duty is new 8 cycles after ``done``; a trip disarms 2 cycles after it.
+    Latency: the duty is new 9 cycles after ``done``; a trip disarms 2 cycles after it.
     Throughput: a result every 8 cycles.
     """
 
@@ -185,7 +185,7 @@ class BalanceController(wiring.Component):
         # trip in the period that finds 0 (down counters with a load: no comparator of a count
         # with a register)
         stale_left = Signal(8)
-        idle_left = Signal(16)
+        idle_left = Signal(BALANCE_WIDTHS["BAL_WATCHDOG"][0])
         with m.If(self.done | ~self.armed):
             m.d.sync += stale_left.eq(regs["BAL_STALE"])
         with m.Elif(self.period & (stale_left != 0)):
@@ -279,6 +279,10 @@ class BalanceController(wiring.Component):
             m.submodules.mul = Instance(BLACKBOX_NAME, i_a=gain, i_b=operand, o_p=product)
         else:
             m.d.comb += product.eq(gain * operand)
+        # the product registered (the multiplier block's own output register where it has
+        # one): the multiplier and the accumulator's adder in different cycles
+        product_r = Signal.like(product)
+        m.d.sync += product_r.eq(product)
         trip = status["trip"]
         with m.If(~self.armed | status["arm"]):
             m.d.sync += [integral.eq(0), w.eq(0), self.duty.eq(0)]
@@ -307,10 +311,16 @@ class BalanceController(wiring.Component):
                 with m.Else():
                     m.next = "IDLE"
             with m.State("MAC"):
+                # product ``index`` now, the one before it into the sum
                 m.d.comb += read_next.eq(index + 1)
-                m.d.sync += [acc.eq(acc + product), index.eq(index + 1)]
+                m.d.sync += index.eq(index + 1)
+                with m.If(index != 0):
+                    m.d.sync += acc.eq(acc + product_r)
                 with m.If(index == 3):
-                    m.next = "DUTY"
+                    m.next = "SUM"
+            with m.State("SUM"):
+                m.d.sync += acc.eq(acc + product_r)
+                m.next = "DUTY"
             with m.State("DUTY"):
                 limit = regs["BAL_OUT_LIMIT"]
                 scaled = acc >> GAIN_SHIFT

@@ -318,6 +318,47 @@ def drdy_to_attitude_us(clk_freq, config, results=21):
             "with_mag_correction": most(True), "without_mag_correction": most(False)}
 
 
+def spi_training_needs(clk_freq, config, latency_us=None):
+    """What a trained CIPO sample point would need to read faster than the safe rate (issue
+    #58: the training is not built yet), per fast SCLK period shorter than the safe one that
+    the part takes (at most 20 MHz, each level at least 25 ns): its burst's ``read_cycles``
+    (``sample_read_cycles``, with the safe rate's capture delay), the read time it saves, and
+    the eye it needs. Trained, the sample point moves with the round trip, so the delay itself
+    no longer limits the rate: what must hold is an eye (an SCLK period less the part's jitter
+    and its drift between two check reads) wide enough for the point, placed in whole clock
+    cycles, to keep the I/O budget's margin on both sides: ``eye_needed_ns`` = 2·margin + a
+    cycle, ``jitter_and_drift_allowed_ns`` = the period less that. With ``latency_us``
+    (``drdy_to_attitude_us``'s, at the safe rate), the same less the read time saved: an
+    estimate, not a co-simulation. None for the I2C wiring."""
+    from dataclasses import replace
+    from ..hdl.sensor.sensor_frontend import sample_read_cycles
+    from ..hdl.sensor.spi_controller import IO_BUDGET, SPITiming
+    if config.wiring != "spi":
+        return None
+    safe = SPITiming.for_clock(clk_freq)
+    step_ns = 1e9 / clk_freq
+    safe_read = sample_read_cycles(config, clk_freq, safe)
+    eye_needed = 2 * IO_BUDGET.margin_ns + step_ns
+    rates = []
+    for period in range(4, safe.period(fast=True)):
+        low = (period + 1) // 2
+        if clk_freq / period > 20e6 + 1 or (period - low) * step_ns < 25:
+            continue                    # beyond the part's fast reads: 20 MHz, 25 ns levels
+        timing = replace(safe, fast_half=low, fast_high=period - low)
+        read = sample_read_cycles(config, clk_freq, timing)
+        saved_us = (safe_read - read) / clk_freq * 1e6
+        entry = {"sclk_hz": round(clk_freq / period), "period_cycles": period,
+                 "read_cycles": read, "read_us_saved": round(saved_us, 2),
+                 "eye_needed_ns": round(eye_needed, 1),
+                 "jitter_and_drift_allowed_ns": round(period * step_ns - eye_needed, 1)}
+        if latency_us and latency_us.get("drdy_to_attitude") is not None:
+            entry["drdy_to_attitude_us_estimate"] = {
+                k: None if v is None else round(v - saved_us, 2) for k, v in latency_us.items()}
+        rates.append(entry)
+    return {"built": False, "safe_sclk_hz": round(safe.sclk_hz(clk_freq, True)),
+            "safe_read_cycles": safe_read, "trained": rates}
+
+
 def report(*, clk_freq=None, config=None, latency=True, core_options=None, spread=0,
            baud=None):
     """The figures (``report``'s JSON). ``core_options``: ``AHRSCore`` options of the build
@@ -375,6 +416,7 @@ def report(*, clk_freq=None, config=None, latency=True, core_options=None, sprea
         "max_sample_rate_hz": round(budget["max_sample_rate_hz"]),
         "sample_budget_cycles": {k: budget[k] for k in ("read_cycles", "update_cycles",
                                                          "cycles_per_sample")},
+        "spi_training": spi_training_needs(clk_freq, config, latency_us),
         "device": DEVICE,
         "design": design,
         "datapath": datapath,

@@ -23,8 +23,8 @@ class CosimHarness(Monitored):
 
     ``cycle`` counts clock edges: the time base of the models. The model process drives
     ``cipo_model`` (SPI) straight onto the design's CIPO pin, with the level SDO has at the next
-    clock edge (the model delays each bit by its output delay, ``MPU9250Timing.sdo_delay_s``, in
-    simulated time); ``scl_model_low``/``sda_model_low`` (I2C) and ``int_model`` reach the
+    clock edge (the model delays each bit by its output delay and the board's,
+    ``MPU9250Timing``, in simulated time); ``scl_model_low``/``sda_model_low`` (I2C) and ``int_model`` reach the
     design one clock later, so the process can run right after the edge it reacts to. The I2C
     lines ``scl``/``sda`` are the wired AND of the design's and the devices' drivers.
     ``wake_at`` is the cycle at which the models next want to run with

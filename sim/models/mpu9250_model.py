@@ -39,6 +39,8 @@ Not modelled: the FIFO, sensor warm-up, the primary I2C interface's own pins (th
 """
 
 import math
+import random
+from collections import deque
 from dataclasses import dataclass, replace
 from typing import Optional
 
@@ -68,17 +70,57 @@ def _swap_pairs(data, reg, grp):
 _EPS = 1e-12        # time comparisons: stamps come from integer cycle counts / clock frequency
 
 
+# The SDO output delay (a falling SCLK edge to the next bit on SDO) the model's parts have. The
+# datasheet (PS-MPU-9250A-01, SPI timing) gives a maximum only, 100 ns at 1 MHz. The flight
+# stacks read the sensor registers fast in mode 3, sampling on the rising edge half a period
+# after the falling one, without moving that point: PX4 at 10 MHz (50 ns), Betaflight up to
+# 20 MHz (25 ns), ArduPilot 8 MHz requested (62 ns). Parts that work there answer, with their
+# MCU's input setup (a few ns) and a short board, within about 20 ns: the typical part is
+# taken at 15 ns, the fastest at 5 ns (a CMOS output and its pad are not quicker), the slowest
+# the datasheet's 100 ns (a part "some drivers find marginal at 20 MHz", mpu9250-notes.md).
+SDO_DELAY_MIN_S = 5e-9
+SDO_DELAY_TYPICAL_S = 15e-9
+SDO_DELAY_MAX_S = 100e-9
+
+
 @dataclass(frozen=True)
 class MPU9250Timing:
-    """Real-world times of the part. Defaults are the datasheet's worst case."""
+    """Real-world times of the part. Defaults are the datasheet's worst case.
+
+    SDO: each bit shows ``sdo_delay_s`` (the part's output delay, ``SDO_DELAY_MIN_S`` ..
+    ``SDO_DELAY_MAX_S``) plus ``board_delay_s`` (the round trip outside the part: SCLK's way
+    out from the FPGA's register to the part and SDO's way back to the FPGA's input
+    register, its I/O included; the cycle model has none of its own) after its falling SCLK
+    edge, give or take ``sdo_jitter_s`` (uniform, drawn per bit from the model's seeded
+    generator), plus the model's ``sdo_drift_s`` at that time (0 at power-up: a fault or a
+    test moves it mid-run, as temperature and supply move a real part's). Transitions in
+    flight keep their order (a delay beyond an SCLK period delays the bits, it loses none);
+    the previous bit stays until the next one shows."""
     startup_s: float = 0.100    # power-up to register access: 11 ms typical, 100 ms max
     reset_s: float = 0.100      # H_RESET to register access (drivers wait ~100 ms)
     int_pulse_s: float = 50e-6  # INT pulse width with LATCH_INT_EN = 0
     odr_scale: float = 1.0      # sample period (and aux I2C transfer time) multiplier: < 1
                                 # speeds simulations up
-    sdo_delay_s: float = 100e-9  # SDO shows the next bit this long after a falling SCLK edge
-                                # (the datasheet's maximum output delay); the previous bit
-                                # stays until then
+    sdo_delay_s: float = SDO_DELAY_MAX_S     # the part's SDO output delay (the datasheet's
+                                            # maximum by default)
+    board_delay_s: float = 0.0  # the round trip outside the part, added to each bit's delay
+    sdo_jitter_s: float = 0.0   # each bit's delay within ± this of the rest
+
+    def __post_init__(self):
+        if not SDO_DELAY_MIN_S - 1e-15 <= self.sdo_delay_s <= SDO_DELAY_MAX_S + 1e-15:
+            raise ValueError(f"sdo_delay_s {self.sdo_delay_s * 1e9:g} ns: a part's SDO delay is "
+                             f"{SDO_DELAY_MIN_S * 1e9:g} .. {SDO_DELAY_MAX_S * 1e9:g} ns "
+                             f"(the round trip outside it is board_delay_s)")
+        if self.board_delay_s < 0 or self.sdo_jitter_s < 0:
+            raise ValueError("board_delay_s and sdo_jitter_s cannot be negative")
+        if self.sdo_jitter_s > self.sdo_delay_s:
+            raise ValueError(f"sdo_jitter_s {self.sdo_jitter_s * 1e9:g} ns is more than the "
+                             f"delay it moves ({self.sdo_delay_s * 1e9:g} ns)")
+
+    @property
+    def sdo_round_trip_s(self):
+        """The delay of a bit without jitter or drift: the part's and the board's."""
+        return self.sdo_delay_s + self.board_delay_s
 
     def scaled(self, delays=1.0, odr=1.0):
         """Start-up and reset delays times ``delays``; sample period and pulse times ``odr``."""
@@ -112,7 +154,8 @@ class MPU9250Model:
 
     def __init__(self, *, who_am_i=R.WHO_AM_I_MPU9250, timing=MPU9250Timing(), source=None,
                  sleep_after_reset=False, raise_on_violation=False, aux_devices=None,
-                 self_test_codes=DEFAULT_SELF_TEST_CODES, self_test_gain=(1.0,) * 6):
+                 self_test_codes=DEFAULT_SELF_TEST_CODES, self_test_gain=(1.0,) * 6,
+                 sdo_seed=1):
         self.who_am_i = who_am_i
         # factory codes and response gains, accel X, Y, Z then gyro X, Y, Z
         self.self_test_codes = tuple(self_test_codes)
@@ -156,8 +199,10 @@ class MPU9250Model:
         self._next_event = self._busy_until
 
         self.sclk = 1
-        self._sdo_old = self._sdo_new = 0
-        self.sdo_change_at = None       # when SDO takes ``_sdo_new`` (None: it already has)
+        self._sdo_level = 0
+        self._sdo_pending = deque()     # (time, level): SDO's transitions in flight, in order
+        self.sdo_drift_s = 0.0          # added to every bit's delay from now on (a drift)
+        self._sdo_rng = random.Random(sdo_seed)
         self.selected = False
 
     # -- time -------------------------------------------------------------------------------------
@@ -441,21 +486,41 @@ class MPU9250Model:
             self._reschedule(self.now)
 
     # -- SPI pins ---------------------------------------------------------------------------------
+    @property
+    def sdo_change_at(self):
+        """When SDO next changes (None: nothing in flight)."""
+        return self._sdo_pending[0][0] if self._sdo_pending else None
+
     def sdo_at(self, t):
-        """The level of SDO at time ``t`` (the new bit only once its output delay has passed,
-        strictly: a bit arriving exactly on a clock edge counts as too late for it)."""
-        if self.sdo_change_at is not None and t - self.sdo_change_at > _EPS:
-            self._sdo_old, self.sdo_change_at = self._sdo_new, None
-        return self._sdo_old if self.sdo_change_at is not None else self._sdo_new
+        """The level of SDO at time ``t`` (a new bit only once its delay has passed, strictly:
+        a bit arriving exactly on a clock edge counts as too late for it)."""
+        pending = self._sdo_pending
+        while pending and t - pending[0][0] > _EPS:
+            self._sdo_level = pending.popleft()[1]
+        return self._sdo_level
+
+    def _bit_delay(self):
+        """A bit's delay now: the part's and the board's, the drift, the jitter."""
+        timing = self.timing
+        jitter = timing.sdo_jitter_s
+        return timing.sdo_round_trip_s + self.sdo_drift_s + \
+            (self._sdo_rng.uniform(-jitter, jitter) if jitter else 0.0)
 
     def _drive_sdo(self, t, bit, delay):
-        """SDO shows ``bit`` ``delay`` after ``t``; until then, what it showed at ``t``."""
-        old = self.sdo_at(t)
-        self._sdo_new = bit
-        if delay == 0 or bit == old:
-            self._sdo_old, self.sdo_change_at = bit, None
-        else:
-            self._sdo_old, self.sdo_change_at = old, t + delay
+        """SDO shows ``bit`` ``delay`` after ``t`` (0: at once, what was in flight dropped),
+        after the transitions already in flight."""
+        self.sdo_at(t)
+        if delay == 0:
+            self._sdo_level = bit
+            self._sdo_pending.clear()
+            return
+        pending = self._sdo_pending
+        if bit == (pending[-1][1] if pending else self._sdo_level):
+            return                      # no transition (and no wake for one)
+        when = t + delay
+        if pending:
+            when = max(when, pending[-1][0])
+        pending.append((when, bit))
 
     def cs_edge(self, t, cs_n):
         """Chip select changed to ``cs_n`` at time ``t``."""
@@ -507,7 +572,7 @@ class MPU9250Model:
                 self._out = 0 if self._ignored else self.read_reg(self._addr)
                 self._addr = (self._addr + 1) & 0x7F
             self._drive_sdo(t, (self._out >> (7 - self._bits % 8)) & 1 if self._reading else 0,
-                            self.timing.sdo_delay_s)
+                            self._bit_delay())
         else:
             if self._last_rise is not None:
                 timing[0] = min(timing[0], t - self._last_rise)

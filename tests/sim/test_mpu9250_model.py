@@ -407,3 +407,72 @@ def test_self_test_response_and_factory_codes():
     assert m._self_test_response(base).gyro == base.gyro               # Y's gain is 0
     assert bytes(m.regs[R.SELF_TEST_X_ACCEL:R.SELF_TEST_X_ACCEL + 3]) == bytes(codes[:3])
     assert bytes(m.regs[R.SELF_TEST_X_GYRO:R.SELF_TEST_X_GYRO + 3]) == bytes(codes[3:])
+
+
+def _read_sampled_late(model, t, addr, half, sample_after):
+    """A one-byte read in mode 3 at a period of 2·``half``, each SDO bit sampled
+    ``sample_after`` after its own falling edge (later than the next edges when it exceeds a
+    period, as a trained sample point does): the edges and the samples in time order."""
+    frame = [R.SPI_READ | addr, 0]
+    events = [(t, 0, "cs", 0)]
+    t += half
+    for i in range(16):
+        mosi = (frame[i // 8] >> (7 - i % 8)) & 1
+        events += [(t, 1, "fall", mosi), (t + half, 1, "rise", mosi)]
+        if i >= 8:
+            events.append((t + sample_after, 2, "sample", None))
+        t += 2 * half
+    events.append((t + sample_after + 0.5e-6, 3, "cs", 1))
+    bits = []
+    for when, _, kind, value in sorted(events, key=lambda e: (e[0], e[1])):
+        if kind == "cs":
+            model.cs_edge(when, value)
+        elif kind == "sample":
+            bits.append(model.sdo_at(when))
+        else:
+            model.sclk_edge(when, 0 if kind == "fall" else 1, value)
+    return int("".join(map(str, bits)), 2), t + sample_after + 2e-6
+
+
+def test_the_sdo_delay_is_the_parts_and_the_boards_and_keeps_the_bits_in_order():
+    """Issue #58's model: a bit shows the part's SDO delay plus the board's round trip after
+    its falling edge; at 20 MHz a 110 ns round trip spans two periods and the bits come out
+    late but in order (a sample point trained past a period reads the byte)."""
+    timing = MPU9250Timing(startup_s=1e-3, reset_s=1e-3, sdo_delay_s=100e-9,
+                           board_delay_s=10e-9)
+    assert timing.sdo_round_trip_s == pytest.approx(110e-9)
+    m = MPU9250Model(timing=timing)
+    t = 1.1e-3
+    m.advance(t)
+    value, t = _read_sampled_late(m, t, R.WHO_AM_I, 25e-9, 111e-9)
+    assert value == 0x71
+    value, t = _read_sampled_late(m, t, R.WHO_AM_I, 25e-9, 109e-9)
+    assert value == 0x71 >> 1          # each bit sampled before it arrived: the one before
+    m.sdo_drift_s = 20e-9              # the eye moves: the trained point now reads early
+    value, t = _read_sampled_late(m, t, R.WHO_AM_I, 25e-9, 111e-9)
+    assert value == 0x71 >> 1
+    value, t = _read_sampled_late(m, t, R.WHO_AM_I, 25e-9, 131e-9)
+    assert value == 0x71
+
+
+def test_the_sdo_jitter_moves_each_bit_within_its_bound():
+    timing = MPU9250Timing(startup_s=1e-3, sdo_delay_s=15e-9, sdo_jitter_s=4e-9)
+    for seed in (1, 2):
+        m = MPU9250Model(timing=timing, sdo_seed=seed)
+        delays = [m._bit_delay() for _ in range(2000)]
+        assert 11e-9 <= min(delays) < 11.1e-9 and 18.9e-9 < max(delays) <= 19e-9
+    again = MPU9250Model(timing=timing, sdo_seed=2)
+    assert [again._bit_delay() for _ in range(2000)] == delays       # seeded: repeatable
+    m, host = ready_model(timing=MPU9250Timing(startup_s=1e-3, reset_s=1e-3,
+                                               sdo_delay_s=15e-9, sdo_jitter_s=4e-9))
+    assert host.read(R.WHO_AM_I, **FAST) == bytes([0x71])
+
+
+@pytest.mark.parametrize("kw, message", [
+    (dict(sdo_delay_s=2e-9), "a part's SDO delay is 5 .. 100 ns"),
+    (dict(sdo_delay_s=120e-9), "the round trip outside it is board_delay_s"),
+    (dict(board_delay_s=-1e-9), "cannot be negative"),
+    (dict(sdo_delay_s=10e-9, sdo_jitter_s=20e-9), "more than the delay it moves")])
+def test_an_sdo_timing_out_of_its_range_is_refused(kw, message):
+    with pytest.raises(ValueError, match=message):
+        MPU9250Timing(**kw)
