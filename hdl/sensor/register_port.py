@@ -5,7 +5,9 @@ The driver speaks only this interface, so one sequencer serves both wirings.
 ``RegisterPortSignature`` (seen from the port):
     ``cmd`` (in stream, ``RegisterCommand``): ``device`` (0 = MPU9250, 1 = AK8963 reached
         directly: I2C wiring only), ``reg``, ``write``, ``data`` (the byte to write), ``length``
-        (bytes to read, 1..32), ``fast`` (SPI only: the fast clock, for sensor registers).
+        (bytes to read, 1..32), ``fast`` (SPI only: the fast clock, for sensor registers),
+        ``trained`` (SPI only, with ``fast``: the trained rate at the controller's sample
+        delay, ``SPITiming.with_trained``; issue #58).
     ``rx`` (out stream, bytes): the bytes read, in order. The driver is always ready; a
         consumer that is not holds the bus controller back (its result waits), so no byte is
         lost.
@@ -42,6 +44,7 @@ MAX_READ = 32
 
 RegisterCommand = data.StructLayout({
     "device": 1, "reg": 8, "write": 1, "data": 8, "length": range(MAX_READ + 1), "fast": 1,
+    "trained": 1,
 })
 RegisterResponse = data.StructLayout({"error": 1})
 
@@ -98,6 +101,7 @@ class SPIRegisterPort(wiring.Component):
                                            Cat(cmd.reg[:7], ~cmd.write),   # bit 7: read
                                            Mux(cmd.write, cmd.data, 0))),
             self.spi_o.payload.fast.eq(cmd.fast & ~cmd.write),
+            self.spi_o.payload.trained.eq(cmd.trained & cmd.fast & ~cmd.write),
             self.spi_o.payload.last.eq(tx_index == total - 1),
             # A result counts only for a byte already sent (the controller never sends one
             # otherwise; a stray one cannot end the command early). Bytes clocked in during

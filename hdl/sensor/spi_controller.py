@@ -57,6 +57,12 @@ class SPITiming:
     cs_gap: int          # cycles CS stays high between transactions
     cipo_delay: int = 1  # cycles from a rising SCLK edge to the edge that samples CIPO's pin
     fast_high: int = None   # cycles of SCLK's high level, fast rate (None: ``fast_half``)
+    # a third rate for reads whose sample point was trained (issue #58; None: none): its
+    # SCLK levels, and the largest ``sample_delay`` (cycles from a rising edge to the edge
+    # that samples CIPO's pin, as ``cipo_delay``) a trained transaction may ask for
+    trained_low: int = None
+    trained_high: int = None
+    max_sample_delay: int = 0
 
     def __post_init__(self):
         if self.fast_high is None:
@@ -66,6 +72,37 @@ class SPITiming:
                 raise ValueError(f"SPITiming.{name} must be at least 1 cycle")
         if self.cipo_delay < 0:
             raise ValueError("SPITiming.cipo_delay cannot be negative")
+        if (self.trained_low is None) != (self.trained_high is None):
+            raise ValueError("SPITiming: the trained rate needs both trained_low and "
+                             "trained_high")
+        if self.trained_low is not None and min(self.trained_low, self.trained_high) < 1:
+            raise ValueError("SPITiming: the trained rate's levels must be at least 1 cycle")
+        if self.max_sample_delay < 0:
+            raise ValueError("SPITiming.max_sample_delay cannot be negative")
+
+    @property
+    def has_trained(self):
+        return self.trained_low is not None
+
+    def with_trained(self, clk_freq, *, max_hz=20e6, min_level_s=25e-9, io_budget=None):
+        """This timing with a trained rate: the shortest SCLK period the part's fast reads
+        allow (at most ``max_hz``, each level at least ``min_level_s`` and 2 cycles), and
+        sample delays reaching a cycle more than such a period past the latest safe sample
+        point (``io_budget``'s arrival and margin): a scan across more than a period, which
+        sees both edges of the eye of any part the safe rate reads."""
+        io_budget = io_budget or IO_BUDGET
+        level = max(2, cycles(min_level_s, clk_freq))
+        period = max(2 * level, cycles(1 / max_hz, clk_freq))
+        low = (period + 1) // 2
+        first = math.floor(io_budget.sdo_window_s[1] * clk_freq + 1e-9) + 1
+        return SPITiming(slow_half=self.slow_half, fast_half=self.fast_half,
+                         fast_high=self.fast_high, cs_hold=self.cs_hold, cs_gap=self.cs_gap,
+                         cipo_delay=self.cipo_delay, trained_low=low,
+                         trained_high=period - low,
+                         max_sample_delay=max(0, first - low) + period + 1)
+
+    def trained_period(self):
+        return self.trained_low + self.trained_high
 
     def low(self, fast):
         """Cycles of SCLK's low level (the first of a bit: COPI and the device's SDO change
@@ -140,7 +177,7 @@ class SPIPinsSignature(wiring.Signature):
         })
 
 
-SPIByte = data.StructLayout({"data": 8, "fast": 1, "last": 1})
+SPIByte = data.StructLayout({"data": 8, "fast": 1, "last": 1, "trained": 1})
 
 
 class SPIController(wiring.Component):
@@ -183,6 +220,8 @@ class SPIController(wiring.Component):
             "i_stream": In(stream.Signature(SPIByte)),
             "o_stream": Out(stream.Signature(8)),
             "pins": Out(SPIPinsSignature()),
+            **({"sample_delay": In(range(timing.max_sample_delay + 1))}
+               if timing.has_trained else {}),
         })
 
     def elaborate(self, platform):
@@ -192,8 +231,11 @@ class SPIController(wiring.Component):
         cipo = Signal()
         m.submodules.cipo_sync = FFSynchronizer(self.pins.cipo, cipo, stages=SYNC_STAGES)
 
-        timer = Signal(range(max(t.slow_half, t.fast_half, t.fast_high, t.cs_hold, t.cs_gap) + 1))
+        timer = Signal(range(max(t.slow_half, t.fast_half, t.fast_high, t.cs_hold, t.cs_gap,
+                                 t.trained_low or 0, t.trained_high or 0) + 1))
         fast = Signal()         # rate of the current transaction
+        trained = Signal()      # ... the trained rate, at ``delay`` (``SPITiming.trained_low``)
+        delay = Signal(range(t.max_sample_delay + 1))
         last = Signal()         # current byte ends the transaction
         tx = Signal(8, reset_less=True)     # loaded with each byte
         bit = Signal(range(8))
@@ -201,15 +243,32 @@ class SPIController(wiring.Component):
         high = Signal.like(timer)
         m.d.comb += [half.eq(Mux(fast, t.fast_half, t.slow_half)),
                      high.eq(Mux(fast, t.fast_high, t.slow_half))]
+        if t.has_trained:
+            with m.If(trained):
+                m.d.comb += [half.eq(t.trained_low), high.eq(t.trained_high)]
 
         # The capture strobe follows each rising edge through a delay line as long as the
-        # round trip, so the received bit is the one the device drove for that edge.
-        strobe = Signal(t.capture_delay)
+        # round trip, so the received bit is the one the device drove for that edge. With a
+        # trained rate the line reaches the longest sample delay, and a trained transaction
+        # takes its strobe from its own tap.
+        length = t.capture_delay
+        if t.has_trained:
+            length = max(length, SYNC_STAGES + t.max_sample_delay)
+        strobe = Signal(length)
         rise = Signal()
         m.d.sync += strobe.eq(Cat(rise, strobe[:-1]))
         rx = Signal(8, reset_less=True)     # read after 8 captures
         rx_count = Signal(range(9))
-        with m.If(strobe[-1]):
+        if t.has_trained:
+            tap = Signal(range(length))
+            m.d.comb += tap.eq(Mux(trained, SYNC_STAGES - 1 + delay, t.capture_delay - 1))
+            capture = strobe.bit_select(tap, 1)
+            # strobes at or before the tap: still to be captured (those past it mean nothing)
+            waiting = (strobe & ((C(1, length + 1) << (tap + 1)) - 1)[:length]) != 0
+        else:
+            capture = strobe[-1]
+            waiting = strobe != 0
+        with m.If(capture):
             m.d.sync += [rx.eq(Cat(cipo, rx[:-1])), rx_count.eq(rx_count + 1)]
 
         # A received byte is handed over as soon as the output is free, whatever the state.
@@ -243,6 +302,14 @@ class SPIController(wiring.Component):
                         self.pins.cs_n.eq(0),
                         timer.eq(Mux(p.fast, t.fast_half, t.slow_half) - 1),
                     ]
+                    if t.has_trained:
+                        # the rate and the sample point held for the transaction; the line
+                        # emptied of the last one's strobes past its tap (none before it: it
+                        # drained them)
+                        m.d.sync += [trained.eq(p.fast & p.trained),
+                                     delay.eq(self.sample_delay), strobe.eq(0)]
+                        with m.If(p.fast & p.trained):
+                            m.d.sync += timer.eq(t.trained_low - 1)
                     m.next = "SETUP"
             with m.State("SETUP"):
                 m.d.sync += timer.eq(timer - 1)
@@ -276,7 +343,7 @@ class SPIController(wiring.Component):
                 # Wait for the last bit through the capture delay line and for the previous
                 # byte to be taken: this byte is handed over (above) as this state ends, or
                 # already was (a capture delay shorter than the high level).
-                with m.If(handover | ((rx_count == 0) & (strobe == 0))):
+                with m.If(handover | ((rx_count == 0) & ~waiting)):
                     with m.If(last):
                         m.d.sync += timer.eq(t.cs_hold - 1)
                         m.next = "HOLD"

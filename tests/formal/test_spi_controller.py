@@ -8,7 +8,7 @@ counters are only narrower).
 
 import pytest
 from amaranth import *
-from amaranth.hdl import Assert, Cover
+from amaranth.hdl import Assert, Assume, Cover
 
 from mpu9250_ahrs.hdl.sensor.spi_controller import SPIController, SPITiming
 
@@ -23,6 +23,10 @@ TIMING = SPITiming(slow_half=3, fast_half=2, cs_hold=2, cs_gap=3, cipo_delay=1)
 SMALL = SPITiming(slow_half=2, fast_half=1, cs_hold=1, cs_gap=2, cipo_delay=0)
 # an odd fast period, as ``SPITiming.for_clock`` makes at 48 MHz: a low level of 2, a high of 1
 ODD = SPITiming(slow_half=2, fast_half=2, fast_high=1, cs_hold=1, cs_gap=2, cipo_delay=0)
+# with a trained rate (issue #58): its levels ODD's fast ones, at the sample delay that reads a
+# loop-back (0, ``spi_harness`` assumes it), beside SMALL's fast rate
+TRAINED = SPITiming(slow_half=2, fast_half=1, cs_hold=1, cs_gap=2, cipo_delay=0,
+                    trained_low=2, trained_high=1, max_sample_delay=2)
 
 
 def spi_harness(t=TIMING, dut=None, *, counting=True):
@@ -42,6 +46,7 @@ def spi_harness(t=TIMING, dut=None, *, counting=True):
     take = dut.i_stream.valid & dut.i_stream.ready
     p = dut.i_stream.payload
     fast = Signal()                     # the rate of the transaction
+    trained = Signal()                  # ... the trained one
     nbytes = Signal(4)                  # bytes accepted in it (mod 16)
     rises = Signal(7)                   # rising SCLK edges in it (mod 128)
     offers = Signal(4)                  # results offered in it
@@ -50,6 +55,10 @@ def spi_harness(t=TIMING, dut=None, *, counting=True):
         m.d.sync += [nbytes.eq(nbytes + 1), ended.eq(p.last)]
         with m.If(cs_n):
             m.d.sync += [fast.eq(p.fast), nbytes.eq(1), rises.eq(0), offers.eq(0)]
+            if t.has_trained:
+                m.d.sync += trained.eq(p.fast & p.trained)
+    if t.has_trained:
+        m.d.comb += Assume(dut.sample_delay == 0)
     with m.If(rose):
         m.d.sync += rises.eq(rises + 1)
     offer = dut.o_stream.valid & ~Past(m, dut.o_stream.valid)
@@ -69,6 +78,9 @@ def spi_harness(t=TIMING, dut=None, *, counting=True):
     # relate the harness's copy to the controller's, so the proof uses the shorter of the two
     low = Mux(fast, t.fast_half, t.slow_half) if counting else min(t.fast_half, t.slow_half)
     high = Mux(fast, t.fast_high, t.slow_half) if counting else min(t.fast_high, t.slow_half)
+    if t.has_trained:
+        low = Mux(trained, t.trained_low, low) if counting else min(low, t.trained_low)
+        high = Mux(trained, t.trained_high, high) if counting else min(high, t.trained_high)
 
     # cycles since each event (0 in the cycle after it)
     level = counter(m, 5, clear=sclk != sclk_was, name="level")   # SCLK held
@@ -142,3 +154,10 @@ def test_spi_cover(formal):
 @pytest.mark.slow
 def test_spi_transactions_odd_period(formal):
     formal(spi_harness(ODD), name="spi_transactions_odd", mode="bmc", depth=64)
+
+
+# Issue #58: with a trained rate, either rate in any transaction (``fast`` and ``trained`` as
+# the producer likes), from reset to depth 64.
+@pytest.mark.slow
+def test_spi_transactions_trained(formal):
+    formal(spi_harness(TRAINED), name="spi_transactions_trained", mode="bmc", depth=64)

@@ -266,3 +266,95 @@ def test_the_safe_rate_reads_every_part_the_budget_allows(sdo_ns, board_ns):
     assert model.violations == [] and len(result.samples) == 20
     assert all(sample_matches(s, model.samples[k])
                for s, k in zip(result.samples, model.sample_reads))
+
+
+PATTERN = [0x71, 0xA5, 0x3C, 0x96, 0x0F, 0xE1]      # varied bits: a shifted read differs
+
+
+def _trained_scan(part_timing, clk_freq=48e6):
+    """The SPI controller with a trained rate (``SPITiming.with_trained``) reading six known
+    bytes from the MPU9250 model's sensor registers at every sample delay it offers: the
+    delays that read them right (issue #58's eye, as a read levelling would scan it)."""
+    from mpu9250_ahrs.hdl.contract import mpu9250_regs as R
+    from mpu9250_ahrs.sim.models.mpu9250_model import MPU9250Model
+    from mpu9250_ahrs.sim.bench.streams import stream_put
+    timing = SPITiming.for_clock(clk_freq).with_trained(clk_freq)
+    dut = SPIController(timing)
+    model = MPU9250Model(timing=part_timing)
+    model.regs[R.ACCEL_XOUT_H:R.ACCEL_XOUT_H + len(PATTERN)] = bytes(PATTERN)
+    passing = []
+
+    async def device(ctx):
+        cycle, cs_prev, sclk_prev = 0, 1, 1
+        async for _, _, cs_n, sclk, copi in ctx.tick().sample(dut.pins.cs_n, dut.pins.sclk,
+                                                               dut.pins.copi):
+            cycle += 1
+            t = cycle / clk_freq
+            if cs_n != cs_prev and not cs_n:
+                model.cs_edge(t, cs_n)
+            if sclk != sclk_prev:
+                model.sclk_edge(t, sclk, copi)
+            if cs_n != cs_prev and cs_n:
+                model.cs_edge(t, cs_n)
+            cs_prev, sclk_prev = cs_n, sclk
+            # the level the CIPO pin's first flip-flop sees at the next edge
+            ctx.set(dut.pins.cipo, model.sdo_at(t + 1 / clk_freq))
+
+    got = []
+
+    async def collector(ctx):
+        async for _, _, valid, payload in ctx.tick().sample(dut.o_stream.valid,
+                                                           dut.o_stream.payload):
+            if valid:                           # always ready: every valid cycle a transfer
+                got.append(payload)
+
+    async def bench(ctx):
+        ctx.set(dut.o_stream.ready, 1)
+        await ctx.tick().repeat(200)                    # past the model's start-up
+        frame = [R.SPI_READ | R.ACCEL_XOUT_H] + [0] * len(PATTERN)
+        for delay in range(timing.max_sample_delay + 1):
+            ctx.set(dut.sample_delay, delay)
+            got.clear()
+            for i, byte in enumerate(frame):
+                await stream_put(ctx, dut.i_stream, {"data": byte, "fast": 1, "trained": 1,
+                                                     "last": i == len(frame) - 1})
+            await ctx.tick().until(dut.pins.cs_n)
+            await ctx.tick().repeat(timing.cs_gap + 4)
+            assert len(got) == len(frame), (delay, got)
+            if got[1:] == PATTERN:
+                passing.append(delay)
+
+    sim = Simulator(dut)
+    sim.add_clock(1 / clk_freq)
+    sim.add_process(device)
+    sim.add_process(collector)
+    sim.add_testbench(bench)
+    sim.run()
+    assert model.violations == [], model.violations
+    return timing, passing
+
+
+@pytest.mark.parametrize("sdo_ns,board_ns,first", [(5, 0, 0), (15, 14, 1), (50, 14, 3),
+                                                   (100, 14, 5)])
+def test_a_trained_read_finds_the_eye_where_the_round_trip_puts_it(sdo_ns, board_ns, first):
+    """At 12 MHz (48 MHz / 4) the eye is an SCLK period wide wherever the part's delay and
+    the board's put it: the passing sample delays are one run of about a period's cycles,
+    starting later the longer the round trip; a 100 ns part too (beyond the safe rate's own
+    sample point: the scan reaches a period past it)."""
+    from mpu9250_ahrs.sim.models.mpu9250_model import MPU9250Timing
+    part = MPU9250Timing(startup_s=1e-6, reset_s=1e-6, sdo_delay_s=sdo_ns * 1e-9,
+                         board_delay_s=board_ns * 1e-9)
+    timing, passing = _trained_scan(part)
+    assert timing.trained_period() == 4 and timing.max_sample_delay == 9
+    assert passing and passing == list(range(passing[0], passing[-1] + 1)), passing
+    assert passing[0] == first and len(passing) == 4, passing
+
+
+def test_a_slow_noisy_part_leaves_no_eye_to_train_on():
+    """A part at the datasheet's 100 ns whose edges spread ±35 ns: at 12 MHz no sample delay
+    reads the bytes right every time (training must stay at the safe rate)."""
+    from mpu9250_ahrs.sim.models.mpu9250_model import MPU9250Timing
+    part = MPU9250Timing(startup_s=1e-6, reset_s=1e-6, sdo_delay_s=65e-9, sdo_jitter_s=35e-9,
+                         board_delay_s=14e-9)
+    _, passing = _trained_scan(part)
+    assert len(passing) <= 1, passing
