@@ -32,6 +32,7 @@ from mpu9250_ahrs.hdl.link.frame_arbiter import FrameArbiter
 from mpu9250_ahrs.hdl.engine.host_port import HostPort
 from mpu9250_ahrs.hdl.sensor.i2c_controller import I2CController, I2CTiming
 from mpu9250_ahrs.hdl.sensor.mpu9250_driver import MPU9250Config, MPU9250Driver
+from mpu9250_ahrs.hdl.sensor.read_leveller import ReadLeveller
 from mpu9250_ahrs.hdl.sensor.register_port import I2CRegisterPort, SPIRegisterPort
 from mpu9250_ahrs.hdl.sensor.register_port_arbiter import RegisterPortArbiter
 from mpu9250_ahrs.hdl.link.rewindable_fifo import RewindableFIFO
@@ -57,6 +58,11 @@ COMPONENTS = {
                                                        cs_gap=2)),
     "i2c_controller": lambda: I2CController(I2CTiming(low=4, high=2, timeout=5)),
     "uart_rx": lambda: UARTReceiver(divisor=4),
+    # with a trained rate (issue #58): its sample delay any, changing any time
+    "spi_controller_trained": lambda: SPIController(SPITiming(
+        slow_half=2, fast_half=1, cs_hold=1, cs_gap=2, trained_low=2, trained_high=1,
+        max_sample_delay=3)),
+    "read_leveller": lambda: ReadLeveller(max_sample_delay=3),
     "spi_register_port": SPIRegisterPort,
     "i2c_register_port": I2CRegisterPort,
     "register_port_arbiter": RegisterPortArbiter,
