@@ -247,37 +247,8 @@ class SPIController(wiring.Component):
             with m.If(trained):
                 m.d.comb += [half.eq(t.trained_low), high.eq(t.trained_high)]
 
-        # The capture strobe follows each rising edge through a delay line as long as the
-        # round trip, so the received bit is the one the device drove for that edge. With a
-        # trained rate the line reaches the longest sample delay, and a trained transaction
-        # takes its strobe from its own tap.
-        length = t.capture_delay
-        if t.has_trained:
-            length = max(length, SYNC_STAGES + t.max_sample_delay)
-        strobe = Signal(length)
-        rise = Signal()
-        m.d.sync += strobe.eq(Cat(rise, strobe[:-1]))
-        rx = Signal(8, reset_less=True)     # read after 8 captures
-        rx_count = Signal(range(9))
-        if t.has_trained:
-            tap = Signal(range(length))
-            m.d.comb += tap.eq(Mux(trained, SYNC_STAGES - 1 + delay, t.capture_delay - 1))
-            capture = strobe.bit_select(tap, 1)
-            # strobes at or before the tap: still to be captured (those past it mean nothing)
-            waiting = (strobe & ((C(1, length + 1) << (tap + 1)) - 1)[:length]) != 0
-        else:
-            capture = strobe[-1]
-            waiting = strobe != 0
-        with m.If(capture):
-            m.d.sync += [rx.eq(Cat(cipo, rx[:-1])), rx_count.eq(rx_count + 1)]
-
-        # A received byte is handed over as soon as the output is free, whatever the state.
-        handover = (rx_count == 8) & ~self.o_stream.valid
-        with m.If(handover):
-            m.d.sync += [self.o_stream.payload.eq(rx), self.o_stream.valid.eq(1),
-                         rx_count.eq(0)]
-        with m.If(self.o_stream.valid & self.o_stream.ready):
-            m.d.sync += self.o_stream.valid.eq(0)
+        rise = Signal()         # a rising edge goes out this cycle
+        strobe, rx_count, waiting, handover = self._capture(m, cipo, rise, trained, delay)
 
         # Bytes whose last rising edge has gone out and whose result has not been taken yet.
         # A byte may follow the one in flight without a pause only if this is at most 1 (the
@@ -367,3 +338,41 @@ class SPIController(wiring.Component):
                     m.next = "IDLE"
 
         return m
+
+    def _capture(self, m, cipo, rise, trained, delay):
+        """CIPO's bits into bytes and the bytes onto ``o_stream``: returns the capture line
+        (``strobe``), the bits captured (``rx_count``), whether a strobe is still to be
+        captured (``waiting``) and the handover pulse."""
+        t = self.timing
+        # The capture strobe follows each rising edge through a delay line as long as the
+        # round trip, so the received bit is the one the device drove for that edge. With a
+        # trained rate the line reaches the longest sample delay, and a trained transaction
+        # takes its strobe from its own tap.
+        length = t.capture_delay
+        if t.has_trained:
+            length = max(length, SYNC_STAGES + t.max_sample_delay)
+        strobe = Signal(length)
+        m.d.sync += strobe.eq(Cat(rise, strobe[:-1]))
+        rx = Signal(8, reset_less=True)     # read after 8 captures
+        rx_count = Signal(range(9))
+        if t.has_trained:
+            tap = Signal(range(length))
+            m.d.comb += tap.eq(Mux(trained, SYNC_STAGES - 1 + delay, t.capture_delay - 1))
+            capture = strobe.bit_select(tap, 1)
+            # strobes at or before the tap: still to be captured (those past it mean nothing)
+            waiting = (strobe & ((C(1, length + 1) << (tap + 1)) - 1)[:length]) != 0
+        else:
+            capture = strobe[-1]
+            waiting = strobe != 0
+        with m.If(capture):
+            m.d.sync += [rx.eq(Cat(cipo, rx[:-1])), rx_count.eq(rx_count + 1)]
+
+        # A received byte is handed over as soon as the output is free, whatever the state.
+        handover = (rx_count == 8) & ~self.o_stream.valid
+        with m.If(handover):
+            m.d.sync += [self.o_stream.payload.eq(rx), self.o_stream.valid.eq(1),
+                         rx_count.eq(0)]
+        with m.If(self.o_stream.valid & self.o_stream.ready):
+            m.d.sync += self.o_stream.valid.eq(0)
+
+        return strobe, rx_count, waiting, handover
