@@ -52,8 +52,10 @@ class BalanceController(wiring.Component):
         ``kick`` (in): a pulse per accepted command.
         ``arm_pin`` (in, asynchronous): the arming input (synchronised here).
         ``pwm`` (out, 4), ``armed`` (out), ``duty`` (out, signed 11).
+    The integral adds e only while the sum stays within ±BAL_I_LIMIT (conditional
+    integration), and a write of BAL_I_LIMIT sets it to 0.
     Latency: the duty is new 9 cycles after ``done``; a trip disarms 2 cycles after it.
-    Throughput: a result every 8 cycles.
+    Throughput: a result every 9 cycles.
     """
 
     blackbox = False        # ``report``: the multiplier as an empty 18 x 18 block
