@@ -4,8 +4,8 @@ gateware, the fixed-point reference (``reference/balance_control.py``) and the t
 same tables."""
 
 __all__ = ["BALANCE_REGS", "BALANCE_WIDTHS", "BALANCE_RESET", "TRIPS", "CONTROL_BITS",
-           "GAIN_BITS", "GAIN_SHIFT", "INTEGRAL_SHIFT", "INTEGRAL_BITS", "W_FRACTION", "DUTY_BITS", "DUTY_FULL",
-           "PWM_STEPS_MAX_HZ"]
+           "GAIN_BITS", "GAIN_SHIFT", "INTEGRAL_SHIFT", "INTEGRAL_BITS", "W_FRACTION",
+           "DUTY_BITS", "DUTY_FULL", "PWM_STEPS_MAX_HZ"]
 
 
 # the duty: signed, in 1/1024 of the battery (|duty| <= 1023)

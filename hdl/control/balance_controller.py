@@ -262,8 +262,7 @@ class BalanceController(wiring.Component):
                          fault.eq(self.fault)]
         # the integral within ±BAL_I_LIMIT (< 2^23): 24 bits, 0 again when the limit is
         # written (it integrates only within the limit: one it passes would hold it); the
-        # low-pass of the duty·2^8
-        # (|duty| < 1024): within ±2^18, 19 bits
+        # low-pass of the duty·2^8 (|duty| < 1024): within ±2^18, 19 bits
         integral = Signal(signed(INTEGRAL_BITS))
         w = Signal(signed(DUTY_BITS + W_FRACTION))
         acc = Signal(signed(GAIN_BITS * 2 + 2))
@@ -293,7 +292,7 @@ class BalanceController(wiring.Component):
                 with m.If(self.done):
                     m.next = "CHECK"
             with m.State("CHECK"):
-                fallen, _ = self._beyond(m, e, regs["BAL_CUTOFF"], "cutoff")
+                fallen = self._beyond(m, e, regs["BAL_CUTOFF"], "cutoff")
                 m.d.comb += [trip["fault"].eq(self.armed & fault),
                              trip["fallen"].eq(self.armed & ~fault & fallen)]
                 with m.If(self.armed & ~fault & ~fallen):
@@ -301,7 +300,7 @@ class BalanceController(wiring.Component):
                     m.d.comb += total.eq(integral + e)
                     # conditional integration: i + e if it is within the limit, else i held
                     # (the anti-windup of a clamp without its bound's negation and multiplexer)
-                    over, _ = self._beyond(m, total, regs["BAL_I_LIMIT"], "i_limit")
+                    over = self._beyond(m, total, regs["BAL_I_LIMIT"], "i_limit")
                     with m.If(~over):
                         m.d.sync += integral.eq(total)
                     m.d.sync += [
@@ -332,7 +331,12 @@ class BalanceController(wiring.Component):
                 fits = (scaled[DUTY_BITS - 1:] == 0) | scaled[DUTY_BITS - 1:].all()
                 m.d.comb += short.eq(Mux(fits, scaled, Mux(scaled < 0, -(1 << (DUTY_BITS - 1)),
                                                            (1 << (DUTY_BITS - 1)) - 1)))
-                over, bound = self._beyond(m, short, limit, "out_limit")
+                # clamped to ±limit: the bound on the duty's side, -limit as ~limit + 1
+                over = self._beyond(m, short, limit, "out_limit")
+                sign = short[-1]
+                bound = Signal(signed(len(limit) + 1))
+                m.d.comb += bound.eq((Cat(limit, C(0, 1)) ^ sign.replicate(len(limit) + 1)) +
+                                     sign)
                 with m.If(self.armed):
                     m.d.sync += self.duty.eq(Mux(over, bound, short))
                 m.next = "IDLE"
@@ -342,19 +346,16 @@ class BalanceController(wiring.Component):
 
     @staticmethod
     def _beyond(m, x, limit, name):
-        """Whether |``x``| > ``limit`` (unsigned), and the bound on ``x``'s side (±``limit``):
-        a clamp to ±limit with one carry chain and one negation, not two comparators, a
-        negation and a three-way multiplexer. With s the sign of x and x' = x XOR s (|x| - s),
-        x' + ~limit + s carries out of x's width exactly when |x| > limit."""
+        """Whether |``x``| > ``limit`` (unsigned): one carry chain, not two comparators and a
+        negation. With s the sign of x and x' = x XOR s (|x| - s), x' + ~limit + s carries
+        out of x's width exactly when |x| > limit."""
         width = len(x)
         assert len(limit) < width and not limit.shape().signed
         sign = x[-1]
         chain = Signal(width + 1, name=f"{name}_chain")
-        bound = Signal(signed(len(limit) + 1), name=f"{name}_bound")
         wide = Cat(limit, C(0, width - len(limit)))         # zero-extended, then inverted
-        m.d.comb += [chain.eq((x.as_unsigned() ^ sign.replicate(width)) + ~wide + sign),
-                     bound.eq((Cat(limit, C(0, 1)) ^ sign.replicate(len(limit) + 1)) + sign)]
-        return chain[width], bound
+        m.d.comb += chain.eq((x.as_unsigned() ^ sign.replicate(width)) + ~wide + sign)
+        return chain[width]
 
     def _gains(self, m, read_next, index):
         """The gain of product ``index`` (signed 18): the gains' RAM read the cycle before at

@@ -79,6 +79,7 @@ class ReadLeveller(wiring.Component):
         run_first = Signal.like(self.first)     # the run of passing taps that ends here
         run_length = Signal(range(self.max_sample_delay + 2))
         best_length = Signal.like(run_length)
+        command_taken = Signal()            # the read's command was taken: its bytes come
 
         m.d.comb += [port.rx.ready.eq(1), port.rsp.ready.eq(1),
                      port.cmd.payload.reg.eq(R.ACCEL_XOUT_H),
@@ -107,7 +108,6 @@ class ReadLeveller(wiring.Component):
                 m.d.sync += command_taken.eq(0)
                 m.next = next_state
 
-        command_taken = Signal()
         with m.FSM():
             with m.State("IDLE"):
                 with m.If(self.start):

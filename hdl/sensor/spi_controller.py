@@ -11,10 +11,15 @@ from amaranth.lib.wiring import In, Out
 from ..primitives.clocking import cycles
 
 
-__all__ = ["IOBudget", "IO_BUDGET", "SPITiming", "SPIPinsSignature", "SPIByte", "SPIController"]
+__all__ = ["IOBudget", "IO_BUDGET", "FAST_READ_MAX_HZ", "FAST_READ_MIN_LEVEL_S", "SPITiming",
+           "SPIPinsSignature", "SPIByte", "SPIController"]
 
 
 SYNC_STAGES = 2
+# The MPU9250's fast reads (its sensor and interrupt registers): SCLK at most 20 MHz, each level
+# at least 25 ns (PS-MPU-9250A-01)
+FAST_READ_MAX_HZ = 20e6
+FAST_READ_MIN_LEVEL_S = 25e-9
 
 
 @dataclass(frozen=True)
@@ -84,7 +89,8 @@ class SPITiming:
     def has_trained(self):
         return self.trained_low is not None
 
-    def with_trained(self, clk_freq, *, max_hz=20e6, min_level_s=25e-9, io_budget=None):
+    def with_trained(self, clk_freq, *, max_hz=FAST_READ_MAX_HZ,
+                     min_level_s=FAST_READ_MIN_LEVEL_S, io_budget=None):
         """This timing with a trained rate: the shortest SCLK period the part's fast reads
         allow (at most ``max_hz``, each level at least ``min_level_s`` and 2 cycles), and
         sample delays reaching a cycle more than such a period past the latest safe sample
@@ -133,7 +139,7 @@ class SPITiming:
         return self.low(fast) + self.cipo_delay, self.period(fast) - 1
 
     @classmethod
-    def for_clock(cls, clk_freq, *, slow_hz=1e6, fast_hz=20e6, cs_hold_s=500e-9,
+    def for_clock(cls, clk_freq, *, slow_hz=1e6, fast_hz=FAST_READ_MAX_HZ, cs_hold_s=500e-9,
                   min_half=2, io_budget=IO_BUDGET):
         """The fastest timing the datasheet and CIPO's timing allow at ``clk_freq``.
 

@@ -332,7 +332,8 @@ def spi_training_needs(clk_freq, config, latency_us=None):
     estimate, not a co-simulation. None for the I2C wiring."""
     from dataclasses import replace
     from ..hdl.sensor.sensor_frontend import sample_read_cycles
-    from ..hdl.sensor.spi_controller import IO_BUDGET, SPITiming
+    from ..hdl.sensor.spi_controller import (FAST_READ_MAX_HZ, FAST_READ_MIN_LEVEL_S, IO_BUDGET,
+                                             SPITiming)
     if config.wiring != "spi":
         return None
     safe = SPITiming.for_clock(clk_freq)
@@ -342,8 +343,9 @@ def spi_training_needs(clk_freq, config, latency_us=None):
     rates = []
     for period in range(4, safe.period(fast=True)):
         low = (period + 1) // 2
-        if clk_freq / period > 20e6 + 1 or (period - low) * step_ns < 25:
-            continue                    # beyond the part's fast reads: 20 MHz, 25 ns levels
+        if clk_freq / period > FAST_READ_MAX_HZ + 1 or \
+                (period - low) * step_ns < FAST_READ_MIN_LEVEL_S * 1e9:
+            continue                    # beyond the part's fast reads (the high level the shorter)
         timing = replace(safe, fast_half=low, fast_high=period - low)
         read = sample_read_cycles(config, clk_freq, timing)
         saved_us = (safe_read - read) / clk_freq * 1e6

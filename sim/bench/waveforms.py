@@ -125,6 +125,13 @@ class TraceWindow:
         if moved and self.on_change is not None:
             self.on_change(*self.cycles())
 
+    def place(self, start, stop):
+        """Sets the window to the cycles ``start`` .. ``stop`` (None: not known yet) as a run
+        finds them (the twin's, counted from its arming), telling ``on_change``."""
+        self.start, self.stop = start, stop
+        if self.on_change is not None:
+            self.on_change(*self.cycles())
+
     def cycles(self):
         """(start, stop): a sample bound not met yet is NEVER."""
         return (self.NEVER if self.start is None else self.start,

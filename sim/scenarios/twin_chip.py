@@ -157,7 +157,7 @@ def twin_trace(wave, core, clk_freq, wiring):
     from ..bench.waveforms import RunTrace
     from .frontend import status_fields
     trace = RunTrace(wave, clk_freq, "core", wiring, status_fields(core.status))
-    trace.window.start = trace.window.stop = None       # until armed: nothing traced
+    trace.window.place(None, None)                      # until armed: nothing traced
     trace.groups.append(("controller", [("dut.arm", 1, "arm"), ("dut.pwm", 4, "pwm"),
                                         ("dut.balance.armed", 1, "armed"),
                                         ("dut.balance.duty", 11, "duty")]))
@@ -170,9 +170,8 @@ def trace_window_at_arming(trace, armed_cycle, clk_freq):
     wave = trace.wave
     start_s = wave.start[1] if wave.start else 0.0
     stop_s = wave.stop[1] if wave.stop else start_s + DEFAULT_TRACE_S
-    trace.window.start = armed_cycle + round(start_s * clk_freq)
-    trace.window.stop = armed_cycle + round(stop_s * clk_freq)
-    trace.window.on_change(*trace.window.cycles())
+    trace.window.place(armed_cycle + round(start_s * clk_freq),
+                       armed_cycle + round(stop_s * clk_freq))
 
 
 def run_chip_loop(plant, seconds, *, pushes, gains, on_sample, sign=1, seed=1,
@@ -181,9 +180,9 @@ def run_chip_loop(plant, seconds, *, pushes, gains, on_sample, sign=1, seed=1,
     with the duty applied over it (the mean of its plant steps: a PWM period, 1,024 cycles,
     is longer than a step) and the gateware's last pitch; it returns False to stop (the plant
     fell). ``fault``: a name of the fault catalogue (``sim/scenarios/faults.py``) switched on
-    ``fault_at_s`` after arming, for the catalogue's duration (``disarmed_after_ms``: from the fault to the PWM
-    pins low for the rest of the run; None with ``motors_ran_on``, pins high in the run's
-    last 50 ms: a fault the controller rides through, the magnetometer's for one).
+    ``fault_at_s`` after arming, for the catalogue's duration (``disarmed_after_ms``: from
+    the fault to the PWM pins low for the rest of the run; None with ``motors_ran_on``, pins
+    high in the run's last 50 ms: a fault the controller rides through, the magnetometer's).
     ``vcd``: a ``Waveform`` (time bounds from the arming; ``trace_window_at_arming``): the
     compiled design traces it (a build of its own), a GTKWave save file beside it.
     Returns the dict of what the run saw (cycles, when it was armed, the simulator)."""
@@ -195,12 +194,12 @@ def run_chip_loop(plant, seconds, *, pushes, gains, on_sample, sign=1, seed=1,
         from .faults import FAULTS, FaultInjector
         if fault not in FAULTS:
             raise ValueError(f"no fault {fault!r} in the catalogue")
-        # armed after the settling; the fault that many samples later (``at`` counts the
-        # samples the design read: set when the loop starts)
         if fault not in TWIN_FAULTS:
             raise ValueError(f"the twin does not run the fault {fault!r}: {_NOT_IN_TWIN}; "
                              f"it runs {', '.join(TWIN_FAULTS)}")
-        # for the catalogue's duration: a pulse stays a pulse, a line freed later is freed
+        # armed after the settling; the fault that many samples later (``at`` counts the
+        # samples the design read: set when the loop starts), for the catalogue's duration (a
+        # pulse stays a pulse, a line freed later is freed)
         injector = FaultInjector(FAULTS[fault], at=1 << 40, duration=FAULTS[fault].duration,
                                  period_s=1 / setup.config.output_data_rate, mpu=model)
     core_kwargs = dict(clk_freq=setup.clk_freq, config=setup.config,
