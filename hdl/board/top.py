@@ -368,7 +368,8 @@ class AHRSCore(wiring.Component):
                              executor.frames_stable.eq(arbiter.frames_stable),
                              executor.early_sample.eq(fe.early_sample),
                              executor.who_am_i.eq(fe.who_am_i),
-                             executor.self_test.eq(fe.self_test)]
+                             executor.self_test.eq(fe.self_test),
+                             executor.level.eq(fe.level)]
                 self._cfg_arbiter(m, engine, cfg_port, executor)
             else:
                 connect(m, cfg_port[0], engine.cfg)
@@ -491,6 +492,7 @@ class AHRSCore(wiring.Component):
                      decoder.frames_stable.eq(arbiter.frames_stable),
                      decoder.early_sample.eq(fe.early_sample),
                      decoder.who_am_i.eq(fe.who_am_i), decoder.self_test.eq(fe.self_test),
+                     decoder.level.eq(fe.level),
                      self.raw_mode.eq(decoder.raw_mode),
                      framer.short.eq(decoder.raw_mode)]
         self._cfg_arbiter(m, engine, cfg_port, decoder)

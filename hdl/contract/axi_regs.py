@@ -65,7 +65,7 @@ def markdown_table():
     held = {"engine": "the engine's register map (``hdl/engine/register_map.py``): CONTROL "
                       "at a = 0xFF",
             "board": "the board's registers (``commands.BOARD_REGS``: RAW_MODE, VERSION, the "
-                     "counters, FRAMES_SENT, WHO_AM_I, SELF_TEST)",
+                     "counters, FRAMES_SENT, WHO_AM_I, SELF_TEST, SPI_TRAINING)",
             "pwm": "the PWM block's registers (``pwm_regs.PWM_REGS``; DECERR in a build "
                    "without it)",
             "control": "the balance controller's registers (``balance_regs.BALANCE_REGS``; "

@@ -42,10 +42,11 @@ BOARD_REGS = {
     "RX_FRAMING_ERRORS": 0x03, "RX_OVERRUNS": 0x04, "CMD_DISCARDED": 0x05,
     "CMD_CRC_ERRORS": 0x06, "CMD_MALFORMED": 0x07, "CMD_OK": 0x08, "CMD_REFUSED": 0x09,
     "FRAMES_SENT": 0x0A, "RATE_ERRORS": 0x0B, "WHO_AM_I": 0x0C, "SELF_TEST": 0x0D,
+    "SPI_TRAINING": 0x0E,
 }
 # Bumped whenever an address, a format or a meaning in the register map changes (engine,
 # board, PWM); the host tool refuses to configure a board whose map it does not know.
 # 7: Madgwick (filter code 3, BETA_K at 0x80); 8: the result words at 0x30-0x39; 9: the
 # flagship's REST_BIAS2 at 0x80, BETA_K at 0x81; 10: a reply's result bit 7
-# (``RESULT_INPUT_LOST``)
-REGMAP_VERSION = 10
+# (``RESULT_INPUT_LOST``); 11: SPI_TRAINING (board 0x0E, ``ReadLevelStatus``)
+REGMAP_VERSION = 11

@@ -49,6 +49,9 @@ INT_PIN_CFG_BYPASS_EN     = 0x02
 
 INT_ENABLE_RAW_RDY = 0x01
 INT_STATUS_RAW_RDY = 0x01
+# INT_STATUS's reserved bits (7, 5, 2, 1: PS-MPU-9250A-01's register map) read 0 on a working
+# part: a read shifted by a bit either way sets bit 1 or clears RAW_RDY (issue #58)
+INT_STATUS_RESERVED = 0xA6
 
 # -- reset values (all others are 0x00) -----------------------------------------------------------
 WHO_AM_I_MPU9250 = 0x71

@@ -16,7 +16,7 @@ from ..engine.register_map import CONTROL_ADDR, CONTROL_KEEP, CONTROL_RESET, TEL
 from ..contract.filter_registry import FILTER_CODES
 from .board_bus import BoardBusSignature
 from ..engine.config_write import ConfigWrite
-from ..sensor.driver_status import SelfTestStatus
+from ..sensor.driver_status import ReadLevelStatus, SelfTestStatus
 from .frame_types import CRC, SYNC, Reply
 from .register_executor import (COMMAND_STATS, COUNTED, COUNTER_WORDS, RegisterExecutor,
                                 RegisterOp, RegisterRequest, counter_word)
@@ -94,7 +94,8 @@ class CommandDecoder(wiring.Component):
             (RX_FRAMING_ERRORS ... CMD_REFUSED, RATE_ERRORS; word ``counter_word(name)``:
             ``COMMAND_STATS`` are words 0-4), its ``ram`` for ``report`` and for tests
             (``ram.data[k]``).
-        ``frames_sent``, ``who_am_i``, ``self_test`` (in): read back as board registers.
+        ``frames_sent``, ``who_am_i``, ``self_test``, ``level`` (in): read back as board
+            registers.
         ``frames_stable`` (in, 1 unless driven): ``frames_sent`` holds the count (the frame
             arbiter's ``frames_stable``): a command waits in the executor until it does (24
             cycles at most, after every 256th frame), so that a read of FRAMES_SENT gets the
@@ -133,6 +134,7 @@ class CommandDecoder(wiring.Component):
             "early_sample": In(1),
             "who_am_i": In(8),
             "self_test": In(SelfTestStatus),
+            "level": In(ReadLevelStatus),
             "tick": In(1, init=1),
         })
 
@@ -237,7 +239,7 @@ class CommandDecoder(wiring.Component):
         m.d.comb += [self.raw_mode.eq(executor.raw_mode), self.kick.eq(executor.kick),
                      *(getattr(executor, name).eq(getattr(self, name)) for name in (
                          "rx_framing_error", "rx_overrun", "early_sample", "frames_sent",
-                         "frames_stable", "who_am_i", "self_test"))]
+                         "frames_stable", "who_am_i", "self_test", "level"))]
 
     def _reply(self, m, ctype, seq, response):
         """The reply: the command's type and sequence number, the executor's response; and

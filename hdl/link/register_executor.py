@@ -14,7 +14,7 @@ from ..contract.commands import BOARD_REGS, REGMAP_VERSION, RESULTS, SPACES
 from ..engine.attitude_isa import REG_BITS
 from ..engine.config_write import ConfigWrite
 from ..engine.host_port import address_in, write_allowed
-from ..sensor.driver_status import SelfTestStatus
+from ..sensor.driver_status import ReadLevelStatus, SelfTestStatus
 from .board_bus import BoardBusSignature
 from .event_counters import EventCounters
 
@@ -112,7 +112,8 @@ class RegisterExecutor(wiring.Component):
             sample reader's (RATE_ERRORS): counted in ``counters``.
         ``counters``: the ``EventCounters`` of the ``COUNTED`` board registers (word
             ``counter_word(name)``), its ``ram`` for ``report`` and for tests.
-        ``frames_sent``, ``who_am_i``, ``self_test`` (in): read back as board registers.
+        ``frames_sent``, ``who_am_i``, ``self_test``, ``level`` (in): read back as board
+            registers.
         ``frames_stable`` (in, 1 unless driven): ``frames_sent`` holds the count (the frame
             arbiter's): a request waits until it does (24 cycles at most, after every 256th
             frame), so that a read of FRAMES_SENT gets the count.
@@ -151,6 +152,7 @@ class RegisterExecutor(wiring.Component):
             "frames_stable": In(1, init=1),
             "who_am_i": In(8),
             "self_test": In(SelfTestStatus),
+            "level": In(ReadLevelStatus),
         })
 
     def documented_use(self):
@@ -342,7 +344,8 @@ class RegisterExecutor(wiring.Component):
         response's value); ``count``: the counter the request addresses (``EventCounters``'
         ``r_data``, read the cycle before: ``elaborate``)."""
         return {"raw_mode": self.raw_mode, "count": count, "frames_sent": self.frames_sent,
-                "who_am_i": self.who_am_i, "self_test": self.self_test.as_value()}
+                "who_am_i": self.who_am_i, "self_test": self.self_test.as_value(),
+                "level": self.level.as_value()}
 
     def _board_regs(self):
         """What each board register reads back, by address (``BOARD_REGS``: the one map of
@@ -352,6 +355,7 @@ class RegisterExecutor(wiring.Component):
             "RAW_MODE": "raw_mode", "VERSION": self.version, "REGMAP_VERSION": REGMAP_VERSION,
             **{name: "count" for name in COUNTED},
             "FRAMES_SENT": "frames_sent", "WHO_AM_I": "who_am_i", "SELF_TEST": "self_test",
+            "SPI_TRAINING": "level",
         }
         assert set(sources) == set(BOARD_REGS), "a board register without its source"
         return {BOARD_REGS[name]: sources[name] for name in BOARD_REGS}

@@ -46,7 +46,7 @@ attitude frame at 921,600 baud still fits a 1 kHz period.
 from amaranth.lib import data
 
 
-__all__ = ["DriverStatus", "SelfTestStatus"]
+__all__ = ["DriverStatus", "SelfTestStatus", "ReadLevelStatus"]
 
 
 class DriverStatus(data.Struct):
@@ -74,3 +74,24 @@ class SelfTestStatus(data.Struct):
     done: 1
     mag_done: 1
     fail: 9
+
+
+class ReadLevelStatus(data.Struct):
+    """The driver's ``level`` port (board register SPI_TRAINING, issue #58): the trained SPI
+    sample point (``hdl/sensor/read_leveller.py``). All 0 in a build without a trained rate
+    (I2C wiring, or a clock at which it would be no faster than the safe rate).
+
+    - ``trained``: the sample bursts are read at the trained rate now (else the safe one).
+    - ``scanned``: a scan has ended since streaming began.
+    - ``sample_delay``: the delay chosen (cycles from a rising SCLK edge to CIPO's sample).
+    - ``first``, ``last``: the widest run of delays the last scan read right (``first`` >
+      ``last``: none).
+    - ``fallbacks``: falls from the trained rate to the safe one since power-on (a trained
+      burst that failed its checks, or a guard delay that read wrong), saturating at 255.
+    """
+    trained: 1
+    scanned: 1
+    sample_delay: 5
+    first: 5
+    last: 5
+    fallbacks: 8

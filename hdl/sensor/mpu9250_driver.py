@@ -58,6 +58,15 @@ the eight AK8963 bytes (ST1..ST2): one fast SPI burst of 23 bytes from INT_STATU
 they sit in EXT_SENS_DATA_00..07), or two I2C reads (I2C wiring). Reading INT_STATUS clears a
 latched interrupt; reading ST2 releases the AK8963's data registers.
 
+Read levelling (SPI wiring, where the SPI controller has a trained rate: ``SensorFrontEnd``,
+issue #58): as streaming begins, a ``ReadLeveller`` scans the trained rate's sample delays and
+the reader waits for it (about 0.5 ms at 48 MHz); if it found an eye the bursts go at the
+trained rate, and after each the leveller checks the delays a cycle either side. A guard that
+reads wrong or a trained burst that fails its checks falls back to the safe rate at once
+(``level.fallbacks`` counts), and the scan runs again ``DriverTiming.retrain_s`` later (in bursts
+read), as after a scan that found none. ``level`` (``ReadLevelStatus``) is the board register
+SPI_TRAINING.
+
 Two blocks share the register port: the bring-up sequencer (``hdl/sensor/bring_up_sequencer.py``:
 the program, one step at a time) and the sample reader (``hdl/sensor/sample_reader.py``: a burst per
 data-ready edge, its checks, the sample). The reader asks the sequencer for a restart (no
@@ -81,7 +90,8 @@ from ..primitives.clocking import cycles
 from .register_port import RegisterPortSignature
 from .sample_store import SLOTS, SampleStoreWriteSignature
 from .register_port_arbiter import RegisterPortArbiter
-from .driver_status import DriverStatus, SelfTestStatus
+from .driver_status import DriverStatus, ReadLevelStatus, SelfTestStatus
+from .read_leveller import ReadLeveller
 from .sample import Sample
 from .sample_reader import (BAD_BURST_LIMIT, MPU_BYTES, SAMPLE_BYTES, SampleReader, tick_cycles,
                             burst_is_plausible, gyro_jump_limit)
@@ -206,6 +216,13 @@ class DriverTiming:
     mag_timeout_s: float = 0.030
     self_test_settle_s: float = 0.020
     mag_self_test_s: float = 0.009
+    retrain_s: float = 1.0
+
+    def retrain_periods(self, config):
+        """``retrain_s`` in whole sample periods (at least two): how long after a fall from the
+        trained rate (or a scan that found no eye) the read levelling scans again (counted in
+        the bursts read: one a period while streaming)."""
+        return max(2, math.ceil(self.retrain_s / self.period_s(config) - 1e-9))
 
     def period_s(self, config):
         return self.sample_period_s or 1 / config.output_data_rate
@@ -279,13 +296,14 @@ def driver_members():
     (a pulse per sample that came early, ``DriverStatus.rate_error``: the board counts them in
     RATE_ERRORS), ``who_am_i`` (8: the last WHO_AM_I value read), ``self_test``
     (``SelfTestStatus``), and the sample store's write port and the offered sample's slot
-    (``store``, ``sample_slot``: ``SampleReader``, ``hdl/sensor/sample_store.py``), and the reader's
-    free-running ``tick`` (``tick_cycles``)."""
+    (``store``, ``sample_slot``: ``SampleReader``, ``hdl/sensor/sample_store.py``), the reader's
+    free-running ``tick`` (``tick_cycles``), and the read levelling's status (``level``,
+    ``ReadLevelStatus``)."""
     return {"int_pin": In(1), "samples": Out(stream.Signature(Sample)),
             "status": Out(DriverStatus), "asa": Out(data.ArrayLayout(8, 3)),
             "early_sample": Out(1), "who_am_i": Out(8), "self_test": Out(SelfTestStatus),
             "store": Out(SampleStoreWriteSignature()), "sample_slot": Out(range(SLOTS)),
-            "tick": Out(1)}
+            "tick": Out(1), "level": Out(ReadLevelStatus)}
 
 
 class MPU9250Driver(wiring.Component):
@@ -296,15 +314,21 @@ class MPU9250Driver(wiring.Component):
     ``mag_timeout_periods``.
 
     Inside: a ``BringUpSequencer`` and a ``SampleReader`` share the register port through a
-    ``RegisterPortArbiter`` (the reader first, a command at a time).
+    ``RegisterPortArbiter`` (the reader first, a command at a time); with ``max_sample_delay``
+    (the SPI controller's trained rate: ``SPITiming.with_trained``) a ``ReadLeveller`` too,
+    between the two (a second arbiter), and the member ``sample_delay`` (out) for the SPI
+    controller: the leveller's own delay for its reads, the chosen one for everyone else's.
 
     Latency: a sample leaves the driver a few cycles after its burst ends
     (``sensor_frontend.sample_read_cycles`` bounds data-ready to sample); while the magnetometer
     is set up again, one sequencer command (at most a slow two-byte transaction) may come first.
     Throughput: one sample per data-ready interrupt; the stream never waits on ``ready``.
     """
-    def __init__(self, *, clk_freq, config=MPU9250Config(), timing=DriverTiming()):
+    def __init__(self, *, clk_freq, config=MPU9250Config(), timing=DriverTiming(),
+                 max_sample_delay=None):
         self.clk_freq = clk_freq
+        # read levelling (issue #58): the SPI controller has a trained rate with these delays
+        self.max_sample_delay = max_sample_delay if config.wiring == "spi" else None
         self.config = config
         self.timing = timing
         self.power_up_cycles, self.reset_cycles, self.timeout_cycles = \
@@ -324,7 +348,10 @@ class MPU9250Driver(wiring.Component):
         self.sequencer = BringUpSequencer(
             self.program, accepted_who_am_i=config.accepted_who_am_i,
             poll_cycles=self.timeout_cycles, tick_cycles=tick_cycles(self.period_cycles))
-        super().__init__({"port": Out(RegisterPortSignature().flip()), **driver_members()})
+        levelling = ({"sample_delay": Out(range(max_sample_delay + 1))}
+                     if self.max_sample_delay is not None else {})
+        super().__init__({"port": Out(RegisterPortSignature().flip()), **driver_members(),
+                          **levelling})
 
     def elaborate(self, platform):
         m = Module()
@@ -339,8 +366,13 @@ class MPU9250Driver(wiring.Component):
             mag_timeout_periods=self.mag_timeout_periods)
         m.submodules.arbiter = arbiter = RegisterPortArbiter()
         connect(m, reader.port, arbiter.first)
-        connect(m, seq.port, arbiter.second)
         connect(m, arbiter.port, flipped(self.port))
+        enable = seq.streaming
+        start = seq.started
+        if self.max_sample_delay is not None:
+            enable, start = self._levelling(m, seq, reader, arbiter)
+        else:
+            connect(m, seq.port, arbiter.second)
         connect(m, reader.samples, flipped(self.samples))
         connect(m, reader.store, flipped(self.store))
         m.d.comb += [seq.tick.eq(reader.tick), self.tick.eq(reader.tick)]
@@ -352,7 +384,7 @@ class MPU9250Driver(wiring.Component):
                          self.self_test.eq(st.status), status.self_test_fail.eq(st.status.fail)]
         m.d.comb += [
             reader.int_pin.eq(self.int_pin),
-            reader.enable.eq(seq.streaming), reader.start.eq(seq.started),
+            reader.enable.eq(enable), reader.start.eq(start),
             reader.restarted.eq(seq.restarted), reader.mag_ok.eq(seq.mag_ok),
             reader.mag_setup.eq(seq.mag_setup),
             seq.restart.eq(reader.restart), seq.mag_lost.eq(reader.mag_lost),
@@ -368,3 +400,61 @@ class MPU9250Driver(wiring.Component):
             status.mag_stale.eq(reader.mag_stale), status.bad_burst.eq(reader.bad_burst),
         ]
         return m
+
+    def _levelling(self, m, seq, reader, arbiter):
+        """The read levelling (issue #58): a ``ReadLeveller`` beside the sequencer (behind the
+        reader), the sample delay the SPI controller uses, the fall back to the safe rate and
+        the scans again. Returns the reader's ``enable`` and ``start``: held until the first
+        scan after streaming began has ended (so that every sample is read at the rate
+        chosen)."""
+        m.submodules.leveller = lev = ReadLeveller(max_sample_delay=self.max_sample_delay)
+        m.submodules.inner = inner = RegisterPortArbiter()
+        connect(m, lev.port, inner.first)
+        connect(m, seq.port, inner.second)
+        connect(m, inner.port, arbiter.second)
+        # the leveller's own trained reads at its tap; everyone else's at the delay chosen
+        own = arbiter.second_owns & ~inner.second_owns
+        m.d.comb += self.sample_delay.eq(Mux(own, lev.sample_delay, lev.centre))
+
+        status = self.level
+        trained = status.trained
+        scanned = Signal()                  # the first scan since streaming began has ended
+        scanning = Signal()                 # the leveller's task is a scan (not a check)
+        started = Signal()                  # the reader starts now
+        check_due = Signal()                # a burst was read trained: check the guards
+        # the wait before a scan again, in bursts read (one a sample period while streaming;
+        # none, no need)
+        wait = self.timing.retrain_periods(self.config)
+        retrain = Signal(range(wait + 1))
+        fallback = Signal()
+        m.d.comb += [reader.trained.eq(trained),
+                     status.sample_delay.eq(lev.centre), status.first.eq(lev.first),
+                     status.last.eq(lev.last), status.scanned.eq(scanned)]
+        with m.If((retrain != 0) & reader.burst_done):
+            m.d.sync += retrain.eq(retrain - 1)
+        idle = ~lev.busy & ~lev.done
+        with m.If(seq.started | (idle & seq.streaming & scanned & ~trained & (retrain == 0))):
+            # at the start of streaming; again a while after a fall back or a scan that found
+            # no eye (the bursts go on at the safe rate meanwhile)
+            m.d.comb += lev.start.eq(1)
+            m.d.sync += [scanning.eq(1), trained.eq(0), check_due.eq(0)]
+        with m.Elif(idle & check_due & trained):
+            m.d.comb += lev.check.eq(1)
+            m.d.sync += [scanning.eq(0), check_due.eq(0)]
+        with m.If(lev.done & scanning):
+            m.d.sync += [trained.eq(lev.trained), scanned.eq(1), scanning.eq(0)]
+            m.d.comb += started.eq(~scanned & seq.streaming)
+            with m.If(~lev.trained):
+                m.d.sync += retrain.eq(wait)
+        # a burst read at the trained rate: its guards are checked after it; one that failed
+        # its checks, or a guard that read wrong, falls back to the safe rate at once
+        with m.If(reader.burst_done & trained):
+            m.d.sync += check_due.eq(1)
+        m.d.comb += fallback.eq(trained & (reader.trained_failed |
+                                           (lev.done & ~scanning & lev.check_failed)))
+        with m.If(fallback):
+            m.d.sync += [trained.eq(0), check_due.eq(0), retrain.eq(wait),
+                         status.fallbacks.eq(status.fallbacks + (status.fallbacks != 255))]
+        with m.If(~seq.streaming):
+            m.d.sync += [scanned.eq(0), trained.eq(0), check_due.eq(0)]
+        return seq.streaming & scanned, started

@@ -17,6 +17,8 @@ class RegisterPortArbiter(wiring.Component):
         ``first`` (a register port, as its client sees it): has priority.
         ``second`` (in, likewise): gets the port when ``first`` offers no command.
         ``port`` (out, to the register port).
+        ``second_owns`` (out): the command on the port (taken, until its response is) is
+            ``second``'s (the driver gives the SPI controller a client's own sample delay by it).
 
     A client owns the port from the cycle its command is taken until its response is taken
     (and no ``rx`` byte is offered beside it); its ``rx`` bytes and its response go to it
@@ -32,6 +34,7 @@ class RegisterPortArbiter(wiring.Component):
             "first": Out(RegisterPortSignature()),
             "second": Out(RegisterPortSignature()),
             "port": Out(RegisterPortSignature().flip()),
+            "second_owns": Out(1),
         })
 
     def elaborate(self, platform):
@@ -42,6 +45,7 @@ class RegisterPortArbiter(wiring.Component):
         waiting = Signal()          # the command offered last cycle was not taken
         m.d.comb += grant.eq(Mux(waiting, owner, ~self.first.cmd.valid))
         m.d.sync += waiting.eq(~busy & self.port.cmd.valid & ~self.port.cmd.ready)
+        m.d.comb += self.second_owns.eq(busy & owner)
         clients = (self.first, self.second)
         port = self.port
 

@@ -68,10 +68,12 @@ def burst_is_plausible(burst):
     """The check every sample burst passes before it becomes a sample (the gateware computes
     the same): ``burst`` is INT_STATUS followed by the fourteen accel/temp/gyro bytes. It fails
     when RAW_RDY is 0 (the registers hold no new sample: a data line stuck low reads all
-    zeros), when INT_STATUS reads 0xFF (its reserved bits read 0 on a working part) or when
-    the fourteen data bytes are all 0xFF (a data line stuck high or floating)."""
+    zeros), when a reserved bit of INT_STATUS reads 1 (``INT_STATUS_RESERVED``: they read 0
+    on a working part; a line stuck high sets them, and so does a read whose sample point
+    slipped a bit late) or when the fourteen data bytes are all 0xFF (a data line stuck high
+    or floating)."""
     status, data_bytes = burst[0], burst[1:MPU_BYTES]
-    return bool(status & R.INT_STATUS_RAW_RDY) and status != 0xFF and \
+    return bool(status & R.INT_STATUS_RAW_RDY) and not status & R.INT_STATUS_RESERVED and \
         not all(b == 0xFF for b in data_bytes)
 
 
@@ -152,6 +154,11 @@ class SampleReader(wiring.Component):
             bursts in a row. ``reconfigure`` (out, pulse): a sample came early (above).
             ``mag_lost`` (out, pulse): no new field for the time-out.
             ``mag_nack`` (out, pulse): the AK8963's read failed (I2C wiring).
+            ``trained_failed`` (out, pulse): a burst read at the trained rate failed its
+            checks (the driver falls back to the safe rate). ``burst_done`` (out, pulse): a
+            burst's checks (whatever their verdict).
+        ``trained`` (in): read the bursts at the trained rate (SPI wiring; the command's
+            ``trained`` bit, taken with each burst's command: issue #58).
         ``int_timeout``, ``bad_burst``, ``mag_stale``, ``read_error``, ``rate_error`` (out):
             status, as ``DriverStatus`` has them (``read_error``: the MPU9250's read failed,
             I2C; ``rate_error``: the last sample came early, cleared by one on time).
@@ -194,6 +201,7 @@ class SampleReader(wiring.Component):
             "restart": Out(1), "reconfigure": Out(1), "mag_lost": Out(1), "mag_nack": Out(1),
             "int_timeout": Out(1), "bad_burst": Out(1), "mag_stale": Out(1),
             "read_error": Out(1), "rate_error": Out(1),
+            "trained": In(1), "trained_failed": Out(1), "burst_done": Out(1),
             "tick": Out(1),
             "store": Out(SampleStoreWriteSignature()),
             "sample_slot": Out(range(SLOTS), init=SLOTS - 1),
@@ -509,13 +517,20 @@ class SampleReader(wiring.Component):
         def command(device, reg, length):
             p = port.cmd.payload
             m.d.comb += [port.cmd.valid.eq(1), p.device.eq(device), p.reg.eq(reg),
-                         p.length.eq(length), p.fast.eq(1)]
+                         p.length.eq(length), p.fast.eq(1), p.trained.eq(cmd_trained)]
 
         # A command once offered stays offered until taken (a stream's rule), even if
         # ``enable`` drops or ``start`` clears the pending edge meanwhile: its sample is then
         # read and passed on as usual.
         offered = Signal()
         m.d.sync += offered.eq(port.cmd.valid & ~port.cmd.ready)
+        # the rate asked for, held while a command waits (a fallback meanwhile must not change
+        # the payload under ``valid``: it applies from the next burst)
+        cmd_trained, held_trained = Signal(), Signal()
+        m.d.comb += cmd_trained.eq(Mux(offered, held_trained, self.trained))
+        m.d.sync += held_trained.eq(cmd_trained)
+        n.burst_trained = Signal()              # this burst is read at the trained rate
+        n.cmd_trained = cmd_trained
         (n.sample, n.gyro_jumped, n.have_base, n.timer, n.counter, n.overrun, n.resumed,
          n.bad_bursts, n.mag_age, n.prev_field, n.prev_drdy, n.mag_read_failed, n.command,
          n.offered) = (
@@ -541,7 +556,8 @@ class SampleReader(wiring.Component):
                 with m.If(offered | (self.enable & int_pending & ~n.counting_busy)):
                     command(0, R.INT_STATUS, SAMPLE_BYTES if spi else MPU_BYTES)
                     with m.If(port.cmd.ready):
-                        m.d.sync += [int_pending.eq(int_edge), mag_read_failed.eq(0)]
+                        m.d.sync += [int_pending.eq(int_edge), mag_read_failed.eq(0),
+                                     n.burst_trained.eq(n.cmd_trained)]
                         read_started()
                         m.next = "READ_MPU"
                 with m.Elif(self.enable & ~self.start & (timer == 0)):
@@ -582,10 +598,11 @@ class SampleReader(wiring.Component):
                         m.d.comb += self.mag_nack.eq(1)
                         m.d.sync += mag_read_failed.eq(1)
             with m.State("CHECK"):
+                m.d.comb += self.burst_done.eq(1)
                 m.d.sync += [n.counting.eq(1),
                              timer.eq(n.after_ticks), self.int_timeout.eq(0)]
                 m.next = "IDLE"
-                plausible = buf[0][0] & (buf[0] != 0xFF) & ~n.data_ones
+                plausible = buf[0][0] & ((buf[0] & R.INT_STATUS_RESERVED) == 0) & ~n.data_ones
                 if self.gyro_jump is not None:
                     m.d.comb += gyro_jumped.eq(have_base & n.gyro_moved)
                     plausible = plausible & ~gyro_jumped
@@ -602,6 +619,7 @@ class SampleReader(wiring.Component):
                         m.d.sync += [int_pending.eq(1), pending_edge.eq(0)]
                 with m.If(~plausible):
                     m.d.sync += [self.bad_burst.eq(1), bad_bursts.eq(bad_bursts + 1)]
+                    m.d.comb += self.trained_failed.eq(n.burst_trained)
                     with m.If(~spurious):     # a sample was made and lost
                         m.d.sync += dropped.eq(Mux(dropped == 15, 15, dropped + 1))
                     with m.If(bad_bursts == BAD_BURST_LIMIT - 1):

@@ -11,7 +11,18 @@ from .sample_reader import MPU_BYTES, SAMPLE_BYTES
 from .spi_controller import SPIController, SPIPinsSignature, SPITiming
 
 
-__all__ = ["SensorFrontEnd", "sample_read_cycles"]
+__all__ = ["SensorFrontEnd", "sample_read_cycles", "spi_timing_for"]
+
+
+def spi_timing_for(clk_freq, levelling=True):
+    """The SPI controller's timing at ``clk_freq``: ``SPITiming.for_clock``, with the trained
+    rate (``SPITiming.with_trained``: read levelling, issue #58) where it is faster than the
+    safe fast rate and ``levelling``."""
+    safe = SPITiming.for_clock(clk_freq)
+    trained = safe.with_trained(clk_freq)
+    if levelling and trained.trained_period() < safe.period(fast=True):
+        return trained
+    return safe
 
 
 def sample_read_cycles(config, clk_freq, bus_timing=None):
@@ -37,7 +48,9 @@ class SensorFrontEnd(wiring.Component):
     """Sensor front end: the MPU9250 driver, its register port and bus controller.
 
     ``config.wiring`` picks the bus: "spi" (``SPIRegisterPort`` + ``SPIController``, the AK8963
-    through the MPU9250's I2C master) or "i2c" (``I2CRegisterPort`` + ``I2CController``, the AK8963
+    through the MPU9250's I2C master; its timing ``spi_timing``, by default ``spi_timing_for``:
+    with a trained rate where the clock makes one faster, and then the driver's read
+    levelling) or "i2c" (``I2CRegisterPort`` + ``I2CController``, the AK8963
     through the bypass multiplexer).
 
     Interface
@@ -60,9 +73,8 @@ class SensorFrontEnd(wiring.Component):
                  spi_timing=None, i2c_timing=None):
         self.clk_freq = clk_freq
         self.config = config
-        self.driver = MPU9250Driver(clk_freq=clk_freq, config=config, timing=timing)
         if config.wiring == "spi":
-            self.bus_timing = spi_timing or SPITiming.for_clock(clk_freq)
+            self.bus_timing = spi_timing or spi_timing_for(clk_freq)
             self.bus = SPIController(self.bus_timing)
             self.port = SPIRegisterPort()
             pins = SPIPinsSignature()
@@ -71,6 +83,10 @@ class SensorFrontEnd(wiring.Component):
             self.bus = I2CController(self.bus_timing)
             self.port = I2CRegisterPort(mpu_address=config.i2c_address)
             pins = I2CPinsSignature()
+        levelled = config.wiring == "spi" and self.bus_timing.has_trained
+        self.driver = MPU9250Driver(
+            clk_freq=clk_freq, config=config, timing=timing,
+            max_sample_delay=self.bus_timing.max_sample_delay if levelled else None)
         super().__init__({"pins": Out(pins), **driver_members()})
 
     def elaborate(self, platform):
@@ -80,6 +96,8 @@ class SensorFrontEnd(wiring.Component):
         m.submodules.port = port = self.port
         connect(m, driver.port, port.port)
         if self.config.wiring == "spi":
+            if self.bus_timing.has_trained:
+                m.d.comb += bus.sample_delay.eq(driver.sample_delay)
             connect(m, port.spi_o, bus.i_stream)
             connect(m, bus.o_stream, port.spi_i)
         else:
@@ -91,7 +109,8 @@ class SensorFrontEnd(wiring.Component):
         m.d.comb += [driver.int_pin.eq(self.int_pin), self.status.eq(driver.status),
                      self.asa.eq(driver.asa), self.early_sample.eq(driver.early_sample),
                      self.who_am_i.eq(driver.who_am_i), self.self_test.eq(driver.self_test),
-                     self.sample_slot.eq(driver.sample_slot), self.tick.eq(driver.tick)]
+                     self.sample_slot.eq(driver.sample_slot), self.tick.eq(driver.tick),
+                     self.level.eq(driver.level)]
         if self.config.wiring == "i2c":
             # the controller's own view of a failure, which the driver sees only as an error
             m.d.comb += [self.status.bus_timeout.eq(bus.status.timeout),

@@ -291,7 +291,7 @@ def cycles_per_update(samples=6):
     return out, first
 
 
-def drdy_to_attitude_us(clk_freq, config, results=21):
+def drdy_to_attitude_us(clk_freq, config, results=21, part=None):
     """Data-ready (INT at the pin) to the attitude leaving the engine, µs, with the reset
     default filter (the flagship): measured in a co-simulation of the whole core against the
     MPU9250 and AK8963 models (SDO output delay 100 ns), over ``results`` samples after the
@@ -299,7 +299,9 @@ def drdy_to_attitude_us(clk_freq, config, results=21):
     field (the AK8963 measures at 100 Hz, one sample in ten at the default 1 kHz), else
     None; ``without_mag_correction``: the most over the others; ``drdy_to_attitude``: the
     worst of all. Real bus and engine timing; only the waits of bring-up and the sample
-    period are compressed, which the latency does not depend on."""
+    period are compressed, which the latency does not depend on. ``part``: ``MPU9250Timing``
+    fields the model's part has instead (its SDO timing: whether the read levelling trains,
+    issue #58)."""
     from ..hdl.contract.defaults import DEFAULT_BAUD
     from ..sim.scenarios.setup import SimSetup
     from ..sim.scenarios.core import run_core
@@ -307,7 +309,12 @@ def drdy_to_attitude_us(clk_freq, config, results=21):
                      odr_scale=SimSetup.default_odr_scale(config, clk_freq))
     # the telemetry divider for the shortened sample period, as ``simulate`` has it: the same
     # core, so one compiled build serves both
+    from dataclasses import replace
+    model = setup.model(magnetometer=config.magnetometer)
+    if part:
+        model.timing = replace(model.timing, **part)
     run = run_core(setup, n_results=results + 1, compiled=None,   # compiled when it can be
+                   model=model,
                    core_kwargs={"telemetry_divider": setup.telemetry_divider(DEFAULT_BAUD)})
     pairs = list(zip(run.latencies_us(clk_freq), run.results))[1:]
 
@@ -318,47 +325,42 @@ def drdy_to_attitude_us(clk_freq, config, results=21):
             "with_mag_correction": most(True), "without_mag_correction": most(False)}
 
 
-def spi_training_needs(clk_freq, config, latency_us=None):
-    """What a trained CIPO sample point would need to read faster than the safe rate (issue
-    #58: the training is not built yet), per fast SCLK period shorter than the safe one that
-    the part takes (at most 20 MHz, each level at least 25 ns): its burst's ``read_cycles``
-    (``sample_read_cycles``, with the safe rate's capture delay), the read time it saves, and
-    the eye it needs. Trained, the sample point moves with the round trip, so the delay itself
-    no longer limits the rate: what must hold is an eye (an SCLK period less the part's jitter
-    and its drift between two check reads) wide enough for the point, placed in whole clock
-    cycles, to keep the I/O budget's margin on both sides: ``eye_needed_ns`` = 2·margin + a
-    cycle, ``jitter_and_drift_allowed_ns`` = the period less that. With ``latency_us``
-    (``drdy_to_attitude_us``'s, at the safe rate), the same less the read time saved: an
-    estimate, not a co-simulation. None for the I2C wiring."""
+# a part the read levelling cannot train on (``sim.scenarios.faults``' ``sdo_slow``): its
+# bursts stay at the safe rate
+UNTRAINABLE_PART = {"sdo_delay_s": 65e-9, "board_delay_s": 14e-9, "sdo_jitter_s": 35e-9}
+
+
+def spi_training(clk_freq, config, latency_us=None, untrained_us=None):
+    """The read levelling (issue #58) of the build at ``clk_freq``: its trained rate
+    (``sensor_frontend.spi_timing_for``; None where it is no faster than the safe rate, or
+    with I2C), the burst's ``read_cycles`` at each rate (``sample_read_cycles``: a bound), the
+    sample delays it scans, the eye it needs (2·margin + a cycle: the chosen delay keeps a
+    cycle from both ends of the run), and the data-ready-to-attitude latency measured in
+    co-simulation trained (``latency_us``: the model's part, 100 ns, trains) and untrained
+    (``untrained_us``: ``UNTRAINABLE_PART``, the safe rate)."""
     from dataclasses import replace
-    from ..hdl.sensor.sensor_frontend import sample_read_cycles
-    from ..hdl.sensor.spi_controller import (FAST_READ_MAX_HZ, FAST_READ_MIN_LEVEL_S, IO_BUDGET,
-                                             SPITiming)
+    from ..hdl.sensor.sensor_frontend import sample_read_cycles, spi_timing_for
+    from ..hdl.sensor.spi_controller import IO_BUDGET, SPITiming
     if config.wiring != "spi":
         return None
     safe = SPITiming.for_clock(clk_freq)
+    timing = spi_timing_for(clk_freq)
+    out = {"built": timing.has_trained, "safe_sclk_hz": round(safe.sclk_hz(clk_freq, True)),
+           "safe_read_cycles": sample_read_cycles(config, clk_freq, safe)}
+    if not timing.has_trained:
+        return out
+    period = timing.trained_period()
+    trained = replace(safe, fast_half=timing.trained_low, fast_high=timing.trained_high)
     step_ns = 1e9 / clk_freq
-    safe_read = sample_read_cycles(config, clk_freq, safe)
     eye_needed = 2 * IO_BUDGET.margin_ns + step_ns
-    rates = []
-    for period in range(4, safe.period(fast=True)):
-        low = (period + 1) // 2
-        if clk_freq / period > FAST_READ_MAX_HZ + 1 or \
-                (period - low) * step_ns < FAST_READ_MIN_LEVEL_S * 1e9:
-            continue                    # beyond the part's fast reads (the high level the shorter)
-        timing = replace(safe, fast_half=low, fast_high=period - low)
-        read = sample_read_cycles(config, clk_freq, timing)
-        saved_us = (safe_read - read) / clk_freq * 1e6
-        entry = {"sclk_hz": round(clk_freq / period), "period_cycles": period,
-                 "read_cycles": read, "read_us_saved": round(saved_us, 2),
-                 "eye_needed_ns": round(eye_needed, 1),
-                 "jitter_and_drift_allowed_ns": round(period * step_ns - eye_needed, 1)}
-        if latency_us and latency_us.get("drdy_to_attitude") is not None:
-            entry["drdy_to_attitude_us_estimate"] = {
-                k: None if v is None else round(v - saved_us, 2) for k, v in latency_us.items()}
-        rates.append(entry)
-    return {"built": False, "safe_sclk_hz": round(safe.sclk_hz(clk_freq, True)),
-            "safe_read_cycles": safe_read, "trained": rates}
+    out.update({
+        "trained_sclk_hz": round(clk_freq / period),
+        "trained_read_cycles": sample_read_cycles(config, clk_freq, trained),
+        "sample_delays": [0, timing.max_sample_delay],
+        "eye_needed_ns": round(eye_needed, 1),
+        "jitter_and_drift_allowed_ns": round(period * step_ns - eye_needed, 1),
+        "latency_trained_us": latency_us, "latency_untrained_us": untrained_us})
+    return out
 
 
 def report(*, clk_freq=None, config=None, latency=True, core_options=None, spread=0,
@@ -406,6 +408,8 @@ def report(*, clk_freq=None, config=None, latency=True, core_options=None, sprea
     cycles, first = cycles_per_update()
     shown.next("data-ready to attitude (co-simulation of the core)")
     latency_us = drdy_to_attitude_us(clk_freq, config) if latency else {"drdy_to_attitude": None}
+    untrained_us = (drdy_to_attitude_us(clk_freq, config, part=UNTRAINABLE_PART)
+                    if latency and config.wiring == "spi" else None)
     shown.close()
     mhz = clk_freq / 1e6
     budget = rate_budget(config, clk_freq, baud, core_options.get("telemetry_divider"))
@@ -418,7 +422,7 @@ def report(*, clk_freq=None, config=None, latency=True, core_options=None, sprea
         "max_sample_rate_hz": round(budget["max_sample_rate_hz"]),
         "sample_budget_cycles": {k: budget[k] for k in ("read_cycles", "update_cycles",
                                                          "cycles_per_sample")},
-        "spi_training": spi_training_needs(clk_freq, config, latency_us),
+        "spi_training": spi_training(clk_freq, config, latency_us, untrained_us),
         "device": DEVICE,
         "design": design,
         "datapath": datapath,

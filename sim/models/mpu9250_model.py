@@ -202,6 +202,7 @@ class MPU9250Model:
         self._sdo_level = 0
         self._sdo_pending = deque()     # (time, level): SDO's transitions in flight, in order
         self.sdo_drift_s = 0.0          # added to every bit's delay from now on (a drift)
+        self._drift_ramp = None         # (start time, rate s/s, until): ``ramp_sdo_drift``
         self._sdo_rng = random.Random(sdo_seed)
         self.selected = False
 
@@ -499,11 +500,25 @@ class MPU9250Model:
             self._sdo_level = pending.popleft()[1]
         return self._sdo_level
 
-    def _bit_delay(self):
-        """A bit's delay now: the part's and the board's, the drift, the jitter."""
+    def ramp_sdo_drift(self, t, rate, until=None):
+        """From time ``t`` the drift moves by ``rate`` (seconds of delay per second) until
+        ``until`` (None: for ever), from where it is (as temperature moves a part)."""
+        self.sdo_drift_s = self.drift_at(t)
+        self._drift_ramp = (t, rate, until)
+
+    def drift_at(self, t):
+        """The drift at time ``t`` (``sdo_drift_s`` and a ramp's part)."""
+        if self._drift_ramp is None:
+            return self.sdo_drift_s
+        start, rate, until = self._drift_ramp
+        end = t if until is None else min(t, until)
+        return self.sdo_drift_s + rate * max(0.0, end - start)
+
+    def _bit_delay(self, t):
+        """A bit's delay at ``t``: the part's and the board's, the drift, the jitter."""
         timing = self.timing
         jitter = timing.sdo_jitter_s
-        return timing.sdo_round_trip_s + self.sdo_drift_s + \
+        return timing.sdo_round_trip_s + self.drift_at(t) + \
             (self._sdo_rng.uniform(-jitter, jitter) if jitter else 0.0)
 
     def _drive_sdo(self, t, bit, delay):
@@ -572,7 +587,7 @@ class MPU9250Model:
                 self._out = 0 if self._ignored else self.read_reg(self._addr)
                 self._addr = (self._addr + 1) & 0x7F
             self._drive_sdo(t, (self._out >> (7 - self._bits % 8)) & 1 if self._reading else 0,
-                            self._bit_delay())
+                            self._bit_delay(t))
         else:
             if self._last_rise is not None:
                 timing[0] = min(timing[0], t - self._last_rise)

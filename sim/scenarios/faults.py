@@ -23,7 +23,7 @@ the catalogue promises:
 """
 
 import bisect
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Callable, Optional, Tuple
 
 from ...hdl.contract import ak8963_regs as A
@@ -40,6 +40,10 @@ ERROR_FLAGS = ("whoami_error", "no_response", "int_timeout", "mag_absent", "mag_
                "mag_stale", "bad_burst", "bus_timeout", "bus_stuck", "bus_arbitration",
                "rate_error", "self_test_fail")
 SAMPLE_FLAGS = ("overrun", "mag_overflow", "mag_dor", "resumed")
+# what the read levelling's status says (``ReadLevelStatus``, the driver's ``level``):
+# ``fallback``: its count went up; ``untrained``: a scan ended without a wide enough eye (the
+# status changed to scanned and not trained with no fall back)
+LEVEL_FLAGS = ("fallback", "untrained")
 
 
 @dataclass
@@ -140,6 +144,11 @@ class Fault:
     # found by the reader's gyro jump check, which is off at ±500 °/s and less
     # (``gyro_jump_limit``)
     gyro_jump: bool = False
+    # the part's SDO timing (``MPU9250Timing`` fields, as pairs) and the clock (the read
+    # levelling's trained rate is faster than the safe one only near the board's 48 MHz):
+    # None, the catalogue's
+    part: Optional[Tuple[Tuple[str, float], ...]] = None
+    clk_freq: Optional[float] = None
 
     @property
     def needs_magnetometer(self):
@@ -265,6 +274,19 @@ def _aux_free(inj, t):
     inj.mpu.aux_stalled = False
 
 
+# the drift of ``sdo_drift``: 60 ns over 20 sample periods (the eye moves three cycles of the
+# 48 MHz clock, most of a 12 MHz bit), then it stays there
+SDO_DRIFT_S, SDO_DRIFT_PERIODS = 60e-9, 20
+
+
+def _sdo_ramp(inj, t):
+    inj.mpu.ramp_sdo_drift(t, SDO_DRIFT_S / (SDO_DRIFT_PERIODS * inj.period_s))
+
+
+def _sdo_hold(inj, t):
+    inj.mpu.ramp_sdo_drift(t, 0.0)
+
+
 def _gyro_y_dead(inj, t):
     # a damaged gyro axis: its self-test makes no response (the part still reads its rate)
     inj.mpu.self_test_gain[4] = 0.0
@@ -334,6 +356,18 @@ FAULTS = {f.name: f for f in [
     Fault("spurious_int", "one spurious INT pulse between two samples (no new sample)",
           _int_high, _int_free, duration=0.02, flags=("bad_burst",), recovers="remains",
           before_next=0.1),
+    Fault("sdo_drift", "the SDO delay of a typical part (15 ns, 7 ns board) drifts 60 ns later "
+          "over 20 sample periods, then stays (temperature, supply): the trained eye moves "
+          "three cycles", _sdo_ramp, _sdo_hold, wirings=("spi",), duration=SDO_DRIFT_PERIODS,
+          flags=("fallback",), recovers="remains",
+          part=(("sdo_delay_s", 15e-9), ("board_delay_s", 7e-9), ("sdo_jitter_s", 2e-9)),
+          clk_freq=48e6),
+    Fault("sdo_slow", "a slow, noisy part: SDO 65 ± 35 ns (the datasheet's 100 ns at worst), "
+          "14 ns board: no eye at the trained rate wide enough for the margin", _nothing,
+          wirings=("spi",), duration=None, at_power_up=True, flags=("untrained",),
+          recovers="remains",
+          part=(("sdo_delay_s", 65e-9), ("board_delay_s", 14e-9), ("sdo_jitter_s", 35e-9)),
+          clk_freq=48e6),
     Fault("self_test_gyro", "the gyro's Y axis makes no self-test response (a damaged axis)",
           _gyro_y_dead, duration=None, at_power_up=True, flags=("self_test_fail",),
           recovers="remains", self_test=True),
@@ -433,6 +467,8 @@ def run_fault(name, setup=None, *, at=20, duration=None, after=None, max_cycles=
             # periods at 8 kHz are 7.5 ms: no field was due, nothing to find)
             duration = max(duration, 2 * mag_limit)
     model = setup.model(magnetometer=setup.config.magnetometer)
+    if fault.part:
+        model.timing = replace(model.timing, **dict(fault.part))
     inj = FaultInjector(fault, 0 if fault.at_power_up else at, duration, period, mpu=model,
                         mpu_address=setup.config.i2c_address)
     power_up, reset, _ = timing.cycles(clk, setup.config)
@@ -506,6 +542,15 @@ def summarise(fault, inj, result, setup, after):
             if st["restarts"] > (prev["restarts"] if prev else 0):
                 first.setdefault("restarts", cycle)
         prev = st
+    prev = None
+    for cycle, level in result.level_log:
+        if cycle / clk >= t0 - 1e-12:
+            fell = prev is not None and level["fallbacks"] > prev["fallbacks"]
+            if fell:
+                first.setdefault("fallback", cycle)
+            elif level["scanned"] and not level["trained"] and level != prev:
+                first.setdefault("untrained", cycle)        # a scan's end without an eye
+        prev = level
     for cycle, s in zip(result.sample_cycles, result.samples):
         if cycle / clk < t0:
             continue
@@ -582,6 +627,8 @@ def catalogue_setup(wiring, *, odr=200, clk_freq=4e6, fault=None, self_test=None
     if fault == "host_garbage":
         return quick_core_setup()
     config = MPU9250Config.for_odr(odr, wiring=wiring)
+    if fault in FAULTS and FAULTS[fault].clk_freq:
+        clk_freq = FAULTS[fault].clk_freq
     return SimSetup(clk_freq=clk_freq, config=config,
                     odr_scale=0.05 if wiring == "spi" else 0.25, ak_clock_error=0.1,
                     self_test=bool(fault and FAULTS[fault].self_test) if self_test is None

@@ -38,6 +38,9 @@ class CosimResult:
     self_test: dict = field(default_factory=dict)           # its self_test port at the end
     compiled: bool = False                                  # the compiled path ran
     interrupted: bool = False               # Ctrl-C ended the run: what it had simulated
+    level: dict = field(default_factory=dict)   # its level port at the end (read levelling)
+    level_log: List[tuple] = field(default_factory=list)    # (cycle, level dict) on change,
+                                                            # as seen at each wake
 
     @property
     def cycles_per_s(self):
@@ -111,12 +114,15 @@ class _SampleWatch:
         self.n_samples, self.until, self.stop, self.max_cycles = n_samples, until, stop, \
             max_cycles
         self.model, self.trace, self.progress = model, trace, progress
-        self.samples, self.sample_cycles, self.log = [], [], []
+        self.samples, self.sample_cycles, self.log, self.level_log = [], [], [], []
         self.status, self.cycles, self.bring_up, self.seen = None, 0, None, 0
-        self.end = {"asa": [], "rate_errors": 0, "who_am_i": None, "self_test": {}}
+        self.end = {"asa": [], "rate_errors": 0, "who_am_i": None, "self_test": {},
+                    "level": {}}
 
-    def observe(self, cycle, taken, payload, status):
+    def observe(self, cycle, taken, payload, status, level=None):
         self.seen = cycle                   # the last cycle looked at (an interrupted run's end)
+        if level is not None and (not self.level_log or self.level_log[-1][1] != level):
+            self.level_log.append((cycle, level))
         if status != self.status:
             self.log.append((cycle, status))
             self.status = status
@@ -150,18 +156,20 @@ class _SampleWatch:
         if ready is None:
             bench.set("samples_ready", 1)
             while not self.observe(bench.cycle, bench.get("samples_valid"),
-                                   bench.get("samples_payload"), bench.get("status")):
+                                   bench.get("samples_payload"), bench.get("status"),
+                                   bench.get("level")):
                 await bench.changed("samples_valid", "status", until=self.max_cycles)
         else:
             bench.set("samples_ready", ready(0))
             while True:
                 cycle = bench.cycle
                 valid, status = bench.get("samples_valid"), bench.get("status")
+                level = bench.get("level")
                 payload = bench.get("samples_payload") if valid else None
                 await bench.tick()
                 taken = valid and ready(cycle)
                 bench.set("samples_ready", ready(cycle + 1))
-                if self.observe(cycle + 1, taken, payload, status):
+                if self.observe(cycle + 1, taken, payload, status, level):
                     break
         self.end = {name: bench.get(name) for name in self.end}
         bench.check()
@@ -189,10 +197,10 @@ def frontend_bench(setup, dut, model, *, stuck_miso, injector, bus_kw, compiled,
         {"samples_valid": dut.samples.valid, "status": dut.status,
          "samples_payload": dut.samples.payload, "asa": dut.asa,
          "rate_errors": harness.rate_errors, "who_am_i": dut.who_am_i,
-         "self_test": dut.self_test},
+         "self_test": dut.self_test, "level": dut.level},
         setup.clk_freq, compiled=compiled, max_cycles=max_cycles,
         name="frontend-" + setup.config.wiring,
-        key=("frontend", setup.clk_freq, setup.config, setup.driver_timing()),
+        key=("frontend", setup.clk_freq, setup.config, setup.driver_timing(), setup.levelling),
         models=models, stuck_miso=stuck_miso, trace=trace)
     return bench, bus
 
@@ -249,7 +257,7 @@ def run_frontend(setup=None, *, n_samples=0, model=None, stuck_miso=None, max_cy
     return CosimResult(watch.samples, watch.status, watch.cycles, watch.bring_up, wall,
                        model, bus, watch.log, end["asa"], watch.sample_cycles,
                        end["rate_errors"], end["who_am_i"], end["self_test"], bench.compiled,
-                       interrupted)
+                       interrupted, end["level"], watch.level_log)
 
 
 def finish_trace(trace, model, bus, end_cycle, samples, interrupted):

@@ -8,7 +8,7 @@ from typing import Optional
 from ...hdl.contract import ak8963_regs as A
 from ...hdl.primitives.clocking import SYSTEM_CLOCK_HZ
 from ...hdl.sensor.mpu9250_driver import DriverTiming, MPU9250Config
-from ...hdl.sensor.sensor_frontend import SensorFrontEnd
+from ...hdl.sensor.sensor_frontend import SensorFrontEnd, spi_timing_for
 from ..models.ak8963_model import AK8963Model, AK8963Timing
 from ..models.i2c_bus import I2CBusModel
 from ..models.mpu9250_model import MPU9250Model, MPU9250Timing
@@ -42,6 +42,12 @@ class SimSetup:
     # ``self_test_samples`` samples (None: the config's 128, 2 x 128 reads at 1 kHz)
     self_test: bool = False
     self_test_samples: Optional[int] = 2
+    # the SPI controller's trained rate and the read levelling where the clock makes it faster
+    # (``sensor_frontend.spi_timing_for``, issue #58); False: the safe rate only
+    levelling: bool = True
+    # the wait before the read levelling scans again (``DriverTiming.retrain_s``), in the
+    # simulation's time; None: the driver's, scaled as the sample period is
+    retrain_s: Optional[float] = None
 
     def __post_init__(self):
         if not self.self_test:
@@ -83,7 +89,9 @@ class SimSetup:
         return DriverTiming(time_scale=self.delay_scale, mag_power_down_s=self.mag_power_down_s,
                             sample_period_s=self.sample_period_s,
                             # the AK8963's period is scaled like the MPU9250's
-                            mag_timeout_s=DriverTiming.mag_timeout_s * self.odr_scale)
+                            mag_timeout_s=DriverTiming.mag_timeout_s * self.odr_scale,
+                            retrain_s=(DriverTiming.retrain_s * self.odr_scale
+                                       if self.retrain_s is None else self.retrain_s))
 
     def bring_up_budget_cycles(self):
         """Cycles that cover three bring-up attempts' waits plus the magnetometer's SLV4
@@ -110,6 +118,8 @@ class SimSetup:
         return MPU9250Timing().scaled(delays=self.delay_scale, odr=self.odr_scale)
 
     def frontend(self, **kwargs):
+        if self.config.wiring == "spi":
+            kwargs.setdefault("spi_timing", spi_timing_for(self.clk_freq, self.levelling))
         return SensorFrontEnd(clk_freq=self.clk_freq, config=self.config,
                               timing=self.driver_timing(), **kwargs)
 

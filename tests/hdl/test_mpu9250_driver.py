@@ -107,6 +107,10 @@ def test_bring_up_sequence_and_nine_axis_samples(vcd):
     assert result.who_am_i == 0x71
     assert result.self_test == {"done": 0, "mag_done": 0, "fail": 0}
     assert_samples_match_model(result)
+    # read levelling (issue #58): the model's part (100 ns) trains, and its guards held
+    level = result.level
+    assert level["scanned"] and level["trained"] and level["fallbacks"] == 0, level
+    assert level["first"] + 1 <= level["sample_delay"] <= level["last"] - 1, level
     # At 1 kHz against the AK8963's 100 Hz, about one sample in ten carries a new field.
     assert 2 <= sum(s["flags"]["mag_new"] for s in result.samples) <= 3
 

@@ -18,9 +18,10 @@ CLK = 48e6
 PATTERN = [0x71, 0xA5, 0x3C, 0x96, 0x0F, 0xE1]
 
 
-def _level(part, pattern=PATTERN):
-    """Runs one scan against a model of ``part``; returns the leveller's outputs and the
-    delays its SPI controller was asked for."""
+def _level(part, pattern=PATTERN, drifts=()):
+    """Runs one scan against a model of ``part``, then a check of its guard delays after each
+    drift in ``drifts`` (s, the model's ``sdo_drift_s``); returns the leveller's outputs (and
+    ``checks``: each check's ``check_failed``)."""
     timing = SPITiming.for_clock(CLK).with_trained(CLK)
     m = Module()
     m.submodules.leveller = leveller = ReadLeveller(max_sample_delay=timing.max_sample_delay)
@@ -43,8 +44,18 @@ def _level(part, pattern=PATTERN):
         ctx.set(leveller.start, 0)
         assert ctx.get(leveller.busy)
         await ctx.tick().until(leveller.done)
-        for name in ("trained", "first", "last", "sample_delay", "busy"):
+        for name in ("trained", "first", "last", "sample_delay", "busy", "centre"):
             seen[name] = ctx.get(getattr(leveller, name))
+        seen["checks"] = []
+        for drift in drifts:
+            model.sdo_drift_s = drift
+            ctx.set(leveller.check, 1)
+            await ctx.tick()
+            ctx.set(leveller.check, 0)
+            assert ctx.get(leveller.busy)
+            await ctx.tick().until(leveller.done)
+            seen["checks"].append(ctx.get(leveller.check_failed))
+            assert ctx.get(leveller.sample_delay) == seen["centre"]     # back at the centre
 
     harness = CosimHarness(m, spi=spi.pins)     # the model on the pins as in the co-simulations
     sim = Simulator(harness)
@@ -82,3 +93,15 @@ def test_it_stays_at_the_safe_rate_without_an_eye():
     seen = _level(part)
     assert not seen["trained"] and seen["sample_delay"] == 0, seen
     assert seen["last"] - seen["first"] + 1 < 3, seen
+
+
+def test_the_guards_pass_until_the_eye_moves_by_the_margin():
+    """The checks after training (``ReadLeveller.check``: one pair at each guard delay, a
+    cycle either side of the centre): they pass where the part was trained and after a drift
+    of less than the margin; a drift of two cycles (42 ns) either way puts a guard outside the
+    eye, while the centre still reads right: the driver falls back before a bit is wrong."""
+    part = MPU9250Timing(startup_s=1e-6, reset_s=1e-6, sdo_delay_s=50e-9,
+                         board_delay_s=14e-9, sdo_jitter_s=2e-9)
+    seen = _level(part, drifts=(0, 5e-9, 42e-9, 0, -42e-9))
+    assert seen["trained"] and seen["centre"] == (seen["first"] + seen["last"]) // 2, seen
+    assert seen["checks"] == [0, 0, 1, 0, 1], seen

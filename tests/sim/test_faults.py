@@ -7,8 +7,8 @@ design streaming again (with new magnetometer fields where the fault was the mag
 import pytest
 
 from mpu9250_ahrs.hdl.sensor.mpu9250_driver import BAD_BURST_LIMIT, burst_is_plausible
-from mpu9250_ahrs.sim.scenarios.faults import (FAULTS, FaultInjector, catalogue_setup, fault_names,
-    run_fault)
+from mpu9250_ahrs.sim.scenarios.faults import (FAULTS, SDO_DRIFT_PERIODS, FaultInjector,
+    catalogue_setup, fault_names, run_fault)
 
 
 AT, AFTER, DURATION = 3, 4, 8
@@ -50,6 +50,11 @@ def bound(name, setup):
         # its set-up (a dozen SLV4 transfers more)
         "self_test_gyro": attempt + self_test + 1,
         "self_test_mag": attempt + self_test + 20,
+        # the guards fail once the eye moved by about the margin: within the drift's periods
+        "sdo_drift": SDO_DRIFT_PERIODS,
+        # the first scan's end, just after bring-up (the magnetometer's set-up, as above; a
+        # scan is about 0.5 ms at 48 MHz)
+        "sdo_slow": attempt + 20 + 0.6e-3 / period,
     }[name]
 
 
@@ -57,7 +62,7 @@ KEEPS_STREAMING = {"ak8963_absent", "wia_wrong", "ak8963_lost", "ak8963_reset", 
                    "aux_stall",
                    "nack_mid_transfer", "sensor_overrun",
                    "host_garbage", "rate_change", "spurious_int", "data_bit_flip",
-                   "self_test_gyro", "self_test_mag"}
+                   "self_test_gyro", "self_test_mag", "sdo_drift", "sdo_slow"}
 CASES = [(name, wiring) for wiring in ("spi", "i2c") for name in fault_names(wiring)]
 
 
@@ -89,6 +94,8 @@ def test_fault(name, wiring):
     (bytes([0xFF] * 15), False),                           # a line stuck high
     (bytes([0x01]) + bytes([0xFF] * 14), False),           # data all ones
     (bytes([0x01]) + bytes([0xFF] * 13) + b"\x00", True),  # one byte not: a real value
+    (bytes([0x11]) + bytes(range(14)), True),             # FIFO_OFLOW beside RAW_RDY
+    (bytes([0x03]) + bytes(range(14)), False),            # a reserved bit: read a bit late
 ])
 def test_burst_check(burst, ok):
     assert burst_is_plausible(burst) == ok
@@ -281,3 +288,19 @@ def test_aux_stall_at_8khz():
     """The same at 8 kHz in real time (SLV0 paced every n-th tick): 9 of these 13 lengths went
     wrong before the fix."""
     assert _aux_stall_sweep(_fast_rate_setup(), range(248, 700, 37), 20) == []
+
+
+def test_a_drift_falls_back_and_trains_again_at_the_new_eye():
+    """Issue #58: ``sdo_drift`` with the scan again 10 sample periods after the fall back: the
+    guards fail as the eye moves, the bursts go on at the safe rate, and the scan after the
+    wait trains at a later delay; every sample exact (``stale_valid_samples``) throughout."""
+    from dataclasses import replace
+    setup = catalogue_setup("spi", fault="sdo_drift")
+    setup = replace(setup, retrain_s=10 * setup.sample_period_s)
+    r, result = run_fault("sdo_drift", setup, at=AT, after=30, keep_result=True)
+    assert r["stale_valid_samples"] == 0 and r["violations"] == [] and r["recovered"], r
+    log = [level for _, level in result.level_log if level["scanned"]]
+    fell = next(k for k, level in enumerate(log) if level["fallbacks"])
+    before, again = log[fell - 1], log[-1]
+    assert before["trained"] and again["trained"] and again["fallbacks"] >= 1, log
+    assert again["sample_delay"] > before["sample_delay"], log
