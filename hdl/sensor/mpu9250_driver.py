@@ -205,6 +205,8 @@ class DriverTiming:
     interrupt time-out is ``stream_timeout_periods`` sample periods. ``mag_timeout_s`` is how
     long the magnetometer may go without a new field before it is flagged stale and set up
     again (three periods of the AK8963's 100 Hz; simulations scale it with the period).
+    ``retrain_s``: the wait, after a fall from the trained SPI rate or a scan that found no
+    eye, before the read levelling scans again (``retrain_periods``; simulations scale it).
     """
     power_up_s: float = 0.100
     reset_s: float = 0.100
