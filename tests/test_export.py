@@ -144,6 +144,8 @@ def test_simulate_command(tmp_path, capsys):
     assert summary["bring_up_cycles"] > 0 and summary["cycles_per_s"] > 0
     assert summary["self_test"] == {"done": 1, "mag_done": 1, "fail": 0}
     assert summary["who_am_i"] == 0x71
+    # the model's part (100 ns) trains (issue #58)
+    assert summary["spi_training"]["trained"] == 1 and summary["spi_training"]["fallbacks"] == 0
     assert vcd.stat().st_size > 0 and (tmp_path / "x.gtkw").is_file()
     from mpu9250_ahrs.sim.bench.compiled_design import verilator_available
     # waveforms from the compiled path too (a build that traces); the save file's traces

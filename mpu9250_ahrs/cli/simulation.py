@@ -184,7 +184,9 @@ def cmd_simulate(args):
             result.bring_up_cycles / setup.clk_freq * 1e6,
             "wall_s": round(result.wall_s, 3), "cycles_per_s": round(result.cycles_per_s),
             "simulator": simulator_name(result.compiled), "status": result.status,
-            "asa": result.asa, "who_am_i": result.who_am_i, "self_test": result.self_test})
+            "asa": result.asa, "who_am_i": result.who_am_i, "self_test": result.self_test,
+            # the board register SPI_TRAINING at the end (read levelling, issue #58)
+            "spi_training": result.level})
     summary.update({"violations": violations,
                     "time_scale": {"delays": setup.delay_scale,
                                    "sample_period": setup.odr_scale}})
