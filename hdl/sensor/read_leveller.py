@@ -163,7 +163,7 @@ class ReadLeveller(wiring.Component):
                         length = Mux(passed, run_length + 1, 0)
                         start = Mux(passed & (run_length == 0), tap, run_first)
                         m.d.sync += [run_length.eq(length), run_first.eq(start)]
-                        with m.If(passed & (length > best_length)):
+                        with m.If(passed & (run_length >= best_length)):    # length > best
                             m.d.sync += [best_length.eq(length), self.first.eq(start),
                                          self.last.eq(tap)]
                         with m.If(tap == top):
@@ -178,7 +178,7 @@ class ReadLeveller(wiring.Component):
                 m.d.sync += [self.trained.eq(wide), self.centre.eq(centre)]
                 m.next = "END"
             with m.State("END"):
-                m.d.sync += [self.busy.eq(0), self.done.eq(1), tap.eq(self.centre)]
+                m.d.sync += [self.busy.eq(0), self.done.eq(1)]
                 m.next = "IDLE"
         return m
 
