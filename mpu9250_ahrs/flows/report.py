@@ -309,10 +309,7 @@ def drdy_to_attitude_us(clk_freq, config, results=21, part=None):
                      odr_scale=SimSetup.default_odr_scale(config, clk_freq))
     # the telemetry divider for the shortened sample period, as ``simulate`` has it: the same
     # core, so one compiled build serves both
-    from dataclasses import replace
-    model = setup.model(magnetometer=config.magnetometer)
-    if part:
-        model.timing = replace(model.timing, **part)
+    model = setup.model(magnetometer=config.magnetometer, part=part)
     run = run_core(setup, n_results=results + 1, compiled=None,   # compiled when it can be
                    model=model,
                    core_kwargs={"telemetry_divider": setup.telemetry_divider(DEFAULT_BAUD)})
@@ -325,9 +322,11 @@ def drdy_to_attitude_us(clk_freq, config, results=21, part=None):
             "with_mag_correction": most(True), "without_mag_correction": most(False)}
 
 
-# a part the read levelling cannot train on (``sim.scenarios.faults``' ``sdo_slow``): its
-# bursts stay at the safe rate
-UNTRAINABLE_PART = {"sdo_delay_s": 65e-9, "board_delay_s": 14e-9, "sdo_jitter_s": 35e-9}
+def untrainable_part():
+    """A part the read levelling cannot train on: the fault catalogue's ``sdo_slow`` (its
+    bursts stay at the safe rate), as ``MPU9250Timing`` fields."""
+    from ..sim.scenarios.faults import FAULTS
+    return dict(FAULTS["sdo_slow"].part)
 
 
 def spi_training(clk_freq, config, latency_us=None, untrained_us=None):
@@ -337,7 +336,7 @@ def spi_training(clk_freq, config, latency_us=None, untrained_us=None):
     sample delays it scans, the eye it needs (2·margin + a cycle: the chosen delay keeps a
     cycle from both ends of the run), and the data-ready-to-attitude latency measured in
     co-simulation trained (``latency_us``: the model's part, 100 ns, trains) and untrained
-    (``untrained_us``: ``UNTRAINABLE_PART``, the safe rate)."""
+    (``untrained_us``: ``untrainable_part``, the safe rate)."""
     from dataclasses import replace
     from ..hdl.sensor.sensor_frontend import sample_read_cycles, spi_timing_for
     from ..hdl.sensor.spi_controller import IO_BUDGET, SPITiming
@@ -408,7 +407,7 @@ def report(*, clk_freq=None, config=None, latency=True, core_options=None, sprea
     cycles, first = cycles_per_update()
     shown.next("data-ready to attitude (co-simulation of the core)")
     latency_us = drdy_to_attitude_us(clk_freq, config) if latency else {"drdy_to_attitude": None}
-    untrained_us = (drdy_to_attitude_us(clk_freq, config, part=UNTRAINABLE_PART)
+    untrained_us = (drdy_to_attitude_us(clk_freq, config, part=untrainable_part())
                     if latency and config.wiring == "spi" else None)
     shown.close()
     mhz = clk_freq / 1e6

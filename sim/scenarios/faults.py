@@ -23,7 +23,7 @@ the catalogue promises:
 """
 
 import bisect
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Callable, Optional, Tuple
 
 from ...hdl.contract import ak8963_regs as A
@@ -40,10 +40,6 @@ ERROR_FLAGS = ("whoami_error", "no_response", "int_timeout", "mag_absent", "mag_
                "mag_stale", "bad_burst", "bus_timeout", "bus_stuck", "bus_arbitration",
                "rate_error", "self_test_fail")
 SAMPLE_FLAGS = ("overrun", "mag_overflow", "mag_dor", "resumed")
-# what the read levelling's status says (``ReadLevelStatus``, the driver's ``level``):
-# ``fallback``: its count went up; ``untrained``: a scan ended without a wide enough eye (the
-# status changed to scanned and not trained with no fall back)
-LEVEL_FLAGS = ("fallback", "untrained")
 
 
 @dataclass
@@ -466,9 +462,7 @@ def run_fault(name, setup=None, *, at=20, duration=None, after=None, max_cycles=
             # the catalogue's periods are short beside the AK8963's 10 ms at high rates (60
             # periods at 8 kHz are 7.5 ms: no field was due, nothing to find)
             duration = max(duration, 2 * mag_limit)
-    model = setup.model(magnetometer=setup.config.magnetometer)
-    if fault.part:
-        model.timing = replace(model.timing, **dict(fault.part))
+    model = setup.model(magnetometer=setup.config.magnetometer, part=dict(fault.part or ()))
     inj = FaultInjector(fault, 0 if fault.at_power_up else at, duration, period, mpu=model,
                         mpu_address=setup.config.i2c_address)
     power_up, reset, _ = timing.cycles(clk, setup.config)
@@ -542,6 +536,9 @@ def summarise(fault, inj, result, setup, after):
             if st["restarts"] > (prev["restarts"] if prev else 0):
                 first.setdefault("restarts", cycle)
         prev = st
+    # the read levelling's status (``ReadLevelStatus``, the driver's ``level``): ``fallback``,
+    # its count went up; ``untrained``, a scan ended without a wide enough eye (the status
+    # changed to scanned and not trained with no fall back)
     prev = None
     for cycle, level in result.level_log:
         if cycle / clk >= t0 - 1e-12:

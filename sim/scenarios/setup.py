@@ -128,13 +128,14 @@ class SimSetup:
         return AK8963Model(timing=AK8963Timing().scaled(
             odr=self.odr_scale * (1 + self.ak_clock_error)), **kwargs)
 
-    def model(self, *, magnetometer=True, **kwargs):
+    def model(self, *, magnetometer=True, part=None, **kwargs):
         """An MPU9250 model (counting sensor values) with an AK8963 on its auxiliary bus
-        (``model.aux_devices[0x0C]``) unless ``magnetometer`` is False."""
+        (``model.aux_devices[0x0C]``) unless ``magnetometer`` is False. ``part``: its
+        ``MPU9250Timing`` fields other than this set-up's (a dict: its SDO timing, issue #58)."""
         kwargs.setdefault("source", counting_source())
         if magnetometer:
             kwargs.setdefault("aux_devices", {A.I2C_ADDRESS: self.ak8963()})
-        return MPU9250Model(timing=self.model_timing(), **kwargs)
+        return MPU9250Model(timing=replace(self.model_timing(), **(part or {})), **kwargs)
 
 
 # The whole core's quick set-up (``quick_core_setup``) and its UART's baud (a quarter of its
