@@ -349,7 +349,7 @@ class AHRSCore(wiring.Component):
         m.d.comb += [store.w_en.eq(fe.store.w_en), store.w_addr.eq(fe.store.w_addr),
                      store.w_data.eq(fe.store.w_data), store.r_en.eq(1),
                      store.r_addr.eq(engine.store_addr), engine.store_data.eq(store.r_data),
-                     engine.sample_slot.eq(fe.sample_slot),
+                     engine.sample_slot.eq(fe.sample_slot), engine.imu_ready.eq(fe.imu_ready),
                      engine.sample_index.eq(framer.borrow_index),
                      framer.borrow_data.eq(engine.sample_word)]
         held_status = Signal(DriverStatus, reset_less=True)

@@ -45,8 +45,8 @@ from amaranth.lib.wiring import In, Out
 from .alu import ALU
 from .attitude_isa import (COLLECT, CORDIC_SHORT, FETCH_JUMPS, GO_ON, REG_BITS, REG_COUNT, ROM_BITS,
                            ROM_DEPTH, Cond, Flag, Instr, Op, _reads_writes)
-from .register_map import (CONTROL_ADDR, HOST_WRITABLE, LOAD_BASE, LOAD_ORDER, REGS, config_init,
-                           load_words)
+from .register_map import (CONTROL_ADDR, HOST_WRITABLE, LOAD_BASE, LOAD_EARLY, LOAD_ORDER, REGS,
+                           config_init, load_words)
 from ..contract.filter_registry import FILTER_CODES
 from .attitude_program import build_program
 from .host_port import HostPort
@@ -91,9 +91,9 @@ WORST_UPDATE_CYCLES = 720
 
 
 def _field_halves():
-    """Where the loader finds the sample's sensor fields (the first ``LOAD_ORDER`` words: raw
-    gyro, accelerometer, magnetometer): each field's 16-bit half of the sample's words, as
-    2·word + half."""
+    """Where the loader finds the sample's sensor fields (raw gyro, accelerometer,
+    magnetometer: ``load_words``' arguments; ``LOAD_ORDER`` puts the magnetometer's last):
+    each field's 16-bit half of the sample's words, as 2·word + half."""
     sample = data.Layout.cast(Sample)
     places = []
     for field in ("gyro", "accel", "mag"):
@@ -105,8 +105,9 @@ def _field_halves():
 
 
 SENSOR_FIELD_HALVES = _field_halves()
-assert LOAD_ORDER[:len(SENSOR_FIELD_HALVES)] == [f"{reg}{i}" for reg in ("GRAW", "ARAW", "MRAW")
-                                               for i in range(3)]
+assert [n for n in LOAD_ORDER if n[:4] in ("GRAW", "ARAW", "MRAW")] == [
+    f"{reg}{i}" for reg in ("GRAW", "ARAW", "MRAW") for i in range(3)]
+assert LOAD_ORDER[LOAD_EARLY:] == [f"MRAW{i}" for i in range(3)]
 
 
 def default_filter_config(sensor, rates=None):
@@ -143,9 +144,17 @@ class AttitudeEngine(wiring.Component):
     Members
         ``samples`` (in, stream of ``Sample``): one update per sample. Taken when the engine is
             idle and the previous result has been taken; the sample is held (``sample``) as
-            its load starts, loaded from there (one cycle per ``LOAD_ORDER`` word: 13), then
-            acknowledged. With ``sample_store``, the sensor fields are loaded from the sample
-            store instead (below), and only ``skipped`` is held.
+            its load starts, loaded from there (one cycle per ``LOAD_ORDER`` word: 10 before
+            the program starts, the AK8963's 3 at its SYNC), and acknowledged at the SYNC
+            (``attitude_isa``: the early start), which also takes its ``mag_valid``. With
+            ``sample_store``, the sensor fields are loaded
+            from the sample store instead (below), and only ``skipped`` is held.
+        ``imu_ready`` (in; with ``sample_store``): the early start (``SampleReader``'s): the
+            payload's fields but the field's (``counter``, ``skipped``, ``overrun``: taken
+            with it) are the next sample's and its gyro and
+            accelerometer are in its slot; ``valid`` follows. The engine, idle, starts the
+            update on it as on ``valid``; its SYNC waits for ``valid`` (and ``OFFER_WRITES``
+            cycles of it: the reader's zeros over a field it does not have).
         ``asa`` (in, 3 × 8 bits): the AK8963's fuse-ROM sensitivity bytes (from the driver).
         ``cfg`` (in, stream of ``ConfigWrite``): register writes (``register_map`` has the
             map); accepted while the engine is idle. Only ``HOST_WRITABLE`` addresses are written:
@@ -179,9 +188,11 @@ class AttitudeEngine(wiring.Component):
             is valid (the engine is idle then). While the engine is idle ``peek_data`` is 0
             the cycle after one without ``peek_en`` (the port reads ZERO): the framer ORs the
             words in, with no gate of its own.
-    Latency (sample valid to result valid) and throughput (one sample per update): ``report``'s
-    ``cycles_per_update`` per filter; every instruction has a fixed time, so only the branches
-    taken (measurements skipped or rejected) make an update shorter.
+    Latency (sample valid, or ``imu_ready``, to result valid) and throughput (one sample per
+    update): ``report``'s ``cycles_per_update`` per filter, with the sample whole at the start
+    (SYNC waits ``OFFER_WRITES`` + 1 cycles from ``valid`` with the store, then loads 3 words);
+    every instruction has a fixed time, so only the branches taken (measurements skipped or
+    rejected) and SYNC's wait make an update shorter or longer.
     """
 
     def __init__(self, config=KalmanFixedConfig(), cal=None, flagship=None, *,
@@ -209,6 +220,7 @@ class AttitudeEngine(wiring.Component):
                                 data.Layout.cast(Instr).size)
         super().__init__({
             "samples": In(stream.Signature(Sample)),
+            "imu_ready": In(1),
             "asa": In(data.ArrayLayout(8, 3)),
             "cfg": In(stream.Signature(ConfigWrite)),
             "cfg_read": In(stream.Signature(REG_BITS)),
@@ -535,6 +547,30 @@ class AttitudeEngine(wiring.Component):
                 with m.Case(Op.BR):
                     with m.If(cond ^ x.inv):
                         m.d.comb += flush.eq(1)
+                with m.Case(Op.SYNC):
+                    # the early start (``attitude_isa``): wait for the sample (``mag_ready``;
+                    # its first field word's store word is read meanwhile), load the
+                    # AK8963's words (a cycle each), take the sample and its ``mag_valid``,
+                    # then a cycle more, so that ``o``, which read its operands while this
+                    # waited, reads the last loaded word again before it goes on. Nothing else
+                    # writes meanwhile: only a MUL goes on before its write-back, and only
+                    # into a MUL
+                    with m.If(phase == 0):
+                        m.d.comb += [advance.eq(0), p.sync_wait.eq(1)]
+                        with m.If(p.mag_ready):
+                            m.d.sync += phase.eq(1)
+                    with m.Elif(phase == 1):
+                        m.d.comb += [advance.eq(0), p.in_load.eq(1), w_en.eq(1),
+                                     w_addr.eq(LOAD_BASE | p.load_index),
+                                     p.w_from["load"].eq(1)]
+                        m.d.sync += p.load_index.eq(p.load_index + 1)
+                        with m.If(p.load_index == len(LOAD_ORDER) - 1):
+                            payload = self.samples.payload
+                            m.d.comb += self.samples.ready.eq(1)
+                            m.d.sync += [phase.eq(2),
+                                         p.mag_valid.eq(payload.flags.mag_valid)]
+                    with m.Else():
+                        m.d.sync += phase.eq(0)
                 with m.Case(Op.SETF):
                     # ``d`` is the flag one-hot (``Assembler.setf``): no decoder of ``sh``
                     m.d.sync += flags_set.eq(flags_set | x.d[:len(Flag)])
@@ -546,55 +582,59 @@ class AttitudeEngine(wiring.Component):
                 fetch_pc.eq(p.fetch_addr), rvalid.eq(1),
             ]
 
-    def _load_data(self, m, load_index, taking, in_load):
-        """The loader's word ``load_index`` (16 bits; the write sign-extends it): a sensor
-        field of the sample (``SENSOR_FIELD_HALVES``), then the tail (the ASA bytes, the
-        periods: ``load_words``). ``taking``: IDLE takes a sample now; ``in_load``: LOAD."""
+    def _load_data(self, m, load_index, taking, in_load, sync_wait):
+        """The loader's word ``load_index`` (16 bits; the write sign-extends it), in
+        ``LOAD_ORDER``: a sensor field of the sample (``SENSOR_FIELD_HALVES``) or the ASA bytes
+        and the periods (``load_words``). ``taking``: IDLE takes a sample now; ``in_load``: a
+        word is written now (LOAD, or SYNC's loads); ``sync_wait``: SYNC waits for the
+        sample (its first word's store word is read meanwhile)."""
         held = self.sample
-        sensors = len(SENSOR_FIELD_HALVES)
-        tail = [Value.cast(v)[:16] for v in
-                load_words([0] * 3, [0] * 3, [0] * 3, [self.asa[i] for i in range(3)],
-                           held.skipped)[sensors:]]
+        sensor = [name[:4] in ("GRAW", "ARAW", "MRAW") for name in LOAD_ORDER]
         if not self.sample_store:
-            # the held sample's halves, through one multiplexer with the tail's
+            # the held sample's halves, through one multiplexer with the ASA and the periods
             bits = held.as_value()
-            return Array([bits[16 * h:16 * h + 16] for h in SENSOR_FIELD_HALVES] + tail)[
-                load_index]
+            halves = [bits[16 * h:16 * h + 16] for h in SENSOR_FIELD_HALVES]
+            words = load_words(halves[0:3], halves[3:6], halves[6:9],
+                               [self.asa[i] for i in range(3)], held.skipped)
+            return Array(Value.cast(v)[:16] for v in words)[load_index]
         # From the store: a load word's store word is read the cycle before (in the cycle
-        # that takes the sample, the first), from the sample's slot; outside LOAD the port
-        # reads the framer's word of the held sample's slot. A block RAM's read port is the
-        # multiplexer: only the half of the word and the tail are chosen here.
+        # that takes the sample, the first), from the sample's slot; outside the loads the
+        # port reads the framer's word of the held sample's slot. A block RAM's read port is
+        # the multiplexer: only the half of the word and the ASA and periods are chosen here.
         held_slot = Signal(range(SLOTS))
         with m.If(taking):
             m.d.sync += held_slot.eq(self.sample_slot)
-        words = [h // 2 for h in SENSOR_FIELD_HALVES]
+        places = load_words(*(SENSOR_FIELD_HALVES[3 * k:3 * k + 3] for k in range(3)),
+                            [0] * 3, 0)
+        tail = [Value.cast(v)[:16] for v in
+                load_words([0] * 3, [0] * 3, [0] * 3, [self.asa[i] for i in range(3)],
+                           held.skipped)]
         # a slot's word STORE_WORDS is never written: it reads 0 (``sample_index``)
-        assert max(words) < STORE_WORDS < SLOT_WORDS
-        # load word k's store word is read k cycles after the sample is taken, which is at the
-        # earliest in the first cycle of ``valid``: the magnetometer's words only once the
-        # reader's zeros over them are in (``OFFER_WRITES``, ``hdl/sensor/sample_store.py``)
-        mag = data.Layout.cast(Sample)["mag"].offset // 16
-        assert all(k >= OFFER_WRITES for k, h in enumerate(SENSOR_FIELD_HALVES) if h >= mag)
+        assert max(h // 2 for h in SENSOR_FIELD_HALVES) < STORE_WORDS < SLOT_WORDS
         word_bits = (SLOT_WORDS - 1).bit_length()
-        ahead = Array(C(w, word_bits) for w in words + [0])[
-            Mux(taking, 0, Mux(load_index < sensors, load_index + 1, sensors))]
+        words = [C(h // 2 if is_sensor else 0, word_bits) for h, is_sensor in zip(places, sensor)]
+        ahead = Array(words + [C(0, word_bits)])[
+            Mux(taking, 0, Mux(in_load, load_index + 1, load_index))]
         m.d.comb += [
-            self.store_addr.eq(Mux(taking | in_load, Cat(ahead, self.sample_slot),
+            self.store_addr.eq(Mux(taking | in_load | sync_wait, Cat(ahead, self.sample_slot),
                                    Cat(self.sample_index, held_slot))),
             self.sample_word.eq(self.store_data),
         ]
-        half = Array(C(h % 2, 1) for h in SENSOR_FIELD_HALVES + [0] * len(tail))[load_index]
-        from_tail = Array([C(0, 16)] * sensors + tail)[load_index]
-        return Mux(load_index < sensors, self.store_data.word_select(half, 16), from_tail)
+        half = Array(C(h % 2 if is_sensor else 0, 1) for h, is_sensor in zip(places, sensor))[
+            load_index]
+        from_tail = Array(C(0, 16) if is_sensor else v for v, is_sensor in zip(tail, sensor))[
+            load_index]
+        is_sensor = Array(C(int(x), 1) for x in sensor)[load_index]
+        return Mux(is_sensor, self.store_data.word_select(half, 16), from_tail)
 
     def _control(self, m, u, p):
         """The engine's states: IDLE (a result offered, the host's port open), LOAD (the
         sample into the register file), RUN (the program, ``_execute``)."""
         (result_valid, host, first, init_pending, fetch_pc, rvalid, ovalid, xvalid, phase, w_en,
-         w_addr, running_init, flags_set, flag_sat, mag_valid, out, x) = (
+         w_addr, running_init, flags_set, flag_sat, out, x) = (
             p.result_valid, u.host, p.first, p.init_pending, p.fetch_pc, p.rvalid, p.ovalid,
             p.xvalid, p.phase, p.w_en, p.w_addr, p.running_init, p.flags_set,
-            p.flag_sat, p.mag_valid, p.out, p.x)
+            p.flag_sat, p.out, p.x)
         def start(entry):
             m.d.sync += [fetch_pc.eq((entry - 1) % ROM_DEPTH), rvalid.eq(0), ovalid.eq(0),
                          xvalid.eq(0), phase.eq(0)]
@@ -602,9 +642,23 @@ class AttitudeEngine(wiring.Component):
         load_index = Signal(range(len(LOAD_ORDER)), reset_less=True)
         held = self.sample
         taking = Signal()                   # IDLE takes a sample now
-        in_load = Signal()
-        load_data = self._load_data(m, load_index, taking, in_load)
+        in_load = Signal()                  # the loader writes a word now
+        sync_wait = Signal()                # SYNC waits for the sample
+        load_data = self._load_data(m, load_index, taking, in_load, sync_wait)
         m.d.comb += p.load_word.eq(load_data.as_signed())
+        # SYNC's loads may start: the sample is offered, and, from the store, has been for
+        # ``OFFER_WRITES`` cycles, so that the reader's zeros over a field it does not have
+        # (``hdl/sensor/sample_store.py``) are in before the first read of the field's words
+        mag_ready = Signal()
+        if self.sample_store:
+            offered_for = Signal(range(OFFER_WRITES + 1))
+            m.d.sync += offered_for.eq(Mux(self.samples.valid,
+                                           Mux(mag_ready, offered_for, offered_for + 1), 0))
+            m.d.comb += mag_ready.eq(offered_for == OFFER_WRITES)
+        else:
+            m.d.comb += mag_ready.eq(self.samples.valid)
+        (p.load_index, p.in_load, p.sync_wait, p.mag_ready) = (
+            load_index, in_load, sync_wait, mag_ready)
 
         with m.If(self.results.valid & self.results.ready):
             m.d.sync += result_valid.eq(0)
@@ -627,27 +681,31 @@ class AttitudeEngine(wiring.Component):
                     start(self.entry["init"])
                     m.d.sync += [init_pending.eq(0), running_init.eq(1)]
                     m.next = "RUN"
-                with m.Elif(self.samples.valid & ~result_valid):
+                with m.Elif((self.samples.valid | self.imu_ready) & ~result_valid):
+                    # the sample, or (the early start) its gyro and accelerometer words, in
+                    # the store already while the AK8963's bytes are still coming
                     sample = self.samples.payload
                     m.d.comb += taking.eq(1)
                     if self.sample_store:           # the sample stays in the store
                         m.d.sync += held.skipped.eq(sample.skipped)
                     else:
                         m.d.sync += held.eq(sample)
+                    # the result's counter and overrun now (``imu_ready``: the payload has
+                    # them already): the result's words change as an update starts, which
+                    # the AXI slave's SEQUENCE relies on (``hdl/AXI_LITE.md``)
                     m.d.sync += [load_index.eq(0), flags_set.eq(0),
-                                 flag_sat.eq(0), mag_valid.eq(self.samples.payload.flags.mag_valid),
-                                 out.counter.eq(self.samples.payload.counter),
-                                 out.flags.overrun.eq(self.samples.payload.flags.overrun),
+                                 flag_sat.eq(0), out.counter.eq(sample.counter),
+                                 out.flags.overrun.eq(sample.flags.overrun),
                                  out.flags.filter.eq(host.select)]
                     m.next = "LOAD"
                 with m.Else():
                     m.d.comb += host.open.eq(1)
             with m.State("LOAD"):
+                # the words before the AK8963's (``LOAD_EARLY``); SYNC loads the rest
                 m.d.comb += [self.busy.eq(1), w_en.eq(1), w_addr.eq(LOAD_BASE | load_index),
                              p.w_from["load"].eq(1), in_load.eq(1)]
                 m.d.sync += load_index.eq(load_index + 1)
-                with m.If(load_index == len(LOAD_ORDER) - 1):
-                    m.d.comb += self.samples.ready.eq(1)
+                with m.If(load_index == LOAD_EARLY - 1):
                     start(self.entry["sample"])
                     m.next = "RUN"
             with m.State("RUN"):

@@ -25,6 +25,8 @@ BR    if condition (``cond``, inverted by ``inv``): go to target   1, or 3 when 
                                                                    folded (below)
 SETF  set result flag ``sh`` (``Flag``; ``d`` holds 1 << sh)       1
 END   the sample is done: results out                              1
+SYNC  wait for the sample's magnetometer words (the early start,     1 + the wait, + 4
+      below), the loader writes MRAW0..2 meanwhile
 ====  ===========================================================  ======================
 
 In the background: a VEC, ROT or DIV with ``sh`` bit 1 (``GO_ON``: the start) takes its
@@ -48,6 +50,16 @@ before a MUL that reads the result of the MUL that runs just before it (the firs
 for its write-back, as before any other instruction), and refuses a MUL that reads the
 result of the MUL two before it (put another instruction between them, or order the MULs
 otherwise).
+
+The early start (issue #58): the engine starts an update once the sample's gyro and
+accelerometer bytes are in (the loader writes every ``LOAD_ORDER`` word but MRAW0..2), while the
+AK8963's bytes are still on the bus; SYNC waits for the whole sample (``samples.valid``), the
+loader writes MRAW0..2 and the sample's ``mag_valid`` is taken, then the program goes on. A
+program reads MRAW and branches on ``MAG_INVALID`` only after a SYNC (the instruction-level
+model, ``sim/models/attitude_isa_model.py``, poisons both before it; ``resolve`` refuses a
+``MAG_INVALID`` decision within ``SYNC_SHADOW`` words after a SYNC, which the fetch would make
+before the flag is taken). Nothing is pending at a SYNC (a MUL before it has written back: only a
+MUL goes on before its write-back).
 
 Conditions: ``ALWAYS``; ``A_ZERO`` (register a is 0); ``A_NEG`` (register a is negative: a
 comparison is a SUB then this); ``MAG_INVALID`` (the sample's ``mag_valid`` flag is 0);
@@ -83,8 +95,8 @@ from amaranth.lib import data
 from ..contract.filter_registry import FILTERS
 
 
-__all__ = ["Op", "Cond", "Flag", "FETCH_JUMPS", "REGISTER_CONDS", "MUL_SHIFTS", "Q14", "Q24",
-           "DOUBLED", "Q30", "CORDIC_SHORT", "GO_ON", "COLLECT", "UNITS", "REG_COUNT", "REG_BITS",
+__all__ = ["Op", "Cond", "Flag", "FETCH_JUMPS", "REGISTER_CONDS", "SYNC_SHADOW", "MUL_SHIFTS",
+           "Q14", "Q24", "DOUBLED", "Q30", "CORDIC_SHORT", "GO_ON", "COLLECT", "UNITS", "REG_COUNT", "REG_BITS",
            "ROM_DEPTH", "ROM_BITS", "Instr", "Instruction", "Assembler"]
 
 REG_COUNT = 256
@@ -119,6 +131,7 @@ class Op(enum.IntEnum):
     BR = 8
     SETF = 9
     END = 10
+    SYNC = 11
 
 
 # the ops that can run in the background (``GO_ON``), by the unit they use
@@ -368,6 +381,10 @@ class Assembler:
     def end(self):
         self._emit(Instruction(Op.END))
 
+    def sync(self):
+        """Wait for the sample's magnetometer words (the early start: the module docstring)."""
+        self._emit(Instruction(Op.SYNC))
+
     def _fold(self):
         """Folds each branch on a fixed condition (``FETCH_JUMPS``) into the instruction
         before it (``Instruction.then``), where that one is neither a branch nor END and no
@@ -450,9 +467,29 @@ class Assembler:
         if len(out) > ROM_DEPTH:
             raise ValueError(f"program of {len(out)} instructions exceeds the ROM ({ROM_DEPTH})")
         _check_background(out, set(self.labels.values()))
+        _check_sync_shadow(out)
         _check_mul_chains(out)
         _check_b_reads(out)
         return out
+
+
+# The words after a SYNC where a fetch-decided MAG_INVALID could be decided before the engine
+# took the sample's ``mag_valid``: the next word left the ROM before SYNC ran, the one after
+# leaves it as SYNC goes on, when the decision register (a cycle behind the flag) still
+# holds the last sample's; two words more of margin
+SYNC_SHADOW = 4
+
+
+def _check_sync_shadow(code):
+    for i, ins in enumerate(code):
+        if ins.op != Op.SYNC:
+            continue
+        for k in range(i, min(i + 1 + SYNC_SHADOW, len(code))):
+            after = code[k]
+            if ((after.op == Op.BR and after.cond == Cond.MAG_INVALID) or
+                    (after.then is not None and after.then[0] == Cond.MAG_INVALID)):
+                raise ValueError(f"instruction {k}: MAG_INVALID decided {k - i} words after "
+                                 f"the SYNC at {i} (at least {SYNC_SHADOW + 1})")
 
 
 def _successors(code, i, address=None):

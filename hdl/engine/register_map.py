@@ -79,7 +79,8 @@ from ..contract.numeric_contract import CONTROL_KEEP, CONTROL_RESET, MADGWICK_UN
 
 
 __all__ = ["CONFIG_REGS", "CONTROL_ADDR", "CONTROL_RESET", "CONTROL_KEEP", "TELEMETRY_DIV_ADDR",
-           "HOST_WRITABLE", "HOST_READ_ONLY", "REGS", "LOAD_BASE", "LOAD_ORDER", "TEMPS",
+           "HOST_WRITABLE", "HOST_READ_ONLY", "REGS", "LOAD_BASE", "LOAD_ORDER",
+           "LOAD_EARLY", "TEMPS",
            "CONSTANTS", "config_init", "load_words", "control_word"]
 
 CONTROL_ADDR = REG_COUNT - 1
@@ -114,14 +115,14 @@ HOST_WRITABLE = frozenset({a for name, a in CONFIG_REGS.items() if name not in H
 
 def _allocate():
     names = []
-    # inputs, written by the engine's loader: raw gyro, accel, AK8963 (AK axes), (ASA + 128)·2⁶;
-    # first, at 0x20, so that the loader's address is its counter with 0b010 above it
+    # inputs, written by the engine's loader: raw gyro, accel, (ASA + 128)·2⁶, the sample
+    # periods since the previous sample (1 + Sample.skipped; the calibration shifts it left by
+    # 14 in place), then the AK8963's (AK axes), last: the loader writes them at the program's
+    # SYNC (the early start, ``attitude_isa``), the others before the program starts; first,
+    # at 0x20, so that the loader's address is its counter with 0b010 above it
     names += [f"GRAW{i}" for i in range(3)] + [f"ARAW{i}" for i in range(3)]
-    names += [f"MRAW{i}" for i in range(3)] + [f"ASA{i}" for i in range(3)]
-    # sample periods since the previous sample (1 + Sample.skipped; the calibration shifts it
-    # left by 14 in place), and STEP_N: the filter's per-period rotation coefficient (RATE or
-    # K_RAD) times that
-    names += ["NPER"]
+    names += [f"ASA{i}" for i in range(3)] + ["NPER"] + [f"MRAW{i}" for i in range(3)]
+    # STEP_N: the filter's per-period rotation coefficient (RATE or K_RAD) times NPER
     names += ["STEP_N", "ACC_OK", "MAG_OK"]
     # the result's words (``PEEKED``, the framer reads them by index), from 0x30: a word's
     # address is its index with 0b0011 above it (no table of addresses in the engine)
@@ -165,9 +166,11 @@ REGS = _allocate()
 # Loader order: the sample's fields are written to these registers before the program runs.
 TEMPS = [REGS[f"T{i}"] for i in range(12)]
 LOAD_ORDER = ([f"GRAW{i}" for i in range(3)] + [f"ARAW{i}" for i in range(3)]
-              + [f"MRAW{i}" for i in range(3)] + [f"ASA{i}" for i in range(3)] + ["NPER"])
+              + [f"ASA{i}" for i in range(3)] + ["NPER"] + [f"MRAW{i}" for i in range(3)])
 LOAD_BASE = 0x20
 assert [REGS[n] for n in LOAD_ORDER] == list(range(LOAD_BASE, LOAD_BASE + len(LOAD_ORDER)))
+# the words the loader writes before the program starts; the rest (the AK8963's) at its SYNC
+LOAD_EARLY = LOAD_ORDER.index("MRAW0")
 
 
 def load_words(gyro, accel, mag_ak, asa, skipped=0):
@@ -177,7 +180,7 @@ def load_words(gyro, accel, mag_ak, asa, skipped=0):
     ``skipped``. Every word fits 16 bits, so the engine multiplexes 16 bits and sign-extends.
     Works on integers (the models) and on Amaranth values (the engine: an unsigned 8-bit ASA
     plus 128 is wiring, no adder)."""
-    return [*gyro, *accel, *mag_ak, *((a + 128) << 6 for a in asa), skipped + 1]
+    return [*gyro, *accel, *((a + 128) << 6 for a in asa), skipped + 1, *mag_ak]
 
 
 def config_init(registers, inv_gain_q30):

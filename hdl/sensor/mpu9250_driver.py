@@ -298,14 +298,15 @@ def driver_members():
     (a pulse per sample that came early, ``DriverStatus.rate_error``: the board counts them in
     RATE_ERRORS), ``who_am_i`` (8: the last WHO_AM_I value read), ``self_test``
     (``SelfTestStatus``), and the sample store's write port and the offered sample's slot
-    (``store``, ``sample_slot``: ``SampleReader``, ``hdl/sensor/sample_store.py``), the reader's
-    free-running ``tick`` (``tick_cycles``), and the read levelling's status (``level``,
-    ``ReadLevelStatus``)."""
+    (``store``, ``sample_slot``: ``SampleReader``, ``hdl/sensor/sample_store.py``), the early
+    start's ``imu_ready`` (``SampleReader``: the next sample's gyro and accelerometer are in its
+    slot, its field still coming), the reader's free-running ``tick`` (``tick_cycles``), and
+    the read levelling's status (``level``, ``ReadLevelStatus``)."""
     return {"int_pin": In(1), "samples": Out(stream.Signature(Sample)),
             "status": Out(DriverStatus), "asa": Out(data.ArrayLayout(8, 3)),
             "early_sample": Out(1), "who_am_i": Out(8), "self_test": Out(SelfTestStatus),
             "store": Out(SampleStoreWriteSignature()), "sample_slot": Out(range(SLOTS)),
-            "tick": Out(1), "level": Out(ReadLevelStatus)}
+            "imu_ready": Out(1), "tick": Out(1), "level": Out(ReadLevelStatus)}
 
 
 class MPU9250Driver(wiring.Component):
@@ -378,7 +379,8 @@ class MPU9250Driver(wiring.Component):
         connect(m, reader.samples, flipped(self.samples))
         connect(m, reader.store, flipped(self.store))
         m.d.comb += [seq.tick.eq(reader.tick), self.tick.eq(reader.tick)]
-        m.d.comb += self.sample_slot.eq(reader.sample_slot)
+        m.d.comb += [self.sample_slot.eq(reader.sample_slot),
+                     self.imu_ready.eq(reader.imu_ready)]
         status = self.status
         if cfg.self_test:
             m.submodules.self_test = st = self.self_test_block

@@ -172,9 +172,19 @@ class SampleReader(wiring.Component):
             the payload's other words and, so, zeros over its field (as ``mag`` in the
             payload): the slot holds the payload from the fifth cycle of ``valid``.
             ``sample_slot`` (out): the store's slot of the sample offered, beside ``samples``
-            (it changes only as a sample is offered, and holds while it is valid).
+            (it changes only as a sample is offered or ``imu_ready`` rises, and holds while
+            either is high).
+        ``imu_ready`` (out; SPI wiring): the early start (issue #58). It rises the cycle after
+            a burst's fifteenth byte (INT_STATUS and the MPU9250's fourteen) when they pass the
+            burst's checks and no sample is offered: the payload then holds every field of the
+            sample but the magnetometer's (``mag`` and the ``mag_*`` flags), its gyro and
+            accelerometer are in its slot (``sample_slot``), and ``valid`` follows, always,
+            when the AK8963's eight bytes are in (the checks look at the MPU9250's bytes only,
+            and a bus transfer always ends); it falls as ``valid`` rises. The engine starts its
+            update on it and waits for ``valid`` where its program needs the field.
 
-    Latency: a sample is valid two cycles after its last byte. Throughput: one sample per
+    Latency: a sample is valid two cycles after its last byte, ``imu_ready`` two cycles after
+    its fifteenth (SPI: 8 bytes, 256 cycles at 12 MHz from 48, before). Throughput: one sample per
     data-ready edge, as fast as the bus reads them (a read starts ten cycles after the last
     check at the soonest: the sample count's update, ``_counts``).
     """
@@ -202,6 +212,7 @@ class SampleReader(wiring.Component):
             "int_timeout": Out(1), "bad_burst": Out(1), "mag_stale": Out(1),
             "read_error": Out(1), "rate_error": Out(1),
             "trained": In(1), "trained_failed": Out(1), "burst_done": Out(1),
+            "imu_ready": Out(1),
             "tick": Out(1),
             "store": Out(SampleStoreWriteSignature()),
             "sample_slot": Out(range(SLOTS), init=SLOTS - 1),
@@ -229,8 +240,38 @@ class SampleReader(wiring.Component):
         self._sample_register(m, n)
         self._burst_checks(m, n)
         self._store(m, n)
+        self._early_start(m, n)
         self._states(m, n)
         return m
+
+    def _early_start(self, m, n):
+        """The burst's verdict (``n.plausible``: ``burst_is_plausible`` and the gyro's jump,
+        on the MPU9250's bytes only) and the early start (SPI: one burst; ``imu_ready``): once
+        those bytes are in and pass, with no sample offered, the sample's fields but the
+        AK8963's become the payload and its slot ``sample_slot`` (``n.early_sent``), while the
+        AK8963's bytes come. The check then offers it (``valid``) with its field: it cannot
+        fail it (the same bytes), and nothing else offers meanwhile."""
+        buf, sample = n.buf, n.sample
+        n.plausible = plausible = Signal()
+        n.early_sent = early_sent = Signal()    # the sample is started (the payload has it)
+        n.in_read_mpu = Signal()                # the reader's state is READ_MPU (``_states``)
+        verdict = buf[0][0] & ((buf[0] & R.INT_STATUS_RESERVED) == 0) & ~n.data_ones
+        if self.gyro_jump is not None:
+            m.d.comb += n.gyro_jumped.eq(n.have_base & n.gyro_moved)
+            verdict = verdict & ~n.gyro_jumped
+        m.d.comb += plausible.eq(verdict)
+        if not n.spi:
+            return
+        early_done = Signal()                   # this burst's early check was made
+        with m.If(~n.reading):                  # between bursts (and at the check: after it)
+            m.d.sync += [early_done.eq(0), early_sent.eq(0)]
+        with m.Elif(n.in_read_mpu & (n.rx_index == MPU_BYTES) & ~early_done):
+            m.d.sync += early_done.eq(1)
+            with m.If(plausible & ~self.samples.valid):
+                self._emit_imu(m, sample, buf, n.counter, n.overrun, n.dropped, n.skipped,
+                               n.resumed)
+                m.d.sync += [early_sent.eq(1), self.imu_ready.eq(1),
+                             self.sample_slot.eq(n.written)]
 
     def _store(self, m, n):
         """The sample store's writes: each sensor byte of the burst into the slot being
@@ -542,15 +583,17 @@ class SampleReader(wiring.Component):
         """The reader's states: waiting for an edge, the burst's reads, its check."""
         (reading, command, checked, rx_index, spi, sample, buf, counter, overrun, dropped, skipped,
          resumed, prev_field, prev_drdy, mag_age, mag_read_failed, offered, read_started, timer,
-         gyro_jumped, have_base, early, int_pending, int_edge, port, bad_bursts, int_active,
+         have_base, early, int_pending, int_edge, port, bad_bursts, int_active,
          pending_edge) = (
             n.reading, n.command, n.checked, n.rx_index, n.spi, n.sample, n.buf, n.counter,
             n.overrun, n.dropped, n.skipped, n.resumed, n.prev_field, n.prev_drdy, n.mag_age,
-            n.mag_read_failed, n.offered, n.read_started, n.timer, n.gyro_jumped, n.have_base,
+            n.mag_read_failed, n.offered, n.read_started, n.timer, n.have_base,
             n.early, n.int_pending, n.int_edge, n.port, n.bad_bursts, n.int_active, n.pending_edge)
+        plausible, early_sent = n.plausible, n.early_sent
         with m.FSM() as fsm:
-            m.d.comb += reading.eq(fsm.ongoing("READ_MPU") | fsm.ongoing("MAG_CMD") |
-                                   fsm.ongoing("READ_MAG"))
+            m.d.comb += [reading.eq(fsm.ongoing("READ_MPU") | fsm.ongoing("MAG_CMD") |
+                                    fsm.ongoing("READ_MAG")),
+                         n.in_read_mpu.eq(fsm.ongoing("READ_MPU"))]
             with m.State("IDLE"):
                 m.d.sync += [rx_index.eq(0), n.data_ones.eq(1), n.gyro_moved.eq(0)]
                 with m.If(offered | (self.enable & int_pending & ~n.counting_busy)):
@@ -602,10 +645,7 @@ class SampleReader(wiring.Component):
                 m.d.sync += [n.counting.eq(1),
                              timer.eq(n.after_ticks), self.int_timeout.eq(0)]
                 m.next = "IDLE"
-                plausible = buf[0][0] & ((buf[0] & R.INT_STATUS_RESERVED) == 0) & ~n.data_ones
-                if self.gyro_jump is not None:
-                    m.d.comb += gyro_jumped.eq(have_base & n.gyro_moved)
-                    plausible = plausible & ~gyro_jumped
+                m.d.sync += self.imu_ready.eq(0)
                 # no RAW_RDY: no new sample in this burst (a spurious INT pulse, a read made
                 # again) or none readable (a line stuck low reads zeros): either way the
                 # intervals from the last sample's edge count what was lost, not ``dropped``
@@ -635,7 +675,7 @@ class SampleReader(wiring.Component):
                     if not spi:
                         m.d.sync += self.read_error.eq(0)
                     self._emit(m, sample, buf, counter, overrun, dropped, skipped, resumed,
-                               prev_field, prev_drdy, mag_age, mag_read_failed)
+                               prev_field, prev_drdy, mag_age, mag_read_failed, early_sent)
                     with m.If(~self.samples.valid):
                         # this one is the payload now: its slot offered, the next written
                         m.d.sync += [have_base.eq(1), self.sample_slot.eq(n.written),
@@ -664,12 +704,11 @@ class SampleReader(wiring.Component):
         return head
 
     def _emit(self, m, sample, buf, counter, overrun, dropped, skipped, resumed, prev_field,
-              prev_drdy, mag_age, mag_read_failed):
+              prev_drdy, mag_age, mag_read_failed, early_sent):
         """A burst that passed its checks becomes the sample (or, with the last still offered,
-        a dropped one). The magnetometer's freshness is decided here."""
-        def be16(k):
-            return Cat(buf[k + 1], buf[k]).as_signed()
-
+        a dropped one): its magnetometer's part, and the rest unless the early start put it
+        in the payload already (``early_sent``). The magnetometer's freshness is decided
+        here."""
         def le16(k):
             return Cat(buf[k], buf[k + 1]).as_signed()
 
@@ -689,20 +728,31 @@ class SampleReader(wiring.Component):
             m.d.sync += [overrun.eq(1), dropped.eq(Mux(dropped == 15, 15, dropped + 1))]
         with m.Else():
             p = sample
-            m.d.sync += [self.samples.valid.eq(1), overrun.eq(0), resumed.eq(0),
-                         p.counter.eq(counter), dropped.eq(0),
-                         # after a restart the time since the last sample is unknown
-                         p.skipped.eq(Mux(resumed, 0, Mux(skipped + dropped > 15, 15,
-                                                          skipped + dropped))),
-                         p.flags.data_ready.eq(buf[0][0]),
-                         p.flags.overrun.eq(overrun),
-                         p.flags.resumed.eq(resumed),
+            m.d.sync += [self.samples.valid.eq(1),
                          p.flags.mag_new.eq(mag_new),
                          p.flags.mag_dor.eq(mag_new & st1[1]),
                          p.flags.mag_overflow.eq(mag_new & hofl),
-                         p.flags.mag_valid.eq(mag_new & ~hofl),
-                         p.temp.eq(be16(1 + 6))]
+                         p.flags.mag_valid.eq(mag_new & ~hofl)]
             for axis in range(3):
-                m.d.sync += [p.accel[axis].eq(be16(1 + 2 * axis)),
-                             p.gyro[axis].eq(be16(1 + 8 + 2 * axis)),
-                             p.mag[axis].eq(Mux(mag_up, le16(MPU_BYTES + 1 + 2 * axis), 0))]
+                m.d.sync += p.mag[axis].eq(Mux(mag_up, le16(MPU_BYTES + 1 + 2 * axis), 0))
+            with m.If(~early_sent):
+                self._emit_imu(m, sample, buf, counter, overrun, dropped, skipped, resumed)
+
+    def _emit_imu(self, m, p, buf, counter, overrun, dropped, skipped, resumed):
+        """The sample's fields but the magnetometer's, into the payload ``p`` (which is not
+        offered now): at the check, or at the early start's once the MPU9250's bytes are in."""
+        def be16(k):
+            return Cat(buf[k + 1], buf[k]).as_signed()
+
+        m.d.sync += [overrun.eq(0), resumed.eq(0),
+                     p.counter.eq(counter), dropped.eq(0),
+                     # after a restart the time since the last sample is unknown
+                     p.skipped.eq(Mux(resumed, 0, Mux(skipped + dropped > 15, 15,
+                                                      skipped + dropped))),
+                     p.flags.data_ready.eq(buf[0][0]),
+                     p.flags.overrun.eq(overrun),
+                     p.flags.resumed.eq(resumed),
+                     p.temp.eq(be16(1 + 6))]
+        for axis in range(3):
+            m.d.sync += [p.accel[axis].eq(be16(1 + 2 * axis)),
+                         p.gyro[axis].eq(be16(1 + 8 + 2 * axis))]

@@ -23,7 +23,12 @@ valid) and the next slot, modulo ``SLOTS``, the one written. The engine holds th
 took until it takes the next (its framer copies the sample from there). With three slots the one
 written is never the one offered nor the one the engine holds: the offered slot is ``W − 1``, and
 the held one is the offered one or the one before it, ``W + 1`` (the engine takes a sample only
-once the result of the one before was framed and taken).
+once the result of the one before was framed and taken). The early start (issue #58,
+``SampleReader.imu_ready``) makes ``W`` the offered slot once the burst's gyro and
+accelerometer bytes are in, while the AK8963's still go there: the engine then holds the slot
+being written, reading only the words already in (its field's words at its SYNC, once the
+sample is offered and the writes after the offer are in); ``W`` moves on at the offer, as
+before.
 """
 
 from amaranth.lib import data, wiring

@@ -60,7 +60,9 @@ class SensorFrontEnd(wiring.Component):
         ``samples`` (out, ``Sample`` stream) and ``status`` (out, ``DriverStatus``): from the
             driver; with I2C wiring ``status.bus_*`` come from the I2C controller.
         ``store``, ``sample_slot`` (out): the sample store's writes and the offered sample's
-            slot (``hdl/sensor/sample_store.py``), from the driver; ``tick`` (out): the sample
+            slot (``hdl/sensor/sample_store.py``), from the driver; ``imu_ready`` (out): the
+            early start's (``SampleReader``: the next sample's gyro and accelerometer are in
+            its slot, its field still coming); ``tick`` (out): the sample
             reader's free-running tick (``sample_reader.tick_cycles``), which the core's
             command decoder counts its time-out in.
 
@@ -110,6 +112,7 @@ class SensorFrontEnd(wiring.Component):
                      self.asa.eq(driver.asa), self.early_sample.eq(driver.early_sample),
                      self.who_am_i.eq(driver.who_am_i), self.self_test.eq(driver.self_test),
                      self.sample_slot.eq(driver.sample_slot), self.tick.eq(driver.tick),
+                     self.imu_ready.eq(driver.imu_ready),
                      self.level.eq(driver.level)]
         if self.config.wiring == "i2c":
             # the controller's own view of a failure, which the driver sees only as an error

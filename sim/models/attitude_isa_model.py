@@ -9,7 +9,8 @@ under test here.
 
 from ...hdl.engine.attitude_isa import (COLLECT, CORDIC_SHORT, GO_ON, MUL_SHIFTS, UNITS, Cond, Flag,
     Op)
-from ...hdl.engine.register_map import CONFIG_REGS, LOAD_ORDER, REGS, config_init, load_words
+from ...hdl.engine.register_map import (CONFIG_REGS, LOAD_EARLY, LOAD_ORDER, REGS, config_init,
+                                        load_words)
 from ...hdl.contract.filter_registry import FILTER_CODES
 from ...hdl.engine.attitude_program import build_program
 from ...reference.fixed_point import (CORDIC_ITERATIONS, CORDIC_SHORT_ITERATIONS, INV_GAIN_Q30,
@@ -40,13 +41,23 @@ class AttitudeISAModel:
 
     def _holds(self, cond, a, code, mag_valid):
         """A branch's condition (``Cond``) on register a's value and the FILTER code."""
+        if a is None and cond in (Cond.A_ZERO, Cond.A_NEG):
+            raise RuntimeError("a register test of the field before the SYNC")
         return {Cond.ALWAYS: True, Cond.A_ZERO: a == 0, Cond.A_NEG: a < 0,
                 Cond.MAG_INVALID: not mag_valid, Cond.FIRST: self.first,
                 Cond.FILTER: self.filter == code}[Cond(cond)]
 
-    def run(self, pc, mag_valid=True, trace=False):
-        """Run from ``pc`` to END; returns (flags set, saturated, instructions executed)."""
+    def run(self, pc, mag_valid=True, trace=False, mag_words=None):
+        """Run from ``pc`` to END; returns (flags set, saturated, instructions executed).
+        ``mag_words`` (name: value): what SYNC loads (the early start, ``attitude_isa``);
+        until then the field's registers (MRAW, M, MAG_OK) hold None, which no arithmetic
+        takes, and MAG_INVALID is not decided: a program that reads the field before its SYNC
+        fails here. A sample's run passes exactly one SYNC; the reset program's none."""
         r = self.regs
+        synced = mag_words is None
+        if not synced:
+            for name in (*mag_words, *(f"M{i}" for i in range(3)), "MAG_OK"):
+                r[REGS[name]] = None
         acc = 0
         flags = set()
         st = Status()
@@ -98,23 +109,37 @@ class AttitudeISAModel:
                     for k, value in enumerate(results):
                         put(ins.d + k, value)
             elif op == Op.BR:
+                if ins.cond == Cond.MAG_INVALID and not synced:
+                    raise RuntimeError(f"{pc - 1}: MAG_INVALID before the SYNC")
                 if self._holds(ins.cond, a, ins.sh, mag_valid) != bool(ins.inv):
                     pc = ins.target
             elif op == Op.SETF:
                 flags.add(Flag(ins.sh))
+            elif op == Op.SYNC:
+                if synced:
+                    raise RuntimeError(f"SYNC at {pc - 1}: a second one, or one outside a sample")
+                for name, value in mag_words.items():
+                    r[REGS[name]] = value
+                synced = True
             elif op == Op.END:
+                if not synced:
+                    raise RuntimeError(f"END at {pc - 1}: the sample's run passed no SYNC")
                 return flags, st.saturated, steps
             if ins.then is not None:                # a branch folded into it (the assembler)
                 cond, code, target = ins.then
+                if cond == Cond.MAG_INVALID and not synced:
+                    raise RuntimeError(f"{pc - 1}: MAG_INVALID before the SYNC")
                 if self._holds(cond, a, code, mag_valid):
                     pc = target
 
     def sample(self, gyro, accel, mag_ak, mag_valid=True, asa=(128, 128, 128), skipped=0):
         values = load_words(*([int(v) for v in x] for x in (gyro, accel, mag_ak, asa)),
                             int(skipped))
-        for name, value in zip(LOAD_ORDER, values):
-            self.regs[REGS[name]] = int(value)
-        result = self.run(self.entry["sample"], mag_valid)
+        words = dict(zip(LOAD_ORDER, (int(v) for v in values)))
+        mag_words = {name: words.pop(name) for name in LOAD_ORDER[LOAD_EARLY:]}
+        for name, value in words.items():
+            self.regs[REGS[name]] = value
+        result = self.run(self.entry["sample"], mag_valid, mag_words=mag_words)
         self.first = False
         return result
 

@@ -419,6 +419,7 @@ def _b_read_program():
     asm.mul(bias[0], th[0], th[0], Q14)         # th[0] lands as it goes on: a NOP before
     asm.add(bias[1], bias[0], bias[0])          # both operands: a NOP before
     asm.vec(th[0], g2, bias[1])                 # a NOP before; writes THETA0 and THETA1
+    asm.sync()                                  # a sample's run passes one (the early start)
     asm.end()
     return asm.resolve(), {"init": asm.labels["init"], "sample": asm.labels["sample"]}
 
@@ -482,6 +483,7 @@ def _background_program(go_on):
         if go_on:
             asm.collect("divider" if op == "div" else "cordic")
         x, y = d, d + 1
+    asm.sync()                                  # a sample's run passes one (the early start)
     asm.end()
     return asm.resolve(), {"init": asm.labels["init"], "sample": asm.labels["sample"]}
 

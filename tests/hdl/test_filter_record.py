@@ -40,6 +40,8 @@ from mpu9250_ahrs.hdl.contract.numeric_contract import control_code_bits
 mod = types.ModuleType("sketch.fifth_filter")
 mod.CONFIG_REGISTERS, mod.REGISTERS = [], []
 def emit(asm, r):
+    from mpu9250_ahrs.hdl.engine.filters.shared import magnetometer_in
+    magnetometer_in(asm, "hold")        # every routine passes the early start's SYNC once
     asm.br("angles_out")
 mod.emit = emit
 mod.run_float = lambda gyr, acc, mag, dt, **params: np.tile([1.0, 0, 0, 0], (len(gyr), 1))

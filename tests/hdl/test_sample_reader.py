@@ -4,7 +4,8 @@ freshness (DRDY after a read without it, or new bytes), restarts and the stale t
 import pytest
 from amaranth.sim import Simulator
 
-from mpu9250_ahrs.hdl.sensor.sample_reader import BAD_BURST_LIMIT, MPU_BYTES, SampleReader
+from mpu9250_ahrs.hdl.sensor.sample_reader import (BAD_BURST_LIMIT, MPU_BYTES, SAMPLE_BYTES,
+                                                   SampleReader)
 from mpu9250_ahrs.hdl.sensor.sample_store import (OFFER_WRITES, SAMPLE_STORE_DEPTH, SLOT_WORDS,
                                                   STORE_WORDS)
 from mpu9250_ahrs.sim.bench.streams import check_stream_rules
@@ -24,9 +25,11 @@ def burst(k, *, int_status=0x01, drdy=1, field=(100, -200, 300), data=None):
     return bytes([int_status]) + mpu + ak
 
 
-def run(bursts, *, mag_ok=1, extra_periods=0, gyro_jump=None, wiring="spi"):
+def run(bursts, *, mag_ok=1, extra_periods=0, gyro_jump=None, wiring="spi", early=None):
     """One data-ready edge per entry of ``bursts`` (None: no edge that period), a period apart;
-    returns the samples taken and, per period, the status and pulses seen."""
+    returns the samples taken and, per period, the status and pulses seen. ``early`` (a
+    list): gets, per rise of ``imu_ready``, (payload, ``sample_slot``, the burst's bytes the
+    port model still has to send then)."""
     # the INT here is a pulse (high for half a period), not latched
     dut = SampleReader(wiring=wiring, int_latched=False, gyro_jump=gyro_jump,
                        period_cycles=PERIOD,
@@ -35,6 +38,7 @@ def run(bursts, *, mag_ok=1, extra_periods=0, gyro_jump=None, wiring="spi"):
     queue = []
     model = RegisterPortModel(dut.port, lambda device, reg, length: queue.pop(0))
     samples, log = [], []
+    rising = [0]
 
     async def testbench(ctx):
         ctx.set(dut.enable, 1)
@@ -59,6 +63,11 @@ def run(bursts, *, mag_ok=1, extra_periods=0, gyro_jump=None, wiring="spi"):
                     pulses[name] |= ctx.get(getattr(dut, name))
                 if ctx.get(dut.samples.valid):
                     samples.append(ctx.get(dut.samples.payload))
+                if early is not None and ctx.get(dut.imu_ready) and not rising[0]:
+                    early.append((ctx.get(dut.samples.payload), ctx.get(dut.sample_slot),
+                                  len(model._queue)))
+                    assert not ctx.get(dut.samples.valid)
+                rising[0] = ctx.get(dut.imu_ready)
             log.append({"bad_burst": ctx.get(dut.bad_burst), "mag_stale": ctx.get(dut.mag_stale),
                         "int_timeout": ctx.get(dut.int_timeout), **pulses})
     sim = Simulator(dut)
@@ -119,6 +128,34 @@ def test_decoding_and_magnetometer_freshness():
     assert [s.flags.mag_valid for s in samples] == [1, 0, 0, 1, 1, 0]
     assert list(samples[4].mag) == list(f2)
     assert not any(entry["bad_burst"] or entry["restart"] for entry in log)
+
+
+@pytest.mark.parametrize("wiring", ["spi", "i2c"])
+def test_early_start_offers_the_gyro_and_accelerometer_first(wiring):
+    """The early start (SPI): ``imu_ready`` rises once the fifteenth byte is in, with every
+    field of the payload but the magnetometer's already the sample's and ``sample_slot`` its
+    slot, before ``valid``; a burst that fails its checks gives none. I2C: never."""
+    f = [(100 + k, -200, 300) for k in range(4)]
+    bad = burst(2, data=b"\xff" * 14)
+    early = []
+    samples, _ = run([burst(0, field=f[0]), burst(1, field=f[1]), bad, burst(3, field=f[3])],
+                     wiring=wiring, early=early)
+    assert [s.counter for s in samples] == [0, 1, 3]
+    if wiring == "i2c":
+        assert early == []
+        return
+    assert len(early) == 3
+    for (payload, slot, pending), sample in zip(early, samples):
+        # a byte a cycle here: the AK8963's still coming
+        assert 0 < pending < SAMPLE_BYTES - MPU_BYTES
+        for name in ("counter", "skipped", "temp"):
+            assert getattr(payload, name) == getattr(sample, name)
+        assert list(payload.accel) == list(sample.accel)
+        assert list(payload.gyro) == list(sample.gyro)
+        for flag in ("data_ready", "overrun", "resumed"):
+            assert getattr(payload.flags, flag) == getattr(sample.flags, flag)
+    assert [slot for _, slot, _ in early] == [0, 1, 2]
+    assert [list(s.mag) for s in samples] == [list(f[0]), list(f[1]), list(f[3])]
 
 
 def test_bad_bursts_are_dropped_counted_and_restart():

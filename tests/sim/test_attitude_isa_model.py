@@ -78,3 +78,47 @@ def test_flagship_rest_gates_and_new_reference():
 def test_program_fits_the_rom_and_has_entries():
     program, entry = build_program()
     assert len(program) <= ROM_DEPTH and entry["init"] == 0 and entry["sample"] > 0
+
+
+def test_the_field_is_read_only_after_one_sync():
+    """The early start (``attitude_isa``): the model holds the field's registers (MRAW, M,
+    MAG_OK) at None until the run's SYNC, so a program that reads them sooner, passes no SYNC
+    or two, fails; the assembler refuses a MAG_INVALID decided in the words the engine's
+    fetch reads while SYNC waits."""
+    import pytest
+    from mpu9250_ahrs.hdl.engine.attitude_isa import SYNC_SHADOW, Assembler, Cond
+    from mpu9250_ahrs.hdl.engine.register_map import REGS as r
+
+    def program(body):
+        asm = Assembler()
+        asm.label("init")
+        asm.end()
+        asm.label("sample")
+        body(asm)
+        asm.end()
+        return asm.resolve(), {"init": asm.labels["init"], "sample": asm.labels["sample"]}
+
+    def run(body):
+        isa = AttitudeISAModel(EngineModel().reg)
+        isa.program, isa.entry = program(body)
+        return isa.sample([1, 2, 3], [4, 5, 6], [7, 8, 9])
+
+    run(lambda asm: (asm.sync(), asm.add(r["QOUT0"], r["MRAW0"], r["MRAW1"])))
+    for wrong in (lambda asm: asm.add(r["QOUT0"], r["MRAW0"], r["ZERO"]),      # before
+                  lambda asm: asm.br("x", Cond.A_ZERO, a=r["MAG_OK"]) or asm.label("x"),
+                  lambda asm: asm.nop(),                                     # none
+                  lambda asm: (asm.sync(), asm.sync())):                     # two
+        with pytest.raises((RuntimeError, TypeError)):
+            run(wrong)
+
+    def shadowed(gap):
+        def body(asm):
+            asm.sync()
+            for _ in range(gap):
+                asm.add(r["QOUT0"], r["ZERO"], r["ZERO"])
+            asm.br("x", Cond.MAG_INVALID)
+            asm.label("x")
+        return body
+    program(shadowed(SYNC_SHADOW + 1))
+    with pytest.raises(ValueError, match="MAG_INVALID"):
+        program(shadowed(SYNC_SHADOW - 2))

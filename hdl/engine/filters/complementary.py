@@ -3,7 +3,7 @@ tilt and the magnetometer's heading, a = τ/(τ + dt) (``ONE_MINUS_A`` = 1 − a
 ``hdl/engine/register_map.py``, as its state)."""
 
 from ..attitude_isa import Q14, Q24, Q30, Cond, Flag
-from .shared import euler_rates, heading, step_n, tilt
+from .shared import euler_rates, heading, magnetometer_in, step_n, tilt
 
 
 __all__ = ["CONFIG_REGISTERS", "REGISTERS", "emit"]
@@ -32,6 +32,7 @@ def emit(asm, r):
         asm.setf(Flag.ACC_USED)
         asm.label("c_no_tilt")
         asm.add(r["MEAS2"], r["PRED2"], r["ZERO"])
+        magnetometer_in(asm, "complementary")     # the field from here on (the early start)
         asm.br("c_blend", Cond.A_ZERO, a=r["MAG_OK"])
         heading(asm, r, r["PRED0"], r["PRED1"], r["MEAS2"])
         asm.setf(Flag.MAG_USED)

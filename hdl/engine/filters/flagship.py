@@ -14,7 +14,7 @@ Cost: ``python -m mpu9250_ahrs report`` (``cycles_per_update.flagship``).
 """
 
 from ..attitude_isa import DOUBLED, Q14, Q30, Cond, Flag
-from .shared import matrix_angles, step_n
+from .shared import magnetometer_in, matrix_angles, step_n
 
 
 __all__ = ["CONFIG_REGISTERS", "REGISTERS", "FLAGSHIP_REGISTERS", "flagship_names",
@@ -441,6 +441,7 @@ def flagship_routine(asm, r):
     _rate_error(asm, r)
     _strapdown(asm, r)
     _inclination(asm, r)
+    magnetometer_in(asm, "flagship")      # the field from here on (the early start)
     _heading(asm, r)
     _output(asm, r)
     _start_up(asm, r)

@@ -5,7 +5,8 @@ the accelerometer's tilt and the magnetometer's heading. Its run-time registers 
 base map (``hdl/engine/register_map.py``)."""
 
 from ..attitude_isa import Q14, Q24, Q30, Cond, Flag
-from .shared import background_divisions, euler_rates, heading, step_n, tilt
+from .shared import (background_divisions, euler_rates, heading, magnetometer_in, step_n,
+                     tilt)
 
 
 __all__ = ["CONFIG_REGISTERS", "REGISTERS", "emit"]
@@ -60,24 +61,29 @@ def _measurements(asm, r):
     tilt is vectored and axis 1's while axis 0 is updated (both on an accelerometer
     measurement), axis 2's (on a field) while the heading is computed. The heading uses the
     predicted roll and pitch, so axis 2 is updated first; the axes' updates are independent."""
+    # Each innovation sum before the branch that skips its update: the division after it reads
+    # it as b, which the word just before it cannot write (``attitude_isa``: a NOP, a ROM word
+    # the ROM has not to spare, would go between them)
     with asm.scratch(2) as (k0_0, k1_0):
-        asm.br("k_no_tilt", Cond.A_ZERO, a=r["ACC_OK"])
         with asm.scratch(1) as (s,):
             _innovation_sum(asm, r, 0, s)
+            # without a tilt, straight to the field's part (``magnetometer_in``, which
+            # follows the tilt: a branch of its own there would cost a ROM word)
+            asm.br("magnetometer", Cond.A_ZERO, a=r["ACC_OK"])
             tilt(asm, r, r["MEAS0"], divisions=_gains(r, 0, s, k0_0, k1_0))
-        asm.label("k_no_tilt")
-        asm.br("k_no_heading", Cond.A_ZERO, a=r["MAG_OK"])
+        magnetometer_in(asm, "kalman")    # the field from here on (the early start)
         with asm.scratch(3) as (s, k0_2, k1_2):
             _innovation_sum(asm, r, 2, s)
+            asm.br("k_no_heading", Cond.A_ZERO, a=r["MAG_OK"])
             heading(asm, r, r["THETA0"], r["THETA1"], r["MEAS2"],      # the predicted tilt
                     divisions=_gains(r, 2, s, k0_2, k1_2))
             _kalman_update(asm, r, 2, r["MEAS2"], k0_2, k1_2)
         asm.setf(Flag.MAG_USED)
         asm.setf(Flag.BIAS_UPDATED)
         asm.label("k_no_heading")
-        asm.br("angles_out", Cond.A_ZERO, a=r["ACC_OK"])
         with asm.scratch(3) as (s, k0_1, k1_1):
             _innovation_sum(asm, r, 1, s)
+            asm.br("angles_out", Cond.A_ZERO, a=r["ACC_OK"])
             k0, k1 = background_divisions(asm, _gains(r, 1, s, k0_1, k1_1))
             k0[0]()
             _kalman_update(asm, r, 0, r["MEAS0"], k0_0, k1_0)

@@ -14,7 +14,7 @@ Cost: ``python -m mpu9250_ahrs report`` (``cycles_per_update.madgwick``).
 
 from ..attitude_isa import Q14, Q24, Q30, Cond, Flag
 from .flagship import _PAIRS, _matrix, _normalise
-from .shared import euler_quat, heading, matrix_angles, step_n, tilt
+from .shared import euler_quat, heading, magnetometer_in, matrix_angles, step_n, tilt
 
 
 __all__ = ["CONFIG_REGISTERS", "REGISTERS", "emit"]
@@ -212,6 +212,8 @@ def emit(asm, r):
     # STEP_N last: the MUL after the branch reads it (``attitude_isa``: MUL after MUL)
     step_n(asm, r, "BETA_K", "BN")
     step_n(asm, r, "K_RAD")
+    # the field from here on (the early start): its paths (the alignment's too) read it
+    magnetometer_in(asm, "madgwick")
     asm.br("m_start", Cond.FIRST)
     asm.label("m_started")
     # ½·q ⊗ (0, ω·T·n)

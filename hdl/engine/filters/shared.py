@@ -7,7 +7,7 @@ result quaternion of the per-axis filters (``angles_out``). Each writes into an 
 from ..attitude_isa import Q14, Q24, Q30, Cond
 
 
-__all__ = ["init", "calibrate", "zero_tests", "background_divisions", "tilt", "heading",
+__all__ = ["init", "calibrate", "magnetometer", "magnetometer_in", "zero_tests", "background_divisions", "tilt", "heading",
            "step_n", "euler_rates", "matrix_angles", "euler_quat", "angles_out"]
 
 
@@ -24,7 +24,9 @@ def init(asm, r):
 
 
 def calibrate(asm, r):
-    with asm.scratch(12) as T:
+    """The gyro and accelerometer of the sample, calibrated (G, A), and NPER << 14: what the
+    filters use before the magnetometer (``magnetometer`` calibrates its field after SYNC)."""
+    with asm.scratch(3) as T:
         for i in range(3):
             asm.sub(r[f"G{i}"], r[f"GRAW{i}"], r[f"GYRO_OFF{i}"], sat16=True)
         # the multiplier does not saturate to 16 bits: products go to temporaries, then an ADD
@@ -33,31 +35,48 @@ def calibrate(asm, r):
             asm.sub(T[i], r[f"ARAW{i}"], r[f"ACC_OFF{i}"])
         for i in range(3):
             asm.mul(T[i], T[i], r[f"ACC_SCALE{i}"], Q14)
-        for j in range(3):                               # ASA: h·(ASA + 128)/256, AK axes
-            asm.mul(T[3 + j], r[f"MRAW{j}"], r[f"ASA{j}"], Q14)       # ASA holds (ASA + 128)·2⁶
         # NPER << 14 in place (exact: NPER ≤ 16), for ``step_n``
         asm.mul(r["NPER"], r["NPER"], r["SHL14"], Q14)
         for i in range(3):
             asm.add(r[f"A{i}"], T[i], r["ZERO"], sat16=True)
-        # AK8963 -> body axes (x = y_ak, y = x_ak, z = −z_ak), minus the hard-iron offset
-        d = T[9:12]
-        asm.sub(d[0], T[4], r["HARD0"])
-        asm.sub(d[1], T[3], r["HARD1"])
-        asm.sub(d[2], r["ZERO"], T[5])
-        asm.sub(d[2], d[2], r["HARD2"])
-        for i in range(3):
-            asm.mac(T[6 + i], [(r[f"SOFT{i}{j}"], d[j]) for j in range(3)], Q14)
-        for i in range(3):
-            asm.add(r[f"M{i}"], T[6 + i], r["ZERO"], sat16=True)
 
 
+def magnetometer(asm, r):
+    """SYNC (the early start, ``attitude_isa``: the loader writes MRAW, the engine takes the
+    sample's ``mag_valid``), then the field calibrated (M) and MAG_OK (``zero_tests``). The
+    working values go in place, into MRAW and M (no scratch register: the filters reach this
+    from the middle of their routines, scratch registers held)."""
+    asm.sync()
+    for j in range(3):                                   # ASA: h·(ASA + 128)/256, AK axes
+        asm.mul(r[f"MRAW{j}"], r[f"MRAW{j}"], r[f"ASA{j}"], Q14)   # ASA holds (ASA + 128)·2⁶
+    # AK8963 -> body axes (x = y_ak, y = x_ak, z = −z_ak), minus the hard-iron offset, into M
+    d = [r[f"M{i}"] for i in range(3)]
+    asm.sub(d[0], r["MRAW1"], r["HARD0"])
+    asm.sub(d[1], r["MRAW0"], r["HARD1"])
+    asm.sub(d[2], r["ZERO"], r["MRAW2"])
+    asm.sub(d[2], d[2], r["HARD2"])
+    for i in range(3):
+        asm.mac(r[f"MRAW{i}"], [(r[f"SOFT{i}{j}"], d[j]) for j in range(3)], Q14)
+    for i in range(3):
+        asm.add(r[f"M{i}"], r[f"MRAW{i}"], r["ZERO"], sat16=True)
+    zero_tests(asm, r, "s", ("MAG_OK",))
 
-def zero_tests(asm, r, name):
+
+def magnetometer_in(asm, name):
+    """A filter's way to its field: a branch to the shared ``magnetometer`` part (SYNC and the
+    field's calibration; ``attitude_program``), which returns to the label ``{name}_mag``
+    here by a dispatch on the filter. On every path of the routine before its first read
+    of M or MAG_OK, and only once."""
+    asm.br("magnetometer")
+    asm.label(f"{name}_mag")
+
+
+def zero_tests(asm, r, name, tests=("ACC_OK", "MAG_OK")):
     """ACC_OK = 0 when the calibrated accelerometer vector is zero, else not (its first axis
     that is not 0); MAG_OK likewise for the field, or 0 when the sample's magnetometer is
     invalid. Copies and register tests (the ALU has no OR): an axis that is not 0 ends the
     test, so a usual one costs a copy and a taken branch."""
-    for ok, v in (("ACC_OK", "A"), ("MAG_OK", "M")):
+    for ok, v in ((ok, v) for ok, v in (("ACC_OK", "A"), ("MAG_OK", "M")) if ok in tests):
         done = f"{name}_{ok.lower()}_tested"
         if ok == "MAG_OK":
             asm.add(r[ok], r["ZERO"], r["ZERO"])
@@ -149,10 +168,12 @@ def euler_rates(asm, r, U, name):
         asm.br(f"{name}_cp_ok", Cond.A_NEG, a=t, inv=True)
         asm.add(r["CP"], r["COS_PITCH_MIN"], r["ZERO"])
         asm.label(f"{name}_cp_ok")
-        asm.div(tp, r["SP"], r["CP"])                   # tan θ, Q8.24
-        asm.div(sec, r["ONE"], r["CP"])                 # 1 / cos θ, Q8.24
+        # the products first: a division that read CP as b just after its clamp would need
+        # a NOP before it (``attitude_isa``), a ROM word
         asm.mac(w, [(r["SR"], U[1]), (r["CR"], U[2])], Q30)
         asm.mac(t, [(r["CR"], U[1]), (r["SR"], U[2], -1)], Q30)
+        asm.div(tp, r["SP"], r["CP"])                   # tan θ, Q8.24
+        asm.div(sec, r["ONE"], r["CP"])                 # 1 / cos θ, Q8.24
         asm.mul(U[2], w, sec, Q24)
         asm.mul(w, w, tp, Q24)
         asm.add(U[1], t, r["ZERO"])
