@@ -48,5 +48,6 @@ BOARD_REGS = {
 # board, PWM); the host tool refuses to configure a board whose map it does not know.
 # 7: Madgwick (filter code 3, BETA_K at 0x80); 8: the result words at 0x30-0x39; 9: the
 # flagship's REST_BIAS2 at 0x80, BETA_K at 0x81; 10: a reply's result bit 7
-# (``RESULT_INPUT_LOST``); 11: SPI_TRAINING (board 0x0E, ``ReadLevelStatus``)
-REGMAP_VERSION = 11
+# (``RESULT_INPUT_LOST``); 11: SPI_TRAINING (board 0x0E, ``ReadLevelStatus``); 12: the
+# frames' status: ``restarts`` 6 bits, ``spi_trained`` in its seventh (``DriverStatus``)
+REGMAP_VERSION = 12

@@ -259,7 +259,7 @@ class BringUpSequencer(wiring.Component):
             on a restart. ``started`` (out, pulse): it just did, from the start of the program.
         ``restarted`` (out, pulse): a restart began (requested, or a failed MPU9250 step).
         ``mag_setup`` (out): the magnetometer's part is running while streaming.
-        ``whoami_error``, ``no_response``, ``who_am_i``, ``restarts`` (7, saturating),
+        ``whoami_error``, ``no_response``, ``who_am_i``, ``restarts`` (6, saturating),
         ``mag_ok``, ``mag_absent``, ``mag_wia_error`` (out): as ``DriverStatus`` has them.
         ``asa`` (out, 3 × 8): the AK8963's sensitivity adjustment, stored by STORE steps.
         ``test`` (out, ``TestByte``): the bytes TEST steps read, for a ``SelfTest``;
@@ -313,7 +313,7 @@ class BringUpSequencer(wiring.Component):
             "restart": In(1), "mag_lost": In(1), "mag_nack": In(1), "reconfigure": In(1),
             "streaming": Out(1), "started": Out(1), "restarted": Out(1), "mag_setup": Out(1),
             "whoami_error": Out(1), "no_response": Out(1), "who_am_i": Out(8),
-            "restarts": Out(7), "mag_ok": Out(1), "mag_absent": Out(1),
+            "restarts": Out(6), "mag_ok": Out(1), "mag_absent": Out(1),
             "mag_wia_error": Out(1),
             "asa": Out(data.ArrayLayout(8, 3)),
             "test": Out(TestByte), "test_busy": In(1),

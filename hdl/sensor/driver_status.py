@@ -7,8 +7,13 @@
 - ``int_timeout``: no data-ready interrupt came within the timeout; the driver restarted
   bring-up. Cleared by the next sample.
 - ``restarts``: bring-up restarts since power-on (after a failed check, a time-out or stuck
-  data), saturating at 127. (The last WHO_AM_I value read is the driver's ``who_am_i`` port:
+  data), saturating at 63. (The last WHO_AM_I value read is the driver's ``who_am_i`` port:
   the board register WHO_AM_I.)
+- ``spi_trained``: the sample bursts are read at the trained SPI rate now (issue #58: the read
+  levelling found the eye; else the safe rate), as the board register SPI_TRAINING's bit 0,
+  which has the sample delay, the eye and the falls back too (``ReadLevelStatus``). 0 in a
+  build without a trained rate. It takes the bit ``restarts`` had above 63, so no other
+  field of a frame moved.
 - ``mag_ok``: the AK8963 is up (WIA right, fuse ROM read, continuous 100 Hz 16-bit mode).
 - ``mag_absent``: the AK8963 did not acknowledge (I2C NACK, SLV4_NACK) or an SLV4 transfer
   timed out, at bring-up or at a re-initialisation, or (I2C wiring) a per-sample read failed;
@@ -54,7 +59,8 @@ class DriverStatus(data.Struct):
     whoami_error: 1
     no_response: 1
     int_timeout: 1
-    restarts: 7
+    restarts: 6
+    spi_trained: 1
     mag_ok: 1
     mag_absent: 1
     mag_wia_error: 1

@@ -399,6 +399,7 @@ class MPU9250Driver(wiring.Component):
             status.streaming.eq(seq.streaming), status.whoami_error.eq(seq.whoami_error),
             status.no_response.eq(seq.no_response | reader.read_error),
             status.int_timeout.eq(reader.int_timeout), status.restarts.eq(seq.restarts),
+            status.spi_trained.eq(self.level.trained),
             self.who_am_i.eq(seq.who_am_i), status.mag_ok.eq(seq.mag_ok),
             status.mag_absent.eq(seq.mag_absent), status.mag_wia_error.eq(seq.mag_wia_error),
             status.mag_stale.eq(reader.mag_stale), status.bad_burst.eq(reader.bad_burst),

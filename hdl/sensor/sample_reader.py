@@ -255,6 +255,12 @@ class SampleReader(wiring.Component):
         n.plausible = plausible = Signal()
         n.early_sent = early_sent = Signal()    # the sample is started (the payload has it)
         n.in_read_mpu = Signal()                # the reader's state is READ_MPU (``_states``)
+        # the payload's fields but the field's are written now: early, or at the check of a
+        # sample not started early (``_emit``). One enable for both, so that each flip-flop
+        # of the payload has one (two cost a LUT a bit: 180 of the reader's, standalone)
+        n.imu_emit = imu_emit = Signal()
+        with m.If(imu_emit):
+            self._emit_imu(m, sample, buf, n.counter, n.overrun, n.dropped, n.skipped, n.resumed)
         verdict = buf[0][0] & ((buf[0] & R.INT_STATUS_RESERVED) == 0) & ~n.data_ones
         if self.gyro_jump is not None:
             m.d.comb += n.gyro_jumped.eq(n.have_base & n.gyro_moved)
@@ -268,8 +274,7 @@ class SampleReader(wiring.Component):
         with m.Elif(n.in_read_mpu & (n.rx_index == MPU_BYTES) & ~early_done):
             m.d.sync += early_done.eq(1)
             with m.If(plausible & ~self.samples.valid):
-                self._emit_imu(m, sample, buf, n.counter, n.overrun, n.dropped, n.skipped,
-                               n.resumed)
+                m.d.comb += imu_emit.eq(1)
                 m.d.sync += [early_sent.eq(1), self.imu_ready.eq(1),
                              self.sample_slot.eq(n.written)]
 
@@ -675,7 +680,8 @@ class SampleReader(wiring.Component):
                     if not spi:
                         m.d.sync += self.read_error.eq(0)
                     self._emit(m, sample, buf, counter, overrun, dropped, skipped, resumed,
-                               prev_field, prev_drdy, mag_age, mag_read_failed, early_sent)
+                               prev_field, prev_drdy, mag_age, mag_read_failed, early_sent,
+                               n.imu_emit)
                     with m.If(~self.samples.valid):
                         # this one is the payload now: its slot offered, the next written
                         m.d.sync += [have_base.eq(1), self.sample_slot.eq(n.written),
@@ -704,11 +710,11 @@ class SampleReader(wiring.Component):
         return head
 
     def _emit(self, m, sample, buf, counter, overrun, dropped, skipped, resumed, prev_field,
-              prev_drdy, mag_age, mag_read_failed, early_sent):
+              prev_drdy, mag_age, mag_read_failed, early_sent, imu_emit):
         """A burst that passed its checks becomes the sample (or, with the last still offered,
         a dropped one): its magnetometer's part, and the rest unless the early start put it
-        in the payload already (``early_sent``). The magnetometer's freshness is decided
-        here."""
+        in the payload already (``early_sent``; ``imu_emit`` asks ``_early_start`` for the
+        rest). The magnetometer's freshness is decided here."""
         def le16(k):
             return Cat(buf[k], buf[k + 1]).as_signed()
 
@@ -735,8 +741,7 @@ class SampleReader(wiring.Component):
                          p.flags.mag_valid.eq(mag_new & ~hofl)]
             for axis in range(3):
                 m.d.sync += p.mag[axis].eq(Mux(mag_up, le16(MPU_BYTES + 1 + 2 * axis), 0))
-            with m.If(~early_sent):
-                self._emit_imu(m, sample, buf, counter, overrun, dropped, skipped, resumed)
+            m.d.comb += imu_emit.eq(~early_sent)     # the rest (``_early_start`` writes it)
 
     def _emit_imu(self, m, p, buf, counter, overrun, dropped, skipped, resumed):
         """The sample's fields but the magnetometer's, into the payload ``p`` (which is not

@@ -285,7 +285,7 @@ SENSOR_FRAME_FIELDS = [
     ("data_ready", 1), ("overrun", 1), ("mag_valid", 1), ("mag_overflow", 1), ("mag_new", 1),
     ("mag_dor", 1), ("resumed", 1), ("skipped", 4),
     ("streaming", 1), ("whoami_error", 1), ("no_response", 1), ("int_timeout", 1),
-    ("restarts", 7), ("mag_ok", 1), ("mag_absent", 1), ("mag_wia_error", 1),
+    ("restarts", 6), ("spi_trained", 1), ("mag_ok", 1), ("mag_absent", 1), ("mag_wia_error", 1),
     ("mag_stale", 1), ("bad_burst", 1), ("bus_timeout", 1), ("bus_stuck", 1),
     ("bus_arbitration", 1), ("rate_error", 1), ("self_test_fail", 9),
 ]
