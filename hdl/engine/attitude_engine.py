@@ -176,10 +176,10 @@ class AttitudeEngine(wiring.Component):
             payload): ``sample_slot`` (in), beside ``samples``: the sample's slot;
             ``store_addr`` (out) / ``store_data`` (in, 32): the store's read port (a word the
             cycle after its address). The loader reads the sensor fields from the sample's
-            slot; outside LOAD the port reads word ``sample_index`` (in, 0..``STORE_WORDS``)
-            of the slot of the sample held, on ``sample_word`` (out, 32) a cycle later: the
-            framer copies the sample from there (word ``STORE_WORDS``, which no sample fills,
-            reads 0). ``sample`` then holds ``skipped`` only.
+            slot (at LOAD and SYNC); outside them the port reads word ``sample_index`` (in,
+            0..``STORE_WORDS``) of the slot of the sample held, on ``sample_word`` (out, 32)
+            a cycle later: the framer copies the sample from there (word ``STORE_WORDS``,
+            which no sample fills, reads 0). ``sample`` then holds ``skipped`` only.
         ``peek_en``, ``peek_index`` (in, 0..9) / ``peek_data`` (out, signed 32): the offered
             result's words read from the register file (``PEEKED``: the quaternion, angles and
             bias, in ``Attitude``'s order; the word the cycle after ``peek_en``), equal to

@@ -96,7 +96,8 @@ from ..contract.filter_registry import FILTERS
 
 
 __all__ = ["Op", "Cond", "Flag", "FETCH_JUMPS", "REGISTER_CONDS", "SYNC_SHADOW", "MUL_SHIFTS",
-           "Q14", "Q24", "DOUBLED", "Q30", "CORDIC_SHORT", "GO_ON", "COLLECT", "UNITS", "REG_COUNT", "REG_BITS",
+           "Q14", "Q24", "DOUBLED", "Q30", "CORDIC_SHORT", "GO_ON", "COLLECT", "UNITS",
+           "REG_COUNT", "REG_BITS",
            "ROM_DEPTH", "ROM_BITS", "Instr", "Instruction", "Assembler"]
 
 REG_COUNT = 256

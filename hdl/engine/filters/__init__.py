@@ -7,11 +7,11 @@ elsewhere) has ``emit(asm, r)`` (its routine: from the calibrated sample — G, 
 test's ACC_OK, made before the dispatch; M and MAG_OK after its call of
 ``shared.magnetometer_in(asm, name)``, which every path of the routine makes exactly once, a
 routine that never reads the field too: the early start's SYNC is there — to QOUT, THETA and
-BIAS, ending in END or a branch to the ``angles_out`` tail), ``CONFIG_REGISTERS`` (its run-time registers,
-placed from 0x70 in the registry's order: ``hdl/engine/register_map.py``) and ``REGISTERS`` (its own
-state and working registers, allocated after the shared ones). Adding a filter: its module
-here, its float and integer steps in ``reference/`` and its record in the registry
-(``hdl/contract/filter_registry.py``: what each part is).
+BIAS, ending in END or a branch to the ``angles_out`` tail), ``CONFIG_REGISTERS`` (its run-time
+registers, placed from 0x70 in the registry's order: ``hdl/engine/register_map.py``) and
+``REGISTERS`` (its own state and working registers, allocated after the shared ones). Adding a
+filter: its module here, its float and integer steps in ``reference/`` and its record in the
+registry (``hdl/contract/filter_registry.py``: what each part is).
 """
 
 import importlib

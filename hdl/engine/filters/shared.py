@@ -7,7 +7,8 @@ result quaternion of the per-axis filters (``angles_out``). Each writes into an 
 from ..attitude_isa import Q14, Q24, Q30, Cond
 
 
-__all__ = ["init", "calibrate", "magnetometer", "magnetometer_in", "zero_tests", "background_divisions", "tilt", "heading",
+__all__ = ["init", "calibrate", "magnetometer", "magnetometer_in", "zero_tests",
+           "background_divisions", "tilt", "heading",
            "step_n", "euler_rates", "matrix_angles", "euler_quat", "angles_out"]
 
 
