@@ -105,7 +105,9 @@ def _field_halves():
 
 
 SENSOR_FIELD_HALVES = _field_halves()
-assert [n for n in LOAD_ORDER if n[:4] in ("GRAW", "ARAW", "MRAW")] == [
+# which ``LOAD_ORDER`` words are the sample's sensor fields (the rest: the ASA bytes, the periods)
+LOADED_FIELDS = [name[:4] in ("GRAW", "ARAW", "MRAW") for name in LOAD_ORDER]
+assert [n for n, field in zip(LOAD_ORDER, LOADED_FIELDS) if field] == [
     f"{reg}{i}" for reg in ("GRAW", "ARAW", "MRAW") for i in range(3)]
 assert LOAD_ORDER[LOAD_EARLY:] == [f"MRAW{i}" for i in range(3)]
 
@@ -589,7 +591,7 @@ class AttitudeEngine(wiring.Component):
         word is written now (LOAD, or SYNC's loads); ``sync_wait``: SYNC waits for the
         sample (its first word's store word is read meanwhile)."""
         held = self.sample
-        sensor = [name[:4] in ("GRAW", "ARAW", "MRAW") for name in LOAD_ORDER]
+        sensor = LOADED_FIELDS
         if not self.sample_store:
             # the held sample's halves, through one multiplexer with the ASA and the periods
             bits = held.as_value()

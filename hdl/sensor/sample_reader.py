@@ -586,14 +586,13 @@ class SampleReader(wiring.Component):
 
     def _states(self, m, n):
         """The reader's states: waiting for an edge, the burst's reads, its check."""
-        (reading, command, checked, rx_index, spi, sample, buf, counter, overrun, dropped, skipped,
-         resumed, prev_field, prev_drdy, mag_age, mag_read_failed, offered, read_started, timer,
-         have_base, early, int_pending, int_edge, port, bad_bursts, int_active,
-         pending_edge) = (
-            n.reading, n.command, n.checked, n.rx_index, n.spi, n.sample, n.buf, n.counter,
-            n.overrun, n.dropped, n.skipped, n.resumed, n.prev_field, n.prev_drdy, n.mag_age,
-            n.mag_read_failed, n.offered, n.read_started, n.timer, n.have_base,
-            n.early, n.int_pending, n.int_edge, n.port, n.bad_bursts, n.int_active, n.pending_edge)
+        (reading, command, checked, rx_index, spi, sample, buf, overrun, dropped, prev_field,
+         prev_drdy, mag_age, mag_read_failed, offered, read_started, timer, have_base, early,
+         int_pending, int_edge, port, bad_bursts, int_active, pending_edge) = (
+            n.reading, n.command, n.checked, n.rx_index, n.spi, n.sample, n.buf, n.overrun,
+            n.dropped, n.prev_field, n.prev_drdy, n.mag_age, n.mag_read_failed, n.offered,
+            n.read_started, n.timer, n.have_base, n.early, n.int_pending, n.int_edge, n.port,
+            n.bad_bursts, n.int_active, n.pending_edge)
         plausible, early_sent = n.plausible, n.early_sent
         with m.FSM() as fsm:
             m.d.comb += [reading.eq(fsm.ongoing("READ_MPU") | fsm.ongoing("MAG_CMD") |
@@ -679,9 +678,8 @@ class SampleReader(wiring.Component):
                         m.d.comb += self.reconfigure.eq(1)
                     if not spi:
                         m.d.sync += self.read_error.eq(0)
-                    self._emit(m, sample, buf, counter, overrun, dropped, skipped, resumed,
-                               prev_field, prev_drdy, mag_age, mag_read_failed, early_sent,
-                               n.imu_emit)
+                    self._emit(m, sample, buf, overrun, dropped, prev_field, prev_drdy, mag_age,
+                               mag_read_failed, early_sent, n.imu_emit)
                     with m.If(~self.samples.valid):
                         # this one is the payload now: its slot offered, the next written
                         m.d.sync += [have_base.eq(1), self.sample_slot.eq(n.written),
@@ -709,8 +707,8 @@ class SampleReader(wiring.Component):
             m.d.sync += [steps.eq(len(head) // 4), carry.eq(1), n.counting.eq(0)]
         return head
 
-    def _emit(self, m, sample, buf, counter, overrun, dropped, skipped, resumed, prev_field,
-              prev_drdy, mag_age, mag_read_failed, early_sent, imu_emit):
+    def _emit(self, m, sample, buf, overrun, dropped, prev_field, prev_drdy, mag_age,
+              mag_read_failed, early_sent, imu_emit):
         """A burst that passed its checks becomes the sample (or, with the last still offered,
         a dropped one): its magnetometer's part, and the rest unless the early start put it
         in the payload already (``early_sent``; ``imu_emit`` asks ``_early_start`` for the

@@ -40,9 +40,13 @@ class AttitudeISAModel:
         self.filter = code
 
     def _holds(self, cond, a, code, mag_valid):
-        """A branch's condition (``Cond``) on register a's value and the FILTER code."""
+        """A branch's condition (``Cond``) on register a's value and the FILTER code.
+        ``mag_valid`` None: not yet known (before the run's SYNC); a register None: the field's
+        before the SYNC. Either tested is a program's error."""
         if a is None and cond in (Cond.A_ZERO, Cond.A_NEG):
             raise RuntimeError("a register test of the field before the SYNC")
+        if mag_valid is None and cond == Cond.MAG_INVALID:
+            raise RuntimeError("MAG_INVALID before the SYNC")
         return {Cond.ALWAYS: True, Cond.A_ZERO: a == 0, Cond.A_NEG: a < 0,
                 Cond.MAG_INVALID: not mag_valid, Cond.FIRST: self.first,
                 Cond.FILTER: self.filter == code}[Cond(cond)]
@@ -55,6 +59,7 @@ class AttitudeISAModel:
         fails here. A sample's run passes exactly one SYNC; the reset program's none."""
         r = self.regs
         synced = mag_words is None
+        valid = mag_valid if synced else None   # the sample's flag, as the engine has it
         if not synced:
             for name in (*mag_words, *(f"M{i}" for i in range(3)), "MAG_OK"):
                 r[REGS[name]] = None
@@ -109,9 +114,7 @@ class AttitudeISAModel:
                     for k, value in enumerate(results):
                         put(ins.d + k, value)
             elif op == Op.BR:
-                if ins.cond == Cond.MAG_INVALID and not synced:
-                    raise RuntimeError(f"{pc - 1}: MAG_INVALID before the SYNC")
-                if self._holds(ins.cond, a, ins.sh, mag_valid) != bool(ins.inv):
+                if self._holds(ins.cond, a, ins.sh, valid) != bool(ins.inv):
                     pc = ins.target
             elif op == Op.SETF:
                 flags.add(Flag(ins.sh))
@@ -120,16 +123,14 @@ class AttitudeISAModel:
                     raise RuntimeError(f"SYNC at {pc - 1}: a second one, or one outside a sample")
                 for name, value in mag_words.items():
                     r[REGS[name]] = value
-                synced = True
+                synced, valid = True, mag_valid
             elif op == Op.END:
                 if not synced:
                     raise RuntimeError(f"END at {pc - 1}: the sample's run passed no SYNC")
                 return flags, st.saturated, steps
             if ins.then is not None:                # a branch folded into it (the assembler)
                 cond, code, target = ins.then
-                if cond == Cond.MAG_INVALID and not synced:
-                    raise RuntimeError(f"{pc - 1}: MAG_INVALID before the SYNC")
-                if self._holds(cond, a, code, mag_valid):
+                if self._holds(cond, a, code, valid):
                     pc = target
 
     def sample(self, gyro, accel, mag_ak, mag_valid=True, asa=(128, 128, 128), skipped=0):
