@@ -53,7 +53,7 @@ from ..engine.config_write import ConfigWrite
 from ..sensor.driver_status import DriverStatus
 from ..sensor.sample import Sample
 from ..sensor.sample_store import STORE_BITS, sample_store_ram
-from ..sensor.sample_reader import tick_cycles
+from ..sensor.data_ready_timer import tick_cycles
 from ..sensor.sensor_frontend import SensorFrontEnd, sample_read_cycles
 from ..sensor.i2c_controller import I2CPinsSignature
 from ..sensor.spi_controller import IO_BUDGET, SPIPinsSignature, SPITiming

@@ -27,7 +27,7 @@
 - ``bad_burst``: the last sample burst failed its checks (data line stuck, no data ready);
   after ``BAD_BURST_LIMIT`` in a row the driver restarts bring-up. Cleared by a good burst.
 - ``rate_error``: the last sample's data-ready came less than 3/4 of a period after the one
-  before (``sample_reader.EARLY_FRACTION``) with a new sample in it: the part runs faster than
+  before (``data_ready_timer.EARLY_FRACTION``) with a new sample in it: the part runs faster than
   configured (SMPLRT_DIV or CONFIG changed under the driver). The driver writes the
   configuration again (``BringUpSequencer.reconfigure``); cleared by the next sample on time.
   Counted in the board register RATE_ERRORS. A spurious INT pulse (no new sample) sets

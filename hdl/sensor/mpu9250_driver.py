@@ -93,7 +93,8 @@ from .register_port_arbiter import RegisterPortArbiter
 from .driver_status import DriverStatus, ReadLevelStatus, SelfTestStatus
 from .read_leveller import ReadLeveller
 from .sample import Sample
-from .sample_reader import (BAD_BURST_LIMIT, MPU_BYTES, SAMPLE_BYTES, SampleReader, tick_cycles,
+from .data_ready_timer import tick_cycles
+from .sample_reader import (BAD_BURST_LIMIT, MPU_BYTES, SAMPLE_BYTES, SampleReader,
                             burst_is_plausible, gyro_jump_limit)
 
 

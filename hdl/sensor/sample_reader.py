@@ -1,6 +1,10 @@
 """Sample reader of the MPU9250 driver: a burst per data-ready edge, its checks, the sample.
 
-The rules it applies (``hdl/FAULTS.md`` has what each catches):
+Two parts: the data-ready timer (``DataReadyTimer``, ``data_ready_timer.py``: the INT pin's
+edges, their intervals against the sample period, the time-out) and the burst capture here (the
+reads, their checks, the sample offered and its early hand-over to the engine, the sample
+store's writes, the magnetometer's freshness). The rules they apply (``hdl/FAULTS.md`` has
+what each catches):
 
 - every burst is checked (``burst_is_plausible``, and a gyro jump of ``GYRO_JUMP_DPS`` from the
   last sample passed on: ``gyro_jumps``): one that fails is not passed on, sets
@@ -10,16 +14,14 @@ The rules it applies (``hdl/FAULTS.md`` has what each catches):
 - a magnetometer field is new only on ST1.DRDY after a read without it, or with bytes other
   than the last read's; no new field for ``mag_timeout_periods`` sample periods makes it stale
   (``mag_stale``) and asks for the magnetometer to be set up again (``mag_lost``);
-- data-ready intervals against the sample period give ``skipped`` (samples made and never read);
-  they are measured from the edge of the last burst that held a sample, so a burst without
-  RAW_RDY (a spurious INT pulse, or a line stuck low) moves nothing and samples lost meanwhile
-  show in the next interval;
+- data-ready intervals against the sample period give ``skipped`` (samples made and never read:
+  the timer's rules);
 - a data-ready interval shorter than ``EARLY_FRACTION`` (7/8) of the period (less the edge's
-  allowed jitter, ``drdy_jitter_cycles``) whose burst holds a new sample means the sensor runs
-  faster than configured (SMPLRT_DIV or CONFIG changed under the driver: a glitch, a brown-out
-  of that register): ``rate_error`` is set and the reader asks for the configuration to be
-  written again (``reconfigure``, a pulse the board counts). The sample itself is real and is
-  passed on (flagged).
+  allowed jitter, ``drdy_jitter_cycles``: the timer's ``early``) whose burst holds a new sample
+  means the sensor runs faster than configured (SMPLRT_DIV or CONFIG changed under the driver:
+  a glitch, a brown-out of that register): ``rate_error`` is set and the reader asks for the
+  configuration to be written again (``reconfigure``, a pulse the board counts). The sample
+  itself is real and is passed on (flagged).
 """
 
 import operator
@@ -28,21 +30,19 @@ from types import SimpleNamespace
 
 from amaranth import *
 from amaranth.lib import stream, wiring
-from amaranth.lib.cdc import FFSynchronizer
 from amaranth.lib.wiring import In, Out
 
-from ..primitives.clocking import ticks
 from ..contract import ak8963_regs as A
 from ..contract import mpu9250_regs as R
+from .data_ready_timer import DataReadyTimer
 from .register_port import RegisterPortSignature
 from .sample import Sample
 from .sample_store import (FIELD_LANES, OFFER_WRITES, SENSOR_BITS, SLOT_WORDS, SLOTS, STORE_BITS,
                            STORE_WORDS, SampleStoreWriteSignature, store_places)
 
 
-__all__ = ["SAMPLE_BYTES", "MPU_BYTES", "BAD_BURST_LIMIT", "EARLY_FRACTION", "burst_is_plausible",
-           "GYRO_JUMP_DPS", "gyro_jump_limit", "gyro_jumps", "MAX_TICK_CYCLES", "tick_cycles",
-           "SampleReader"]
+__all__ = ["SAMPLE_BYTES", "MPU_BYTES", "BAD_BURST_LIMIT", "burst_is_plausible", "GYRO_JUMP_DPS",
+           "gyro_jump_limit", "gyro_jumps", "SampleReader"]
 
 
 SAMPLE_BYTES = 1 + R.SENSOR_BYTES + A.SAMPLE_BYTES   # INT_STATUS, accel/temp/gyro, ST1..ST2
@@ -52,17 +52,6 @@ MPU_BYTES = 1 + R.SENSOR_BYTES
 # burst is dropped and flagged; four (four sample periods) mean the data line or the part is
 # gone, and bring-up's WHO_AM_I check then says which.
 BAD_BURST_LIMIT = 4
-
-# A data-ready interval below this fraction of the configured period is early. The sensor's
-# clock is within a few per cent of its nominal rate and an edge is seen within two cycles,
-# so 7/8 leaves margin against false alarms; a rate divider that lost its value (SMPLRT_DIV
-# n -> m < n: (m + 1)/(n + 1) of the period, at most 7/8 for n <= 7, or CONFIG's DLPF off:
-# 1/8) is caught, and with a latched INT a rate too fast for the read shows as edges one
-# read apart (read time < 7/8 of the period: ``rate_budget``'s bound is the period itself).
-# Less the edge's own jitter where it has one (``SampleReader``'s ``drdy_jitter_cycles``: with
-# WAIT_FOR_ES, data-ready waits for the magnetometer's read, which a NACK cuts short).
-EARLY_FRACTION = (7, 8)
-
 
 def burst_is_plausible(burst):
     """The check every sample burst passes before it becomes a sample (the gateware computes
@@ -106,19 +95,6 @@ def gyro_jumps(previous, gyro, limit):
     return np.any((delta >= limit) | (delta < -limit), axis=-1)
 
 
-# The longest tick: at low sample rates 1/64 of a period would be milliseconds, and the
-# bring-up sequencer's waits (a millisecond between the self-test's reads) and the command
-# decoder's time-out count the same tick; 1,024 cycles is 21 µs at 48 MHz.
-MAX_TICK_CYCLES = 1024
-
-
-def tick_cycles(period_cycles):
-    """The cycles of the reader's tick (``SampleReader.tick``): about 1/64 of the sample
-    period, at most ``MAX_TICK_CYCLES``, which its interval clocks and time-outs count (and
-    the driver's bring-up timer and the core's command time-out)."""
-    return max(1, min(period_cycles // 64, MAX_TICK_CYCLES))
-
-
 class SampleReader(wiring.Component):
     """Reads a nine-axis sample per data-ready edge while ``enable``.
 
@@ -141,7 +117,7 @@ class SampleReader(wiring.Component):
             the I2C master's read of the AK8963, which ends at once on a NACK).
     Members
         ``port`` (a register port's client side): the reader's commands.
-        ``int_pin`` (in): INT, raw (synchronised here).
+        ``int_pin`` (in): INT, raw (to the ``DataReadyTimer`` inside, ``timer``).
         ``samples`` (out, stream of ``Sample``): one per burst that passes its checks; valid
             never waits for ready: a sample read while the last is still offered is dropped,
             and the next one carries ``flags.overrun`` and counts it in ``skipped``.
@@ -164,7 +140,7 @@ class SampleReader(wiring.Component):
             I2C; ``rate_error``: the last sample came early, cleared by one on time).
             ``reconfigure`` is also the pulse per early sample that the board counts
             (RATE_ERRORS, in the command decoder's counters).
-        ``tick`` (out): a pulse every ``tick_cycles(period_cycles)`` cycles, free-running (the
+        ``tick`` (out): the timer's (``data_ready_timer.tick_cycles``), free-running (the
             prescaler of its clocks and time-outs; the driver's sequencer counts it too).
         ``store`` (out, ``SampleStoreWriteSignature``): the burst's sensor bytes, written into
             the sample store's slot as they arrive (``hdl/sensor/sample_store.py``), and, in the
@@ -235,8 +211,15 @@ class SampleReader(wiring.Component):
         n = SimpleNamespace()
         (n.spi, n.port, n.buf, n.rx_index) = (
             spi, port, buf, rx_index)
-        self._interrupt(m, n)
-        self._judging(m, n)
+        # the data-ready edges, their intervals and the time-out
+        m.submodules.timer = n.timer = timer = DataReadyTimer(
+            int_active_low=self.int_active_low, int_latched=self.int_latched,
+            period_cycles=self.period_cycles, first_timeout_cycles=self.first_timeout_cycles,
+            timeout_cycles=self.timeout_cycles, drdy_jitter_cycles=self.drdy_jitter_cycles)
+        n.reading = Signal()                    # a burst in flight, before its check
+        n.dropped = Signal(4)                   # read but not passed on (consumer busy, checks)
+        m.d.comb += [timer.int_pin.eq(self.int_pin), timer.start.eq(self.start),
+                     timer.reading.eq(n.reading), self.tick.eq(timer.tick)]
         self._sample_register(m, n)
         self._burst_checks(m, n)
         self._store(m, n)
@@ -260,7 +243,8 @@ class SampleReader(wiring.Component):
         # of the payload has one (two cost a LUT a bit: 180 of the reader's, standalone)
         n.imu_emit = imu_emit = Signal()
         with m.If(imu_emit):
-            self._emit_imu(m, sample, buf, n.counter, n.overrun, n.dropped, n.skipped, n.resumed)
+            self._emit_imu(m, sample, buf, n.counter, n.overrun, n.dropped, n.timer.skipped,
+                           n.resumed)
         verdict = buf[0][0] & ((buf[0] & R.INT_STATUS_RESERVED) == 0) & ~n.data_ones
         if self.gyro_jump is not None:
             m.d.comb += n.gyro_jumped.eq(n.have_base & n.gyro_moved)
@@ -362,172 +346,15 @@ class SampleReader(wiring.Component):
                 m.d.sync += gyro_moved.eq(1)
 
 
-    def _interrupt(self, m, n):
-        """The data-ready edges, and the clocks that measure the intervals between them."""
-        # -- interrupt ----------------------------------------------------------------------------
-        int_sync = Signal()
-        m.submodules.int_sync = FFSynchronizer(self.int_pin, int_sync)
-        int_active, int_prev, int_edge, int_pending = Signal(), Signal(), Signal(), Signal()
-        m.d.comb += [int_active.eq(int_sync ^ int(self.int_active_low)),
-                     int_edge.eq(int_active & ~int_prev)]
-        m.d.sync += int_prev.eq(int_active)
-        with m.If(int_edge):
-            m.d.sync += int_pending.eq(1)
-
-        # Sensor samples missed and samples too early, from data-ready edges: one sample period
-        # apart; an interval of n periods (rounded: a clock's phase starts half a period in)
-        # means n - 1 samples made and never read (e.g. a latched INT still high from the
-        # sample before); one under ``EARLY_FRACTION`` of a period means the part runs faster
-        # than it was told. Intervals are measured from the edge of the last burst that held a
-        # sample (``since_sample``), so a spurious pulse (its burst has no RAW_RDY: nothing
-        # was made) moves nothing. ``since_edge`` runs from the edge of the burst in flight (or the
-        # latest), ``since_next`` from an edge that came while a burst was being read: that
-        # one is judged at the burst's check, early if the burst held a sample (a read ends
-        # well within a period, ``rate_budget``), else against the base before it.
-        # The clocks count in ticks of about 1/64 of a period (one prescaler for all; at
-        # most ``MAX_TICK_CYCLES``, so more at low rates): the rounding to whole periods and
-        # the 7/8 threshold need no finer time, and a clock is then 10 bits, not 20 (1 kHz,
-        # 48 MHz). ``steps`` ticks make a period, within half a tick.
-        tick_len = tick_cycles(self.period_cycles)
-        steps = max(2, round(self.period_cycles / tick_len))
-        prescale = Signal(range(tick_len))
-        step = Signal()                         # a tick of the clocks
-        m.d.comb += step.eq(prescale == tick_len - 1)
-        m.d.sync += prescale.eq(Mux(step, 0, prescale + 1))
-        counters = [(Signal(range(steps), name=f"{n}_phase"), Signal(4, name=f"{n}_periods"))
-                    for n in ("sample", "edge", "next")]
-        since_sample, since_edge, since_next = counters
-
-        def advanced(clock):
-            """``clock``'s value after this cycle's count."""
-            ph, pe = clock
-            wrap = step & (ph == steps - 1)
-            return (Mux(wrap, 0, ph + step),
-                    Mux(wrap & (pe != 15), pe + 1, pe))
-
-        for clock in counters:
-            m.d.sync += [c.eq(v) for c, v in zip(clock, advanced(clock))]
-        phase, periods = since_sample
-        tick = Signal()                         # a sample period has gone by
-        m.d.comb += tick.eq(step & (phase == steps - 1))
-        skipped = Signal(4)                     # for the sample this edge announces
-        early = Signal()                        # this edge came < EARLY_FRACTION of a period
-        seen_edge = Signal()                    # ``since_sample`` is a base
-        pending_edge = Signal()                 # ``int_pending`` came from an edge
-        read_edge = Signal()                    # the burst in flight was started by an edge
-        deferred = Signal()                     # an edge came while it was read
-        deferred_base = (Signal.like(phase), Signal.like(periods))   # ``since_sample`` then
-        dropped = Signal(4)                     # read but not passed on (consumer busy, checks)
-        num, den = EARLY_FRACTION
-        # t < f*P - J with periods == 1 (at least half a period: then periods == 0 only), J
-        # the data-ready edge's allowed jitter (``drdy_jitter_cycles``) in the clocks' ticks;
-        # with a jitter, rounded down to a multiple of 4 ticks (a sixteenth of a period more
-        # allowance at most), so that the comparison leaves out the phase's two low bits
-        jitter_ticks = -(-self.drdy_jitter_cycles // tick_len)
-        early_phase = steps * (2 * num - den) // (2 * den)
-        if jitter_ticks:
-            early_phase = max(0, early_phase - jitter_ticks) // 4 * 4
-        reading = Signal()                      # a burst in flight, before its check
-
-        def restart_clock(clock):
-            m.d.sync += [clock[0].eq(steps // 2), clock[1].eq(0)]
-
-        def copy_clock(dst, src):
-            """``dst`` takes ``src``'s value, advanced by this cycle's count."""
-            m.d.sync += [d.eq(v) for d, v in zip(dst, advanced(src))]
-        (n.int_active, n.int_edge, n.int_pending, n.since_sample, n.since_edge, n.since_next,
-         n.phase, n.periods, n.tick, n.skipped, n.early, n.seen_edge, n.pending_edge, n.read_edge,
-         n.deferred, n.deferred_base, n.dropped, n.early_phase, n.reading, n.restart_clock,
-         n.copy_clock) = (
-            int_active, int_edge, int_pending, since_sample, since_edge, since_next, phase,
-            periods, tick, skipped, early, seen_edge, pending_edge, read_edge, deferred,
-            deferred_base, dropped, early_phase, reading, restart_clock, copy_clock)
-        n.step, n.tick_len = step, tick_len
-        m.d.comb += self.tick.eq(step)
-
-
-    def _judging(self, m, n):
-        """Judging an edge's interval (samples skipped, too early), and what a burst's start
-        and check do to the clocks."""
-        (phase, periods, int_edge, read_edge, seen_edge, reading, restart_clock, since_next,
-         since_edge, since_sample, pending_edge, copy_clock, deferred, skipped, early, int_pending,
-         deferred_base, early_phase) = (
-            n.phase, n.periods, n.int_edge, n.read_edge, n.seen_edge, n.reading, n.restart_clock,
-            n.since_next, n.since_edge, n.since_sample, n.pending_edge, n.copy_clock, n.deferred,
-            n.skipped, n.early, n.int_pending, n.deferred_base, n.early_phase)
-        # one judge for the three places an edge is judged (the last that applies wins, as
-        # a statement would): the interval and whether its base is known, then the figures
-        judging = Signal()
-        judged = (Signal.like(phase), Signal.like(periods))
-        judged_ok = Signal()
-
-        def judge(interval, base_ok):
-            """(skipped, early) for an edge ``interval`` (phase, periods) after a base."""
-            m.d.comb += [judging.eq(1), judged_ok.eq(base_ok),
-                         *(j.eq(v) for j, v in zip(judged, interval))]
-
-        with m.If(judging):
-            ph, pe = judged
-            m.d.sync += [skipped.eq(Mux(judged_ok & (pe > 1), pe - 1, 0)),
-                         early.eq(judged_ok & ((pe == 0) | ((pe == 1) & (ph < early_phase))))]
-
-        snap_edge = (Signal.like(phase), Signal.like(periods))      # ``since_edge`` then
-        with m.If(int_edge):
-            m.d.sync += [int_pending.eq(1), pending_edge.eq(1)]
-            with m.If(reading):
-                restart_clock(since_next)
-                m.d.sync += [deferred.eq(1), deferred_base[0].eq(phase),
-                             deferred_base[1].eq(periods), snap_edge[0].eq(since_edge[0]),
-                             snap_edge[1].eq(since_edge[1])]
-            with m.Else():
-                restart_clock(since_edge)
-                judge(since_sample, seen_edge)
-
-        def read_started():
-            m.d.sync += [read_edge.eq(pending_edge), pending_edge.eq(int_edge)]
-
-        def checked(spurious):
-            """A burst's check. If it held a sample, intervals are measured from its edge
-            (a base only if an edge started its read: the one at ``start``, or one made again
-            for a level still high, has no known edge). An edge that came during its read is
-            judged now: from this burst's edge if it held a sample, else from the base."""
-            with m.If(~spurious):
-                m.d.sync += seen_edge.eq(read_edge)
-                copy_clock(since_sample, since_edge)
-            base_ok = Mux(~spurious, read_edge, seen_edge)
-            with m.If(int_edge):                    # an edge in this very cycle
-                restart_clock(since_edge)
-                m.d.sync += deferred.eq(0)
-                judge([Mux(~spurious, e, b) for e, b in zip(since_edge, since_sample)],
-                      base_ok)
-            with m.Elif(deferred):
-                copy_clock(since_edge, since_next)
-                m.d.sync += deferred.eq(0)
-                judge([Mux(~spurious, e, b) for e, b in zip(snap_edge, deferred_base)],
-                      base_ok)
-        (n.read_started, n.checked) = (
-            read_started, checked)
-
-
     def _sample_register(self, m, n):
         """The sample offered, the time-outs, the start and the magnetometer's freshness."""
-        (int_active, port, int_pending, seen_edge, pending_edge, deferred, skipped, early, tick) = (
-            n.int_active, n.port, n.int_pending, n.seen_edge, n.pending_edge, n.deferred,
-            n.skipped, n.early, n.tick)
+        port, tick = n.port, n.timer.period
         # the sample offered: written whole before it is offered, so no reset (on a MAX10 a
         # synchronous reset costs logic per bit)
         sample = Signal.like(self.samples.payload, reset_less=True)
         m.d.comb += self.samples.payload.eq(sample)
         gyro_jumped = Signal()                  # the gyro moved too far (``gyro_jump``)
         have_base = Signal()                    # a sample was passed on since ``start``
-        # The data-ready time-outs count the clocks' ticks (``n.step``, about 1/64 of a
-        # period), not cycles: a 12-bit count rather than a 22-bit one (at 48 MHz and 1 kHz).
-        # ``ticks``: at least the time-out (with ticks of a cycle, one cycle more)
-        first_ticks, after_ticks = (ticks(cycles, n.tick_len, exact=cycles + 1) for cycles in
-                                    (self.first_timeout_cycles, self.timeout_cycles))
-        n.after_ticks = after_ticks
-        timer = Signal(range(max(first_ticks, after_ticks) + 1))
-        m.d.sync += timer.eq(timer - (n.step & (timer != 0)))
         counter = self._counts(m, n)            # samples read since power-on
         overrun = Signal()
         resumed = Signal()
@@ -535,10 +362,7 @@ class SampleReader(wiring.Component):
         with m.If(self.restarted):
             m.d.sync += resumed.eq(1)
         with m.If(self.start):
-            # a latched INT already active gives no edge: it counts as one
-            m.d.sync += [timer.eq(first_ticks), int_pending.eq(int_active),
-                         seen_edge.eq(0), pending_edge.eq(0), deferred.eq(0), skipped.eq(0),
-                         early.eq(0), bad_bursts.eq(0), have_base.eq(0)]
+            m.d.sync += [bad_bursts.eq(0), have_base.eq(0)]
 
         # -- magnetometer freshness ---------------------------------------------------------------
         limit = self.mag_timeout_periods
@@ -577,22 +401,20 @@ class SampleReader(wiring.Component):
         m.d.sync += held_trained.eq(cmd_trained)
         n.burst_trained = Signal()              # this burst is read at the trained rate
         n.cmd_trained = cmd_trained
-        (n.sample, n.gyro_jumped, n.have_base, n.timer, n.counter, n.overrun, n.resumed,
+        (n.sample, n.gyro_jumped, n.have_base, n.counter, n.overrun, n.resumed,
          n.bad_bursts, n.mag_age, n.prev_field, n.prev_drdy, n.mag_read_failed, n.command,
          n.offered) = (
-            sample, gyro_jumped, have_base, timer, counter, overrun, resumed, bad_bursts, mag_age,
+            sample, gyro_jumped, have_base, counter, overrun, resumed, bad_bursts, mag_age,
             prev_field, prev_drdy, mag_read_failed, command, offered)
 
 
     def _states(self, m, n):
         """The reader's states: waiting for an edge, the burst's reads, its check."""
-        (reading, command, checked, rx_index, spi, sample, buf, overrun, dropped, prev_field,
-         prev_drdy, mag_age, mag_read_failed, offered, read_started, timer, have_base, early,
-         int_pending, int_edge, port, bad_bursts, int_active, pending_edge) = (
-            n.reading, n.command, n.checked, n.rx_index, n.spi, n.sample, n.buf, n.overrun,
-            n.dropped, n.prev_field, n.prev_drdy, n.mag_age, n.mag_read_failed, n.offered,
-            n.read_started, n.timer, n.have_base, n.early, n.int_pending, n.int_edge, n.port,
-            n.bad_bursts, n.int_active, n.pending_edge)
+        (reading, command, rx_index, spi, sample, buf, overrun, dropped, prev_field, prev_drdy,
+         mag_age, mag_read_failed, offered, timer, have_base, port, bad_bursts) = (
+            n.reading, n.command, n.rx_index, n.spi, n.sample, n.buf, n.overrun, n.dropped,
+            n.prev_field, n.prev_drdy, n.mag_age, n.mag_read_failed, n.offered, n.timer,
+            n.have_base, n.port, n.bad_bursts)
         plausible, early_sent = n.plausible, n.early_sent
         with m.FSM() as fsm:
             m.d.comb += [reading.eq(fsm.ongoing("READ_MPU") | fsm.ongoing("MAG_CMD") |
@@ -600,14 +422,13 @@ class SampleReader(wiring.Component):
                          n.in_read_mpu.eq(fsm.ongoing("READ_MPU"))]
             with m.State("IDLE"):
                 m.d.sync += [rx_index.eq(0), n.data_ones.eq(1), n.gyro_moved.eq(0)]
-                with m.If(offered | (self.enable & int_pending & ~n.counting_busy)):
+                with m.If(offered | (self.enable & timer.pending & ~n.counting_busy)):
                     command(0, R.INT_STATUS, SAMPLE_BYTES if spi else MPU_BYTES)
                     with m.If(port.cmd.ready):
-                        m.d.sync += [int_pending.eq(int_edge), mag_read_failed.eq(0),
-                                     n.burst_trained.eq(n.cmd_trained)]
-                        read_started()
+                        m.d.comb += timer.burst_start.eq(1)
+                        m.d.sync += [mag_read_failed.eq(0), n.burst_trained.eq(n.cmd_trained)]
                         m.next = "READ_MPU"
-                with m.Elif(self.enable & ~self.start & (timer == 0)):
+                with m.Elif(self.enable & ~self.start & timer.timed_out):
                     m.d.sync += self.int_timeout.eq(1)
                     m.d.comb += self.restart.eq(1)
                     m.next = "HALT"
@@ -620,9 +441,9 @@ class SampleReader(wiring.Component):
                     with m.If(port.rsp.payload.error):
                         # the read failed on the bus (I2C): no sample; a restart if it persists.
                         # It never reached INT_STATUS, so a latched INT is still active and will
-                        # give no new edge: read again at once.
-                        m.d.sync += [buf[0].eq(0), self.read_error.eq(1),
-                                     int_pending.eq(int_pending | int_active)]
+                        # give no new edge: read again at once (``retry``).
+                        m.d.comb += timer.retry.eq(1)
+                        m.d.sync += [buf[0].eq(0), self.read_error.eq(1)]
                         m.next = "CHECK"
                     with m.Else():
                         m.next = "CHECK"
@@ -646,21 +467,14 @@ class SampleReader(wiring.Component):
                         m.d.sync += mag_read_failed.eq(1)
             with m.State("CHECK"):
                 m.d.comb += self.burst_done.eq(1)
-                m.d.sync += [n.counting.eq(1),
-                             timer.eq(n.after_ticks), self.int_timeout.eq(0)]
+                m.d.sync += [n.counting.eq(1), self.int_timeout.eq(0)]
                 m.next = "IDLE"
                 m.d.sync += self.imu_ready.eq(0)
                 # no RAW_RDY: no new sample in this burst (a spurious INT pulse, a read made
                 # again) or none readable (a line stuck low reads zeros): either way the
                 # intervals from the last sample's edge count what was lost, not ``dropped``
                 spurious = ~buf[0][0]
-                checked(spurious)
-                if self.int_latched:
-                    # after a spurious pulse's burst, a latched INT still active means a
-                    # sample is waiting that gave no edge (it rose under the pulse): read
-                    # again (once per such burst: a line stuck high still times out)
-                    with m.If(spurious & int_active & ~int_pending & ~int_edge):
-                        m.d.sync += [int_pending.eq(1), pending_edge.eq(0)]
+                m.d.comb += [timer.check.eq(1), timer.spurious.eq(spurious)]
                 with m.If(~plausible):
                     m.d.sync += [self.bad_burst.eq(1), bad_bursts.eq(bad_bursts + 1)]
                     m.d.comb += self.trained_failed.eq(n.burst_trained)
@@ -672,8 +486,8 @@ class SampleReader(wiring.Component):
                         m.next = "HALT"
                 with m.Else():
                     m.d.sync += [self.bad_burst.eq(0), bad_bursts.eq(0),
-                                 self.rate_error.eq(early)]
-                    with m.If(early):
+                                 self.rate_error.eq(timer.early)]
+                    with m.If(timer.early):
                         # a new sample too soon: the part runs faster than it was told
                         m.d.comb += self.reconfigure.eq(1)
                     if not spi:

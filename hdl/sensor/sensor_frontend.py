@@ -63,7 +63,7 @@ class SensorFrontEnd(wiring.Component):
             slot (``hdl/sensor/sample_store.py``), from the driver; ``imu_ready`` (out): the
             early start's (``SampleReader``: the next sample's gyro and accelerometer are in
             its slot, its field still coming); ``tick`` (out): the sample
-            reader's free-running tick (``sample_reader.tick_cycles``), which the core's
+            reader's free-running tick (``data_ready_timer.tick_cycles``), which the core's
             command decoder counts its time-out in.
 
     This is the unit the simulations drive and the one ``build --verilog-only`` exports; the board

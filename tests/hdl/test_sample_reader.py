@@ -225,16 +225,6 @@ def test_store_field_is_zero_while_the_magnetometer_is_down(wiring):
     assert [list(s.mag) for s in samples] == [[1000 + k, -2000, 3000] for k in range(3)]
 
 
-def test_tick_is_about_a_64th_of_a_period_at_most_max():
-    """The reader's tick, which the bring-up waits and the command time-out count too: 1/64 of
-    the period, at most ``MAX_TICK_CYCLES`` (so the self-test's 1 ms between reads stays
-    about 1 ms at low sample rates), at least a cycle."""
-    from mpu9250_ahrs.hdl.sensor.sample_reader import MAX_TICK_CYCLES, tick_cycles
-    assert tick_cycles(48_000) == 750                      # 1 kHz at 48 MHz
-    assert tick_cycles(48_000_000 // 4) == MAX_TICK_CYCLES == 1024
-    assert tick_cycles(10) == 1
-
-
 def test_reads_failing_back_to_back_are_each_counted():
     """I2C: reads of the MPU9250 that fail on the bus are checked (and counted) one after the
     other, each retried at once while INT is still high; the sample that finally comes counts
