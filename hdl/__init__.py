@@ -18,7 +18,7 @@ subsystem. A wing imports only itself and the wings below it, in the data's dire
   and the layouts ``attitude_result``, ``config_write``;
 - ``sensor``: ``spi_controller``, ``i2c_controller``, ``register_port`` (and its arbiter),
   ``bring_up_sequencer``, ``self_test``, ``read_leveller``, ``sample_reader`` (and its
-  ``data_ready_timer``), ``sample_store``, ``mpu9250_driver``, ``sensor_frontend`` and the
+  ``data_ready_timer``, ``sample_offer``), ``sample_store``, ``mpu9250_driver``, ``sensor_frontend`` and the
   layouts ``sample``, ``driver_status``;
 - ``primitives``: ``memories``, ``multiplier``, ``clocking``;
 - ``contract``: plain data shared with ``reference/`` and the host, no Amaranth: the numeric

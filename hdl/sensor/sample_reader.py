@@ -1,10 +1,10 @@
 """Sample reader of the MPU9250 driver: a burst per data-ready edge, its checks, the sample.
 
-Two parts: the data-ready timer (``DataReadyTimer``, ``data_ready_timer.py``: the INT pin's
-edges, their intervals against the sample period, the time-out) and the burst capture here (the
-reads, their checks, the sample offered and its early hand-over to the engine, the sample
-store's writes, the magnetometer's freshness). The rules they apply (``hdl/FAULTS.md`` has
-what each catches):
+Three parts: the data-ready timer (``DataReadyTimer``, ``data_ready_timer.py``: the INT pin's
+edges, their intervals against the sample period, the time-out), the burst capture here (the
+reads, their checks, the magnetometer's freshness) and the hand-over (``SampleOffer``,
+``sample_offer.py``: the sample offered, its early start, the sample store's writes). The rules
+they apply (``hdl/FAULTS.md`` has what each catches):
 
 - every burst is checked (``burst_is_plausible``, and a gyro jump of ``GYRO_JUMP_DPS`` from the
   last sample passed on: ``gyro_jumps``): one that fails is not passed on, sets
@@ -24,29 +24,23 @@ what each catches):
   itself is real and is passed on (flagged).
 """
 
-import operator
-from functools import reduce
 from types import SimpleNamespace
 
 from amaranth import *
 from amaranth.lib import stream, wiring
-from amaranth.lib.wiring import In, Out
+from amaranth.lib.wiring import In, Out, connect, flipped
 
 from ..contract import ak8963_regs as A
 from ..contract import mpu9250_regs as R
 from .data_ready_timer import DataReadyTimer
 from .register_port import RegisterPortSignature
 from .sample import Sample
-from .sample_store import (FIELD_LANES, OFFER_WRITES, SENSOR_BITS, SLOT_WORDS, SLOTS, STORE_BITS,
-                           STORE_WORDS, SampleStoreWriteSignature, store_places)
+from .sample_offer import MPU_BYTES, SAMPLE_BYTES, SampleOffer
+from .sample_store import SLOTS, SampleStoreWriteSignature
 
 
 __all__ = ["SAMPLE_BYTES", "MPU_BYTES", "BAD_BURST_LIMIT", "burst_is_plausible", "GYRO_JUMP_DPS",
            "gyro_jump_limit", "gyro_jumps", "SampleReader"]
-
-
-SAMPLE_BYTES = 1 + R.SENSOR_BYTES + A.SAMPLE_BYTES   # INT_STATUS, accel/temp/gyro, ST1..ST2
-MPU_BYTES = 1 + R.SENSOR_BYTES
 
 # Sample bursts that fail their checks in a row before the driver restarts bring-up: one bad
 # burst is dropped and flagged; four (four sample periods) mean the data line or the part is
@@ -146,7 +140,8 @@ class SampleReader(wiring.Component):
             the sample store's slot as they arrive (``hdl/sensor/sample_store.py``), and, in the
             cycles after a sample's ``valid`` rose (two, four if its magnetometer is not up),
             the payload's other words and, so, zeros over its field (as ``mag`` in the
-            payload): the slot holds the payload from the fifth cycle of ``valid``.
+            payload): the slot holds the payload from the fifth cycle of ``valid``. These
+            three and ``samples`` are the ``SampleOffer``'s inside (``offer``).
             ``sample_slot`` (out): the store's slot of the sample offered, beside ``samples``
             (it changes only as a sample is offered or ``imu_ready`` rises, and holds while
             either is high).
@@ -217,12 +212,20 @@ class SampleReader(wiring.Component):
             period_cycles=self.period_cycles, first_timeout_cycles=self.first_timeout_cycles,
             timeout_cycles=self.timeout_cycles, drdy_jitter_cycles=self.drdy_jitter_cycles)
         n.reading = Signal()                    # a burst in flight, before its check
-        n.dropped = Signal(4)                   # read but not passed on (consumer busy, checks)
         m.d.comb += [timer.int_pin.eq(self.int_pin), timer.start.eq(self.start),
                      timer.reading.eq(n.reading), self.tick.eq(timer.tick)]
+        # the sample offered, its slot of the store and the early start
+        m.submodules.offer = n.offer = offer = SampleOffer()
+        connect(m, offer.samples, flipped(self.samples))
+        connect(m, offer.store, flipped(self.store))
+        m.d.comb += [offer.burst.eq(Cat(*buf)), offer.data.eq(port.rx.payload),
+                     offer.index.eq(rx_index),
+                     offer.arriving.eq(port.rx.valid & (rx_index < SAMPLE_BYTES)),
+                     offer.reading.eq(n.reading), offer.skipped.eq(timer.skipped),
+                     offer.restarted.eq(self.restarted),
+                     self.sample_slot.eq(offer.sample_slot), self.imu_ready.eq(offer.imu_ready)]
         self._sample_register(m, n)
         self._burst_checks(m, n)
-        self._store(m, n)
         self._early_start(m, n)
         self._states(m, n)
         return m
@@ -230,21 +233,13 @@ class SampleReader(wiring.Component):
     def _early_start(self, m, n):
         """The burst's verdict (``n.plausible``: ``burst_is_plausible`` and the gyro's jump,
         on the MPU9250's bytes only) and the early start (SPI: one burst; ``imu_ready``): once
-        those bytes are in and pass, with no sample offered, the sample's fields but the
-        AK8963's become the payload and its slot ``sample_slot`` (``n.early_sent``), while the
-        AK8963's bytes come. The check then offers it (``valid``) with its field: it cannot
-        fail it (the same bytes), and nothing else offers meanwhile."""
-        buf, sample = n.buf, n.sample
+        those bytes are in and pass, the offer's ``early`` (with no sample offered, the
+        sample's fields but the AK8963's become the payload and its slot ``sample_slot``),
+        while the AK8963's bytes come. The check then offers it (``valid``) with its field: it
+        cannot fail it (the same bytes), and nothing else offers meanwhile."""
+        buf = n.buf
         n.plausible = plausible = Signal()
-        n.early_sent = early_sent = Signal()    # the sample is started (the payload has it)
         n.in_read_mpu = Signal()                # the reader's state is READ_MPU (``_states``)
-        # the payload's fields but the field's are written now: early, or at the check of a
-        # sample not started early (``_emit``). One enable for both, so that each flip-flop
-        # of the payload has one (two cost a LUT a bit: 180 of the reader's, standalone)
-        n.imu_emit = imu_emit = Signal()
-        with m.If(imu_emit):
-            self._emit_imu(m, sample, buf, n.counter, n.overrun, n.dropped, n.timer.skipped,
-                           n.resumed)
         verdict = buf[0][0] & ((buf[0] & R.INT_STATUS_RESERVED) == 0) & ~n.data_ones
         if self.gyro_jump is not None:
             m.d.comb += n.gyro_jumped.eq(n.have_base & n.gyro_moved)
@@ -254,63 +249,10 @@ class SampleReader(wiring.Component):
             return
         early_done = Signal()                   # this burst's early check was made
         with m.If(~n.reading):                  # between bursts (and at the check: after it)
-            m.d.sync += [early_done.eq(0), early_sent.eq(0)]
+            m.d.sync += early_done.eq(0)
         with m.Elif(n.in_read_mpu & (n.rx_index == MPU_BYTES) & ~early_done):
             m.d.sync += early_done.eq(1)
-            with m.If(plausible & ~self.samples.valid):
-                m.d.comb += imu_emit.eq(1)
-                m.d.sync += [early_sent.eq(1), self.imu_ready.eq(1),
-                             self.sample_slot.eq(n.written)]
-
-    def _store(self, m, n):
-        """The sample store's writes: each sensor byte of the burst into the slot being
-        written (``n.written``) as it arrives; then, once a sample is offered (``n.after`` set
-        to 1 by the check that offers it), a word a cycle into its slot: the payload's words
-        after the sensor fields (``counter``, ``flags``, ``skipped``), and, if its
-        magnetometer is not up (``n.zero_field``), zeros over its field. Bytes and these
-        writes never meet: a burst's first byte comes a command and a bus transfer after the
-        check (sixteen cycles at the least)."""
-        rx, store = n.port.rx, self.store
-        n.written = written = Signal(range(SLOTS))
-        places = store_places(SAMPLE_BYTES, MPU_BYTES)
-        word, lane, placed = Signal(range(SLOT_WORDS)), Signal(2), Signal()
-        with m.Switch(n.rx_index):
-            for index, (w, k) in places.items():
-                with m.Case(index):
-                    m.d.comb += [word.eq(w), lane.eq(k), placed.eq(1)]
-        # the writes after an offer: (word, lanes, data); the field's zeros last
-        bits = Cat(self.samples.payload.as_value(), C(0, 32 * STORE_WORDS - STORE_BITS))
-        writes = [(k, 0xF, bits[32 * k:32 * k + 32])
-                  for k in range(SENSOR_BITS // 32, STORE_WORDS)]
-        tail = len(writes)
-        writes += [(w, lanes, C(0, 32)) for w, lanes in FIELD_LANES]
-        assert len(writes) == OFFER_WRITES
-        # the writes after an offer, one-hot (``n.after``'s bit k: write k now), so that each
-        # write's address, lanes and word are chosen by a bit of a register, an AND-OR, not
-        # by a decoder of a count in front of every bit of the data
-        n.after = after = Signal(len(writes))
-        n.zero_field = zero_field = Signal()
-        # a byte's write is the address and data unless an offer's write chooses them (the
-        # byte is gated by ``after`` being 0: an offer's writes and the bytes never meet, but
-        # the receiver's payload holds its last byte)
-        busy = after.any()
-        m.d.comb += [
-            store.w_addr.eq(Cat(reduce(operator.or_, (Mux(after[k], w, 0)
-                                                      for k, (w, _, _) in enumerate(writes)),
-                                       Mux(busy, 0, word)),
-                                Mux(busy, self.sample_slot, written))),
-            store.w_data.eq(reduce(operator.or_, (Mux(after[k], value, 0)
-                                                  for k, (_, _, value) in enumerate(writes)),
-                                   Mux(busy, 0, rx.payload.replicate(4)))),
-            store.w_en.eq(reduce(operator.or_, (Mux(after[k], lanes, 0)
-                                                for k, (_, lanes, _) in enumerate(writes)),
-                                 Mux(rx.valid & (n.rx_index < SAMPLE_BYTES) & placed & ~busy,
-                                     1 << lane, 0))),
-        ]
-        # the next write, or none after the last (after the payload's words if the field
-        # needs no zeros)
-        m.d.sync += after.eq(Cat(C(0, 1), after[:-1]) &
-                             Mux(zero_field, C(-1, len(writes)), C((1 << tail) - 1, len(writes))))
+            m.d.comb += n.offer.early.eq(plausible)
 
     def _burst_checks(self, m, n):
         """The checks that look at every byte, made as the bytes come in (one comparator and
@@ -318,7 +260,7 @@ class SampleReader(wiring.Component):
         data bytes are all 0xFF (``n.data_ones``), and whether a gyro word moved by
         ``gyro_jump`` or more from the sample passed on (``n.gyro_moved``; that sample changes
         only at a burst's check, so it holds still while the burst is read)."""
-        rx, rx_index, sample = n.port.rx, n.rx_index, n.sample
+        rx, rx_index, sample = n.port.rx, n.rx_index, self.samples.payload
         n.data_ones = data_ones = Signal()
         n.gyro_moved = gyro_moved = Signal()
         arriving = Signal()
@@ -349,18 +291,10 @@ class SampleReader(wiring.Component):
     def _sample_register(self, m, n):
         """The sample offered, the time-outs, the start and the magnetometer's freshness."""
         port, tick = n.port, n.timer.period
-        # the sample offered: written whole before it is offered, so no reset (on a MAX10 a
-        # synchronous reset costs logic per bit)
-        sample = Signal.like(self.samples.payload, reset_less=True)
-        m.d.comb += self.samples.payload.eq(sample)
         gyro_jumped = Signal()                  # the gyro moved too far (``gyro_jump``)
         have_base = Signal()                    # a sample was passed on since ``start``
-        counter = self._counts(m, n)            # samples read since power-on
-        overrun = Signal()
-        resumed = Signal()
+        m.d.comb += n.offer.counter.eq(self._counts(m, n))     # samples read since power-on
         bad_bursts = Signal(range(BAD_BURST_LIMIT + 1))
-        with m.If(self.restarted):
-            m.d.sync += resumed.eq(1)
         with m.If(self.start):
             m.d.sync += [bad_bursts.eq(0), have_base.eq(0)]
 
@@ -381,9 +315,6 @@ class SampleReader(wiring.Component):
         prev_drdy = Signal()                            # and its ST1.DRDY
         mag_read_failed = Signal()                      # I2C: this sample's AK8963 read
 
-        with m.If(self.samples.valid & self.samples.ready):
-            m.d.sync += self.samples.valid.eq(0)
-
         def command(device, reg, length):
             p = port.cmd.payload
             m.d.comb += [port.cmd.valid.eq(1), p.device.eq(device), p.reg.eq(reg),
@@ -401,21 +332,19 @@ class SampleReader(wiring.Component):
         m.d.sync += held_trained.eq(cmd_trained)
         n.burst_trained = Signal()              # this burst is read at the trained rate
         n.cmd_trained = cmd_trained
-        (n.sample, n.gyro_jumped, n.have_base, n.counter, n.overrun, n.resumed,
-         n.bad_bursts, n.mag_age, n.prev_field, n.prev_drdy, n.mag_read_failed, n.command,
-         n.offered) = (
-            sample, gyro_jumped, have_base, counter, overrun, resumed, bad_bursts, mag_age,
-            prev_field, prev_drdy, mag_read_failed, command, offered)
+        (n.gyro_jumped, n.have_base, n.bad_bursts, n.mag_age, n.prev_field, n.prev_drdy,
+         n.mag_read_failed, n.command, n.offered) = (
+            gyro_jumped, have_base, bad_bursts, mag_age, prev_field, prev_drdy, mag_read_failed,
+            command, offered)
 
 
     def _states(self, m, n):
         """The reader's states: waiting for an edge, the burst's reads, its check."""
-        (reading, command, rx_index, spi, sample, buf, overrun, dropped, prev_field, prev_drdy,
-         mag_age, mag_read_failed, offered, timer, have_base, port, bad_bursts) = (
-            n.reading, n.command, n.rx_index, n.spi, n.sample, n.buf, n.overrun, n.dropped,
-            n.prev_field, n.prev_drdy, n.mag_age, n.mag_read_failed, n.offered, n.timer,
-            n.have_base, n.port, n.bad_bursts)
-        plausible, early_sent = n.plausible, n.early_sent
+        (reading, command, rx_index, spi, buf, prev_field, prev_drdy, mag_age, mag_read_failed,
+         offered, timer, have_base, port, bad_bursts, plausible) = (
+            n.reading, n.command, n.rx_index, n.spi, n.buf, n.prev_field, n.prev_drdy, n.mag_age,
+            n.mag_read_failed, n.offered, n.timer, n.have_base, n.port, n.bad_bursts,
+            n.plausible)
         with m.FSM() as fsm:
             m.d.comb += [reading.eq(fsm.ongoing("READ_MPU") | fsm.ongoing("MAG_CMD") |
                                     fsm.ongoing("READ_MAG")),
@@ -469,7 +398,6 @@ class SampleReader(wiring.Component):
                 m.d.comb += self.burst_done.eq(1)
                 m.d.sync += [n.counting.eq(1), self.int_timeout.eq(0)]
                 m.next = "IDLE"
-                m.d.sync += self.imu_ready.eq(0)
                 # no RAW_RDY: no new sample in this burst (a spurious INT pulse, a read made
                 # again) or none readable (a line stuck low reads zeros): either way the
                 # intervals from the last sample's edge count what was lost, not ``dropped``
@@ -478,8 +406,7 @@ class SampleReader(wiring.Component):
                 with m.If(~plausible):
                     m.d.sync += [self.bad_burst.eq(1), bad_bursts.eq(bad_bursts + 1)]
                     m.d.comb += self.trained_failed.eq(n.burst_trained)
-                    with m.If(~spurious):     # a sample was made and lost
-                        m.d.sync += dropped.eq(Mux(dropped == 15, 15, dropped + 1))
+                    m.d.comb += n.offer.lost.eq(~spurious)     # a sample was made and lost
                     with m.If(bad_bursts == BAD_BURST_LIMIT - 1):
                         m.d.comb += self.restart.eq(1)
                         m.d.sync += bad_bursts.eq(0)
@@ -492,15 +419,10 @@ class SampleReader(wiring.Component):
                         m.d.comb += self.reconfigure.eq(1)
                     if not spi:
                         m.d.sync += self.read_error.eq(0)
-                    self._emit(m, sample, buf, overrun, dropped, prev_field, prev_drdy, mag_age,
-                               mag_read_failed, early_sent, n.imu_emit)
+                    self._field_freshness(m, buf, prev_field, prev_drdy, mag_age, mag_read_failed,
+                                          n.offer)
                     with m.If(~self.samples.valid):
-                        # this one is the payload now: its slot offered, the next written
-                        m.d.sync += [have_base.eq(1), self.sample_slot.eq(n.written),
-                                     n.written.eq(Mux(n.written == SLOTS - 1, 0,
-                                                      n.written + 1)),
-                                     n.after.eq(1),
-                                     n.zero_field.eq(~self.mag_ok | mag_read_failed)]
+                        m.d.sync += have_base.eq(1)     # this one becomes the payload
 
     def _counts(self, m, n):
         """The samples read (returned: 32 bits, wrapping): a check (``n.counting`` set) is
@@ -521,15 +443,10 @@ class SampleReader(wiring.Component):
             m.d.sync += [steps.eq(len(head) // 4), carry.eq(1), n.counting.eq(0)]
         return head
 
-    def _emit(self, m, sample, buf, overrun, dropped, prev_field, prev_drdy, mag_age,
-              mag_read_failed, early_sent, imu_emit):
-        """A burst that passed its checks becomes the sample (or, with the last still offered,
-        a dropped one): its magnetometer's part, and the rest unless the early start put it
-        in the payload already (``early_sent``; ``imu_emit`` asks ``_early_start`` for the
-        rest). The magnetometer's freshness is decided here."""
-        def le16(k):
-            return Cat(buf[k], buf[k + 1]).as_signed()
-
+    def _field_freshness(self, m, buf, prev_field, prev_drdy, mag_age, mag_read_failed, offer):
+        """A burst that passed its checks: whether its field is new (decided here), offered
+        (``offer``: ``SampleOffer`` places the sample, or drops it with the last still
+        offered)."""
         st1, st2 = buf[MPU_BYTES], buf[MPU_BYTES + 7]
         field = Cat(*(buf[MPU_BYTES + 1 + k] for k in range(6)), st2)
         mag_up = self.mag_ok & ~mag_read_failed
@@ -541,35 +458,4 @@ class SampleReader(wiring.Component):
             m.d.sync += [prev_field.eq(field), prev_drdy.eq(st1[0])]
         with m.If(mag_new):
             m.d.sync += [mag_age.eq(0), self.mag_stale.eq(0)]
-        hofl = st2[3]
-        with m.If(self.samples.valid):
-            m.d.sync += [overrun.eq(1), dropped.eq(Mux(dropped == 15, 15, dropped + 1))]
-        with m.Else():
-            p = sample
-            m.d.sync += [self.samples.valid.eq(1),
-                         p.flags.mag_new.eq(mag_new),
-                         p.flags.mag_dor.eq(mag_new & st1[1]),
-                         p.flags.mag_overflow.eq(mag_new & hofl),
-                         p.flags.mag_valid.eq(mag_new & ~hofl)]
-            for axis in range(3):
-                m.d.sync += p.mag[axis].eq(Mux(mag_up, le16(MPU_BYTES + 1 + 2 * axis), 0))
-            m.d.comb += imu_emit.eq(~early_sent)     # the rest (``_early_start`` writes it)
-
-    def _emit_imu(self, m, p, buf, counter, overrun, dropped, skipped, resumed):
-        """The sample's fields but the magnetometer's, into the payload ``p`` (which is not
-        offered now): at the check, or at the early start's once the MPU9250's bytes are in."""
-        def be16(k):
-            return Cat(buf[k + 1], buf[k]).as_signed()
-
-        m.d.sync += [overrun.eq(0), resumed.eq(0),
-                     p.counter.eq(counter), dropped.eq(0),
-                     # after a restart the time since the last sample is unknown
-                     p.skipped.eq(Mux(resumed, 0, Mux(skipped + dropped > 15, 15,
-                                                      skipped + dropped))),
-                     p.flags.data_ready.eq(buf[0][0]),
-                     p.flags.overrun.eq(overrun),
-                     p.flags.resumed.eq(resumed),
-                     p.temp.eq(be16(1 + 6))]
-        for axis in range(3):
-            m.d.sync += [p.accel[axis].eq(be16(1 + 2 * axis)),
-                         p.gyro[axis].eq(be16(1 + 8 + 2 * axis))]
+        m.d.comb += [offer.offer.eq(1), offer.mag_up.eq(mag_up), offer.mag_new.eq(mag_new)]

@@ -39,6 +39,7 @@ from mpu9250_ahrs.hdl.link.rewindable_fifo import RewindableFIFO
 from mpu9250_ahrs.hdl.link.stream_tap import StreamTap
 from mpu9250_ahrs.hdl.link.axi_lite_slave import AXILiteSlave
 from mpu9250_ahrs.hdl.link.register_executor import RegisterExecutor
+from mpu9250_ahrs.hdl.sensor.sample_offer import SampleOffer
 from mpu9250_ahrs.hdl.sensor.sample_reader import SampleReader
 from mpu9250_ahrs.hdl.sensor.sensor_frontend import SensorFrontEnd
 from mpu9250_ahrs.hdl.sensor.spi_controller import SPIController, SPITiming
@@ -72,6 +73,7 @@ COMPONENTS = {
         poll_cycles=30),
     "sample_reader": lambda: SampleReader(period_cycles=100, first_timeout_cycles=200,
                                           timeout_cycles=400, mag_timeout_periods=3),
+    "sample_offer": SampleOffer,
     "mpu9250_driver": lambda: MPU9250Driver(clk_freq=1e6),
     "telemetry_framer": TelemetryFramer,
     "attitude_framer": lambda: TelemetryFramer(AttitudeFrame, 0x02, buffered=True,
