@@ -34,9 +34,9 @@ AXI_REGS = {
     "IRQ_ENABLE": (0x0C, "r/w", "bit 0: ``irq`` follows IRQ bit 0"),
     "FILTERED": (0x10, "r", "results the engine produced (``TelemetryCounters.filtered``)"),
     "LOST": (0x14, "r", "sensor samples never filtered (``TelemetryCounters.lost``)"),
-    "SEQUENCE": (0x18, "r", "updates the engine started, its reset program's too (16 bits, "
-                            "wrapping): the same before and after a read of the result block, "
-                            "the block's words are one result's"),
+    "SEQUENCE": (0x18, "r", "the engine's updates' starts and ends, its reset program's too "
+                            "(two an update; 16 bits, wrapping): the same before and after a "
+                            "read of the result block, the block's words are one result's"),
     **{name: (0x40 + 4 * k, "r",
               _WORD_TEXT.get(name, f"the last result's {name.lower()} (the engine's register; "
                                    f"answers between updates)"))

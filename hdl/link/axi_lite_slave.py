@@ -59,10 +59,11 @@ class AXILiteSlave(wiring.Component):
         ``irq`` (out): IRQ bit 0 and IRQ_ENABLE bit 0.
         ``done`` (in): a result was taken (sets IRQ bit 0).
         ``busy`` (in): the engine's ``busy``: each rise (an update or the reset program
-            starts) counts in SEQUENCE.
+            starts) and each fall (it ends) counts in SEQUENCE.
         ``counter`` (in, 32), ``flags`` (in, ``AttitudeFlags``): the engine's result's (its
-            ``results.payload``: they change as an update starts, and hold between updates),
-            read as COUNTER and FLAGS. QUAT0 .. BIAS2 are read from the engine's registers
+            ``results.payload``: COUNTER and FLAGS' ``overrun`` and ``filter`` change as an
+            update starts, its other flags as it ends, and all hold between updates), read as
+            COUNTER and FLAGS. QUAT0 .. BIAS2 are read from the engine's registers
             through its port, which answers only between updates: no copy of the result here.
             A block read with SEQUENCE the same before and after is one result's.
         ``status`` (in, ``DriverStatus``), ``counters`` (in, ``TelemetryCounters``): shown
@@ -77,8 +78,8 @@ class AXILiteSlave(wiring.Component):
     Latency: a local word's read answers two cycles after its address is taken; a host
     register's (and QUAT0 .. BIAS2) when the executor answers (a few cycles; for the engine's,
     its port opens only between updates: up to an update, ``report``'s
-    ``cycles_per_update``). SEQUENCE counts a start a cycle after COUNTER and FLAGS change
-    with it; reads are three cycles apart at least, so none sees one without the other.
+    ``cycles_per_update``). SEQUENCE counts a start or an end a cycle after COUNTER or FLAGS
+    change with it; reads are three cycles apart at least, so none sees one without the other.
     """
 
     def __init__(self):
@@ -190,7 +191,10 @@ class AXILiteSlave(wiring.Component):
         m.d.comb += axi.arready.eq(~busy & ~axi.rvalid)
         sequence = Signal(16)
         was_busy = Signal()
-        m.d.sync += [was_busy.eq(self.busy), sequence.eq(sequence + (self.busy & ~was_busy))]
+        # both edges: COUNTER changes as an update starts, FLAGS' bits as it ends (issue #58's
+        # notes: a block whose FLAGS were read before the end and its QUATs after, counted at
+        # the start only, held SEQUENCE)
+        m.d.sync += [was_busy.eq(self.busy), sequence.eq(sequence + (self.busy ^ was_busy))]
         words = {"VERSION": C((0xA71 << 20) | REGMAP_VERSION, 32),
                  "STATUS": self.status.as_value(), "IRQ": pending, "IRQ_ENABLE": enable,
                  "FILTERED": self.counters.filtered, "LOST": self.counters.lost,

@@ -164,15 +164,14 @@ class SampleReader(wiring.Component):
                  gyro_jump=None, period_cycles, first_timeout_cycles, timeout_cycles,
                  mag_timeout_periods, drdy_jitter_cycles=0):
         self.wiring = wiring
-        self.drdy_jitter_cycles = drdy_jitter_cycles
-        self.int_active_low = int_active_low
-        self.int_latched = int_latched
         self.gyro_jump = gyro_jump
         self.magnetometer = magnetometer
-        self.period_cycles = period_cycles
-        self.first_timeout_cycles = first_timeout_cycles
-        self.timeout_cycles = timeout_cycles
         self.mag_timeout_periods = mag_timeout_periods
+        # the data-ready edges, their intervals and the time-out
+        self.timer = DataReadyTimer(
+            int_active_low=int_active_low, int_latched=int_latched, period_cycles=period_cycles,
+            first_timeout_cycles=first_timeout_cycles, timeout_cycles=timeout_cycles,
+            drdy_jitter_cycles=drdy_jitter_cycles)
         super().__init__({
             "port": Out(RegisterPortSignature().flip()),
             "int_pin": In(1),
@@ -206,11 +205,7 @@ class SampleReader(wiring.Component):
         n = SimpleNamespace()
         (n.spi, n.port, n.buf, n.rx_index) = (
             spi, port, buf, rx_index)
-        # the data-ready edges, their intervals and the time-out
-        m.submodules.timer = n.timer = timer = DataReadyTimer(
-            int_active_low=self.int_active_low, int_latched=self.int_latched,
-            period_cycles=self.period_cycles, first_timeout_cycles=self.first_timeout_cycles,
-            timeout_cycles=self.timeout_cycles, drdy_jitter_cycles=self.drdy_jitter_cycles)
+        m.submodules.timer = n.timer = timer = self.timer
         n.reading = Signal()                    # a burst in flight, before its check
         m.d.comb += [timer.int_pin.eq(self.int_pin), timer.start.eq(self.start),
                      timer.reading.eq(n.reading), self.tick.eq(timer.tick)]

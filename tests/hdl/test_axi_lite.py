@@ -88,3 +88,37 @@ def test_platform_designer_component_names_every_port_once(tmp_path):
     assert sorted(listed) == sorted(ports)
     assert "add_interface_port s_axi s_axi__awvalid awvalid Input 1" in tcl
     assert "add_interface_port irq irq irq Output 1" in tcl
+
+
+def test_sequence_moves_as_an_update_starts_and_as_it_ends():
+    """SEQUENCE changes with ``busy``'s rise (COUNTER changes then) and with its fall (FLAGS'
+    bits set at the end): a block read whose FLAGS came before an update's end and its other
+    words after cannot hold SEQUENCE (pysim, the slave alone)."""
+    from amaranth.sim import Simulator
+    from mpu9250_ahrs.hdl.contract.axi_regs import AXI_REGS
+    from mpu9250_ahrs.hdl.link.axi_lite_slave import AXILiteSlave
+    dut = AXILiteSlave()
+    axi = dut.axi
+    seen = []
+
+    async def read_sequence(ctx):
+        ctx.set(axi.araddr, AXI_REGS["SEQUENCE"][0])
+        ctx.set(axi.arvalid, 1)
+        await ctx.tick().until(axi.arready)
+        ctx.set(axi.arvalid, 0)
+        ctx.set(axi.rready, 1)
+        data, = await ctx.tick().sample(axi.rdata).until(axi.rvalid)
+        ctx.set(axi.rready, 0)
+        return data
+
+    async def bench(ctx):
+        for busy in (0, 1, 1, 0, 0, 1, 0):
+            ctx.set(dut.busy, busy)
+            await ctx.tick().repeat(3)
+            seen.append(await read_sequence(ctx))
+
+    sim = Simulator(dut)
+    sim.add_clock(1e-6)
+    sim.add_testbench(bench)
+    sim.run()
+    assert seen == [0, 1, 1, 2, 2, 3, 4]
