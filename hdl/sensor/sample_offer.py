@@ -49,8 +49,8 @@ class SampleOffer(wiring.Component):
             ``skipped``).
         ``mag_up`` (in, with ``offer``): the burst's field was read (the magnetometer is up
             and its read did not fail): else ``mag`` is 0, and so are its store words.
-            ``mag_new`` (in, with ``offer``): the field is a new measurement (the ``mag_*``
-            flags are 0 unless).
+            ``mag_new`` (in, with ``offer``): the field is a new measurement (else the
+            ``mag_*`` flags are 0).
         ``counter`` (in, 32 bits), ``skipped`` (in, 4 bits): the sample's count and the
             samples skipped before it (the data-ready timer's), taken with its fields.
         ``restarted`` (in, pulse): the next sample carries ``flags.resumed`` (and ``skipped``
@@ -114,11 +114,12 @@ class SampleOffer(wiring.Component):
 
         with m.If(self.samples.valid & self.samples.ready):
             m.d.sync += self.samples.valid.eq(0)
-        with m.If(self.lost):
+        # a sample lost to its checks, or offered while the last still is: one more dropped
+        with m.If(self.lost | (self.offer & self.samples.valid)):
             m.d.sync += dropped.eq(Mux(dropped == 15, 15, dropped + 1))
         with m.If(self.offer):
             with m.If(self.samples.valid):
-                m.d.sync += [overrun.eq(1), dropped.eq(Mux(dropped == 15, 15, dropped + 1))]
+                m.d.sync += overrun.eq(1)
             with m.Else():
                 self._emit_field(m, sample, buf)
                 m.d.comb += imu_emit.eq(~early_sent)

@@ -7,7 +7,7 @@ from amaranth.sim import Simulator
 from mpu9250_ahrs.hdl.sensor.sample_offer import MPU_BYTES, SAMPLE_BYTES, SampleOffer
 from mpu9250_ahrs.sim.bench.streams import check_stream_rules
 
-from .test_sample_reader import _check_store, burst
+from .test_sample_reader import check_store, burst
 
 
 def run(script):
@@ -74,7 +74,7 @@ def run(script):
     sim = Simulator(dut)
     sim.add_clock(1e-6)
     check_stream_rules(sim, dut.samples, "samples")
-    stored = _check_store(sim, dut)
+    stored = check_store(sim, dut)
     sim.add_testbench(bench)
     sim.run()
     assert stored == [s.counter for s in taken]
@@ -120,7 +120,7 @@ def test_a_sample_offered_while_the_last_waits_is_dropped():
 
 def test_resumed_and_a_field_not_read():
     """After ``restarted`` the next sample is ``resumed`` with ``skipped`` 0; a field not read
-    (``mag_up`` 0) is 0 in the payload and, written as zeros, in the store (``_check_store``)."""
+    (``mag_up`` 0) is 0 in the payload and, written as zeros, in the store (``check_store``)."""
     taken, _ = run([("burst", burst(0), False), ("offer", 1, 1), ("take",), ("lost",),
                     ("restarted",), ("burst", burst(1), True), ("offer", 0, 0), ("take",)])
     assert taken[1].flags.resumed and taken[1].skipped == 0

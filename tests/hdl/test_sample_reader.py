@@ -74,14 +74,14 @@ def run(bursts, *, mag_ok=1, extra_periods=0, gyro_jump=None, wiring="spi", earl
     sim.add_clock(1e-6)
     check_stream_rules(sim, dut.samples, "samples")
     check_stream_rules(sim, dut.port.cmd, "commands")
-    stored = _check_store(sim, dut)
+    stored = check_store(sim, dut)
     sim.add_testbench(testbench)
     sim.run()
     assert stored == [s.counter for s in samples]
     return samples, log
 
 
-def _check_store(sim, dut):
+def check_store(sim, dut):
     """A model of the sample store fed by the reader's writes (byte lanes): once each offered
     sample's writes after the offer are in (four cycles from its ``valid``), its slot holds
     the payload (``hdl/sensor/sample_store.py``); a burst's bytes never go to the slot of the last
@@ -215,7 +215,7 @@ def test_gyro_jump_on_each_axis():
 def test_store_field_is_zero_while_the_magnetometer_is_down(wiring):
     """With the magnetometer not up, the payload's field is 0 and so is the store's (the reader
     writes zeros over the bytes the burst brought, or, I2C, left from an older burst, as it does
-    not read the AK8963 then; ``_check_store`` compares every sample). Up again, the field is
+    not read the AK8963 then; ``check_store`` compares every sample). Up again, the field is
     stored."""
     bursts = [burst(k, field=(1000 + k, -2000, 3000)) for k in range(3)]
     samples, _ = run(bursts, mag_ok=0, wiring=wiring)
